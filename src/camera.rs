@@ -1,0 +1,102 @@
+//! The pinhole LookAt camera of SPEC: focal length 1, vertical field of view, square
+//! pixels, rays through pixel centres, row 0 at the top.
+
+use crate::math::{Float, Ray, Vec3};
+
+/// A pinhole camera placed by LookAt.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    origin: Vec3,
+    /// Camera-space axes in world space: `world_from_camera` as three columns.
+    right: Vec3,
+    up: Vec3,
+    /// The camera's +z axis, pointing from the target back to the eye.
+    backward: Vec3,
+    /// Half-extent of the screen at distance 1: `tan(fov / 2)` vertically.
+    half_height: Float,
+    half_width: Float,
+    width: u32,
+    height: u32,
+}
+
+impl Camera {
+    /// A camera at `look_from` looking at `look_to` with world up +y, vertical field
+    /// of view `fov_degrees`, for an image of `width` x `height` pixels.
+    ///
+    /// When the view direction is parallel to +y (looking straight up or down) the
+    /// cross product with up vanishes and `right` is taken as +x, as SPEC says.
+    /// `look_from` must differ from `look_to` (checked by [`crate::RenderOptions::validate`]).
+    pub fn new(
+        look_from: Vec3,
+        look_to: Vec3,
+        fov_degrees: Float,
+        width: u32,
+        height: u32,
+    ) -> Camera {
+        let backward = (look_from - look_to).normalize();
+        let right = Vec3::Y.cross(backward).try_normalize().unwrap_or(Vec3::X);
+        let up = backward.cross(right);
+        let half_height = (fov_degrees.to_radians() * 0.5).tan();
+        let half_width = half_height * width as Float / height as Float;
+        Camera {
+            origin: look_from,
+            right,
+            up,
+            backward,
+            half_height,
+            half_width,
+            width,
+            height,
+        }
+    }
+
+    /// The ray through image position (`x`, `y`) in pixels from the top-left corner:
+    /// pixel (i, j) has its centre at (i + 0.5, j + 0.5).
+    #[inline]
+    pub fn ray(&self, x: Float, y: Float) -> Ray {
+        let sx = (2.0 * x / self.width as Float - 1.0) * self.half_width;
+        let sy = (1.0 - 2.0 * y / self.height as Float) * self.half_height;
+        let dir = self.right * sx + self.up * sy - self.backward;
+        Ray::new(self.origin, dir)
+    }
+
+    /// The ray through the centre of pixel (`column`, `row`).
+    #[inline]
+    pub fn pixel_ray(&self, column: u32, row: u32) -> Ray {
+        self.ray(column as Float + 0.5, row as Float + 0.5)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn centre_ray_looks_at_target_and_corners_span_the_fov() {
+        let cam = Camera::new(
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(1.0, 2.0, 0.0),
+            90.0,
+            200,
+            100,
+        );
+        let centre = cam.ray(100.0, 50.0);
+        assert!((centre.dir - Vec3::NEG_Z).length() < 1e-6);
+        let top = cam.ray(100.0, 0.0);
+        // 90 degrees vertically: the top edge is 45 degrees up.
+        assert!((top.dir - Vec3::new(0.0, 1.0, -1.0).normalize()).length() < 1e-6);
+        let right = cam.ray(200.0, 50.0);
+        assert!((right.dir - Vec3::new(2.0, 0.0, -1.0).normalize()).length() < 1e-6);
+    }
+
+    #[test]
+    fn looking_straight_down_uses_x_as_right() {
+        let cam = Camera::new(Vec3::new(0.0, 2.0, 0.0), Vec3::ZERO, 90.0, 100, 100);
+        let centre = cam.ray(50.0, 50.0);
+        assert!((centre.dir - Vec3::NEG_Y).length() < 1e-6);
+        let right = cam.ray(100.0, 50.0);
+        assert!(right.dir.x > 0.5 && right.dir.is_finite());
+        // camera up = forward x right = (0,1,0) x (1,0,0) = (0,0,-1): the top row looks to -z.
+        assert!(cam.ray(50.0, 0.0).dir.z < -0.5);
+    }
+}

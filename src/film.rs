@@ -1,0 +1,195 @@
+//! The linear framebuffer, post-processing to 8 bits, and PNG output.
+
+use std::fs;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use crate::integrators::Mode;
+use crate::math::{Float, Vec3};
+
+/// Linear per-pixel values, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height` values, row by row.
+    pub pixels: Vec<Vec3>,
+}
+
+/// An 8-bit RGB image, row 0 at the top.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `3 * width * height` bytes, RGB, row by row.
+    pub rgb: Vec<u8>,
+}
+
+/// Why an image could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write {}: {source}", path.display())]
+pub struct WriteError {
+    /// The file we were asked to write.
+    pub path: PathBuf,
+    /// What failed.
+    pub source: io::Error,
+}
+
+impl Film {
+    /// Post-processes the film for `mode` into 8 bits per channel:
+    /// depth divides by the largest distance (misses white), normal maps directly,
+    /// full applies SPEC's tone mapping and gamma.
+    pub fn to_image(&self, mode: Mode) -> Image {
+        let encode: Box<dyn Fn(Vec3) -> Vec3> = match mode {
+            Mode::Depth => {
+                let farthest = self.max_channel(|v| v.x.is_finite());
+                Box::new(move |v: Vec3| {
+                    if !v.x.is_finite() {
+                        Vec3::ONE
+                    } else if farthest > 0.0 {
+                        v / farthest
+                    } else {
+                        Vec3::ZERO
+                    }
+                })
+            }
+            Mode::Normal => Box::new(|v| v),
+            Mode::Full => {
+                let c = self.max_channel(|_| true);
+                Box::new(move |v| tone_map(v, c).powf(1.0 / 2.2))
+            }
+        };
+        let rgb = self
+            .pixels
+            .iter()
+            .flat_map(|&v| encode(v).to_array().map(to_byte))
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            rgb,
+        }
+    }
+
+    /// The largest channel value over the pixels that `keep` accepts (0 if none).
+    fn max_channel(&self, keep: impl Fn(Vec3) -> bool) -> Float {
+        self.pixels
+            .iter()
+            .filter(|&&v| keep(v))
+            .map(|v| v.max_element())
+            .fold(0.0, Float::max)
+    }
+}
+
+/// SPEC's tone curve `v (1 + v / c^2) / (1 + v)` with `c` the image's largest
+/// channel; an all-black image (`c = 0`) stays black.
+#[inline]
+fn tone_map(v: Vec3, c: Float) -> Vec3 {
+    if c <= 0.0 {
+        return Vec3::ZERO;
+    }
+    v * (Vec3::ONE + v / (c * c)) / (Vec3::ONE + v)
+}
+
+/// Scales 0..1 to 0..255, rounding to nearest; out-of-range values clamp.
+#[inline]
+fn to_byte(v: Float) -> u8 {
+    (v * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+impl Image {
+    /// Writes the image as an 8-bit RGB PNG, atomically: into a temporary file in the
+    /// same folder, renamed over `path` only once complete. A failure leaves any
+    /// existing file untouched and no temporary file behind.
+    ///
+    /// # Errors
+    /// The folder is missing or not writable, or the disk is full.
+    pub fn write_png(&self, path: &Path) -> Result<(), WriteError> {
+        let fail = |source| WriteError {
+            path: path.to_path_buf(),
+            source,
+        };
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if path.is_dir() {
+            return Err(fail(io::Error::new(
+                io::ErrorKind::IsADirectory,
+                "is a directory",
+            )));
+        }
+        let mut temp = tempfile::Builder::new()
+            .prefix(".raytracer-")
+            .suffix(".png.tmp")
+            .tempfile_in(dir)
+            .map_err(fail)?;
+        {
+            let mut writer = BufWriter::new(temp.as_file_mut());
+            let mut encoder = png::Encoder::new(&mut writer, self.width, self.height);
+            encoder.set_color(png::ColorType::Rgb);
+            encoder.set_depth(png::BitDepth::Eight);
+            let mut png_writer = encoder
+                .write_header()
+                .map_err(|e| fail(io::Error::other(e)))?;
+            png_writer
+                .write_image_data(&self.rgb)
+                .map_err(|e| fail(io::Error::other(e)))?;
+            png_writer.finish().map_err(|e| fail(io::Error::other(e)))?;
+            writer.flush().map_err(fail)?;
+        }
+        temp.as_file().sync_all().map_err(fail)?;
+        set_output_permissions(temp.path(), path).map_err(fail)?;
+        temp.persist(path).map_err(|e| fail(e.error))?;
+        Ok(())
+    }
+}
+
+/// Gives the finished temporary file the permissions the output should have: an
+/// existing file's, or the usual 0644 rather than the temporary file's private 0600.
+#[cfg(unix)]
+fn set_output_permissions(temp: &Path, output: &Path) -> io::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    let permissions = match fs::metadata(output) {
+        Ok(m) => m.permissions(),
+        Err(_) => fs::Permissions::from_mode(0o644),
+    };
+    fs::set_permissions(temp, permissions)
+}
+
+#[cfg(not(unix))]
+fn set_output_permissions(_temp: &Path, _output: &Path) -> io::Result<()> {
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tone_map_keeps_the_brightest_channel_and_black() {
+        let c = 4.0;
+        assert!((tone_map(Vec3::splat(c), c).x - 1.0).abs() < 1e-6);
+        assert_eq!(tone_map(Vec3::ZERO, c), Vec3::ZERO);
+        assert_eq!(tone_map(Vec3::ZERO, 0.0), Vec3::ZERO);
+    }
+
+    #[test]
+    fn depth_normalizes_by_farthest_hit_and_misses_are_white() {
+        let film = Film {
+            width: 3,
+            height: 1,
+            pixels: vec![
+                Vec3::splat(2.0),
+                Vec3::splat(4.0),
+                Vec3::splat(Float::INFINITY),
+            ],
+        };
+        let image = film.to_image(Mode::Depth);
+        assert_eq!(image.rgb, vec![128, 128, 128, 255, 255, 255, 255, 255, 255]);
+    }
+}

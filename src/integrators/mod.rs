@@ -1,0 +1,31 @@
+//! Integrators: what a camera ray is worth. [`debug`] gives depth and normals,
+//! [`whitted`] SPEC's recursive Phong lighting.
+
+pub mod debug;
+pub mod whitted;
+
+use crate::math::{Ray, Vec3};
+use crate::scene::Scene;
+
+/// What the renderer computes per pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Distance to the nearest hit, normalized by the image's largest.
+    Depth,
+    /// The unit normal at the nearest hit mapped to colour, `n / 2 + 1/2`.
+    Normal,
+    /// Whitted lighting, tone mapped and gamma corrected.
+    #[default]
+    Full,
+}
+
+/// The linear value of one camera ray in `mode`. For depth mode this is the distance
+/// in every channel, or infinity where the ray hits nothing.
+#[inline]
+pub fn sample(scene: &Scene, ray: &Ray, mode: Mode, max_depth: u32) -> Vec3 {
+    match mode {
+        Mode::Depth => debug::depth(scene, ray),
+        Mode::Normal => debug::normal(scene, ray),
+        Mode::Full => whitted::radiance(scene, ray, max_depth),
+    }
+}

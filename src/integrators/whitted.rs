@@ -1,0 +1,61 @@
+//! SPEC's Whitted-style integrator: Phong lighting with hard shadows, mirror
+//! reflection and refraction, recursion limited by depth.
+
+use crate::math::{Ray, Vec3, reflect, refract};
+use crate::scene::Scene;
+
+/// Radiance along a camera ray, shading its hit with remaining depth `max_depth`.
+#[inline]
+pub fn radiance(scene: &Scene, ray: &Ray, max_depth: u32) -> Vec3 {
+    trace(scene, ray, max_depth, false)
+}
+
+/// `inside` tells whether the ray travels inside an object: set by refracting into
+/// one, cleared by refracting out. Inside, reflection is skipped, indices swap and
+/// refraction is weighted 1 instead of `al2`.
+fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool) -> Vec3 {
+    let Some(hit) = scene.intersect(ray) else {
+        return Vec3::ZERO;
+    };
+    let material = &scene.materials[hit.material.0 as usize];
+    let [local_weight, reflect_weight, refract_weight] = material.albedo;
+    let mut value = material.ambient + material.emission;
+
+    if local_weight != 0.0 {
+        let to_eye = -ray.dir;
+        let mut local = Vec3::ZERO;
+        for light in &scene.lights {
+            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+            if scene.occluded(&shadow_ray, distance) {
+                continue;
+            }
+            let to_light = (light.position - hit.p).normalize();
+            let cos_light = hit.ns.dot(to_light);
+            let mirrored = 2.0 * cos_light * hit.ns - to_light;
+            let diffuse = material.diffuse * cos_light.max(0.0);
+            let specular =
+                material.specular * to_eye.dot(mirrored).max(0.0).powf(material.shininess);
+            local += light.intensity * (diffuse + specular);
+        }
+        value += local_weight * local;
+    }
+
+    if depth > 1 {
+        if !inside && reflect_weight != 0.0 {
+            let reflected = hit.spawn_ray(reflect(ray.dir, hit.ns));
+            value += reflect_weight * trace(scene, &reflected, depth - 1, false);
+        }
+        if inside || refract_weight != 0.0 {
+            let (eta, weight) = if inside {
+                (material.ior, 1.0)
+            } else {
+                (1.0 / material.ior, refract_weight)
+            };
+            if let Some(dir) = refract(ray.dir, hit.ns, eta) {
+                let refracted = hit.spawn_ray(dir);
+                value += weight * trace(scene, &refracted, depth - 1, !inside);
+            }
+        }
+    }
+    value
+}

@@ -1,0 +1,111 @@
+use std::fmt;
+use std::io;
+use std::path::PathBuf;
+
+/// Why a scene could not be loaded.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SceneError {
+    /// A file could not be read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file, as it was named.
+        path: PathBuf,
+        /// What the system said.
+        source: io::Error,
+    },
+    /// A line of a scene file is malformed.
+    #[error("{}:{line}: {kind}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the line.
+        kind: ParseErrorKind,
+    },
+}
+
+/// What is wrong with a malformed line.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ParseErrorKind {
+    /// A token that should be a number is not one.
+    #[error("invalid number '{0}'")]
+    BadNumber(String),
+    /// A number is infinite or NaN.
+    #[error("non-finite value '{0}'")]
+    NonFinite(String),
+    /// A statement has fewer values than it needs.
+    #[error("'{statement}' needs {expected} value{}, found {found}", if *expected == 1 { "" } else { "s" })]
+    TooFewValues {
+        /// The keyword, such as `v`.
+        statement: &'static str,
+        /// How many it needs.
+        expected: usize,
+        /// How many the line has.
+        found: usize,
+    },
+    /// A face vertex is not `v`, `v/vt`, `v//vn` or `v/vt/vn`.
+    #[error("malformed face vertex '{0}'")]
+    BadFaceVertex(String),
+    /// A face names index 0, which OBJ does not define.
+    #[error("{0} index 0 is invalid (indices start at 1)")]
+    ZeroIndex(IndexKind),
+    /// A face index points outside the elements defined so far.
+    #[error("{kind} index {index} out of range ({defined} {} defined)", kind.plural())]
+    IndexOutOfRange {
+        /// Which array.
+        kind: IndexKind,
+        /// The index as written.
+        index: i64,
+        /// How many elements existed at that line.
+        defined: usize,
+    },
+    /// A face with fewer than 3 vertices.
+    #[error("face has {0} vertices, needs at least 3")]
+    TooFewVertices(usize),
+    /// A sphere with a negative radius.
+    #[error("sphere radius {0} is negative")]
+    NegativeRadius(f32),
+    /// A statement that needs a name has none.
+    #[error("'{0}' needs a name")]
+    MissingName(&'static str),
+    /// A material property before any `newmtl`.
+    #[error("'{0}' before any 'newmtl'")]
+    PropertyBeforeNewmtl(String),
+    /// More elements than the renderer can index with 32 bits.
+    #[error("too many {0} (the limit is 4294967295)")]
+    TooMany(&'static str),
+}
+
+/// Which array a face index refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IndexKind {
+    /// `v` positions.
+    Vertex,
+    /// `vt` texture coordinates.
+    TexCoord,
+    /// `vn` normals.
+    Normal,
+}
+
+impl IndexKind {
+    fn plural(self) -> &'static str {
+        match self {
+            IndexKind::Vertex => "vertices",
+            IndexKind::TexCoord => "texture coordinates",
+            IndexKind::Normal => "normals",
+        }
+    }
+}
+
+impl fmt::Display for IndexKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            IndexKind::Vertex => "face",
+            IndexKind::TexCoord => "texture coordinate",
+            IndexKind::Normal => "normal",
+        })
+    }
+}

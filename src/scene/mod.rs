@@ -1,0 +1,317 @@
+//! Scenes: reading files into a [`SceneDescription`], and building the renderable
+//! [`Scene`] (primitives in BVH leaf order, materials, lights).
+
+mod error;
+mod lex;
+mod mtl;
+mod obj;
+
+pub use error::{IndexKind, ParseErrorKind, SceneError};
+pub use mtl::parse_mtl;
+pub use obj::{load_obj, parse_obj};
+
+use std::path::Path;
+
+use crate::bvh::{Bvh, BvhParams, RayQuery};
+use crate::material::{Material, MaterialId, PointLight};
+use crate::math::{Aabb, Float, Ray, Vec2, Vec3};
+use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
+
+/// A scene as read from files: plain data, indices resolved to 0-based, nothing
+/// built yet. Shapes, lights and materials keep file order.
+#[derive(Clone, Debug, Default)]
+pub struct SceneDescription {
+    /// `v` positions.
+    pub positions: Vec<Vec3>,
+    /// `vt` texture coordinates (read and checked, not used by the renderer).
+    pub texcoords: Vec<Vec2>,
+    /// `vn` normals, as written (not normalized).
+    pub normals: Vec<Vec3>,
+    /// Triangles after splitting polygons into fans.
+    pub triangles: Vec<TriangleDesc>,
+    /// `S` spheres.
+    pub spheres: Vec<SphereDesc>,
+    /// `P` lights.
+    pub lights: Vec<PointLight>,
+    /// Materials of all `mtllib` files in order, then the fallback material if any
+    /// shape needed it.
+    pub materials: Vec<Material>,
+    /// Non-fatal problems, each naming file and line, for the caller to show.
+    pub warnings: Vec<String>,
+}
+
+/// A triangle of a description: indices into its arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleDesc {
+    /// Indices into [`SceneDescription::positions`].
+    pub positions: [u32; 3],
+    /// Indices into [`SceneDescription::normals`], when every corner has one.
+    pub normals: Option<[u32; 3]>,
+    /// The material.
+    pub material: MaterialId,
+}
+
+/// A sphere of a description.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereDesc {
+    /// Centre.
+    pub center: Vec3,
+    /// Radius, not negative.
+    pub radius: Float,
+    /// The material.
+    pub material: MaterialId,
+}
+
+/// Reads a whole file, naming it in the error.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
+    std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
+/// by which secondary rays start off the surface.
+const SPAWN_OFFSET: Float = 1e-4;
+
+/// Shading data of one primitive, stored in leaf order beside the shapes.
+#[derive(Clone, Copy, Debug)]
+struct PrimShading {
+    material: MaterialId,
+    /// Index into `Scene::vertex_normals`, or `NO_NORMALS`.
+    vertex_normals: u32,
+}
+
+const NO_NORMALS: u32 = u32::MAX;
+
+/// A renderable scene: shapes in BVH leaf order with their shading data, materials,
+/// lights and the BVH.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    shapes: Vec<Shape>,
+    shading: Vec<PrimShading>,
+    /// Unit vertex normals of triangles that have them, one triple per triangle.
+    vertex_normals: Vec<[Vec3; 3]>,
+    /// The materials, indexed by [`MaterialId`].
+    pub materials: Vec<Material>,
+    /// The point lights.
+    pub lights: Vec<PointLight>,
+    bvh: Bvh,
+    /// Warnings from reading and building.
+    pub warnings: Vec<String>,
+}
+
+/// The closest hit of a ray, with everything shading needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the ray.
+    pub t: Float,
+    /// The hit point.
+    pub p: Vec3,
+    /// Unit geometric normal, facing against the ray.
+    pub n: Vec3,
+    /// Unit shading normal (interpolated `vn`, or `n`), facing against the ray.
+    pub ns: Vec3,
+    /// The material.
+    pub material: MaterialId,
+}
+
+impl Hit {
+    /// A ray leaving the hit point along `dir`, started off the surface on the side
+    /// it leaves towards so that it cannot hit the point it leaves.
+    #[inline]
+    pub fn spawn_ray(&self, dir: Vec3) -> Ray {
+        Ray::new(self.offset_origin(dir), dir)
+    }
+
+    /// A ray from the hit point towards `target` and the distance to it, for shadow
+    /// tests against a light at `target`.
+    #[inline]
+    pub fn spawn_ray_to(&self, target: Vec3) -> (Ray, Float) {
+        let origin = self.offset_origin(target - self.p);
+        let to_target = target - origin;
+        let distance = to_target.length();
+        (
+            Ray {
+                origin,
+                dir: to_target / distance,
+            },
+            distance,
+        )
+    }
+
+    #[inline]
+    fn offset_origin(&self, dir: Vec3) -> Vec3 {
+        let scale = SPAWN_OFFSET * self.p.abs().max_element().max(1.0);
+        let side = if dir.dot(self.n) >= 0.0 { 1.0 } else { -1.0 };
+        self.p + self.n * (side * scale)
+    }
+}
+
+impl Scene {
+    /// Builds the scene: drops degenerate triangles (with one warning that counts
+    /// them), builds the BVH and stores primitives in its leaf order.
+    pub fn build(description: SceneDescription, params: &BvhParams) -> Scene {
+        let SceneDescription {
+            positions,
+            normals,
+            triangles,
+            spheres,
+            lights,
+            materials,
+            mut warnings,
+            ..
+        } = description;
+
+        let mut shapes = Vec::with_capacity(triangles.len() + spheres.len());
+        let mut shading = Vec::with_capacity(shapes.capacity());
+        let mut vertex_normals = Vec::new();
+        let mut degenerate = 0usize;
+        for tri in &triangles {
+            let [a, b, c] = tri.positions.map(|i| positions[i as usize]);
+            let triangle = Triangle::new(a, b, c);
+            let normal = triangle.normal();
+            if !(normal.length_squared() > 0.0) || !normal.is_finite() {
+                degenerate += 1;
+                continue;
+            }
+            let unit = normal.normalize();
+            let normals = tri.normals.map(|ids| {
+                // A zero-length `vn` cannot be normalized: use the geometric normal.
+                ids.map(|i| normals[i as usize].try_normalize().unwrap_or(unit))
+            });
+            let vertex_normals_index = match normals {
+                Some(ns) => {
+                    vertex_normals.push(ns);
+                    vertex_normals.len() as u32 - 1
+                }
+                None => NO_NORMALS,
+            };
+            shapes.push(Shape::Triangle(triangle));
+            shading.push(PrimShading {
+                material: tri.material,
+                vertex_normals: vertex_normals_index,
+            });
+        }
+        if degenerate > 0 {
+            warnings.push(format!(
+                "skipped {degenerate} degenerate (zero-area) triangle{}",
+                if degenerate == 1 { "" } else { "s" }
+            ));
+        }
+        for s in &spheres {
+            shapes.push(Shape::Sphere(Sphere {
+                center: s.center,
+                radius: s.radius,
+            }));
+            shading.push(PrimShading {
+                material: s.material,
+                vertex_normals: NO_NORMALS,
+            });
+        }
+
+        let bounds: Vec<Aabb> = shapes.iter().map(Shape::bounds).collect();
+        let (bvh, order) = Bvh::build(&bounds, params);
+        let shapes = order.iter().map(|&i| shapes[i as usize]).collect();
+        let shading = order.iter().map(|&i| shading[i as usize]).collect();
+        Scene {
+            shapes,
+            shading,
+            vertex_normals,
+            materials,
+            lights,
+            bvh,
+            warnings,
+        }
+    }
+
+    /// The BVH over the scene's primitives.
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// Number of primitives (triangles and spheres).
+    pub fn prim_count(&self) -> usize {
+        self.shapes.len()
+    }
+
+    /// The primitives' boxes in leaf order, for [`Bvh::validate`].
+    pub fn prim_bounds(&self) -> Vec<Aabb> {
+        self.shapes.iter().map(Shape::bounds).collect()
+    }
+
+    /// The closest hit along `ray`, if any.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let query = RayQuery::new(ray);
+        let mut closest: Option<(u32, PrimHit)> = None;
+        self.bvh.intersect(&query, Float::INFINITY, |prim, t_max| {
+            let hit = self.shape(prim).intersect(ray, t_max)?;
+            closest = Some((prim, hit));
+            Some(hit.t)
+        });
+        closest.map(|(prim, hit)| self.hit_details(ray, prim, hit))
+    }
+
+    /// Whether anything blocks `ray` before distance `t_max`.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
+        let query = RayQuery::new(ray);
+        self.bvh.occluded(&query, t_max, |prim, t_max| {
+            self.shape(prim).intersect(ray, t_max).is_some()
+        })
+    }
+
+    /// The closest hit by testing every primitive: the slow reference for tests.
+    pub fn intersect_linear(&self, ray: &Ray) -> Option<Hit> {
+        let mut closest: Option<(u32, PrimHit)> = None;
+        let mut t_max = Float::INFINITY;
+        for (prim, shape) in self.shapes.iter().enumerate() {
+            if let Some(hit) = shape.intersect(ray, t_max) {
+                t_max = hit.t;
+                closest = Some((prim as u32, hit));
+            }
+        }
+        closest.map(|(prim, hit)| self.hit_details(ray, prim, hit))
+    }
+
+    #[inline(always)]
+    fn shape(&self, prim: u32) -> &Shape {
+        debug_assert!((prim as usize) < self.shapes.len());
+        &self.shapes[prim as usize]
+    }
+
+    /// Second phase of a hit: point, normals and material, for the closest hit only.
+    fn hit_details(&self, ray: &Ray, prim: u32, hit: PrimHit) -> Hit {
+        let shading = self.shading[prim as usize];
+        let (p, n, ns) = match self.shape(prim) {
+            Shape::Triangle(tri) => {
+                let n = tri.normal().normalize();
+                let ns = match shading.vertex_normals {
+                    NO_NORMALS => n,
+                    i => {
+                        let [n0, n1, n2] = self.vertex_normals[i as usize];
+                        let w = 1.0 - hit.u - hit.v;
+                        (n0 * w + n1 * hit.u + n2 * hit.v)
+                            .try_normalize()
+                            .unwrap_or(n)
+                    }
+                };
+                (ray.at(hit.t), n, ns)
+            }
+            Shape::Sphere(s) => {
+                let p = ray.at(hit.t);
+                let n = (p - s.center).try_normalize().unwrap_or(-ray.dir);
+                (s.center + n * s.radius, n, n)
+            }
+        };
+        let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
+        Hit {
+            t: hit.t,
+            p,
+            n: face(n),
+            ns: face(ns),
+            material: shading.material,
+        }
+    }
+}

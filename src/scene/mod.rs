@@ -171,7 +171,7 @@ impl Scene {
             let [a, b, c] = tri.positions.map(|i| positions[i as usize]);
             let triangle = Triangle::new(a, b, c);
             let normal = triangle.normal();
-            if !(normal.length_squared() > 0.0) || !normal.is_finite() {
+            if normal.length_squared() == 0.0 || !normal.is_finite() {
                 degenerate += 1;
                 continue;
             }

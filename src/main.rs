@@ -56,13 +56,28 @@ struct ViewArgs {
     #[arg(value_name = "SCENE.obj")]
     scene: PathBuf,
     /// Image width in pixels (1..=65536).
-    #[arg(long, default_value_t = 640, value_name = "PIXELS")]
+    #[arg(
+        long,
+        default_value_t = 640,
+        value_name = "PIXELS",
+        allow_hyphen_values = true
+    )]
     width: u32,
     /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all).
-    #[arg(long, default_value_t = 480, value_name = "PIXELS")]
+    #[arg(
+        long,
+        default_value_t = 480,
+        value_name = "PIXELS",
+        allow_hyphen_values = true
+    )]
     height: u32,
     /// Vertical field of view in degrees, strictly between 0 and 180.
-    #[arg(long, default_value_t = 90.0, value_name = "DEGREES")]
+    #[arg(
+        long,
+        default_value_t = 90.0,
+        value_name = "DEGREES",
+        allow_hyphen_values = true
+    )]
     fov: f32,
     /// Camera position.
     #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -71,7 +86,12 @@ struct ViewArgs {
     #[arg(long, default_value = "0,0,-1", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     look_to: Vec3,
     /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
-    #[arg(long, default_value_t = 4, value_name = "N")]
+    #[arg(
+        long,
+        default_value_t = 4,
+        value_name = "N",
+        allow_hyphen_values = true
+    )]
     depth: u32,
     /// What to render.
     #[arg(long, value_enum, default_value_t = ModeArg::Full)]

@@ -57,7 +57,7 @@ fn random_rays(rng: &mut Rng64, count: usize, scale: f32) -> Vec<Ray> {
                 0 => Vec3::X,
                 1 => Vec3::NEG_Y,
                 2 => Vec3::Z,
-                3 | 4 | 5 => random_vec(rng, scale) - origin,
+                3..=5 => random_vec(rng, scale) - origin,
                 _ => random_vec(rng, 1.0),
             };
             Ray::new(origin, if dir.length() > 1e-3 { dir } else { Vec3::Y })

@@ -445,13 +445,13 @@ fn split_node(
         }
         let mut acc = Bounds::EMPTY;
         let mut count = 0u32;
-        for b in 1..bin_count {
+        for (b, right) in right_cost.iter().enumerate().take(bin_count).skip(1) {
             acc = acc.union(bins.bounds[axis][b - 1]);
             count += bins.counts[axis][b - 1];
             if count == 0 || count as usize == n {
                 continue;
             }
-            let cost = acc.half_area() * count as Float + right_cost[b];
+            let cost = acc.half_area() * count as Float + right;
             if best.is_none_or(|(_, _, c)| cost < c) {
                 best = Some((axis, b, cost));
             }

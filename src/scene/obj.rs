@@ -197,11 +197,14 @@ impl ObjReader<'_> {
         let bad = || ParseErrorKind::BadFaceVertex(lex::show(token));
         let mut parts = token.split(|&b| b == b'/');
         let position = parts.next().filter(|p| !p.is_empty()).ok_or_else(bad)?;
-        let texcoord = parts.next().filter(|p| !p.is_empty());
+        let texcoord = parts.next();
         let normal = parts.next();
-        if parts.next().is_some() || normal.is_some_and(|n| n.is_empty()) {
+        // `v/` and `v/vt/` are incomplete; only `v//vn` may leave the middle empty.
+        let incomplete = texcoord.is_some_and(<[u8]>::is_empty) && normal.is_none();
+        if parts.next().is_some() || incomplete || normal.is_some_and(<[u8]>::is_empty) {
             return Err(bad());
         }
+        let texcoord = texcoord.filter(|t| !t.is_empty());
         let position = resolve(position, IndexKind::Vertex, self.scene.positions.len())?;
         if let Some(vt) = texcoord {
             resolve(vt, IndexKind::TexCoord, self.scene.texcoords.len())?;

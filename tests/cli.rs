@@ -1,0 +1,225 @@
+//! Drives the `raytracer` binary: successful renders, argument validation before any
+//! work, error messages and exit codes, and atomic output.
+
+mod support;
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn raytracer(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raytracer"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+fn box_scene() -> PathBuf {
+    support::reference_dir().join("scenes/box/cube.obj")
+}
+
+#[test]
+fn renders_a_png_of_the_requested_size_with_negative_vectors_in_both_spellings() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = box_scene();
+    for (i, look_from) in [
+        ["--look-from", "-0.5,0.7,1.75"],
+        ["--look-from=-0.5,0.7,1.75", "--mode=normal"],
+    ]
+    .iter()
+    .enumerate()
+    {
+        let out = dir.path().join(format!("out{i}.png"));
+        let output = raytracer(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            look_from[0],
+            look_from[1],
+            "--look-to=0,0.7,0",
+        ]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let (w, h, rgb) = support::read_png(&out);
+        assert_eq!((w, h), (64, 48));
+        assert!(rgb.iter().any(|&c| c > 0), "image is not black");
+    }
+}
+
+#[test]
+fn invalid_values_are_refused_before_any_work_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let scene = box_scene();
+    let cases: &[(&[&str], &str)] = &[
+        (&["--width", "0"], "invalid --width: 0 is not in 1..=65536"),
+        (
+            &["--height", "70000"],
+            "invalid --height: 70000 is not in 1..=65536",
+        ),
+        (
+            &["--width", "65536", "--height", "65536"],
+            "invalid --width/--height",
+        ),
+        (&["--width", "-3"], "--width"),
+        (
+            &["--fov", "180"],
+            "invalid --fov: 180 is not strictly between 0 and 180",
+        ),
+        (&["--fov", "0"], "invalid --fov"),
+        (&["--fov", "nan"], "invalid --fov"),
+        (&["--depth", "0"], "invalid --depth: 0 is not in 1..=64"),
+        (
+            &["--look-from", "1,2,3", "--look-to", "1,2,3"],
+            "cannot look at its own position",
+        ),
+        (&["--look-from", "1,2"], "expected X,Y,Z"),
+        (&["--look-to", "1,x,3"], "'x' is not a finite number"),
+        (&["--mode", "fancy"], "invalid value 'fancy' for '--mode"),
+    ];
+    for (extra, expected) in cases {
+        let mut args = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let output = raytracer(&args);
+        assert_eq!(output.status.code(), Some(2), "{extra:?}");
+        assert!(
+            stderr(&output).contains(expected),
+            "{extra:?}: {}",
+            stderr(&output)
+        );
+        assert!(!out.exists(), "{extra:?} wrote an output file");
+    }
+}
+
+#[test]
+fn a_failed_run_keeps_the_existing_output_and_leaves_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.png");
+    std::fs::write(&out, b"precious").unwrap();
+    let bad = dir.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap();
+    let output = raytracer(&["render", bad.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    assert_eq!(
+        stderr(&output).trim(),
+        format!(
+            "error: {}:3: face index 3 out of range (2 vertices defined)",
+            bad.display()
+        )
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(leftovers.len(), 2, "only bad.obj and keep.png remain");
+}
+
+#[test]
+fn missing_scene_and_unwritable_output_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.obj");
+    let out = dir.path().join("out.png");
+    let output = raytracer(&[
+        "render",
+        missing.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(
+        stderr(&output).contains(&format!("{}: No such file", missing.display())),
+        "{}",
+        stderr(&output)
+    );
+
+    let nowhere = dir.path().join("no/such/folder/out.png");
+    let scene = box_scene();
+    let output = raytracer(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        nowhere.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(
+        stderr(&output).contains(&format!("cannot write {}", nowhere.display())),
+        "{}",
+        stderr(&output)
+    );
+}
+
+#[test]
+fn help_explains_every_flag_with_its_default() {
+    let output = raytracer(&["render", "--help"]);
+    assert!(output.status.success());
+    let help = String::from_utf8_lossy(&output.stdout);
+    for flag in [
+        "--output",
+        "--width",
+        "--height",
+        "--fov",
+        "--look-from",
+        "--look-to",
+        "--depth",
+        "--mode",
+        "--threads",
+        "--stats",
+    ] {
+        assert!(help.contains(flag), "--help lacks {flag}");
+    }
+    for default in [
+        "[default: 640]",
+        "[default: 480]",
+        "[default: 90]",
+        "[default: 0,0,0]",
+        "[default: 0,0,-1]",
+        "[default: 4]",
+        "[default: full]",
+    ] {
+        assert!(help.contains(default), "--help lacks {default}");
+    }
+    assert!(raytracer(&["--help"]).status.success());
+}
+
+#[test]
+fn images_are_identical_for_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = box_scene();
+    let render = |threads: &str| {
+        let out = dir.path().join(format!("j{threads}.png"));
+        let output = raytracer(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "--look-from",
+            "0,0.7,1.75",
+            "--look-to",
+            "0,0.7,0",
+            "-j",
+            threads,
+        ]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        std::fs::read(&out).unwrap()
+    };
+    assert_eq!(render("1"), render("2"));
+    assert_eq!(render("1"), render("3"));
+}

@@ -8,10 +8,12 @@ use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::benchmark::{RayWorkload, count_occluded, median_time, trace_closest};
 use raytracer::math::Vec3;
+use raytracer::options::PartialOptions;
+use raytracer::scene::SceneSummary;
 use raytracer::stats::peak_memory_bytes;
-use raytracer::{BvhParams, Mode, RenderOptions, Scene, render_counted, scene};
+use raytracer::{BvhParams, Mode, RenderOptions, Scene, SceneDescription, render_counted, scene};
 
-/// A Whitted-style ray tracer for Wavefront OBJ/MTL scenes.
+/// A Whitted-style ray tracer for OBJ/MTL, PLY and TOML scenes.
 #[derive(Parser, Debug)]
 #[command(version, about)]
 struct Cli {
@@ -25,6 +27,11 @@ enum Command {
     Render(RenderArgs),
     /// Measure parsing, BVH build and ray throughput on a scene; prints JSON.
     Bench(BenchArgs),
+    /// Describe a scene: counts, bounds, materials, memory a render needs, warnings.
+    Info {
+        /// The scene: OBJ, PLY or TOML, optionally gzip-compressed.
+        scene: PathBuf,
+    },
 }
 
 #[derive(clap::Args, Debug)]
@@ -49,53 +56,40 @@ struct RenderArgs {
     stats: bool,
 }
 
-/// The scene and how to look at it: shared by `render` and `bench`.
+/// The scene and how to look at it: shared by `render` and `bench`. Camera and render
+/// flags are optional so that a TOML scene's values show through: a flag overrides
+/// the file, the file overrides the default shown.
 #[derive(clap::Args, Debug)]
 struct ViewArgs {
-    /// The scene: a Wavefront .obj file (its .mtl files are found beside it).
-    #[arg(value_name = "SCENE.obj")]
+    /// The scene: OBJ (MTL files beside it), PLY, or a TOML scene file
+    /// (docs/scene-format.md); any may be gzip-compressed.
+    #[arg(value_name = "SCENE")]
     scene: PathBuf,
-    /// Image width in pixels (1..=65536).
-    #[arg(
-        long,
-        default_value_t = 640,
-        value_name = "PIXELS",
-        allow_hyphen_values = true
-    )]
-    width: u32,
-    /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all).
-    #[arg(
-        long,
-        default_value_t = 480,
-        value_name = "PIXELS",
-        allow_hyphen_values = true
-    )]
-    height: u32,
-    /// Vertical field of view in degrees, strictly between 0 and 180.
-    #[arg(
-        long,
-        default_value_t = 90.0,
-        value_name = "DEGREES",
-        allow_hyphen_values = true
-    )]
-    fov: f32,
-    /// Camera position.
-    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    look_from: Vec3,
-    /// Point the camera looks at (world up is +y).
-    #[arg(long, default_value = "0,0,-1", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    look_to: Vec3,
-    /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
-    #[arg(
-        long,
-        default_value_t = 4,
-        value_name = "N",
-        allow_hyphen_values = true
-    )]
-    depth: u32,
-    /// What to render.
-    #[arg(long, value_enum, default_value_t = ModeArg::Full)]
-    mode: ModeArg,
+    /// Image width in pixels, 1..=65536 [default: 640].
+    #[arg(long, value_name = "PIXELS", allow_hyphen_values = true)]
+    width: Option<u32>,
+    /// Image height in pixels, 1..=65536, at most 16384x16384 in all [default: 480].
+    #[arg(long, value_name = "PIXELS", allow_hyphen_values = true)]
+    height: Option<u32>,
+    /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90].
+    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true)]
+    fov: Option<f32>,
+    /// Camera position [default: 0,0,0].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    look_from: Option<Vec3>,
+    /// Point the camera looks at [default: 0,0,-1].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    look_to: Option<Vec3>,
+    /// World up direction of the camera [default: 0,1,0].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<Vec3>,
+    /// Recursion depth of full mode, 1..=64; 1 traces primary and shadow rays only
+    /// [default: 4].
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    depth: Option<u32>,
+    /// What to render [default: full].
+    #[arg(long, value_enum)]
+    mode: Option<ModeArg>,
     /// Worker threads; 0 uses every core.
     #[arg(short = 'j', long, default_value_t = 0, value_name = "N")]
     threads: usize,
@@ -149,36 +143,54 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let view = match &cli.command {
         Command::Render(args) => &args.view,
         Command::Bench(args) => &args.view,
+        Command::Info { scene } => {
+            let loaded = scene::load(scene)?;
+            let summary = SceneSummary::new(&loaded.description, &loaded.options.resolve());
+            print!("{summary}");
+            return Ok(());
+        }
     };
-    let options = view.options();
-    options.validate()?;
+    // Before loading: readers may use the global pool, which can be set up only once.
     rayon::ThreadPoolBuilder::new()
         .num_threads(view.threads)
         .build_global()
         .context("cannot start worker threads")?;
     match &cli.command {
-        Command::Render(args) => run_render(args, &options),
-        Command::Bench(args) => run_bench(args, &options),
+        Command::Render(args) => run_render(args),
+        Command::Bench(args) => run_bench(args),
+        Command::Info { .. } => Ok(()),
     }
 }
 
 impl ViewArgs {
-    fn options(&self) -> RenderOptions {
-        RenderOptions {
+    /// The flags given; unset ones stay unset so that a scene file's values show.
+    fn options(&self) -> PartialOptions {
+        PartialOptions {
             width: self.width,
             height: self.height,
             fov_degrees: self.fov,
             look_from: self.look_from,
             look_to: self.look_to,
+            up: self.up,
             depth: self.depth,
-            mode: self.mode.into(),
+            mode: self.mode.map(Mode::from),
         }
+    }
+
+    /// Loads the scene; each option comes from the flags, else the file, else the
+    /// default.
+    fn load(&self) -> anyhow::Result<(SceneDescription, RenderOptions)> {
+        let loaded = scene::load(&self.scene)?;
+        let options = self.options().or(loaded.options).resolve();
+        options.validate()?;
+        Ok((loaded.description, options))
     }
 }
 
-fn run_render(args: &RenderArgs, options: &RenderOptions) -> anyhow::Result<()> {
+fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     let start = Instant::now();
-    let description = scene::load_obj(&args.view.scene)?;
+    let (description, options) = args.view.load()?;
+    let options = &options;
     let parsed = Instant::now();
     let scene = Scene::build(description, &BvhParams::default());
     let built = Instant::now();
@@ -223,11 +235,12 @@ fn run_render(args: &RenderArgs, options: &RenderOptions) -> anyhow::Result<()> 
     Ok(())
 }
 
-fn run_bench(args: &BenchArgs, options: &RenderOptions) -> anyhow::Result<()> {
+fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
     let path = &args.view.scene;
     let file_bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    let (description, parse_s) = median_time(args.repeat, || scene::load_obj(path));
-    let description = description?;
+    let (loaded, parse_s) = median_time(args.repeat, || args.view.load());
+    let (description, options) = loaded?;
+    let options = &options;
     let triangles = description.triangles.len();
     let params = BvhParams::default();
     let (scene, build_s) = median_time(args.repeat, || Scene::build(description.clone(), &params));
@@ -303,7 +316,8 @@ mod tests {
             let Command::Render(args) = Cli::try_parse_from(argv).unwrap().command else {
                 panic!("not render")
             };
-            assert_eq!(args.view.look_from, Vec3::new(-1.0, 2.0, -3.0));
+            assert_eq!(args.view.look_from, Some(Vec3::new(-1.0, 2.0, -3.0)));
+            assert_eq!(args.view.width, None);
         }
     }
 }

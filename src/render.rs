@@ -22,9 +22,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Film {
 /// film is bit-identical for any number of threads. Counts are kept per row and
 /// summed, so threads share nothing while tracing.
 pub fn render_counted(scene: &Scene, options: &RenderOptions) -> (Film, RayCounts) {
-    let camera = Camera::new(
+    let camera = Camera::with_up(
         options.look_from,
         options.look_to,
+        options.up,
         options.fov_degrees,
         options.width,
         options.height,

@@ -1,15 +1,26 @@
 //! Scenes: reading files into a [`SceneDescription`], and building the renderable
 //! [`Scene`] (primitives in BVH leaf order, materials, lights).
 
+mod compose;
 mod error;
+mod info;
 mod lex;
+mod load;
 mod mtl;
 mod obj;
+mod ply;
+mod toml_scene;
 
+pub use compose::Transform;
 pub use error::{IndexKind, ParseErrorKind, SceneError};
+pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
+pub use load::{LoadedScene, SceneFormat, load, load_mesh};
 pub use mtl::parse_mtl;
 pub use obj::{load_obj, parse_obj};
+pub use ply::{load_ply, parse_ply};
+pub use toml_scene::{load_toml, parse_toml};
 
+use std::io::Read;
 use std::path::Path;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
@@ -62,12 +73,36 @@ pub struct SphereDesc {
     pub material: MaterialId,
 }
 
-/// Reads a whole file, naming it in the error.
+/// The first two bytes of every gzip member (RFC 1952).
+const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
+
+/// Reads a whole file, naming it in the error. A gzip-compressed file (named `.gz`
+/// or starting with the gzip magic bytes) is decompressed, so every reader accepts
+/// compressed input.
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
-    std::fs::read(path).map_err(|source| SceneError::Io {
+    let io_error = |source| SceneError::Io {
         path: path.to_path_buf(),
         source,
-    })
+    };
+    let bytes = std::fs::read(path).map_err(io_error)?;
+    let gz_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    if !gz_name && !bytes.starts_with(&GZIP_MAGIC) {
+        return Ok(bytes);
+    }
+    // The trailer's ISIZE is the uncompressed size modulo 2^32: a good capacity
+    // hint, capped by deflate's best ratio (~1032:1) so a forged one cannot
+    // reserve absurd memory.
+    let hint = match bytes.last_chunk::<4>() {
+        Some(&isize) => (u32::from_le_bytes(isize) as usize).min(bytes.len() * 1032),
+        None => 0,
+    };
+    let mut text = Vec::with_capacity(hint);
+    flate2::read::MultiGzDecoder::new(&bytes[..])
+        .read_to_end(&mut text)
+        .map_err(io_error)?;
+    Ok(text)
 }
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),

@@ -477,6 +477,8 @@ impl<'a> AsciiBody<'a> {
 impl Body for AsciiBody<'_> {
     fn begin(&mut self) -> Result<(), ParseErrorKind> {
         loop {
+            // At the end of the file this names the line where the element was due.
+            self.line_number = self.next_line_number;
             if self.next_line >= self.bytes.len() {
                 return Err(ParseErrorKind::Truncated);
             }
@@ -484,7 +486,6 @@ impl Body for AsciiBody<'_> {
             let length = memchr::memchr(b'\n', rest).unwrap_or(rest.len());
             self.line = &rest[..length];
             self.pos = 0;
-            self.line_number = self.next_line_number;
             self.next_line += length + 1;
             self.next_line_number += 1;
             if !self.line.trim_ascii().is_empty() {
@@ -1057,5 +1058,466 @@ impl MeshReader {
             self.scene.materials.push(Material::fallback());
         }
         self.scene
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCALARS: [Scalar; 8] = [
+        Scalar::I8,
+        Scalar::U8,
+        Scalar::I16,
+        Scalar::U16,
+        Scalar::I32,
+        Scalar::U32,
+        Scalar::F32,
+        Scalar::F64,
+    ];
+
+    fn parse(bytes: &[u8]) -> Result<SceneDescription, SceneError> {
+        parse_ply(bytes, Path::new("t.ply"))
+    }
+
+    fn error(text: &str) -> String {
+        parse(text.as_bytes()).unwrap_err().to_string()
+    }
+
+    /// Header names, alternating between the original and the sized spelling.
+    fn name(ty: Scalar, sized: bool) -> &'static str {
+        let (original, alias) = match ty {
+            Scalar::I8 => ("char", "int8"),
+            Scalar::U8 => ("uchar", "uint8"),
+            Scalar::I16 => ("short", "int16"),
+            Scalar::U16 => ("ushort", "uint16"),
+            Scalar::I32 => ("int", "int32"),
+            Scalar::U32 => ("uint", "uint32"),
+            Scalar::F32 => ("float", "float32"),
+            Scalar::F64 => ("double", "float64"),
+        };
+        if sized { alias } else { original }
+    }
+
+    fn encode(ty: Scalar, value: f64, big_endian: bool) -> Vec<u8> {
+        macro_rules! bytes {
+            ($t:ty) => {{
+                let v = value as $t;
+                if big_endian {
+                    v.to_be_bytes().to_vec()
+                } else {
+                    v.to_le_bytes().to_vec()
+                }
+            }};
+        }
+        match ty {
+            Scalar::I8 => bytes!(i8),
+            Scalar::U8 => bytes!(u8),
+            Scalar::I16 => bytes!(i16),
+            Scalar::U16 => bytes!(u16),
+            Scalar::I32 => bytes!(i32),
+            Scalar::U32 => bytes!(u32),
+            Scalar::F32 => bytes!(f32),
+            Scalar::F64 => bytes!(f64),
+        }
+    }
+
+    /// A file's elements as rows of (type, value) properties; lists are a count
+    /// followed by the items.
+    struct Mesh {
+        header: String,
+        rows: Vec<Vec<(Scalar, f64)>>,
+    }
+
+    impl Mesh {
+        fn ascii(&self) -> Vec<u8> {
+            let mut text = format!("ply\nformat ascii 1.0\n{}end_header\n", self.header);
+            for row in &self.rows {
+                let values: Vec<String> = row.iter().map(|(_, v)| v.to_string()).collect();
+                text.push_str(&values.join(" "));
+                text.push('\n');
+            }
+            text.into_bytes()
+        }
+
+        fn binary(&self, big_endian: bool) -> Vec<u8> {
+            let format = if big_endian {
+                "binary_big_endian"
+            } else {
+                "binary_little_endian"
+            };
+            let mut bytes =
+                format!("ply\nformat {format} 1.0\n{}end_header\n", self.header).into_bytes();
+            for row in &self.rows {
+                for &(ty, v) in row {
+                    bytes.extend(encode(ty, v, big_endian));
+                }
+            }
+            bytes
+        }
+
+        /// The three encodings of this mesh.
+        fn encodings(&self) -> [(&'static str, Vec<u8>); 3] {
+            [
+                ("ascii", self.ascii()),
+                ("little-endian", self.binary(false)),
+                ("big-endian", self.binary(true)),
+            ]
+        }
+    }
+
+    /// Five vertices, a quad and a triangle; coordinates fit every type.
+    fn quad_and_triangle(position: Scalar, count: Scalar, item: Scalar, sized: bool) -> Mesh {
+        let header = format!(
+            "element vertex 5\nproperty {p} x\nproperty {p} y\nproperty {p} z\nelement face 2\nproperty list {c} {i} vertex_indices\n",
+            p = name(position, sized),
+            c = name(count, sized),
+            i = name(item, !sized),
+        );
+        let points = [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 2.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [1.0, 1.0, 3.0],
+        ];
+        let mut rows: Vec<Vec<(Scalar, f64)>> = points
+            .iter()
+            .map(|p| p.iter().map(|&v| (position, v)).collect())
+            .collect();
+        for face in [&[0.0, 1.0, 2.0, 3.0][..], &[0.0, 1.0, 4.0]] {
+            let mut row = vec![(count, face.len() as f64)];
+            row.extend(face.iter().map(|&i| (item, i)));
+            rows.push(row);
+        }
+        Mesh { header, rows }
+    }
+
+    fn triangles(scene: &SceneDescription) -> Vec<[u32; 3]> {
+        scene.triangles.iter().map(|t| t.positions).collect()
+    }
+
+    #[test]
+    fn every_format_and_scalar_type_reads_the_same_mesh() {
+        let integers = [
+            Scalar::I8,
+            Scalar::U8,
+            Scalar::I16,
+            Scalar::U16,
+            Scalar::I32,
+            Scalar::U32,
+        ];
+        let mut cases = 0;
+        for (n, &position) in SCALARS.iter().enumerate() {
+            for &count in &integers {
+                for &item in &SCALARS {
+                    let mesh = quad_and_triangle(position, count, item, n % 2 == 0);
+                    for (format, bytes) in mesh.encodings() {
+                        let what = format!("{format} {position:?} {count:?} {item:?}");
+                        let scene = parse(&bytes).unwrap_or_else(|e| panic!("{what}: {e}"));
+                        assert_eq!(scene.positions[2], Vec3::new(2.0, 2.0, 0.0), "{what}");
+                        assert_eq!(scene.positions[4], Vec3::new(1.0, 1.0, 3.0), "{what}");
+                        assert_eq!(
+                            triangles(&scene),
+                            [[0, 1, 2], [0, 2, 3], [0, 1, 4]],
+                            "{what}"
+                        );
+                        assert!(scene.triangles.iter().all(|t| t.normals.is_none()));
+                        assert_eq!(scene.materials, [Material::fallback()]);
+                        assert!(scene.warnings.is_empty(), "{what}: {:?}", scene.warnings);
+                        cases += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(cases, 8 * 6 * 8 * 3);
+    }
+
+    #[test]
+    fn normals_texture_coordinates_aliases_and_skipped_data() {
+        // Extra vertex properties (a scalar and a list), an element to skip between
+        // vertices and faces, `vertex_index`, and a face property after the list.
+        let header = "comment scanned\nobj_info none\nelement vertex 3\nproperty float x\nproperty uchar red\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\nproperty list uchar int neighbours\nelement edge 2\nproperty int vertex1\nproperty int vertex2\nelement face 1\nproperty list uint8 uint32 vertex_index\nproperty uchar flags\nelement empty 0\n";
+        let (f, b, i, u) = (Scalar::F32, Scalar::U8, Scalar::I32, Scalar::U32);
+        let vertex = |x: f64, y: f64, n: [f64; 3], st: [f64; 2]| {
+            vec![
+                (f, x),
+                (b, 200.0),
+                (f, y),
+                (f, 0.5),
+                (f, n[0]),
+                (f, n[1]),
+                (f, n[2]),
+                (f, st[0]),
+                (f, st[1]),
+                (b, 2.0),
+                (i, 7.0),
+                (i, 8.0),
+            ]
+        };
+        let mesh = Mesh {
+            header: header.into(),
+            rows: vec![
+                vertex(0.0, 0.0, [0.0, 0.0, 1.0], [0.0, 0.0]),
+                vertex(1.0, 0.0, [0.0, 1.0, 0.0], [1.0, 0.0]),
+                vertex(0.0, 1.0, [1.0, 0.0, 0.0], [0.0, 1.0]),
+                vec![(i, 0.0), (i, 1.0)],
+                vec![(i, 1.0), (i, 2.0)],
+                vec![(b, 3.0), (u, 0.0), (u, 1.0), (u, 2.0), (b, 9.0)],
+            ],
+        };
+        for (format, bytes) in mesh.encodings() {
+            let scene = parse(&bytes).unwrap_or_else(|e| panic!("{format}: {e}"));
+            assert_eq!(
+                scene.positions,
+                [
+                    Vec3::new(0.0, 0.0, 0.5),
+                    Vec3::new(1.0, 0.0, 0.5),
+                    Vec3::new(0.0, 1.0, 0.5)
+                ],
+                "{format}"
+            );
+            assert_eq!(scene.normals, [Vec3::Z, Vec3::Y, Vec3::X], "{format}");
+            assert_eq!(scene.texcoords, [Vec2::ZERO, Vec2::X, Vec2::Y], "{format}");
+            assert_eq!(scene.triangles.len(), 1);
+            assert_eq!(scene.triangles[0].positions, [0, 1, 2]);
+            assert_eq!(scene.triangles[0].normals, Some([0, 1, 2]), "{format}");
+        }
+    }
+
+    #[test]
+    fn ascii_takes_crlf_blank_lines_and_u_v() {
+        let text = "ply\r\nformat ascii 1.0\r\nelement vertex 3\r\nproperty double x\r\nproperty double y\r\nproperty double z\r\nproperty float u\r\nproperty float v\r\nelement face 1\r\nproperty list uchar int vertex_indices\r\nend_header\r\n0 0 0 0 0\r\n\r\n1 0 0 1 0\r\n 0\t1 0 0 1 \r\n3 0 1 2\r\n";
+        let scene = parse(text.as_bytes()).unwrap();
+        assert_eq!(scene.positions[2], Vec3::Y);
+        assert_eq!(scene.texcoords[1], Vec2::X);
+        assert_eq!(triangles(&scene), [[0, 1, 2]]);
+    }
+
+    #[test]
+    fn a_point_cloud_has_no_material() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+        let scene = parse(text.as_bytes()).unwrap();
+        assert_eq!(scene.positions, [Vec3::new(1.0, 2.0, 3.0)]);
+        assert!(scene.triangles.is_empty() && scene.materials.is_empty());
+    }
+
+    const VERTS: &str = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+    const FACES: &str = "element face 1\nproperty list uchar int vertex_indices\n";
+
+    fn ascii(header: &str, body: &str) -> String {
+        format!("ply\nformat ascii 1.0\n{header}end_header\n{body}")
+    }
+
+    #[test]
+    fn header_errors_name_the_line() {
+        assert_eq!(
+            error("PLY\n"),
+            "t.ply:1: not a PLY file (the first line must be 'ply')"
+        );
+        assert_eq!(
+            error(""),
+            "t.ply:1: not a PLY file (the first line must be 'ply')"
+        );
+        assert_eq!(
+            error("ply\nformat binary 1.0\nend_header\n"),
+            "t.ply:2: unknown format 'binary' (expected ascii, binary_little_endian or binary_big_endian)"
+        );
+        assert_eq!(
+            error("ply\nelement vertex 1\nend_header\n"),
+            "t.ply:2: the header has no 'format' line"
+        );
+        assert_eq!(
+            error(&ascii("element vertex 1\nproperty float128 x\n", "")),
+            "t.ply:4: unknown property type 'float128'"
+        );
+        assert_eq!(
+            error(&ascii("property float x\n", "")),
+            "t.ply:3: 'property' before any 'element'"
+        );
+        assert_eq!(
+            error(&ascii("element vertex many\n", "")),
+            "t.ply:3: invalid element count 'many'"
+        );
+        assert_eq!(
+            error(&ascii("element vertex 1\nelement vertex 1\n", "")),
+            "t.ply:4: element 'vertex' declared twice"
+        );
+        assert_eq!(
+            error(&ascii("element v 1\nproperty list uchar x\n", "")),
+            "t.ply:4: 'property list' needs a count type, an item type and a name"
+        );
+        assert_eq!(
+            error(&ascii("element v 1\nproperty float\n", "")),
+            "t.ply:4: 'property' needs a type and a name"
+        );
+        assert_eq!(
+            error(&ascii("elements 1\n", "")),
+            "t.ply:3: unknown header keyword 'elements'"
+        );
+        assert_eq!(
+            error("ply\nformat ascii 1.0\n"),
+            "t.ply:3: the header has no 'end_header' line"
+        );
+        assert_eq!(
+            error(&ascii(
+                "element vertex 1\nproperty float x\nproperty float y\n",
+                ""
+            )),
+            "t.ply:3: element 'vertex' has no property 'z'"
+        );
+        assert_eq!(
+            error(&ascii(
+                "element vertex 1\nproperty float x\nproperty float y\nproperty list uchar float z\n",
+                ""
+            )),
+            "t.ply:6: property 'z' of element 'vertex' must be a scalar, not a list"
+        );
+        assert_eq!(
+            error(&ascii(
+                &format!("{VERTS}element face 1\nproperty int vertex_indices\n"),
+                ""
+            )),
+            "t.ply:8: property 'vertex_indices' of element 'face' must be a list"
+        );
+        assert_eq!(
+            error(&ascii(
+                &format!("{VERTS}element face 1\nproperty list uchar int corners\n"),
+                ""
+            )),
+            "t.ply:7: element 'face' has no property 'vertex_indices' or 'vertex_index'"
+        );
+    }
+
+    #[test]
+    fn ascii_element_errors_name_line_element_and_index() {
+        let file = |body: &str| error(&ascii(&format!("{VERTS}{FACES}"), body));
+        let verts = "0 0 0\n1 0 0\n0 1 0\n";
+        assert_eq!(
+            file("0 0 0\n1 0\n"),
+            "t.ply:11: vertex 1: the line ends before property 'z'"
+        );
+        assert_eq!(
+            file("0 0 0\n1 0 0 4\n"),
+            "t.ply:11: vertex 1: unexpected value '4' after the element's last property"
+        );
+        assert_eq!(
+            file("0 0 0\n1 x 0\n"),
+            "t.ply:11: vertex 1: invalid number 'x'"
+        );
+        assert_eq!(
+            file("0 0 0\n1 nan 0\n"),
+            "t.ply:11: vertex 1: non-finite value 'nan'"
+        );
+        assert_eq!(
+            file(verts),
+            "t.ply:13: face 0: file ends inside the element"
+        );
+        assert_eq!(
+            file("0 0 0\n1 0 0\n"),
+            "t.ply:12: vertex 2: file ends inside the element"
+        );
+        assert_eq!(
+            file(&format!("{verts}3 0 1 3\n")),
+            "t.ply:13: face 0: face index 3 out of range (3 vertices defined)"
+        );
+        assert_eq!(
+            file(&format!("{verts}3 0 -1 2\n")),
+            "t.ply:13: face 0: face index -1 out of range (3 vertices defined)"
+        );
+        assert_eq!(
+            file(&format!("{verts}2 0 1\n")),
+            "t.ply:13: face 0: face has 2 vertices, needs at least 3"
+        );
+        assert_eq!(
+            file(&format!("{verts}3 0 1\n")),
+            "t.ply:13: face 0: the line ends before property 'vertex_indices'"
+        );
+        assert_eq!(
+            file(&format!("{verts}3 0 1.5 2\n")),
+            "t.ply:13: face 0: invalid number '1.5'"
+        );
+        let negative = error(&ascii(
+            &format!("{VERTS}element face 1\nproperty list int int vertex_indices\n"),
+            &format!("{verts}-3 0 1 2\n"),
+        ));
+        assert_eq!(negative, "t.ply:13: face 0: negative list length -3");
+    }
+
+    #[test]
+    fn binary_element_errors_name_element_and_index() {
+        for big_endian in [false, true] {
+            let mesh = quad_and_triangle(Scalar::F32, Scalar::U8, Scalar::I32, false);
+            let bytes = mesh.binary(big_endian);
+            // Cut inside the last face, then inside the third vertex.
+            assert_eq!(
+                parse(&bytes[..bytes.len() - 2]).unwrap_err().to_string(),
+                "t.ply: face 1: file ends inside the element"
+            );
+            let header_len = bytes.len() - (5 * 12 + 17 + 13);
+            assert_eq!(
+                parse(&bytes[..header_len + 30]).unwrap_err().to_string(),
+                "t.ply: vertex 2: file ends inside the element"
+            );
+            // Extra bytes after the last element are only a warning.
+            let mut longer = bytes.clone();
+            longer.extend([0, 0, 0]);
+            assert_eq!(
+                parse(&longer).unwrap().warnings,
+                ["3 bytes after the last element were ignored"]
+            );
+
+            let mut bad = quad_and_triangle(Scalar::F32, Scalar::U8, Scalar::I32, false);
+            bad.rows[6][2].1 = 5.0;
+            assert_eq!(
+                parse(&bad.binary(big_endian)).unwrap_err().to_string(),
+                "t.ply: face 1: face index 5 out of range (5 vertices defined)"
+            );
+            bad.rows[6][0].1 = 2.0;
+            bad.rows[6].pop();
+            assert_eq!(
+                parse(&bad.binary(big_endian)).unwrap_err().to_string(),
+                "t.ply: face 1: face has 2 vertices, needs at least 3"
+            );
+            let mut nan = quad_and_triangle(Scalar::F32, Scalar::U8, Scalar::I32, false);
+            nan.rows[3][1].1 = f64::NAN;
+            assert_eq!(
+                parse(&nan.binary(big_endian)).unwrap_err().to_string(),
+                "t.ply: vertex 3: non-finite value 'NaN'"
+            );
+            let mut fraction = quad_and_triangle(Scalar::F32, Scalar::U8, Scalar::F32, false);
+            fraction.rows[5][1].1 = 0.5;
+            assert_eq!(
+                parse(&fraction.binary(big_endian)).unwrap_err().to_string(),
+                "t.ply: face 0: invalid number '0.5'"
+            );
+        }
+    }
+
+    #[test]
+    fn absurd_counts_fail_cleanly() {
+        let properties = &VERTS[17..];
+        let text = ascii(
+            &format!("element vertex 4000000000\n{properties}"),
+            "0 0 0\n",
+        );
+        assert_eq!(
+            error(&text),
+            "t.ply:9: vertex 1: file ends inside the element"
+        );
+        let text = ascii(
+            &format!("element vertex 99999999999999\n{properties}"),
+            "0 0 0\n",
+        );
+        assert_eq!(
+            error(&text),
+            "t.ply: vertex 0: too many vertices (the limit is 4294967295)"
+        );
+        let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 18446744073709551615\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+        bytes.extend([0; 12]);
+        assert_eq!(
+            parse(&bytes).unwrap_err().to_string(),
+            "t.ply: vertex 0: too many vertices (the limit is 4294967295)"
+        );
     }
 }

@@ -503,3 +503,319 @@ fn material(name: &str, table: &MaterialTable) -> Material {
     m.albedo = table.albedo.map_or(m.albedo, |v| v.0.into());
     m
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::fs;
+
+    /// A folder with `tri.obj` (one triangle with `vn` normals, material `red` from
+    /// `tri.mtl`) and `bad.obj`, and a way to parse TOML text placed in it.
+    struct Folder(tempfile::TempDir);
+
+    impl Folder {
+        fn new() -> Folder {
+            let dir = tempfile::tempdir().unwrap();
+            let write = |name: &str, text: &str| fs::write(dir.path().join(name), text).unwrap();
+            write("tri.mtl", "newmtl red\nKd 1 0 0\n");
+            write(
+                "tri.obj",
+                "mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nusemtl red\nf 1//1 2//1 3//1\n",
+            );
+            write("ball.obj", "S 0 0 0 1\nP 0 5 0 1 1 1\n");
+            write("bad.obj", "v 0 x 0\n");
+            Folder(dir)
+        }
+
+        fn path(&self) -> std::path::PathBuf {
+            self.0.path().join("s.toml")
+        }
+
+        fn parse(&self, text: &str) -> Result<LoadedScene, SceneError> {
+            parse_toml(text.as_bytes(), &self.path())
+        }
+
+        fn error(&self, text: &str) -> String {
+            let message = self.parse(text).unwrap_err().to_string();
+            message.replace(&self.0.path().display().to_string(), "DIR")
+        }
+    }
+
+    #[test]
+    fn every_key_is_read() {
+        let folder = Folder::new();
+        let loaded = folder
+            .parse(
+                r#"
+[camera]
+look_from = [1, 2, 3]
+look_to = [0, 0.5, 0]
+up = [0, 0, 1]
+fov = 35.5
+width = 32
+height = 24
+
+[render]
+mode = "normal"
+depth = 7
+
+[[mesh]]
+file = "tri.obj"
+
+[[mesh]]
+file = "tri.obj"
+material = "glass"
+transform = { translate = [10, 0, 0], rotate = [0, 0, 90], scale = 2 }
+
+[[mesh]]
+file = "tri.obj"
+[mesh.transform]
+scale = [1, 3, 1]
+
+[[sphere]]
+center = [0, 1, 0]
+radius = 0.5
+material = "glass"
+
+[[sphere]]
+center = [0, 0, 0]
+radius = 0
+
+[[light]]
+position = [0, 9, 0]
+intensity = 0.5
+
+[[light]]
+position = [1, 9, 0]
+intensity = [1, 0.5, 0.25]
+
+[materials.glass]
+Ka = 0.1
+Kd = [0.1, 0.2, 0.3]
+Ks = [1, 1, 1]
+Ke = [0, 0, 2]
+Ns = 64
+Ni = 1.5
+d = 0.25
+al = [0.1, 0.2, 0.7]
+
+[materials.plain]
+"#,
+            )
+            .unwrap();
+        let o = loaded.options;
+        assert_eq!(o.look_from, Some(Vec3::new(1.0, 2.0, 3.0)));
+        assert_eq!(o.look_to, Some(Vec3::new(0.0, 0.5, 0.0)));
+        assert_eq!(o.up, Some(Vec3::Z));
+        assert_eq!(o.fov_degrees, Some(35.5));
+        assert_eq!((o.width, o.height), (Some(32), Some(24)));
+        assert_eq!((o.mode, o.depth), (Some(Mode::Normal), Some(7)));
+
+        let d = loaded.description;
+        let names: Vec<&str> = d.materials.iter().map(|m| m.name.as_str()).collect();
+        // TOML materials in file order, then the first and third mesh's own, then the
+        // default material of the sphere that names none.
+        assert_eq!(names, ["glass", "plain", "red", "red", "default"]);
+        let glass = &d.materials[0];
+        assert_eq!(glass.ambient, Vec3::splat(0.1));
+        assert_eq!(glass.diffuse, Vec3::new(0.1, 0.2, 0.3));
+        assert_eq!(glass.specular, Vec3::ONE);
+        assert_eq!(glass.emission, Vec3::new(0.0, 0.0, 2.0));
+        assert_eq!(
+            (glass.shininess, glass.ior, glass.opacity),
+            (64.0, 1.5, 0.25)
+        );
+        assert_eq!(glass.albedo, [0.1, 0.2, 0.7]);
+        assert_eq!(d.materials[1], Material::named("plain"));
+
+        let material_ids: Vec<u32> = d.triangles.iter().map(|t| t.material.0).collect();
+        assert_eq!(material_ids, [2, 0, 3]);
+        // Mesh 2: scaled by 2, turned 90 degrees about z (x -> y), moved by +10 x.
+        let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+        assert!(close(d.positions[4], Vec3::new(10.0, 2.0, 0.0)));
+        assert!(close(d.positions[5], Vec3::new(8.0, 0.0, 0.0)));
+        assert!(close(d.positions[8], Vec3::new(0.0, 3.0, 0.0)));
+        assert_eq!(d.triangles[1].positions, [3, 4, 5]);
+        assert!(close(d.normals[1].normalize(), Vec3::Z));
+
+        assert_eq!(d.spheres.len(), 2);
+        assert_eq!(d.spheres[0].material, MaterialId(0));
+        assert_eq!(
+            (d.spheres[1].radius, d.spheres[1].material),
+            (0.0, MaterialId(4))
+        );
+        assert_eq!(d.lights[0].intensity, Vec3::splat(0.5));
+        assert_eq!(d.lights[1].intensity, Vec3::new(1.0, 0.5, 0.25));
+        assert_eq!(d.lights[1].position, Vec3::new(1.0, 9.0, 0.0));
+    }
+
+    #[test]
+    fn an_empty_file_is_an_empty_scene_with_no_settings() {
+        let loaded = Folder::new().parse("# nothing\n").unwrap();
+        assert_eq!(loaded.options, PartialOptions::default());
+        assert!(loaded.description.triangles.is_empty());
+    }
+
+    #[test]
+    fn obj_spheres_and_lights_follow_the_transform() {
+        let folder = Folder::new();
+        let text =
+            "[[mesh]]\nfile = \"ball.obj\"\ntransform = { scale = -3, translate = [0, 1, 0] }\n";
+        let d = folder.parse(text).unwrap().description;
+        assert_eq!(d.spheres[0].radius, 3.0);
+        assert_eq!(d.spheres[0].center, Vec3::Y);
+        assert_eq!(d.lights[0].position, Vec3::new(0.0, -14.0, 0.0));
+        assert_eq!(
+            folder.error("[[mesh]]\nfile = \"ball.obj\"\ntransform = { scale = [1, 2, 1] }\n"),
+            "DIR/s.toml:3: mesh.transform.scale: spheres need the same scale on every axis"
+        );
+    }
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        let folder = Folder::new();
+        let cases = [
+            (
+                "[camera]\nfov = \"wide\"\n",
+                "DIR/s.toml:2: camera.fov: invalid type: string \"wide\", expected f32",
+            ),
+            (
+                "[camera]\nzoom = 2\n",
+                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`",
+            ),
+            (
+                "title = \"x\"\n",
+                "DIR/s.toml:1: title: unknown field `title`, expected one of `camera`, `render`, `mesh`, `sphere`, `light`, `materials`",
+            ),
+            (
+                "[camera]\nlook_from = [1, 2]\n",
+                "DIR/s.toml:2: camera.look_from: invalid length 2, expected an array of length 3",
+            ),
+            (
+                "[camera]\nlook_to = [1, nan, 2]\n",
+                "DIR/s.toml:2: camera.look_to: NaN is not a finite number",
+            ),
+            (
+                "[camera]\nwidth = -4\n",
+                "DIR/s.toml:2: camera.width: invalid value: integer `-4`, expected u32",
+            ),
+            (
+                "[camera]\nwidth = 0\n",
+                "DIR/s.toml:2: camera.width: 0 is not in 1..=65536",
+            ),
+            (
+                "[camera]\nheight = 70000\n",
+                "DIR/s.toml:2: camera.height: 70000 is not in 1..=65536",
+            ),
+            (
+                "[camera]\nwidth = 60000\nheight = 60000\n",
+                "DIR/s.toml:2: camera.width: 60000x60000 has more than 268435456 pixels",
+            ),
+            (
+                "[camera]\nfov = 180\n",
+                "DIR/s.toml:2: camera.fov: 180 is not strictly between 0 and 180",
+            ),
+            (
+                "[camera]\n\nlook_from = [0, 0, -1]\n",
+                "DIR/s.toml:3: camera.look_from: the camera cannot look at its own position",
+            ),
+            (
+                "[camera]\nup = [0, 0, 0]\n",
+                "DIR/s.toml:2: camera.up: components must be finite and not all zero",
+            ),
+            (
+                "[render]\ndepth = 65\n",
+                "DIR/s.toml:2: render.depth: 65 is not in 1..=64",
+            ),
+            (
+                "[render]\nmode = \"fast\"\n",
+                "DIR/s.toml:2: render.mode: unknown variant `fast`, expected one of `full`, `depth`, `normal`",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\n",
+                "DIR/s.toml:1: sphere: missing field `radius`",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\nradius = -1\n",
+                "DIR/s.toml:3: sphere.radius: -1 is negative",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\nradius = inf\n",
+                "DIR/s.toml:3: sphere.radius: inf is not a finite number",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"gold\"\n",
+                "DIR/s.toml:4: sphere.material: unknown material 'gold'",
+            ),
+            (
+                "[[light]]\nposition = [0, 0, 0]\nintensity = \"bright\"\n",
+                "DIR/s.toml:3: light.intensity: a number or an array of three numbers",
+            ),
+            (
+                "[materials.m]\nKd = [1, 1]\n",
+                "DIR/s.toml:2: materials.m.Kd: a number or an array of three numbers",
+            ),
+            (
+                "[materials.m]\nTr = 0.5\n",
+                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`",
+            ),
+            (
+                "[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n",
+                "DIR/s.toml:3: mesh.material: unknown material 'gold'",
+            ),
+            (
+                "[[mesh]]\nfile = \"missing.obj\"\n",
+                "DIR/s.toml:2: mesh.file: DIR/missing.obj: No such file or directory (os error 2)",
+            ),
+            (
+                "[[mesh]]\nfile = \"bad.obj\"\n",
+                "DIR/s.toml:2: mesh.file: DIR/bad.obj:1: invalid number 'x'",
+            ),
+            (
+                "[[mesh]]\nfile = \"other.toml\"\n",
+                "DIR/s.toml:2: mesh.file: 'other.toml' is a scene file, not a mesh (OBJ or PLY)",
+            ),
+            (
+                "[[mesh]]\nmaterial = \"m\"\n",
+                "DIR/s.toml:1: mesh: missing field `file`",
+            ),
+            (
+                "[[mesh]]\nfile = \"tri.obj\"\ntransform = { scale = [1, 0, 1] }\n",
+                "DIR/s.toml:3: mesh.transform.scale: scale components must not be zero",
+            ),
+            (
+                "[[mesh]]\nfile = \"tri.obj\"\ntransform = { shear = 1 }\n",
+                "DIR/s.toml:3: mesh.transform.shear: unknown field `shear`, expected one of `translate`, `rotate`, `scale`",
+            ),
+            ("[camera\n", "DIR/s.toml:1: unclosed table, expected `]`"),
+            ("a = 1\na = 2\n", "DIR/s.toml:2: duplicate key"),
+        ];
+        for (text, expected) in cases {
+            assert_eq!(folder.error(text), expected, "for {text:?}");
+        }
+        assert_eq!(
+            parse_toml(b"a = 1\n\xff", &folder.path())
+                .unwrap_err()
+                .to_string()
+                .replace(&folder.0.path().display().to_string(), "DIR"),
+            "DIR/s.toml:2: invalid UTF-8"
+        );
+    }
+
+    #[test]
+    fn a_material_override_silences_the_mesh_reader_on_materials() {
+        let folder = Folder::new();
+        fs::write(
+            folder.0.path().join("plain.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let without = folder.parse("[[mesh]]\nfile = \"plain.obj\"\n").unwrap();
+        assert_eq!(without.description.warnings.len(), 1);
+        let with = folder
+            .parse("[materials.m]\n[[mesh]]\nfile = \"plain.obj\"\nmaterial = \"m\"\n")
+            .unwrap();
+        assert!(with.description.warnings.is_empty());
+        assert_eq!(with.description.materials.len(), 1);
+    }
+}

@@ -1,7 +1,8 @@
-//! A Whitted-style CPU ray tracer for Wavefront OBJ/MTL scenes.
+//! A Whitted-style CPU ray tracer for Wavefront OBJ/MTL, PLY and TOML scenes.
 //!
 //! Data flows one way, one module per stage:
-//! files ([`scene::load_obj`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
+//! files ([`scene::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
+//! [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
 //! -> [`render`] (a [`Camera`] and an integrator per pixel) -> linear [`Film`]
 //! -> [`Image`] (post-processing) -> PNG.
 //!

@@ -434,3 +434,33 @@ fn the_dragon_bench_scene_matches_the_bench_readme() {
     }
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 }
+
+#[test]
+fn the_documented_complete_example_loads() {
+    let doc = fs::read_to_string(repo("docs/scene-format.md")).unwrap();
+    let example = doc.split("### A complete example").nth(1).unwrap();
+    let toml = example
+        .split("```toml\n")
+        .nth(1)
+        .unwrap()
+        .split("```")
+        .next()
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write(
+        d,
+        "work/package/models/dragon_vrip.ply.gz",
+        gzip(TRIANGLE_PLY.as_bytes()),
+    );
+    write(d, "floor.obj", fs::read(repo("bench/floor.obj")).unwrap());
+    let loaded = load(&write(d, "dragon.toml", toml));
+    assert_eq!(loaded.options.up, Some(Vec3::Y));
+    let d = loaded.description;
+    let names: Vec<&str> = d.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["dragon", "floor", "mirror"]);
+    assert_eq!(d.spheres[0].material.0, 2);
+    assert_eq!(d.materials[2].albedo, [0.2, 0.8, 0.0]);
+    assert_eq!(d.lights[1].intensity, Vec3::splat(0.3));
+    assert_eq!(d.triangles.len(), 3);
+}

@@ -38,8 +38,8 @@ pub enum SceneError {
         /// What is wrong.
         kind: ParseErrorKind,
     },
-    /// A file named by a scene file failed to load; `source` carries its own location.
-    #[error("{}:{line}: {key}: {source}", path.display())]
+    /// A file named by a scene file failed to load; `error` carries its own location.
+    #[error("{}:{line}: {key}: {error}", path.display())]
     Included {
         /// The scene file that names the failing file.
         path: PathBuf,
@@ -47,8 +47,9 @@ pub enum SceneError {
         line: usize,
         /// The key, such as `mesh.file`.
         key: String,
-        /// Why the named file failed.
-        source: Box<SceneError>,
+        /// Why the named file failed. Not a `source`: the message already includes it,
+        /// and `{:#}` would print it twice.
+        error: Box<SceneError>,
     },
 }
 

@@ -408,11 +408,11 @@ impl Builder<'_> {
                 format!("'{file}' is a scene file, not a mesh (OBJ or PLY)"),
             ));
         }
-        let description = load_mesh(&mesh_path).map_err(|source| SceneError::Included {
+        let description = load_mesh(&mesh_path).map_err(|error| SceneError::Included {
             path: self.path.to_path_buf(),
             line: line_of(self.text.as_bytes(), file_span.start),
             key: "mesh.file".into(),
-            source: Box::new(source),
+            error: Box::new(error),
         })?;
         let material = match &mesh.material {
             Some(name) => Some(self.material(Some(name), "mesh.material")?),

@@ -12,6 +12,8 @@
 
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use super::error::{IndexKind, ParseErrorKind, SceneError};
 use super::{SceneDescription, TriangleDesc, lex, read_file};
 use crate::material::{Material, MaterialId};
@@ -423,6 +425,15 @@ trait Body {
     fn advance(&mut self, bytes: usize) {
         debug_assert_eq!(bytes, 0, "only binary bodies advance");
     }
+    /// For ascii bodies: all the bytes, and the byte offset and number of the next
+    /// line, for [`MeshReader::read_ascii_parallel`].
+    fn ascii_rest(&self) -> Option<(&[u8], usize, usize)> {
+        None
+    }
+    /// Moves an ascii body to the line that starts at byte `offset`, numbered `line`.
+    fn ascii_seek(&mut self, offset: usize, line: usize) {
+        debug_assert!(offset == 0 && line == 0, "only ascii bodies seek");
+    }
 }
 
 struct AsciiBody<'a> {
@@ -532,6 +543,17 @@ impl Body for AsciiBody<'_> {
     fn remaining(&self) -> usize {
         let rest = self.bytes.get(self.next_line..).unwrap_or_default();
         rest.trim_ascii().len()
+    }
+
+    fn ascii_rest(&self) -> Option<(&[u8], usize, usize)> {
+        Some((self.bytes, self.next_line, self.next_line_number))
+    }
+
+    fn ascii_seek(&mut self, offset: usize, line: usize) {
+        self.next_line = offset;
+        self.next_line_number = line;
+        self.line = &[];
+        self.pos = 0;
     }
 }
 
@@ -727,6 +749,21 @@ impl<const BIG_ENDIAN: bool> Body for BinaryBody<'_, BIG_ENDIAN> {
     }
 }
 
+/// Ascii elements with at least this many instances are parsed on all threads, in
+/// runs of whole lines; for fewer, splitting costs more than it saves.
+const PARALLEL_ASCII_ELEMENTS: usize = 1 << 15;
+/// Fewest elements one parallel task parses.
+const MIN_ASCII_RUN: usize = 1 << 13;
+
+/// Where a run of ascii lines starts: byte offset, line number, and the index of
+/// its first element.
+#[derive(Clone, Copy, Debug)]
+struct LineRun {
+    offset: usize,
+    line: usize,
+    first_index: usize,
+}
+
 /// Collects the mesh while the body is read.
 struct MeshReader {
     scene: SceneDescription,
@@ -802,6 +839,14 @@ impl MeshReader {
                     continue;
                 }
             }
+            if let Some((bytes, offset, line)) = body.ascii_rest()
+                && element.count >= PARALLEL_ASCII_ELEMENTS
+                && let Some((offset, line)) =
+                    self.read_ascii_parallel(element_index, element, roles, bytes, offset, line)?
+            {
+                body.ascii_seek(offset, line);
+                continue;
+            }
             for index in 0..element.count {
                 self.read_element(element, roles, body)
                     .map_err(|kind| at(index, body.line(), kind))?;
@@ -814,6 +859,107 @@ impl MeshReader {
                 .push(format!("{extra} bytes after the last element were ignored"));
         }
         Ok(())
+    }
+
+    /// Parses the `element.count` elements of an ascii body that start at byte
+    /// `offset` (line `line`) on all threads: one serial pass finds line runs of about
+    /// equal element counts, each run is parsed into a reader of its own, and the
+    /// results are appended in file order, so errors and output are exactly those of
+    /// the serial loop. Returns where the element ends, or `None` when the file ends
+    /// first (the serial loop then reports where).
+    fn read_ascii_parallel(
+        &mut self,
+        element_index: usize,
+        element: &Element,
+        roles: &[Role],
+        bytes: &[u8],
+        offset: usize,
+        line: usize,
+    ) -> Result<Option<(usize, usize)>, ElementError> {
+        // Split into runs: the serial part, a newline search and a blank-line test.
+        let run_count = (rayon::current_num_threads() * 4)
+            .min(element.count / MIN_ASCII_RUN)
+            .max(1);
+        let per_run = element.count.div_ceil(run_count);
+        let mut runs = Vec::with_capacity(run_count + 1);
+        let (mut start, mut line_number, mut index) = (offset, line, 0);
+        let ends = memchr::memchr_iter(b'\n', &bytes[offset.min(bytes.len())..])
+            .map(|i| offset + i)
+            .chain(std::iter::once(bytes.len()));
+        for end in ends {
+            if index == element.count {
+                break;
+            }
+            if !bytes[start..end].trim_ascii().is_empty() {
+                if index % per_run == 0 {
+                    runs.push(LineRun {
+                        offset: start,
+                        line: line_number,
+                        first_index: index,
+                    });
+                }
+                index += 1;
+            }
+            start = end + 1;
+            line_number += 1;
+        }
+        if index < element.count {
+            return Ok(None);
+        }
+        let end = LineRun {
+            offset: start.min(bytes.len()),
+            line: line_number,
+            first_index: element.count,
+        };
+        runs.push(end);
+
+        let empty = MeshReader {
+            scene: SceneDescription::default(),
+            ..*self
+        };
+        let parts: Vec<Result<MeshReader, ElementError>> = runs
+            .par_windows(2)
+            .map(|run| {
+                let (first, next) = (run[0], run[1]);
+                let mut part = MeshReader {
+                    scene: SceneDescription::default(),
+                    ..empty
+                };
+                let elements = next.first_index - first.first_index;
+                match element.name.as_str() {
+                    "vertex" => part.scene.positions.reserve(elements),
+                    "face" => part.scene.triangles.reserve(elements),
+                    _ => {}
+                }
+                let mut body = AsciiBody::new(&bytes[first.offset..next.offset], first.line);
+                for index in first.first_index..next.first_index {
+                    part.read_element(element, roles, &mut body)
+                        .map_err(|kind| ElementError {
+                            element: element_index,
+                            index,
+                            line: body.line(),
+                            kind,
+                        })?;
+                }
+                Ok(part)
+            })
+            .collect();
+        for part in parts {
+            let part = part?.scene;
+            self.scene.positions.extend_from_slice(&part.positions);
+            self.scene.normals.extend_from_slice(&part.normals);
+            self.scene.texcoords.extend_from_slice(&part.texcoords);
+            self.scene.triangles.extend_from_slice(&part.triangles);
+        }
+        if self.scene.triangles.len() > u32::MAX as usize {
+            return Err(ElementError {
+                element: element_index,
+                index: element.count - 1,
+                line: Some(end.line - 1),
+                kind: ParseErrorKind::TooMany("triangles"),
+            });
+        }
+        Ok(Some((end.offset, end.line)))
     }
 
     #[inline]
@@ -1492,6 +1638,82 @@ mod tests {
                 "t.ply: face 0: invalid number '0.5'"
             );
         }
+    }
+
+    #[test]
+    fn large_ascii_files_parse_in_parallel_exactly_like_small_ones() {
+        // A strip of quads with normals: enough elements for the parallel path.
+        let n = 3 * PARALLEL_ASCII_ELEMENTS / 2;
+        let (f, u, i) = (Scalar::F32, Scalar::U8, Scalar::I32);
+        let mut rows: Vec<Vec<(Scalar, f64)>> = (0..2 * n)
+            .map(|k| {
+                vec![
+                    (f, (k / 2) as f64),
+                    (f, (k % 2) as f64),
+                    (f, 0.0),
+                    (f, 0.0),
+                    (f, 0.0),
+                    (f, 1.0),
+                ]
+            })
+            .collect();
+        rows.extend((0..n - 1).map(|q| {
+            let k = 2.0 * q as f64;
+            vec![(u, 4.0), (i, k), (i, k + 2.0), (i, k + 3.0), (i, k + 1.0)]
+        }));
+        let header = format!(
+            "element vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\n",
+            2 * n,
+            n - 1
+        );
+        let mesh = Mesh { header, rows };
+        let mut ascii = mesh.ascii();
+        // Blank lines inside must not shift element indices or line numbers.
+        let at = ascii.len() / 3;
+        let newline = at + ascii[at..].iter().position(|&b| b == b'\n').unwrap();
+        ascii.splice(newline..newline, *b"\n\n");
+        let parallel = parse(&ascii).unwrap();
+        let serial = parse(&mesh.binary(false)).unwrap();
+        assert_eq!(parallel.positions, serial.positions);
+        assert_eq!(parallel.normals, serial.normals);
+        assert_eq!(parallel.triangles, serial.triangles);
+        assert_eq!(parallel.triangles.len(), 2 * (n - 1));
+        assert_eq!(
+            parallel.triangles[2 * (n - 1) - 1].positions,
+            [2 * n as u32 - 4, 2 * n as u32 - 1, 2 * n as u32 - 3]
+        );
+
+        // An error late in the file names the same line and index as a serial read:
+        // 13 header lines, the blank lines before it, one line per element.
+        let text = String::from_utf8(ascii).unwrap();
+        let face = n - 10;
+        let bad_index = 2 * n + face;
+        let bad = text
+            .lines()
+            .enumerate()
+            .map(|(k, l)| if k == 14 + bad_index { "4 0 1 2" } else { l })
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert_eq!(
+            parse(bad.as_bytes()).unwrap_err().to_string(),
+            format!(
+                "t.ply:{}: face {face}: the line ends before property 'vertex_indices'",
+                15 + bad_index
+            )
+        );
+        // A file cut short falls back to the serial read, which says where.
+        let cut: String = text
+            .lines()
+            .take(14 + 2 * n + 5)
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert_eq!(
+            parse(cut.as_bytes()).unwrap_err().to_string(),
+            format!(
+                "t.ply:{}: face 5: file ends inside the element",
+                15 + 2 * n + 5
+            )
+        );
     }
 
     #[test]

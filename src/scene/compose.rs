@@ -4,7 +4,7 @@ use glam::Mat3;
 
 use super::SceneDescription;
 use super::error::ParseErrorKind;
-use crate::material::{MaterialId, PointLight};
+use crate::material::MaterialId;
 use crate::math::{Float, Vec3};
 
 /// Where a mesh goes in the world: `world_from_object = translate * rotate * scale`,
@@ -108,41 +108,55 @@ impl SceneDescription {
         let material_offset = self.materials.len() as u32;
         let material_of = |id: MaterialId| material.unwrap_or(MaterialId(id.0 + material_offset));
 
-        self.positions
-            .extend(mesh.positions.iter().map(|&p| transform.point(p)));
-        self.normals
-            .extend(mesh.normals.iter().map(|&n| transform.normal(n)));
-        self.texcoords.extend_from_slice(&mesh.texcoords);
-        self.triangles.extend(mesh.triangles.iter().map(|t| {
-            let mut t = *t;
+        // Work in place on the mesh's arrays and then move them over: a large first
+        // mesh (the usual case) is never copied.
+        let mut mesh = mesh;
+        for p in &mut mesh.positions {
+            *p = transform.point(*p);
+        }
+        for n in &mut mesh.normals {
+            *n = transform.normal(*n);
+        }
+        for t in &mut mesh.triangles {
             t.positions = t.positions.map(|i| i + position_offset);
             t.normals = t.normals.map(|ns| ns.map(|i| i + normal_offset));
             t.material = material_of(t.material);
-            t
-        }));
-        self.spheres.extend(mesh.spheres.iter().map(|s| {
-            let mut s = *s;
+        }
+        for s in &mut mesh.spheres {
             s.center = transform.point(s.center);
             s.radius *= radius_scale;
             s.material = material_of(s.material);
-            s
-        }));
-        self.lights.extend(mesh.lights.iter().map(|l| PointLight {
-            position: transform.point(l.position),
-            intensity: l.intensity,
-        }));
-        if material.is_none() {
-            self.materials.extend(mesh.materials);
         }
-        self.warnings.extend(mesh.warnings);
+        for l in &mut mesh.lights {
+            l.position = transform.point(l.position);
+        }
+        append(&mut self.positions, mesh.positions);
+        append(&mut self.normals, mesh.normals);
+        append(&mut self.texcoords, mesh.texcoords);
+        append(&mut self.triangles, mesh.triangles);
+        append(&mut self.spheres, mesh.spheres);
+        append(&mut self.lights, mesh.lights);
+        if material.is_none() {
+            append(&mut self.materials, mesh.materials);
+        }
+        append(&mut self.warnings, mesh.warnings);
         Ok(())
+    }
+}
+
+/// `to` followed by `from`, moving `from` over whole when `to` is empty.
+fn append<T>(to: &mut Vec<T>, mut from: Vec<T>) {
+    if to.is_empty() {
+        *to = from;
+    } else {
+        to.append(&mut from);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::material::Material;
+    use crate::material::{Material, PointLight};
     use crate::scene::{SphereDesc, TriangleDesc};
 
     fn close(a: Vec3, b: Vec3) -> bool {

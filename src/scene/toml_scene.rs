@@ -395,6 +395,7 @@ impl Builder<'_> {
     }
 
     fn add_mesh(&mut self, mesh: &MeshTable) -> Result<(), SceneError> {
+        // Everything the TOML says is checked before the (maybe large) file is read.
         let file = mesh.file.get_ref();
         let file_span = mesh.file.span();
         let mesh_path = match self.path.parent() {
@@ -408,22 +409,10 @@ impl Builder<'_> {
                 format!("'{file}' is a scene file, not a mesh (OBJ or PLY)"),
             ));
         }
-        let description = load_mesh(&mesh_path).map_err(|error| SceneError::Included {
-            path: self.path.to_path_buf(),
-            line: line_of(self.text.as_bytes(), file_span.start),
-            key: "mesh.file".into(),
-            error: Box::new(error),
-        })?;
         let material = match &mesh.material {
             Some(name) => Some(self.material(Some(name), "mesh.material")?),
             None => None,
         };
-        let mut description = description;
-        if material.is_some() {
-            // The mesh's own material assignments are replaced, so what its reader
-            // said about them (a missing `usemtl`, an unknown name) no longer holds.
-            description.warnings.retain(|w| !w.contains("material"));
-        }
         let t = &mesh.transform;
         let scale = t.scale.as_ref().map_or(Vec3::ONE, |s| s.get_ref().0);
         let scale_span = t.scale.as_ref().map_or(file_span.clone(), Spanned::span);
@@ -439,6 +428,18 @@ impl Builder<'_> {
             t.rotate.map_or(Vec3::ZERO, |r| r.0),
             t.translate.map_or(Vec3::ZERO, |r| r.0),
         );
+
+        let mut description = load_mesh(&mesh_path).map_err(|error| SceneError::Included {
+            path: self.path.to_path_buf(),
+            line: line_of(self.text.as_bytes(), file_span.start),
+            key: "mesh.file".into(),
+            error: Box::new(error),
+        })?;
+        if material.is_some() {
+            // The mesh's own material assignments are replaced, so what its reader
+            // said about them (a missing `usemtl`, an unknown name) no longer holds.
+            description.warnings.retain(|w| !w.contains("material"));
+        }
         self.scene
             .append(description, &transform, material)
             .map_err(|kind| match kind {

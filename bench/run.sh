@@ -12,8 +12,7 @@
 set -euo pipefail
 
 usage() {
-    sed -n '3,12p' "$0" | sed 's/^# \{0,1\}//' >&2
-    exit 2
+    sed -n '3,11p' "$0" | sed 's/^# \{0,1\}//'
 }
 die() {
     echo "bench/run.sh: error: $*" >&2
@@ -37,7 +36,10 @@ while (($#)); do
             res=$2
             shift
             ;;
-        -h | --help) usage ;;
+        -h | --help)
+            usage
+            exit 0
+            ;;
         *) die "unknown argument '$1' (try --help)" ;;
     esac
     shift

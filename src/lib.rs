@@ -18,6 +18,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod benchmark;
 pub mod bvh;
 pub mod camera;
 pub mod film;
@@ -28,6 +29,7 @@ pub mod options;
 mod render;
 pub mod scene;
 pub mod shapes;
+pub mod stats;
 
 pub use bvh::{Bvh, BvhParams};
 pub use camera::Camera;
@@ -35,5 +37,5 @@ pub use film::{Film, Image};
 pub use integrators::Mode;
 pub use material::{Material, MaterialId, PointLight};
 pub use options::RenderOptions;
-pub use render::render;
+pub use render::{render, render_counted};
 pub use scene::{Hit, Scene, SceneDescription, SceneError};

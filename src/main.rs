@@ -2,11 +2,14 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
+use raytracer::benchmark::{RayWorkload, count_occluded, median_time, trace_closest};
 use raytracer::math::Vec3;
-use raytracer::{BvhParams, Mode, RenderOptions, Scene, render, scene};
+use raytracer::stats::peak_memory_bytes;
+use raytracer::{BvhParams, Mode, RenderOptions, Scene, render_counted, scene};
 
 /// A Whitted-style ray tracer for Wavefront OBJ/MTL scenes.
 #[derive(Parser, Debug)]
@@ -20,16 +23,38 @@ struct Cli {
 enum Command {
     /// Render a scene to a PNG image.
     Render(RenderArgs),
+    /// Measure parsing, BVH build and ray throughput on a scene; prints JSON.
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct BenchArgs {
+    #[command(flatten)]
+    view: ViewArgs,
+    /// Runs per measurement; the median is reported.
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    repeat: usize,
 }
 
 #[derive(clap::Args, Debug)]
 struct RenderArgs {
-    /// The scene: a Wavefront .obj file (its .mtl files are found beside it).
-    #[arg(value_name = "SCENE.obj")]
-    scene: PathBuf,
+    #[command(flatten)]
+    view: ViewArgs,
     /// Where to write the PNG image (replaced atomically).
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
+    /// Print the time of each stage, BVH size and quality, rays traced and peak memory
+    /// on stderr.
+    #[arg(long)]
+    stats: bool,
+}
+
+/// The scene and how to look at it: shared by `render` and `bench`.
+#[derive(clap::Args, Debug)]
+struct ViewArgs {
+    /// The scene: a Wavefront .obj file (its .mtl files are found beside it).
+    #[arg(value_name = "SCENE.obj")]
+    scene: PathBuf,
     /// Image width in pixels (1..=65536).
     #[arg(long, default_value_t = 640, value_name = "PIXELS")]
     width: u32,
@@ -101,34 +126,123 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    match cli.command {
-        Command::Render(args) => run_render(args),
+    let view = match &cli.command {
+        Command::Render(args) => &args.view,
+        Command::Bench(args) => &args.view,
+    };
+    let options = view.options();
+    options.validate()?;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(view.threads)
+        .build_global()
+        .context("cannot start worker threads")?;
+    match &cli.command {
+        Command::Render(args) => run_render(args, &options),
+        Command::Bench(args) => run_bench(args, &options),
     }
 }
 
-fn run_render(args: RenderArgs) -> anyhow::Result<()> {
-    let options = RenderOptions {
-        width: args.width,
-        height: args.height,
-        fov_degrees: args.fov,
-        look_from: args.look_from,
-        look_to: args.look_to,
-        depth: args.depth,
-        mode: args.mode.into(),
-    };
-    options.validate()?;
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
-        .build_global()
-        .context("cannot start worker threads")?;
+impl ViewArgs {
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            width: self.width,
+            height: self.height,
+            fov_degrees: self.fov,
+            look_from: self.look_from,
+            look_to: self.look_to,
+            depth: self.depth,
+            mode: self.mode.into(),
+        }
+    }
+}
 
-    let description = scene::load_obj(&args.scene)?;
+fn run_render(args: &RenderArgs, options: &RenderOptions) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let description = scene::load_obj(&args.view.scene)?;
+    let parsed = Instant::now();
     let scene = Scene::build(description, &BvhParams::default());
+    let built = Instant::now();
     for warning in &scene.warnings {
         eprintln!("warning: {warning}");
     }
-    let film = render(&scene, &options);
-    film.to_image(options.mode).write_png(&args.output)?;
+    let (film, rays) = render_counted(&scene, options);
+    let rendered = Instant::now();
+    let image = film.to_image(options.mode);
+    let processed = Instant::now();
+    image.write_png(&args.output)?;
+    let written = Instant::now();
+    if args.stats {
+        let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
+        let render_ms = ms(built, rendered);
+        let bvh = scene.bvh();
+        eprintln!("parse        {:9.1} ms", ms(start, parsed));
+        eprintln!(
+            "build        {:9.1} ms  {} primitives, {} nodes, depth {}, SAH cost {:.1}",
+            ms(parsed, built),
+            scene.prim_count(),
+            bvh.nodes.len(),
+            bvh.max_depth,
+            bvh.sah_cost(&BvhParams::default())
+        );
+        eprintln!(
+            "render       {render_ms:9.1} ms  {} rays ({} primary, {} shadow, {} reflected, {} refracted), {:.1} Mrays/s",
+            rays.total(),
+            rays.primary,
+            rays.shadow,
+            rays.reflected,
+            rays.refracted,
+            rays.total() as f64 / render_ms / 1e3
+        );
+        eprintln!("post-process {:9.1} ms", ms(rendered, processed));
+        eprintln!("write        {:9.1} ms", ms(processed, written));
+        eprintln!("total        {:9.1} ms", ms(start, written));
+        if let Some(peak) = peak_memory_bytes() {
+            eprintln!("peak memory  {:9.1} MB", peak as f64 / 1e6);
+        }
+    }
+    Ok(())
+}
+
+fn run_bench(args: &BenchArgs, options: &RenderOptions) -> anyhow::Result<()> {
+    let path = &args.view.scene;
+    let file_bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let (description, parse_s) = median_time(args.repeat, || scene::load_obj(path));
+    let description = description?;
+    let triangles = description.triangles.len();
+    let params = BvhParams::default();
+    let (scene, build_s) = median_time(args.repeat, || Scene::build(description.clone(), &params));
+    let workload = RayWorkload::new(&scene, options);
+    let (hits, primary_s) = median_time(args.repeat, || trace_closest(&scene, &workload.primary));
+    debug_assert_eq!(hits.iter().flatten().count(), workload.primary_hits);
+    let (occluded, shadow_s) =
+        median_time(args.repeat, || count_occluded(&scene, &workload.shadow));
+    let (_, render_s) = median_time(args.repeat, || render_counted(&scene, options));
+    let mrays = |n: usize, s: f64| n as f64 / s / 1e6;
+    println!(
+        concat!(
+            "{{\"file_bytes\": {}, \"triangles\": {}, \"parse_ms\": {:.2}, \"parse_mb_per_s\": {:.1}, ",
+            "\"build_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, ",
+            "\"primary_rays\": {}, \"primary_hits\": {}, \"primary_ms\": {:.2}, \"primary_mrays_per_s\": {:.2}, ",
+            "\"shadow_rays\": {}, \"shadow_occluded\": {}, \"shadow_ms\": {:.2}, \"shadow_mrays_per_s\": {:.2}, ",
+            "\"render_ms\": {:.2}}}"
+        ),
+        file_bytes,
+        triangles,
+        parse_s * 1e3,
+        file_bytes as f64 / parse_s / 1e6,
+        build_s * 1e3,
+        scene.bvh().nodes.len(),
+        scene.bvh().sah_cost(&params),
+        workload.primary.len(),
+        workload.primary_hits,
+        primary_s * 1e3,
+        mrays(workload.primary.len(), primary_s),
+        workload.shadow.len(),
+        occluded,
+        shadow_s * 1e3,
+        mrays(workload.shadow.len(), shadow_s),
+        render_s * 1e3,
+    );
     Ok(())
 }
 
@@ -166,8 +280,10 @@ mod tests {
                 "--mode=full",
             ],
         ] {
-            let Command::Render(args) = Cli::try_parse_from(argv).unwrap().command;
-            assert_eq!(args.look_from, Vec3::new(-1.0, 2.0, -3.0));
+            let Command::Render(args) = Cli::try_parse_from(argv).unwrap().command else {
+                panic!("not render")
+            };
+            assert_eq!(args.view.look_from, Vec3::new(-1.0, 2.0, -3.0));
         }
     }
 }

@@ -1,12 +1,21 @@
 //! Binned SAH construction, parallel near the root.
+//!
+//! Each node costs two passes over its primitives: one bins them on all three axes
+//! (which also yields both children's exact boxes), one partitions them (which also
+//! yields both children's centroid bounds). Above [`BvhParams::parallel_threshold`]
+//! primitives the binning pass is split over threads and the two subtrees are built
+//! with `rayon::join`.
+
+use glam::{Vec3A, Vec4};
+use rayon::prelude::*;
 
 use super::{Bvh, BvhNode, MEDIAN_SPLIT_DEPTH};
-use crate::math::{Aabb, Float, Vec3};
+use crate::math::{Aabb, Float};
 
 /// Tuning numbers of the builder.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BvhParams {
-    /// Number of SAH bins per axis.
+    /// Number of SAH bins per axis, in `4..=16`.
     pub bins: usize,
     /// Cost of visiting an interior node, relative to `intersection_cost`.
     pub traversal_cost: Float,
@@ -25,35 +34,166 @@ impl Default for BvhParams {
             traversal_cost: 1.0,
             intersection_cost: 1.0,
             max_leaf_size: 8,
-            parallel_threshold: 32 * 1024,
+            parallel_threshold: 16 * 1024,
         }
     }
 }
 
-/// Most bins any [`BvhParams`] may ask for; bins live in fixed arrays on the stack.
-const MAX_BINS: usize = 32;
+/// Most bins any [`BvhParams`] may ask for; bins live in fixed arrays on the stack,
+/// cleared for every node, so more would cost more than they gain.
+const MAX_BINS: usize = 16;
+/// Fewest bins used for a node: small nodes use one bin per primitive (at least
+/// this many), which saves clearing and sweeping bins that would stay empty.
+const MIN_BINS: usize = 4;
 
-/// A primitive's box and original index, moved around during the build instead of
-/// indexing into the caller's arrays (sequential memory, no indirection).
+/// A primitive's box with its original index in the spare lane of `min`: 32 bytes,
+/// moved around during the build instead of indexing the caller's arrays.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 struct PrimRef {
-    min: Vec3,
-    index: u32,
-    max: Vec3,
+    min_and_index: Vec4,
+    max: Vec4,
 }
 
 impl PrimRef {
-    #[inline]
-    fn centroid(&self) -> Vec3 {
-        (self.min + self.max) * 0.5
+    #[inline(always)]
+    fn min(&self) -> Vec3A {
+        Vec3A::from_vec4(self.min_and_index)
     }
-    #[inline]
-    fn bounds(&self) -> Aabb {
-        Aabb {
-            min: self.min,
-            max: self.max,
+    #[inline(always)]
+    fn max(&self) -> Vec3A {
+        Vec3A::from_vec4(self.max)
+    }
+    #[inline(always)]
+    fn index(&self) -> u32 {
+        self.min_and_index.w.to_bits()
+    }
+    /// Twice the centroid: the factor 1/2 cancels in every comparison.
+    #[inline(always)]
+    fn centroid2(&self) -> Vec3A {
+        self.min() + self.max()
+    }
+}
+
+/// A box in SIMD registers, for the build's inner loops.
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds {
+        min: Vec3A::splat(Float::INFINITY),
+        max: Vec3A::splat(Float::NEG_INFINITY),
+    };
+    #[inline(always)]
+    fn grow(&mut self, min: Vec3A, max: Vec3A) {
+        self.min = self.min.min(min);
+        self.max = self.max.max(max);
+    }
+    #[inline(always)]
+    fn union(self, other: Bounds) -> Bounds {
+        Bounds {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
         }
     }
+    #[inline(always)]
+    fn half_area(&self) -> Float {
+        let e = (self.max - self.min).max(Vec3A::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+    fn to_aabb(self) -> Aabb {
+        Aabb {
+            min: self.min.into(),
+            max: self.max.into(),
+        }
+    }
+}
+
+/// Per-axis bins of one node.
+#[derive(Clone, Copy)]
+struct Bins {
+    bounds: [[Bounds; MAX_BINS]; 3],
+    counts: [[u32; MAX_BINS]; 3],
+}
+
+impl Bins {
+    fn new() -> Bins {
+        Bins {
+            bounds: [[Bounds::EMPTY; MAX_BINS]; 3],
+            counts: [[0; MAX_BINS]; 3],
+        }
+    }
+    fn merge(mut self, other: &Bins) -> Bins {
+        for a in 0..3 {
+            for b in 0..MAX_BINS {
+                self.bounds[a][b] = self.bounds[a][b].union(other.bounds[a][b]);
+                self.counts[a][b] += other.counts[a][b];
+            }
+        }
+        self
+    }
+}
+
+/// Maps doubled centroids to bin numbers along each axis.
+#[derive(Clone, Copy)]
+struct Binning {
+    origin: Vec3A,
+    scale: Vec3A,
+    last_bin: u32,
+}
+
+impl Binning {
+    #[inline(always)]
+    fn bins_of(&self, centroid2: Vec3A) -> [u32; 3] {
+        let b = ((centroid2 - self.origin) * self.scale).as_uvec3();
+        b.min(glam::UVec3::splat(self.last_bin)).to_array()
+    }
+
+    fn bin(&self, refs: &[PrimRef]) -> Bins {
+        let mut bins = Bins::new();
+        for r in refs {
+            let (min, max) = (r.min(), r.max());
+            for (axis, b) in self.bins_of(min + max).into_iter().enumerate() {
+                bins.bounds[axis][b as usize].grow(min, max);
+                bins.counts[axis][b as usize] += 1;
+            }
+        }
+        bins
+    }
+}
+
+/// One node's primitives with their box and centroid bounds.
+struct Task<'a> {
+    refs: &'a mut [PrimRef],
+    /// Leaf-order index of `refs[0]`.
+    offset: u32,
+    bounds: Bounds,
+    /// Bounds of the doubled centroids.
+    centroids: Bounds,
+    depth: usize,
+}
+
+/// What to do with one node's primitives.
+enum Split {
+    Leaf,
+    /// Children get `refs[..mid]` and `refs[mid..]` (already partitioned), with
+    /// these boxes and centroid bounds.
+    At {
+        mid: usize,
+        bounds: [Bounds; 2],
+        centroids: [Bounds; 2],
+    },
+}
+
+/// A subtree built on its own, before the parallel pieces are laid out in one array.
+enum Subtree {
+    /// Nodes with child indices relative to this vector, root first.
+    Flat(Vec<BvhNode>),
+    /// An interior node whose two subtrees were built in parallel.
+    Joined(BvhNode, Box<(Subtree, Subtree)>),
 }
 
 impl Bvh {
@@ -65,220 +205,310 @@ impl Bvh {
     ///
     /// # Panics
     /// If there are more than `u32::MAX` primitives or `params.bins` is not in
-    /// `2..=32`.
+    /// `4..=16`.
     pub fn build(prim_bounds: &[Aabb], params: &BvhParams) -> (Bvh, Vec<u32>) {
         assert!(
             u32::try_from(prim_bounds.len()).is_ok(),
             "too many primitives"
         );
-        assert!((2..=MAX_BINS).contains(&params.bins), "bins out of range");
-        let mut refs: Vec<PrimRef> = prim_bounds
-            .iter()
-            .enumerate()
-            .map(|(i, b)| PrimRef {
-                min: b.min,
-                index: i as u32,
-                max: b.max,
-            })
-            .collect();
-        if refs.is_empty() {
+        assert!(
+            (MIN_BINS..=MAX_BINS).contains(&params.bins),
+            "bins out of range"
+        );
+        if prim_bounds.is_empty() {
             return (Bvh::default(), Vec::new());
         }
-        let (nodes, max_depth) = build_subtree(&mut refs, 0, 0, params);
-        let order = refs.iter().map(|r| r.index).collect();
+        let mut refs: Vec<PrimRef> = prim_bounds
+            .par_iter()
+            .enumerate()
+            .map(|(i, b)| PrimRef {
+                min_and_index: b.min.extend(f32::from_bits(i as u32)),
+                max: b.max.extend(0.0),
+            })
+            .collect();
+        let (bounds, centroids) = refs
+            .par_chunks(params.parallel_threshold)
+            .map(|chunk| {
+                let mut bounds = Bounds::EMPTY;
+                let mut centroids = Bounds::EMPTY;
+                for r in chunk {
+                    bounds.grow(r.min(), r.max());
+                    centroids.grow(r.centroid2(), r.centroid2());
+                }
+                (bounds, centroids)
+            })
+            .reduce(
+                || (Bounds::EMPTY, Bounds::EMPTY),
+                |a, b| (a.0.union(b.0), a.1.union(b.1)),
+            );
+        let task = Task {
+            refs: &mut refs,
+            offset: 0,
+            bounds,
+            centroids,
+            depth: 0,
+        };
+        let mut max_depth = 0;
+        let tree = build_subtree(task, params, &mut max_depth);
+        let mut nodes = Vec::with_capacity(count_nodes(&tree));
+        nodes.push(BvhNode::default());
+        lay_out(tree, 0, &mut nodes);
+        let order = refs.iter().map(PrimRef::index).collect();
         (Bvh { nodes, max_depth }, order)
     }
 }
 
-/// What to do with one node's primitives.
-enum Split {
-    Leaf,
-    /// Children are `refs[..mid]` and `refs[mid..]` (already partitioned).
-    At(usize),
-}
-
-/// Builds the subtree over `refs` (whose first element has leaf-order index
-/// `offset`) and returns its nodes, root first, with child indices relative to the
-/// returned vector, and the greatest depth reached (the subtree root is at `depth`).
-fn build_subtree(
-    refs: &mut [PrimRef],
-    offset: u32,
-    depth: usize,
-    params: &BvhParams,
-) -> (Vec<BvhNode>, usize) {
-    if refs.len() <= params.parallel_threshold {
-        return build_sequential(refs, offset, depth, params);
+fn count_nodes(tree: &Subtree) -> usize {
+    match tree {
+        Subtree::Flat(nodes) => nodes.len(),
+        Subtree::Joined(_, children) => 1 + count_nodes(&children.0) + count_nodes(&children.1),
     }
-    let (bounds, split) = split_node(refs, depth, params);
-    let mut root = BvhNode::default();
-    root.set_bounds(bounds);
-    let Split::At(mid) = split else {
-        root.first_index = offset;
-        root.prim_count = refs.len() as u32;
-        return (vec![root], depth);
-    };
-    let (left_refs, right_refs) = refs.split_at_mut(mid);
-    let ((left, left_depth), (right, right_depth)) = rayon::join(
-        || build_subtree(left_refs, offset, depth + 1, params),
-        || build_subtree(right_refs, offset + mid as u32, depth + 1, params),
-    );
-    // Layout: root, left root, right root, rest of left, rest of right.
-    let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
-    root.first_index = 1;
-    nodes.push(root);
-    let left_shift = 2;
-    let right_shift = left.len() as u32 + 1;
-    let relocate = |mut node: BvhNode, shift: u32| {
-        if !node.is_leaf() {
-            node.first_index += shift;
-        }
-        node
-    };
-    nodes.push(relocate(left[0], left_shift));
-    nodes.push(relocate(right[0], right_shift));
-    nodes.extend(left[1..].iter().map(|&n| relocate(n, left_shift)));
-    nodes.extend(right[1..].iter().map(|&n| relocate(n, right_shift)));
-    (nodes, left_depth.max(right_depth))
 }
 
-/// The single-threaded builder: an explicit work stack writing straight into the
-/// final array, children allocated as adjacent pairs.
-fn build_sequential(
-    refs: &mut [PrimRef],
-    offset: u32,
-    depth: usize,
-    params: &BvhParams,
-) -> (Vec<BvhNode>, usize) {
-    let mut nodes = Vec::with_capacity(2 * refs.len().div_ceil(2));
+/// Writes `tree` with its root at `nodes[at]` (already allocated), appending the
+/// rest; children stay adjacent.
+fn lay_out(tree: Subtree, at: usize, nodes: &mut Vec<BvhNode>) {
+    match tree {
+        Subtree::Flat(flat) => {
+            let shift = nodes.len() as u32 - 1;
+            let relocate = |mut node: BvhNode| {
+                if !node.is_leaf() {
+                    node.first_index += shift;
+                }
+                node
+            };
+            nodes[at] = relocate(flat[0]);
+            nodes.extend(flat[1..].iter().map(|&n| relocate(n)));
+        }
+        Subtree::Joined(mut root, children) => {
+            let first = nodes.len();
+            root.first_index = first as u32;
+            nodes[at] = root;
+            nodes.push(BvhNode::default());
+            nodes.push(BvhNode::default());
+            let (left, right) = *children;
+            lay_out(left, first, nodes);
+            lay_out(right, first + 1, nodes);
+        }
+    }
+}
+
+fn build_subtree(task: Task<'_>, params: &BvhParams, max_depth: &mut usize) -> Subtree {
+    if task.refs.len() <= params.parallel_threshold {
+        return Subtree::Flat(build_sequential(task, params, max_depth));
+    }
+    let mut root = BvhNode::default();
+    root.set_bounds(task.bounds.to_aabb());
+    let depth = task.depth;
+    match split_node(task.refs, task.bounds, task.centroids, depth, params) {
+        Split::Leaf => {
+            root.first_index = task.offset;
+            root.prim_count = task.refs.len() as u32;
+            *max_depth = (*max_depth).max(depth);
+            Subtree::Flat(vec![root])
+        }
+        Split::At {
+            mid,
+            bounds,
+            centroids,
+        } => {
+            let (left_refs, right_refs) = task.refs.split_at_mut(mid);
+            let left = Task {
+                refs: left_refs,
+                offset: task.offset,
+                bounds: bounds[0],
+                centroids: centroids[0],
+                depth: depth + 1,
+            };
+            let right = Task {
+                refs: right_refs,
+                offset: task.offset + mid as u32,
+                bounds: bounds[1],
+                centroids: centroids[1],
+                depth: depth + 1,
+            };
+            let (mut left_depth, mut right_depth) = (0, 0);
+            let children = rayon::join(
+                || build_subtree(left, params, &mut left_depth),
+                || build_subtree(right, params, &mut right_depth),
+            );
+            *max_depth = (*max_depth).max(left_depth).max(right_depth);
+            Subtree::Joined(root, Box::new(children))
+        }
+    }
+}
+
+/// The single-threaded builder: an explicit work stack writing straight into one
+/// array, children allocated as adjacent pairs.
+fn build_sequential(task: Task<'_>, params: &BvhParams, max_depth: &mut usize) -> Vec<BvhNode> {
+    let refs = task.refs;
+    let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
     nodes.push(BvhNode::default());
-    let mut max_depth = depth;
-    // (node index, start, end, depth) with start/end relative to `refs`.
-    let mut work = vec![(0usize, 0usize, refs.len(), depth)];
-    while let Some((node_index, start, end, node_depth)) = work.pop() {
-        max_depth = max_depth.max(node_depth);
-        let (bounds, split) = split_node(&mut refs[start..end], node_depth, params);
-        nodes[node_index].set_bounds(bounds);
-        match split {
+    // (node index, start, end relative to `refs`, bounds, centroid bounds, depth)
+    let mut work = vec![(
+        0usize,
+        0usize,
+        refs.len(),
+        task.bounds,
+        task.centroids,
+        task.depth,
+    )];
+    while let Some((node_index, start, end, bounds, centroids, depth)) = work.pop() {
+        *max_depth = (*max_depth).max(depth);
+        nodes[node_index].set_bounds(bounds.to_aabb());
+        match split_node(&mut refs[start..end], bounds, centroids, depth, params) {
             Split::Leaf => {
-                nodes[node_index].first_index = offset + start as u32;
+                nodes[node_index].first_index = task.offset + start as u32;
                 nodes[node_index].prim_count = (end - start) as u32;
             }
-            Split::At(mid) => {
+            Split::At {
+                mid,
+                bounds,
+                centroids,
+            } => {
                 let left = nodes.len();
                 nodes.push(BvhNode::default());
                 nodes.push(BvhNode::default());
                 nodes[node_index].first_index = left as u32;
-                work.push((left, start, start + mid, node_depth + 1));
-                work.push((left + 1, start + mid, end, node_depth + 1));
+                let split = start + mid;
+                work.push((left + 1, split, end, bounds[1], centroids[1], depth + 1));
+                work.push((left, start, split, bounds[0], centroids[0], depth + 1));
             }
         }
     }
-    (nodes, max_depth)
+    nodes
 }
 
-/// Computes the node's box and decides how to split it, partitioning `refs` in place.
-fn split_node(refs: &mut [PrimRef], depth: usize, params: &BvhParams) -> (Aabb, Split) {
-    // Step 1: bounds of the boxes and of the centroids.
-    let mut bounds = Aabb::EMPTY;
-    let mut centroid_bounds = Aabb::EMPTY;
-    for r in refs.iter() {
-        bounds = bounds.union(r.bounds());
-        centroid_bounds = centroid_bounds.grow(r.centroid());
-    }
+/// Decides how to split a node and partitions `refs` accordingly.
+fn split_node(
+    refs: &mut [PrimRef],
+    bounds: Bounds,
+    centroids: Bounds,
+    depth: usize,
+    params: &BvhParams,
+) -> Split {
     let n = refs.len();
     if n == 1 {
-        return (bounds, Split::Leaf);
+        return Split::Leaf;
     }
-    let extent = centroid_bounds.max - centroid_bounds.min;
-    let axis = extent.max_position();
-    if extent[axis] <= 0.0 || !extent[axis].is_finite() {
+    let extent = centroids.max - centroids.min;
+    let widest = extent.max_position();
+    if extent[widest] <= 0.0 || !extent[widest].is_finite() {
         // All centroids coincide: no plane separates them. Halve by count so that
         // leaves stay small even for piles of identical primitives.
         return if n <= params.max_leaf_size {
-            (bounds, Split::Leaf)
+            Split::Leaf
         } else {
-            (bounds, Split::At(n / 2))
+            split_by_count(refs, n / 2)
         };
     }
     if depth >= MEDIAN_SPLIT_DEPTH {
-        let mid = n / 2;
-        refs.select_nth_unstable_by(mid, |a, b| {
-            a.centroid()[axis].total_cmp(&b.centroid()[axis])
+        refs.select_nth_unstable_by(n / 2, |a, b| {
+            a.centroid2()[widest].total_cmp(&b.centroid2()[widest])
         });
-        return (bounds, Split::At(mid));
+        return split_by_count(refs, n / 2);
     }
 
-    // Step 2: bin centroids on all three axes.
-    let bins = params.bins;
-    let mut bin_bounds = [[Aabb::EMPTY; MAX_BINS]; 3];
-    let mut bin_counts = [[0u32; MAX_BINS]; 3];
-    let scale = Vec3::select(
-        extent.cmpgt(Vec3::ZERO),
-        Vec3::splat(bins as Float) / extent,
-        Vec3::ZERO,
-    );
-    let bin_of = |c: Vec3, a: usize| -> usize {
-        (((c[a] - centroid_bounds.min[a]) * scale[a]) as usize).min(bins - 1)
+    // Step 1: bin centroids on all three axes.
+    let bin_count = n.clamp(MIN_BINS, params.bins);
+    let binning = Binning {
+        origin: centroids.min,
+        scale: Vec3A::select(
+            extent.cmpgt(Vec3A::ZERO),
+            Vec3A::splat(bin_count as Float) / extent,
+            Vec3A::ZERO,
+        ),
+        last_bin: bin_count as u32 - 1,
     };
-    for r in refs.iter() {
-        let c = r.centroid();
-        for a in 0..3 {
-            let b = bin_of(c, a);
-            bin_bounds[a][b] = bin_bounds[a][b].union(r.bounds());
-            bin_counts[a][b] += 1;
-        }
-    }
+    let bins = if n > params.parallel_threshold {
+        refs.par_chunks(params.parallel_threshold)
+            .map(|chunk| binning.bin(chunk))
+            .reduce(Bins::new, |a, b| a.merge(&b))
+    } else {
+        binning.bin(refs)
+    };
 
-    // Step 3: sweep each axis from the right, then from the left, to find the plane
-    // of lowest cost `c_trav + (A_l N_l + A_r N_r) / A * c_int`.
+    // Step 2: sweep each axis from the right, then from the left, to find the plane
+    // of lowest cost `A_l N_l + A_r N_r`.
     let mut best: Option<(usize, usize, Float)> = None;
-    for a in 0..3 {
-        if extent[a] <= 0.0 {
+    for axis in 0..3 {
+        if extent[axis] <= 0.0 {
             continue;
         }
         let mut right_cost = [0.0 as Float; MAX_BINS];
-        let mut acc = Aabb::EMPTY;
+        let mut acc = Bounds::EMPTY;
         let mut count = 0u32;
-        for b in (1..bins).rev() {
-            acc = acc.union(bin_bounds[a][b]);
-            count += bin_counts[a][b];
+        for b in (1..bin_count).rev() {
+            acc = acc.union(bins.bounds[axis][b]);
+            count += bins.counts[axis][b];
             right_cost[b] = acc.half_area() * count as Float;
         }
-        let mut acc = Aabb::EMPTY;
+        let mut acc = Bounds::EMPTY;
         let mut count = 0u32;
-        for b in 1..bins {
-            acc = acc.union(bin_bounds[a][b - 1]);
-            count += bin_counts[a][b - 1];
+        for b in 1..bin_count {
+            acc = acc.union(bins.bounds[axis][b - 1]);
+            count += bins.counts[axis][b - 1];
             if count == 0 || count as usize == n {
                 continue;
             }
             let cost = acc.half_area() * count as Float + right_cost[b];
             if best.is_none_or(|(_, _, c)| cost < c) {
-                best = Some((a, b, cost));
+                best = Some((axis, b, cost));
             }
         }
     }
 
-    // Step 4: compare the cheapest split with making a leaf.
-    let area = bounds.half_area();
+    // Step 3: compare the cheapest split, `c_trav + c_int (A_l N_l + A_r N_r) / A`,
+    // with making a leaf, `c_int N`.
     let Some((axis, split_bin, cost)) = best else {
-        return (bounds, Split::Leaf);
+        return Split::Leaf;
     };
-    let split_cost =
-        params.traversal_cost + params.intersection_cost * cost / area.max(Float::MIN_POSITIVE);
+    let area = bounds.half_area().max(Float::MIN_POSITIVE);
+    let split_cost = params.traversal_cost + params.intersection_cost * cost / area;
     let leaf_cost = params.intersection_cost * n as Float;
     if split_cost >= leaf_cost && n <= params.max_leaf_size {
-        return (bounds, Split::Leaf);
+        return Split::Leaf;
     }
 
-    // Step 5: partition in place around the chosen plane.
+    // Step 4: partition in place around the chosen plane, collecting both sides'
+    // centroid bounds on the way; their boxes come from the bins.
+    let mut centroid_sides = [Bounds::EMPTY; 2];
     let mut mid = 0;
     for i in 0..n {
-        if bin_of(refs[i].centroid(), axis) < split_bin {
+        let c = refs[i].centroid2();
+        let left = binning.bins_of(c)[axis] < split_bin as u32;
+        centroid_sides[usize::from(!left)].grow(c, c);
+        if left {
             refs.swap(i, mid);
             mid += 1;
         }
     }
     debug_assert!(mid > 0 && mid < n, "SAH split leaves a side empty");
-    (bounds, Split::At(mid))
+    let side = |range: std::ops::Range<usize>| {
+        range.fold(Bounds::EMPTY, |acc, b| acc.union(bins.bounds[axis][b]))
+    };
+    Split::At {
+        mid,
+        bounds: [side(0..split_bin), side(split_bin..bin_count)],
+        centroids: centroid_sides,
+    }
+}
+
+/// Splits at `mid` as the primitives lie, measuring both sides.
+fn split_by_count(refs: &[PrimRef], mid: usize) -> Split {
+    let measure = |part: &[PrimRef]| {
+        part.iter()
+            .fold((Bounds::EMPTY, Bounds::EMPTY), |(mut b, mut c), r| {
+                b.grow(r.min(), r.max());
+                c.grow(r.centroid2(), r.centroid2());
+                (b, c)
+            })
+    };
+    let (left_bounds, left_centroids) = measure(&refs[..mid]);
+    let (right_bounds, right_centroids) = measure(&refs[mid..]);
+    Split::At {
+        mid,
+        bounds: [left_bounds, right_bounds],
+        centroids: [left_centroids, right_centroids],
+    }
 }

@@ -6,6 +6,7 @@ pub mod whitted;
 
 use crate::math::{Ray, Vec3};
 use crate::scene::Scene;
+use crate::stats::RayCounts;
 
 /// What the renderer computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -20,12 +21,14 @@ pub enum Mode {
 }
 
 /// The linear value of one camera ray in `mode`. For depth mode this is the distance
-/// in every channel, or infinity where the ray hits nothing.
+/// in every channel, or infinity where the ray hits nothing. Rays traced are added to
+/// `rays`.
 #[inline]
-pub fn sample(scene: &Scene, ray: &Ray, mode: Mode, max_depth: u32) -> Vec3 {
+pub fn sample(scene: &Scene, ray: &Ray, mode: Mode, max_depth: u32, rays: &mut RayCounts) -> Vec3 {
+    rays.primary += 1;
     match mode {
         Mode::Depth => debug::depth(scene, ray),
         Mode::Normal => debug::normal(scene, ray),
-        Mode::Full => whitted::radiance(scene, ray, max_depth),
+        Mode::Full => whitted::radiance(scene, ray, max_depth, rays),
     }
 }

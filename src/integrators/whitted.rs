@@ -3,17 +3,19 @@
 
 use crate::math::{Ray, Vec3, reflect, refract};
 use crate::scene::Scene;
+use crate::stats::RayCounts;
 
-/// Radiance along a camera ray, shading its hit with remaining depth `max_depth`.
+/// Radiance along a camera ray, shading its hit with remaining depth `max_depth`;
+/// the secondary rays it traces are added to `rays`.
 #[inline]
-pub fn radiance(scene: &Scene, ray: &Ray, max_depth: u32) -> Vec3 {
-    trace(scene, ray, max_depth, false)
+pub fn radiance(scene: &Scene, ray: &Ray, max_depth: u32, rays: &mut RayCounts) -> Vec3 {
+    trace(scene, ray, max_depth, false, rays)
 }
 
 /// `inside` tells whether the ray travels inside an object: set by refracting into
 /// one, cleared by refracting out. Inside, reflection is skipped, indices swap and
 /// refraction is weighted 1 instead of `al2`.
-fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool) -> Vec3 {
+fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCounts) -> Vec3 {
     let Some(hit) = scene.intersect(ray) else {
         return Vec3::ZERO;
     };
@@ -26,6 +28,7 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool) -> Vec3 {
         let mut local = Vec3::ZERO;
         for light in &scene.lights {
             let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+            rays.shadow += 1;
             if scene.occluded(&shadow_ray, distance) {
                 continue;
             }
@@ -43,7 +46,8 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool) -> Vec3 {
     if depth > 1 {
         if !inside && reflect_weight != 0.0 {
             let reflected = hit.spawn_ray(reflect(ray.dir, hit.ns));
-            value += reflect_weight * trace(scene, &reflected, depth - 1, false);
+            rays.reflected += 1;
+            value += reflect_weight * trace(scene, &reflected, depth - 1, false, rays);
         }
         if inside || refract_weight != 0.0 {
             let (eta, weight) = if inside {
@@ -53,7 +57,8 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool) -> Vec3 {
             };
             if let Some(dir) = refract(ray.dir, hit.ns, eta) {
                 let refracted = hit.spawn_ray(dir);
-                value += weight * trace(scene, &refracted, depth - 1, !inside);
+                rays.refracted += 1;
+                value += weight * trace(scene, &refracted, depth - 1, !inside, rays);
             }
         }
     }

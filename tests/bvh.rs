@@ -1,0 +1,228 @@
+//! The BVH against brute force: for thousands of seeded rays on random triangle
+//! soups, sphere sets and the deer mesh, the BVH's closest hit equals the linear
+//! scan's, any-hit agrees with closest-hit, and `Bvh::validate` holds.
+
+mod support;
+
+use proptest::prelude::*;
+use proptest::test_runner::Config;
+use rand::{Rng, SeedableRng};
+use raytracer::bvh::{Bvh, BvhParams};
+use raytracer::math::{Aabb, Ray, Vec3};
+use raytracer::scene::{SceneDescription, SphereDesc, TriangleDesc};
+use raytracer::{MaterialId, Scene, scene};
+
+type Rng64 = rand::rngs::StdRng;
+
+fn random_vec(rng: &mut Rng64, scale: f32) -> Vec3 {
+    Vec3::new(
+        rng.random_range(-scale..scale),
+        rng.random_range(-scale..scale),
+        rng.random_range(-scale..scale),
+    )
+}
+
+fn random_soup(rng: &mut Rng64, triangles: usize, spheres: usize) -> SceneDescription {
+    let mut d = SceneDescription::default();
+    for _ in 0..triangles {
+        let center = random_vec(rng, 10.0);
+        let size = rng.random_range(0.01..2.0);
+        let base = d.positions.len() as u32;
+        for _ in 0..3 {
+            d.positions.push(center + random_vec(rng, size));
+        }
+        d.triangles.push(TriangleDesc {
+            positions: [base, base + 1, base + 2],
+            normals: None,
+            material: MaterialId(0),
+        });
+    }
+    for _ in 0..spheres {
+        d.spheres.push(SphereDesc {
+            center: random_vec(rng, 10.0),
+            radius: rng.random_range(0.01..1.5),
+            material: MaterialId(0),
+        });
+    }
+    d
+}
+
+/// Rays from random points, half of them aimed at random points of the scene's box
+/// and a few exactly axis-parallel.
+fn random_rays(rng: &mut Rng64, count: usize, scale: f32) -> Vec<Ray> {
+    (0..count)
+        .map(|i| {
+            let origin = random_vec(rng, scale * 1.5);
+            let dir = match i % 8 {
+                0 => Vec3::X,
+                1 => Vec3::NEG_Y,
+                2 => Vec3::Z,
+                3 | 4 | 5 => random_vec(rng, scale) - origin,
+                _ => random_vec(rng, 1.0),
+            };
+            Ray::new(origin, if dir.length() > 1e-3 { dir } else { Vec3::Y })
+        })
+        .collect()
+}
+
+fn assert_bvh_matches_linear(scene: &Scene, rays: &[Ray]) {
+    scene.bvh().validate(&scene.prim_bounds()).unwrap();
+    let mut hits = 0;
+    for ray in rays {
+        let fast = scene.intersect(ray);
+        let slow = scene.intersect_linear(ray);
+        match (fast, slow) {
+            (Some(a), Some(b)) => {
+                hits += 1;
+                assert!(
+                    (a.t - b.t).abs() <= 1e-5 * a.t.max(1.0),
+                    "closest hit differs for {ray:?}: {} vs {}",
+                    a.t,
+                    b.t
+                );
+                assert!(scene.occluded(ray, a.t * 1.0001 + 1e-4));
+                assert!(!scene.occluded(ray, a.t * 0.9999 - 1e-4) || a.t < 2e-4);
+            }
+            (None, None) => assert!(!scene.occluded(ray, f32::INFINITY)),
+            (a, b) => panic!("BVH and linear scan disagree for {ray:?}: {a:?} vs {b:?}"),
+        }
+    }
+    if scene.prim_count() >= 1000 {
+        assert!(
+            hits > rays.len() / 20,
+            "too few hits ({hits}) to mean anything"
+        );
+    }
+}
+
+#[test]
+fn bvh_equals_linear_scan_on_random_soups() {
+    let mut rng = Rng64::seed_from_u64(7);
+    for (triangles, spheres) in [
+        (1, 0),
+        (2, 1),
+        (100, 0),
+        (1000, 20),
+        (5000, 100),
+        (40_000, 0),
+    ] {
+        let scene = Scene::build(
+            random_soup(&mut rng, triangles, spheres),
+            &BvhParams::default(),
+        );
+        let rays = random_rays(&mut rng, 2000, 10.0);
+        assert_bvh_matches_linear(&scene, &rays);
+    }
+}
+
+#[test]
+fn bvh_equals_linear_scan_on_the_deer() {
+    let path = support::reference_dir().join("scenes/deer/CERF_Free.obj");
+    let scene = Scene::build(scene::load_obj(&path).unwrap(), &BvhParams::default());
+    let mut rng = Rng64::seed_from_u64(11);
+    let center = Vec3::new(0.0, 100.0, 0.0);
+    let rays: Vec<Ray> = (0..3000)
+        .map(|_| {
+            let origin = center + random_vec(&mut rng, 200.0);
+            let target = center + random_vec(&mut rng, 60.0);
+            Ray::new(origin, target - origin)
+        })
+        .collect();
+    assert_bvh_matches_linear(&scene, &rays);
+}
+
+#[test]
+fn parallel_build_is_valid_and_matches_sequential_hits() {
+    let mut rng = Rng64::seed_from_u64(3);
+    let soup = random_soup(&mut rng, 30_000, 0);
+    let parallel = BvhParams {
+        parallel_threshold: 1024,
+        ..BvhParams::default()
+    };
+    let sequential = BvhParams {
+        parallel_threshold: usize::MAX,
+        ..BvhParams::default()
+    };
+    let a = Scene::build(soup.clone(), &parallel);
+    let b = Scene::build(soup, &sequential);
+    a.bvh().validate(&a.prim_bounds()).unwrap();
+    b.bvh().validate(&b.prim_bounds()).unwrap();
+    assert_eq!(a.bvh().nodes.len(), b.bvh().nodes.len());
+    for ray in random_rays(&mut rng, 2000, 10.0) {
+        assert_eq!(
+            a.intersect(&ray).map(|h| h.t),
+            b.intersect(&ray).map(|h| h.t)
+        );
+    }
+}
+
+#[test]
+fn degenerate_inputs_build_valid_trees() {
+    // Nothing at all.
+    let (bvh, order) = Bvh::build(&[], &BvhParams::default());
+    assert!(bvh.nodes.is_empty() && order.is_empty());
+    bvh.validate(&[]).unwrap();
+    // One primitive; many with the same centroid; a flat (zero-thickness) layer.
+    let unit = Aabb {
+        min: Vec3::ZERO,
+        max: Vec3::ONE,
+    };
+    let flat: Vec<Aabb> = (0..1000)
+        .map(|i| {
+            let x = i as f32;
+            Aabb {
+                min: Vec3::new(x, 0.0, 0.0),
+                max: Vec3::new(x + 1.0, 0.0, 1.0),
+            }
+        })
+        .collect();
+    for boxes in [vec![unit], vec![unit; 10_000], flat] {
+        let params = BvhParams::default();
+        let (bvh, order) = Bvh::build(&boxes, &params);
+        let ordered: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+        bvh.validate(&ordered).unwrap();
+        assert!(
+            bvh.nodes
+                .iter()
+                .all(|n| !n.is_leaf() || n.prim_count as usize <= params.max_leaf_size)
+        );
+    }
+}
+
+#[test]
+fn rays_starting_inside_the_root_box_and_axis_parallel_rays_hit() {
+    let mut rng = Rng64::seed_from_u64(5);
+    let scene = Scene::build(random_soup(&mut rng, 2000, 10), &BvhParams::default());
+    let rays: Vec<Ray> = (0..2000)
+        .map(|i| {
+            let dir = [
+                Vec3::X,
+                Vec3::NEG_X,
+                Vec3::Y,
+                Vec3::NEG_Y,
+                Vec3::Z,
+                Vec3::NEG_Z,
+            ][i % 6];
+            Ray::new(random_vec(&mut rng, 5.0), dir)
+        })
+        .collect();
+    assert_bvh_matches_linear(&scene, &rays);
+}
+
+proptest! {
+    #![proptest_config(Config { cases: 64, ..Config::default() })]
+    #[test]
+    fn any_seeded_soup_agrees_with_linear_scan(seed in any::<u64>(), n in 1usize..300) {
+        let mut rng = Rng64::seed_from_u64(seed);
+        let scene = Scene::build(random_soup(&mut rng, n, n / 10), &BvhParams::default());
+        scene.bvh().validate(&scene.prim_bounds()).unwrap();
+        for ray in random_rays(&mut rng, 100, 10.0) {
+            let a = scene.intersect(&ray).map(|h| h.t);
+            let b = scene.intersect_linear(&ray).map(|h| h.t);
+            prop_assert_eq!(a.is_some(), b.is_some());
+            if let (Some(a), Some(b)) = (a, b) {
+                prop_assert!((a - b).abs() <= 1e-5 * a.max(1.0));
+            }
+        }
+    }
+}

@@ -40,7 +40,7 @@ impl Default for BvhParams {
             intersection_cost: 1.0,
             max_leaf_size: 8,
             parallel_threshold: 16 * 1024,
-            all_axes_threshold: 4 * 1024,
+            all_axes_threshold: 64,
         }
     }
 }

@@ -25,7 +25,9 @@ pub mod integrators;
 pub mod material;
 pub mod math;
 pub mod options;
+pub mod output;
 mod render;
+pub mod sampler;
 pub mod scene;
 pub mod shapes;
 
@@ -35,5 +37,7 @@ pub use film::{Film, Image};
 pub use integrators::Mode;
 pub use material::{Material, MaterialId, PointLight};
 pub use options::RenderOptions;
-pub use render::render;
+pub use output::ImageFormat;
+pub use render::{render, render_with_progress};
+pub use sampler::PixelSampler;
 pub use scene::{Hit, Scene, SceneDescription, SceneError};

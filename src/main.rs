@@ -6,7 +6,13 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::math::Vec3;
-use raytracer::{BvhParams, Mode, RenderOptions, Scene, render, scene};
+use raytracer::{BvhParams, ImageFormat, Mode, RenderOptions, Scene, render_with_progress, scene};
+
+mod cli {
+    //! Parts of the command that the library leaves out.
+    pub mod progress;
+}
+use cli::progress::Progress;
 
 /// A Whitted-style ray tracer for Wavefront OBJ/MTL scenes.
 #[derive(Parser, Debug)]
@@ -14,11 +20,14 @@ use raytracer::{BvhParams, Mode, RenderOptions, Scene, render, scene};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Print nothing but errors: no progress bar, no warnings.
+    #[arg(short, long, global = true)]
+    quiet: bool,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Render a scene to a PNG image.
+    /// Render a scene to a PNG or OpenEXR image.
     Render(RenderArgs),
 }
 
@@ -27,8 +36,9 @@ struct RenderArgs {
     /// The scene: a Wavefront .obj file (its .mtl files are found beside it).
     #[arg(value_name = "SCENE.obj")]
     scene: PathBuf,
-    /// Where to write the PNG image (replaced atomically).
-    #[arg(short, long, value_name = "OUT.png")]
+    /// Where to write the image, replaced atomically; the extension picks the format:
+    /// .png (8-bit, post-processed) or .exr (32-bit float, linear, before post-processing).
+    #[arg(short, long, value_name = "OUT.png|OUT.exr")]
     output: PathBuf,
     /// Image width in pixels (1..=65536).
     #[arg(long, default_value_t = 640, value_name = "PIXELS")]
@@ -51,6 +61,10 @@ struct RenderArgs {
     /// What to render.
     #[arg(long, value_enum, default_value_t = ModeArg::Full)]
     mode: ModeArg,
+    /// Samples per pixel in full mode (1..=65536): 1 traces pixel centres, more take
+    /// stratified jittered positions with a fixed seed (same image every run).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    spp: u32,
     /// Worker threads; 0 uses every core.
     #[arg(short = 'j', long, default_value_t = 0, value_name = "N")]
     threads: usize,
@@ -102,11 +116,11 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Render(args) => run_render(args),
+        Command::Render(args) => run_render(args, cli.quiet),
     }
 }
 
-fn run_render(args: RenderArgs) -> anyhow::Result<()> {
+fn run_render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let options = RenderOptions {
         width: args.width,
         height: args.height,
@@ -115,20 +129,39 @@ fn run_render(args: RenderArgs) -> anyhow::Result<()> {
         look_to: args.look_to,
         depth: args.depth,
         mode: args.mode.into(),
+        samples_per_pixel: args.spp,
     };
     options.validate()?;
+    // Before the render, so a typo does not cost a long render.
+    let format = ImageFormat::from_path(&args.output)?;
+    let warn = |message: String| {
+        if !quiet {
+            eprintln!("warning: {message}");
+        }
+    };
+    if options.samples_per_pixel_in_mode() != options.samples_per_pixel {
+        warn(format!(
+            "--spp {} applies to full mode only; {} mode takes one sample per pixel",
+            args.spp,
+            format!("{:?}", options.mode).to_lowercase()
+        ));
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads)
         .build_global()
         .context("cannot start worker threads")?;
 
+    let loading = Progress::start("loading the scene", None, !quiet);
     let description = scene::load_obj(&args.scene)?;
     let scene = Scene::build(description, &BvhParams::default());
+    drop(loading);
     for warning in &scene.warnings {
-        eprintln!("warning: {warning}");
+        warn(warning.to_string());
     }
-    let film = render(&scene, &options);
-    film.to_image(options.mode).write_png(&args.output)?;
+    let rendering = Progress::start("rendering", Some(options.height.into()), !quiet);
+    let film = render_with_progress(&scene, &options, &|_row| rendering.inc());
+    drop(rendering);
+    film.write(options.mode, format, &args.output)?;
     Ok(())
 }
 

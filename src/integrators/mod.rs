@@ -12,7 +12,8 @@ use crate::scene::Scene;
 pub enum Mode {
     /// Distance to the nearest hit, normalized by the image's largest.
     Depth,
-    /// The unit normal at the nearest hit mapped to colour, `n / 2 + 1/2`.
+    /// The unit normal at the nearest hit, facing the ray (zero on a miss); shown as
+    /// the colour `n / 2 + 1/2`.
     Normal,
     /// Whitted lighting, tone mapped and gamma corrected.
     #[default]
@@ -20,7 +21,8 @@ pub enum Mode {
 }
 
 /// The linear value of one camera ray in `mode`. For depth mode this is the distance
-/// in every channel, or infinity where the ray hits nothing.
+/// in every channel, or infinity where the ray hits nothing; for normal mode the
+/// unit normal, or zero where the ray hits nothing.
 #[inline]
 pub fn sample(scene: &Scene, ray: &Ray, mode: Mode, max_depth: u32) -> Vec3 {
     match mode {

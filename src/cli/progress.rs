@@ -7,7 +7,7 @@ use std::sync::mpsc::{self, RecvTimeoutError, Sender};
 use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use indicatif::{FormattedDuration, ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 
 /// How long a step runs before its progress appears.
 const REVEAL_AFTER: Duration = Duration::from_millis(500);
@@ -28,12 +28,13 @@ impl Progress {
     pub fn start(label: &str, total: Option<u64>, visible: bool) -> Progress {
         let template = match total {
             Some(_) => {
-                "{msg} [{bar:40}] {pos}/{len} rows, {percent}%  elapsed {elapsed_precise}  ETA {eta_precise}"
+                "{msg} [{bar:40}] {pos}/{len} rows, {percent}%  elapsed {elapsed_precise}  ETA {average_eta}"
             }
             None => "{spinner} {msg}  elapsed {elapsed_precise}",
         };
         let style = ProgressStyle::with_template(template)
             .expect("the templates above are valid")
+            .with_key("average_eta", average_eta)
             .progress_chars("=> ");
         let bar = ProgressBar::with_draw_target(total, ProgressDrawTarget::hidden())
             .with_style(style)
@@ -61,6 +62,19 @@ impl Progress {
     pub fn inc(&self) {
         self.bar.inc(1);
     }
+}
+
+/// Time left at the average pace so far. indicatif's own `{eta}` follows the recent
+/// pace, which misleads here: rows of empty sky finish in microseconds and rows
+/// through a dense mesh take far longer, so the recent pace swings widely.
+fn average_eta(state: &ProgressState, out: &mut dyn std::fmt::Write) {
+    let (done, total) = (state.pos(), state.len().unwrap_or(0));
+    if done == 0 || done >= total {
+        let _ = write!(out, "--:--:--");
+        return;
+    }
+    let left = state.elapsed().mul_f64((total - done) as f64 / done as f64);
+    let _ = write!(out, "{}", FormattedDuration(left));
 }
 
 impl Drop for Progress {

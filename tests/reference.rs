@@ -48,6 +48,7 @@ fn render_case(dir: &Path, case: &Case) -> Image {
         look_to: Vec3::from(case.look_to),
         depth: case.depth,
         mode,
+        samples_per_pixel: 1,
     };
     options.validate().unwrap();
     let description = scene::load_obj(&dir.join(&case.scene)).unwrap();

@@ -355,7 +355,9 @@ impl<'a> Resolver<'a> {
                             if self.warned_unknown.insert(name.clone()) {
                                 self.warn(
                                     *line,
-                                    &format!("unknown material '{name}'; using the default material"),
+                                    &format!(
+                                        "unknown material '{name}'; using the default material"
+                                    ),
                                 );
                             }
                             self.fallback_material()
@@ -394,14 +396,18 @@ impl<'a> Resolver<'a> {
         scene.positions.extend_from_slice(&chunk.positions);
         scene.texcoords.extend_from_slice(&chunk.texcoords);
         scene.normals.extend_from_slice(&chunk.normals);
-        scene.triangles.extend(chunk.triangles.iter().map(|t| TriangleDesc {
-            material: material(t.material),
-            ..*t
-        }));
-        scene.spheres.extend(chunk.spheres.iter().map(|s| SphereDesc {
-            material: material(s.material),
-            ..*s
-        }));
+        scene
+            .triangles
+            .extend(chunk.triangles.iter().map(|t| TriangleDesc {
+                material: material(t.material),
+                ..*t
+            }));
+        scene
+            .spheres
+            .extend(chunk.spheres.iter().map(|s| SphereDesc {
+                material: material(s.material),
+                ..*s
+            }));
         scene.lights.extend_from_slice(&chunk.lights);
         Ok(())
     }

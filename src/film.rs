@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use crate::integrators::Mode;
 use crate::math::{Float, Vec3};
 
-/// Linear per-pixel values, row 0 at the top.
+/// Linear per-pixel values, row 0 at the top: radiance in full mode, the distance in
+/// every channel in depth mode (infinity on a miss), the unit normal in normal mode
+/// (zero on a miss).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Film {
     /// Width in pixels.
@@ -41,8 +43,10 @@ pub struct WriteError {
 
 impl Film {
     /// Post-processes the film for `mode` into 8 bits per channel:
-    /// depth divides by the largest distance (misses white), normal maps directly,
-    /// full applies SPEC's tone mapping and gamma.
+    /// depth divides by the largest distance (misses white), normal maps `n` to
+    /// `n / 2 + 1/2` (misses black), full applies SPEC's tone mapping and gamma.
+    ///
+    /// See also [`Film::write`], which also writes linear OpenEXR files.
     pub fn to_image(&self, mode: Mode) -> Image {
         let encode: Box<dyn Fn(Vec3) -> Vec3> = match mode {
             Mode::Depth => {
@@ -57,7 +61,13 @@ impl Film {
                     }
                 })
             }
-            Mode::Normal => Box::new(|v| v),
+            Mode::Normal => Box::new(|n: Vec3| {
+                if n == Vec3::ZERO {
+                    Vec3::ZERO
+                } else {
+                    n * 0.5 + Vec3::splat(0.5)
+                }
+            }),
             Mode::Full => {
                 let c = self.max_channel(|_| true);
                 Box::new(move |v| tone_map(v, c).powf(1.0 / 2.2))
@@ -109,44 +119,58 @@ impl Image {
     /// # Errors
     /// The folder is missing or not writable, or the disk is full.
     pub fn write_png(&self, path: &Path) -> Result<(), WriteError> {
-        let fail = |source| WriteError {
-            path: path.to_path_buf(),
-            source,
-        };
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        if path.is_dir() {
-            return Err(fail(io::Error::new(
-                io::ErrorKind::IsADirectory,
-                "is a directory",
-            )));
-        }
-        let mut temp = tempfile::Builder::new()
-            .prefix(".raytracer-")
-            .suffix(".png.tmp")
-            .tempfile_in(dir)
-            .map_err(fail)?;
-        {
-            let mut writer = BufWriter::new(temp.as_file_mut());
+        write_atomically(path, "png", |file| {
+            let mut writer = BufWriter::new(file);
             let mut encoder = png::Encoder::new(&mut writer, self.width, self.height);
             encoder.set_color(png::ColorType::Rgb);
             encoder.set_depth(png::BitDepth::Eight);
-            let mut png_writer = encoder
-                .write_header()
-                .map_err(|e| fail(io::Error::other(e)))?;
+            let mut png_writer = encoder.write_header().map_err(io::Error::other)?;
             png_writer
                 .write_image_data(&self.rgb)
-                .map_err(|e| fail(io::Error::other(e)))?;
-            png_writer.finish().map_err(|e| fail(io::Error::other(e)))?;
-            writer.flush().map_err(fail)?;
-        }
-        temp.as_file().sync_all().map_err(fail)?;
-        set_output_permissions(temp.path(), path).map_err(fail)?;
-        temp.persist(path).map_err(|e| fail(e.error))?;
-        Ok(())
+                .map_err(io::Error::other)?;
+            png_writer.finish().map_err(io::Error::other)?;
+            writer.flush()
+        })
     }
+}
+
+/// Writes `path` atomically: `encode` fills a temporary file in the same folder (named
+/// `.raytracer-*.EXTENSION.tmp`), which is synced and renamed over `path` only once
+/// complete, so readers never see half a file. A failure leaves any existing file
+/// untouched and no temporary file behind.
+///
+/// # Errors
+/// `path` is a folder, its folder is missing or not writable, the disk is full, or
+/// `encode` failed.
+pub(crate) fn write_atomically(
+    path: &Path,
+    extension: &str,
+    encode: impl FnOnce(&mut fs::File) -> io::Result<()>,
+) -> Result<(), WriteError> {
+    let fail = |source| WriteError {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if path.is_dir() {
+        return Err(fail(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            "is a directory",
+        )));
+    }
+    let mut temp = tempfile::Builder::new()
+        .prefix(".raytracer-")
+        .suffix(&format!(".{extension}.tmp"))
+        .tempfile_in(dir)
+        .map_err(fail)?;
+    encode(temp.as_file_mut()).map_err(fail)?;
+    temp.as_file().sync_all().map_err(fail)?;
+    set_output_permissions(temp.path(), path).map_err(fail)?;
+    temp.persist(path).map_err(|e| fail(e.error))?;
+    Ok(())
 }
 
 /// Gives the finished temporary file the permissions the output should have: an

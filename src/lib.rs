@@ -3,20 +3,49 @@
 //! Data flows one way, one module per stage:
 //! files ([`scene::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
 //! [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
-//! -> [`render`] (a [`Camera`] and an integrator per pixel) -> linear [`Film`]
-//! -> [`Image`] (post-processing) -> PNG.
+//! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an integrator per pixel)
+//! -> linear [`Film`] -> either [`Image`] (post-processing) -> PNG, or the film's
+//! linear values -> OpenEXR ([`output`]).
 //!
-//! ```no_run
-//! use raytracer::{BvhParams, Mode, RenderOptions, Scene, render, scene};
+//! # Example
+//!
+//! Render the bundled Cornell box at 64x48 with 4 samples per pixel, then save the
+//! tone-mapped PNG and the linear OpenEXR file:
+//!
+//! ```
+//! use raytracer::math::Vec3;
+//! use raytracer::{BvhParams, ImageFormat, Mode, RenderOptions, Scene, render, scene};
 //!
 //! let description = scene::load_obj("examples/cornell-box/scene.obj".as_ref())?;
 //! let scene = Scene::build(description, &BvhParams::default());
-//! let options = RenderOptions { mode: Mode::Full, ..RenderOptions::default() };
+//! let options = RenderOptions {
+//!     width: 64,
+//!     height: 48,
+//!     fov_degrees: 60.0,
+//!     look_from: Vec3::new(0.0, 0.7, 1.75),
+//!     look_to: Vec3::new(0.0, 0.7, 0.0),
+//!     samples_per_pixel: 4,
+//!     ..RenderOptions::default()
+//! };
 //! options.validate()?;
 //! let film = render(&scene, &options);
-//! film.to_image(options.mode).write_png("out.png".as_ref())?;
+//!
+//! let dir = tempfile::tempdir()?;
+//! film.to_image(Mode::Full).write_png(&dir.path().join("cornell.png"))?;
+//! film.write(Mode::Full, ImageFormat::Exr, &dir.path().join("cornell.exr"))?;
+//! assert!(dir.path().join("cornell.exr").is_file());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! # Conventions
+//!
+//! - World space is right-handed. In camera space the eye looks down -z with y up
+//!   and x to the right (world up is +y unless [`RenderOptions::up`] says otherwise).
+//! - Images and films are stored row by row, row 0 at the top.
+//! - Surface normals are flipped to face the incoming ray.
+//! - Colours are linear from the integrators through the [`Film`]; only
+//!   post-processing ([`Film::to_image`]) tone maps and gamma-encodes them.
+//! - One float type, [`math::Float`] (`f32`), everywhere.
 #![deny(missing_docs)]
 
 pub mod benchmark;
@@ -27,7 +56,9 @@ pub mod integrators;
 pub mod material;
 pub mod math;
 pub mod options;
+pub mod output;
 mod render;
+pub mod sampler;
 pub mod scene;
 pub mod shapes;
 pub mod stats;
@@ -38,5 +69,7 @@ pub use film::{Film, Image};
 pub use integrators::Mode;
 pub use material::{Material, MaterialId, PointLight};
 pub use options::RenderOptions;
-pub use render::{render, render_counted};
+pub use output::ImageFormat;
+pub use render::{render, render_with_progress};
+pub use sampler::PixelSampler;
 pub use scene::{Hit, Scene, SceneDescription, SceneError};

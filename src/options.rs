@@ -2,6 +2,7 @@
 
 use crate::integrators::Mode;
 use crate::math::{Float, Vec3};
+use crate::sampler::MAX_SAMPLES_PER_PIXEL;
 
 /// Largest width or height accepted.
 pub const MAX_DIMENSION: u32 = 65_536;
@@ -31,6 +32,11 @@ pub struct RenderOptions {
     pub depth: u32,
     /// What to compute.
     pub mode: Mode,
+    /// Camera rays per pixel in full mode, averaged in linear space: 1 traces the
+    /// pixel centre, more take stratified jittered positions (see
+    /// [`crate::sampler`]). Depth and normal modes always take one sample per pixel:
+    /// see [`RenderOptions::samples_per_pixel_in_mode`].
+    pub samples_per_pixel: u32,
 }
 
 impl Default for RenderOptions {
@@ -44,6 +50,7 @@ impl Default for RenderOptions {
             up: Vec3::Y,
             depth: 4,
             mode: Mode::Full,
+            samples_per_pixel: 1,
         }
     }
 }
@@ -104,7 +111,27 @@ impl RenderOptions {
                 format!("{} is not in 1..={MAX_RECURSION_DEPTH}", self.depth),
             );
         }
+        if self.samples_per_pixel == 0 || self.samples_per_pixel > MAX_SAMPLES_PER_PIXEL {
+            return fail(
+                "--spp",
+                format!(
+                    "{} is not in 1..={MAX_SAMPLES_PER_PIXEL}",
+                    self.samples_per_pixel
+                ),
+            );
+        }
         Ok(())
+    }
+
+    /// The samples per pixel the renderer takes: [`RenderOptions::samples_per_pixel`]
+    /// in full mode, 1 in depth and normal modes. An average of distances across a
+    /// silhouette is no surface's distance and an average of normals is no unit
+    /// normal, so those modes keep exact values (as Blender's depth pass does).
+    pub fn samples_per_pixel_in_mode(&self) -> u32 {
+        match self.mode {
+            Mode::Full => self.samples_per_pixel,
+            Mode::Depth | Mode::Normal => 1,
+        }
     }
 }
 
@@ -130,6 +157,8 @@ pub struct PartialOptions {
     pub depth: Option<u32>,
     /// What to compute.
     pub mode: Option<Mode>,
+    /// Camera rays per pixel in full mode.
+    pub samples_per_pixel: Option<u32>,
 }
 
 impl PartialOptions {
@@ -144,6 +173,7 @@ impl PartialOptions {
             up: self.up.or(fallback.up),
             depth: self.depth.or(fallback.depth),
             mode: self.mode.or(fallback.mode),
+            samples_per_pixel: self.samples_per_pixel.or(fallback.samples_per_pixel),
         }
     }
 
@@ -161,6 +191,7 @@ impl PartialOptions {
             up: self.up.unwrap_or(d.up),
             depth: self.depth.unwrap_or(d.depth),
             mode: self.mode.unwrap_or(d.mode),
+            samples_per_pixel: self.samples_per_pixel.unwrap_or(d.samples_per_pixel),
         }
     }
 }

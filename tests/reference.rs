@@ -49,6 +49,7 @@ fn render_case(dir: &Path, case: &Case) -> Image {
         up: Vec3::Y,
         depth: case.depth,
         mode,
+        samples_per_pixel: 1,
     };
     options.validate().unwrap();
     let description = scene::load_obj(&dir.join(&case.scene)).unwrap();

@@ -6,7 +6,7 @@
 //! primitives the binning pass is split over threads and the two subtrees are built
 //! with `rayon::join`.
 
-use glam::{Vec3A, Vec4};
+use glam::{BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
 
 use super::{Bvh, BvhNode, MEDIAN_SPLIT_DEPTH};
@@ -25,6 +25,11 @@ pub struct BvhParams {
     pub max_leaf_size: usize,
     /// Subtrees with more primitives than this are built on two threads.
     pub parallel_threshold: usize,
+    /// Nodes with more primitives than this are binned on all three axes; smaller
+    /// ones only along their widest centroid extent, as pbrt does everywhere. The few
+    /// big nodes near the root decide most of the tree's quality; the many small
+    /// ones decide most of the build time.
+    pub all_axes_threshold: usize,
 }
 
 impl Default for BvhParams {
@@ -35,6 +40,7 @@ impl Default for BvhParams {
             intersection_cost: 1.0,
             max_leaf_size: 8,
             parallel_threshold: 16 * 1024,
+            all_axes_threshold: 64,
         }
     }
 }
@@ -55,10 +61,15 @@ struct PrimRef {
     max: Vec4,
 }
 
+/// Keeps x, y, z and clears w. The index bits in `min_and_index.w` read as a
+/// denormal float, and arithmetic on denormals takes a microcode assist on x86 (over
+/// a hundred cycles): the spare lane must be zero before any SIMD arithmetic.
+const XYZ: BVec4A = BVec4A::from_array([true, true, true, false]);
+
 impl PrimRef {
     #[inline(always)]
     fn min(&self) -> Vec3A {
-        Vec3A::from_vec4(self.min_and_index)
+        Vec3A::from_vec4(Vec4::select(XYZ, self.min_and_index, Vec4::ZERO))
     }
     #[inline(always)]
     fn max(&self) -> Vec3A {
@@ -152,6 +163,7 @@ impl Binning {
         b.min(glam::UVec3::splat(self.last_bin)).to_array()
     }
 
+    /// Bins `refs` on all three axes.
     fn bin(&self, refs: &[PrimRef]) -> Bins {
         let mut bins = Bins::new();
         for r in refs {
@@ -160,6 +172,19 @@ impl Binning {
                 bins.bounds[axis][b as usize].grow(min, max);
                 bins.counts[axis][b as usize] += 1;
             }
+        }
+        bins
+    }
+
+    /// Bins `refs` along `axis` only (the other axes' bins stay empty).
+    fn bin_axis(&self, refs: &[PrimRef], axis: usize) -> Bins {
+        let mut bins = Bins::new();
+        let (origin, scale) = (self.origin[axis], self.scale[axis]);
+        for r in refs {
+            let (min, max) = (r.min(), r.max());
+            let b = (((min[axis] + max[axis] - origin) * scale) as u32).min(self.last_bin) as usize;
+            bins.bounds[axis][b].grow(min, max);
+            bins.counts[axis][b] += 1;
         }
         bins
     }
@@ -420,19 +445,22 @@ fn split_node(
         ),
         last_bin: bin_count as u32 - 1,
     };
+    let all_axes = n > params.all_axes_threshold;
     let bins = if n > params.parallel_threshold {
         refs.par_chunks(params.parallel_threshold)
             .map(|chunk| binning.bin(chunk))
             .reduce(Bins::new, |a, b| a.merge(&b))
-    } else {
+    } else if all_axes {
         binning.bin(refs)
+    } else {
+        binning.bin_axis(refs, widest)
     };
 
-    // Step 2: sweep each axis from the right, then from the left, to find the plane
-    // of lowest cost `A_l N_l + A_r N_r`.
+    // Step 2: sweep each binned axis from the right, then from the left, to find the
+    // plane of lowest cost `A_l N_l + A_r N_r`.
     let mut best: Option<(usize, usize, Float)> = None;
     for axis in 0..3 {
-        if extent[axis] <= 0.0 {
+        if extent[axis] <= 0.0 || !(all_axes || axis == widest) {
             continue;
         }
         let mut right_cost = [0.0 as Float; MAX_BINS];
@@ -470,19 +498,31 @@ fn split_node(
         return Split::Leaf;
     }
 
-    // Step 4: partition in place around the chosen plane, collecting both sides'
-    // centroid bounds on the way; their boxes come from the bins.
-    let mut centroid_sides = [Bounds::EMPTY; 2];
+    // Step 4: partition in place around the chosen plane, then measure both sides'
+    // centroids (a separate pass keeps the accumulators in registers); their boxes
+    // come from the bins.
+    let (origin, scale) = (binning.origin[axis], binning.scale[axis]);
+    let goes_left = |r: &PrimRef| {
+        let c = r.min_and_index[axis] + r.max[axis];
+        (((c - origin) * scale) as u32).min(binning.last_bin) < split_bin as u32
+    };
+    // Branch-free: the side is data-dependent and mispredicts half the time. Every
+    // element of `refs[mid..i]` goes right, so swapping a right element with
+    // `refs[mid]` changes nothing that matters.
     let mut mid = 0;
     for i in 0..n {
-        let c = refs[i].centroid2();
-        let left = binning.bins_of(c)[axis] < split_bin as u32;
-        centroid_sides[usize::from(!left)].grow(c, c);
-        if left {
-            refs.swap(i, mid);
-            mid += 1;
-        }
+        let left = goes_left(&refs[i]);
+        refs.swap(i, mid);
+        mid += usize::from(left);
     }
+    let centroids_of = |part: &[PrimRef]| {
+        part.iter().fold(Bounds::EMPTY, |mut acc, r| {
+            let c = r.centroid2();
+            acc.grow(c, c);
+            acc
+        })
+    };
+    let centroid_sides = [centroids_of(&refs[..mid]), centroids_of(&refs[mid..])];
     debug_assert!(mid > 0 && mid < n, "SAH split leaves a side empty");
     let side = |range: std::ops::Range<usize>| {
         range.fold(Bounds::EMPTY, |acc, b| acc.union(bins.bounds[axis][b]))

@@ -25,7 +25,7 @@ pub struct Bvh {
 }
 
 /// Deepest tree the traversal stack can hold. The builder switches to median splits
-/// below [`MEDIAN_SPLIT_DEPTH`], so depth stays under this bound for any input size
+/// below `MEDIAN_SPLIT_DEPTH`, so depth stays under this bound for any input size
 /// a `u32` index can address (64 + 32 levels).
 pub const MAX_DEPTH: usize = 128;
 /// Depth from which the builder stops trusting SAH and halves nodes by count.

@@ -10,10 +10,9 @@ pub fn depth(scene: &Scene, ray: &Ray) -> Vec3 {
     Vec3::splat(scene.intersect(ray).map_or(Float::INFINITY, |hit| hit.t))
 }
 
-/// `n / 2 + 1/2` for the shading normal facing the ray; black on a miss.
+/// The unit shading normal facing the ray; the zero vector on a miss.
+/// Post-processing maps it to the colour `n / 2 + 1/2` (misses black).
 #[inline]
 pub fn normal(scene: &Scene, ray: &Ray) -> Vec3 {
-    scene
-        .intersect(ray)
-        .map_or(Vec3::ZERO, |hit| hit.ns * 0.5 + Vec3::splat(0.5))
+    scene.intersect(ray).map_or(Vec3::ZERO, |hit| hit.ns)
 }

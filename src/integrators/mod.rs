@@ -13,7 +13,8 @@ use crate::stats::RayCounts;
 pub enum Mode {
     /// Distance to the nearest hit, normalized by the image's largest.
     Depth,
-    /// The unit normal at the nearest hit mapped to colour, `n / 2 + 1/2`.
+    /// The unit normal at the nearest hit, facing the ray (zero on a miss); shown as
+    /// the colour `n / 2 + 1/2`.
     Normal,
     /// Whitted lighting, tone mapped and gamma corrected.
     #[default]
@@ -21,8 +22,8 @@ pub enum Mode {
 }
 
 /// The linear value of one camera ray in `mode`. For depth mode this is the distance
-/// in every channel, or infinity where the ray hits nothing. Rays traced are added to
-/// `rays`.
+/// in every channel, or infinity where the ray hits nothing; for normal mode the
+/// unit normal, or zero where the ray hits nothing. Rays traced are added to `rays`.
 #[inline]
 pub fn sample(scene: &Scene, ray: &Ray, mode: Mode, max_depth: u32, rays: &mut RayCounts) -> Vec3 {
     rays.primary += 1;

@@ -1,13 +1,32 @@
 //! The OBJ reader: `v`, `vt`, `vn`, `f` (any polygon, all four vertex forms, negative
 //! indices), `mtllib`, `usemtl`, and the extensions `S` (sphere) and `P` (point light).
+//!
+//! Large files are parsed in parallel, in three passes:
+//! 1. split the text into chunks at line ends and count, per chunk, its lines and
+//!    its `v`/`vt`/`vn` statements (a cheap scan), so that every chunk knows how
+//!    many elements precede it: face indices, negative ones included, resolve
+//!    locally against those global counts;
+//! 2. parse the chunks in parallel; statements whose meaning depends on what came
+//!    before in other chunks (`mtllib`, `usemtl`) are recorded as events, and shapes
+//!    refer to "the material of the chunk's n-th `usemtl`" (0: the one in force when
+//!    the chunk starts);
+//! 3. in file order, load the MTL files, resolve the events to material ids, and
+//!    append each chunk's elements. The first problem in file order is the one
+//!    reported, exactly as a sequential reader would.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
 use super::{SceneDescription, SphereDesc, TriangleDesc, lex, mtl, read_file};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::Vec2;
+use crate::math::{Vec2, Vec3};
+
+/// Target size of a chunk: big enough that per-chunk work is negligible, small
+/// enough to spread a mesh file over all cores.
+const CHUNK_BYTES: usize = 1 << 20;
 
 /// Reads an OBJ file and the MTL files it names (relative to its folder).
 ///
@@ -24,55 +43,107 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// # Errors
 /// As [`load_obj`].
 pub fn parse_obj(text: &[u8], path: &Path) -> Result<SceneDescription, SceneError> {
-    let mut reader = ObjReader {
-        path,
-        scene: SceneDescription::default(),
-        material_ids: HashMap::new(),
-        current_material: None,
-        fallback_material: None,
-        warned_no_usemtl: false,
-    };
-    for (line_number, line) in lex::lines(text) {
-        reader
-            .parse_line(line, line_number)
-            .map_err(|e| e.at(path, line_number))?;
+    let chunks = split_into_chunks(text, CHUNK_BYTES);
+    let counts: Vec<Counts> = chunks.par_iter().map(|c| Counts::of(c)).collect();
+    let mut bases = Vec::with_capacity(chunks.len());
+    let mut total = Counts::default();
+    for c in &counts {
+        bases.push(total);
+        total.add(c);
     }
-    Ok(reader.scene)
-}
-
-/// An error from one line: either the line itself is malformed, or a file it names
-/// failed (which carries its own location).
-enum LineError {
-    Parse(ParseErrorKind),
-    Nested(SceneError),
-}
-
-impl From<ParseErrorKind> for LineError {
-    fn from(kind: ParseErrorKind) -> Self {
-        LineError::Parse(kind)
+    let parsed: Vec<Chunk> = chunks
+        .par_iter()
+        .zip(bases)
+        .map(|(text, base)| Chunk::parse(text, base))
+        .collect();
+    let mut resolver = Resolver::new(path, &total);
+    for chunk in parsed {
+        resolver.append(chunk)?;
     }
+    Ok(resolver.scene)
 }
 
-impl LineError {
-    fn at(self, path: &Path, line: usize) -> SceneError {
-        match self {
-            LineError::Parse(kind) => SceneError::Parse {
-                path: path.to_path_buf(),
-                line,
-                kind,
-            },
-            LineError::Nested(e) => e,
+/// Cuts `text` into pieces of about `size` bytes, each ending just after a `\n`
+/// (the last one at the end of the text).
+fn split_into_chunks(text: &[u8], size: usize) -> Vec<&[u8]> {
+    let mut chunks = Vec::with_capacity(text.len() / size + 1);
+    let mut rest = text;
+    while rest.len() > size {
+        let Some(newline) = memchr::memchr(b'\n', &rest[size..]) else {
+            break;
+        };
+        let (chunk, tail) = rest.split_at(size + newline + 1);
+        chunks.push(chunk);
+        rest = tail;
+    }
+    chunks.push(rest);
+    chunks
+}
+
+/// How many lines and elements a piece of the file holds.
+#[derive(Clone, Copy, Debug, Default)]
+struct Counts {
+    lines: usize,
+    positions: usize,
+    texcoords: usize,
+    normals: usize,
+}
+
+impl Counts {
+    /// Counts without parsing: a line counts as a `v`, `vt` or `vn` statement by its
+    /// keyword alone, exactly as [`Chunk::parse`] dispatches it.
+    fn of(text: &[u8]) -> Counts {
+        let mut counts = Counts {
+            lines: memchr::memchr_iter(b'\n', text).count(),
+            ..Counts::default()
+        };
+        for (_, line) in lex::lines(text) {
+            let Some(start) = line.iter().position(|&b| !lex::is_space(b)) else {
+                continue;
+            };
+            let line = &line[start..];
+            let ends_keyword = |at: usize| line.get(at).is_none_or(|&b| lex::is_space(b));
+            match line {
+                [b'v', ..] if ends_keyword(1) => counts.positions += 1,
+                [b'v', b't', ..] if ends_keyword(2) => counts.texcoords += 1,
+                [b'v', b'n', ..] if ends_keyword(2) => counts.normals += 1,
+                _ => {}
+            }
         }
+        counts
+    }
+
+    fn add(&mut self, other: &Counts) {
+        self.lines += other.lines;
+        self.positions += other.positions;
+        self.texcoords += other.texcoords;
+        self.normals += other.normals;
     }
 }
 
-struct ObjReader<'a> {
-    path: &'a Path,
-    scene: SceneDescription,
-    material_ids: HashMap<String, MaterialId>,
-    current_material: Option<MaterialId>,
-    fallback_material: Option<MaterialId>,
-    warned_no_usemtl: bool,
+/// A statement whose effect depends on earlier chunks, replayed in file order.
+enum Event {
+    Mtllib { file: PathBuf },
+    Usemtl { line: usize, name: String },
+}
+
+/// One chunk's elements. Shape materials are slots: 0 is the material in force when
+/// the chunk starts, `k` the one set by the chunk's `k`-th `usemtl`.
+#[derive(Default)]
+struct Chunk {
+    positions: Vec<Vec3>,
+    texcoords: Vec<Vec2>,
+    normals: Vec<Vec3>,
+    triangles: Vec<TriangleDesc>,
+    spheres: Vec<SphereDesc>,
+    lights: Vec<PointLight>,
+    events: Vec<Event>,
+    /// Line of the first shape using slot 0, for the "no usemtl" warning.
+    first_inherited_shape: Option<usize>,
+    /// The first malformed line; parsing stopped there.
+    error: Option<(usize, ParseErrorKind)>,
+    /// Number of the chunk's first line.
+    first_line: usize,
 }
 
 /// One corner of a face, resolved to 0-based indices.
@@ -82,118 +153,135 @@ struct Corner {
     normal: Option<u32>,
 }
 
-impl ObjReader<'_> {
-    fn parse_line(&mut self, line: &[u8], line_number: usize) -> Result<(), LineError> {
+impl Chunk {
+    fn parse(text: &[u8], base: Counts) -> Chunk {
+        let mut chunk = Chunk {
+            first_line: base.lines + 1,
+            ..Chunk::default()
+        };
+        let mut slot = 0u32;
+        for (local_line, line) in lex::lines(text) {
+            let line_number = base.lines + local_line;
+            if let Err(kind) = chunk.parse_line(line, line_number, &base, &mut slot) {
+                chunk.error = Some((line_number, kind));
+                break;
+            }
+        }
+        chunk
+    }
+
+    fn parse_line(
+        &mut self,
+        line: &[u8],
+        line_number: usize,
+        base: &Counts,
+        slot: &mut u32,
+    ) -> Result<(), ParseErrorKind> {
         let mut tokens = lex::tokens(line);
         let Some(keyword) = tokens.next() else {
             return Ok(());
         };
         match keyword {
-            b"v" => {
-                let p = lex::vec3("v", &mut tokens)?;
-                self.scene.positions.push(p);
-            }
-            b"vn" => {
-                let n = lex::vec3("vn", &mut tokens)?;
-                self.scene.normals.push(n);
-            }
+            b"v" => self.positions.push(lex::vec3("v", &mut tokens)?),
+            b"vn" => self.normals.push(lex::vec3("vn", &mut tokens)?),
             b"vt" => {
                 let u = lex::floats::<1>("vt", &mut tokens)?[0];
                 let v = match tokens.next() {
                     Some(t) => lex::float(t)?,
                     None => 0.0,
                 };
-                self.scene.texcoords.push(Vec2::new(u, v));
+                self.texcoords.push(Vec2::new(u, v));
             }
-            b"f" => self.parse_face(tokens, line_number)?,
+            b"f" => self.parse_face(tokens, line_number, base, *slot)?,
             b"S" => {
                 let [x, y, z, radius] = lex::floats::<4>("S", &mut tokens)?;
                 if radius < 0.0 {
-                    return Err(ParseErrorKind::NegativeRadius(radius).into());
+                    return Err(ParseErrorKind::NegativeRadius(radius));
                 }
-                let material = self.material_for_shape(line_number);
-                self.scene.spheres.push(SphereDesc {
-                    center: [x, y, z].into(),
+                self.note_shape(line_number, *slot);
+                self.spheres.push(SphereDesc {
+                    center: Vec3::new(x, y, z),
                     radius,
-                    material,
+                    material: MaterialId(*slot),
                 });
             }
             b"P" => {
                 let [x, y, z, r, g, b] = lex::floats::<6>("P", &mut tokens)?;
-                self.scene.lights.push(PointLight {
-                    position: [x, y, z].into(),
-                    intensity: [r, g, b].into(),
+                self.lights.push(PointLight {
+                    position: Vec3::new(x, y, z),
+                    intensity: Vec3::new(r, g, b),
                 });
             }
             b"mtllib" => {
                 let mut any = false;
                 for name in tokens {
                     any = true;
-                    self.load_mtl(name)?;
+                    self.events.push(Event::Mtllib {
+                        file: PathBuf::from(String::from_utf8_lossy(name).as_ref()),
+                    });
                 }
                 if !any {
-                    return Err(ParseErrorKind::MissingName("mtllib").into());
+                    return Err(ParseErrorKind::MissingName("mtllib"));
                 }
             }
             b"usemtl" => {
                 let name = lex::rest_of_line(line, b"usemtl");
                 if name.is_empty() {
-                    return Err(ParseErrorKind::MissingName("usemtl").into());
+                    return Err(ParseErrorKind::MissingName("usemtl"));
                 }
-                let name = String::from_utf8_lossy(name);
-                self.current_material = Some(match self.material_ids.get(name.as_ref()) {
-                    Some(&id) => id,
-                    None => {
-                        self.warn(
-                            line_number,
-                            &format!("unknown material '{name}'; using the default material"),
-                        );
-                        self.fallback_material()
-                    }
+                self.events.push(Event::Usemtl {
+                    line: line_number,
+                    name: String::from_utf8_lossy(name).into_owned(),
                 });
+                *slot += 1;
             }
             _ => {}
         }
         Ok(())
     }
 
-    fn parse_face<'t>(
+    fn note_shape(&mut self, line_number: usize, slot: u32) {
+        if slot == 0 && self.first_inherited_shape.is_none() {
+            self.first_inherited_shape = Some(line_number);
+        }
+    }
+
+    fn parse_face(
         &mut self,
-        tokens: impl Iterator<Item = &'t [u8]>,
+        tokens: lex::Tokens<'_>,
         line_number: usize,
-    ) -> Result<(), LineError> {
+        base: &Counts,
+        slot: u32,
+    ) -> Result<(), ParseErrorKind> {
         let mut first: Option<Corner> = None;
         let mut previous: Option<Corner> = None;
         let mut count = 0usize;
-        let material = self.material_for_shape(line_number);
         for token in tokens {
-            let corner = self.parse_corner(token)?;
+            let corner = self.parse_corner(token, base)?;
             count += 1;
             if let (Some(a), Some(b), 3..) = (first, previous, count) {
-                if self.scene.triangles.len() >= u32::MAX as usize {
-                    return Err(ParseErrorKind::TooMany("triangles").into());
-                }
                 let normals = match (a.normal, b.normal, corner.normal) {
                     (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                     _ => None,
                 };
-                self.scene.triangles.push(TriangleDesc {
+                self.triangles.push(TriangleDesc {
                     positions: [a.position, b.position, corner.position],
                     normals,
-                    material,
+                    material: MaterialId(slot),
                 });
             }
             first.get_or_insert(corner);
             previous = Some(corner);
         }
         if count < 3 {
-            return Err(ParseErrorKind::TooFewVertices(count).into());
+            return Err(ParseErrorKind::TooFewVertices(count));
         }
+        self.note_shape(line_number, slot);
         Ok(())
     }
 
-    /// Parses `v`, `v/vt`, `v//vn` or `v/vt/vn`.
-    fn parse_corner(&self, token: &[u8]) -> Result<Corner, ParseErrorKind> {
+    /// Parses `v`, `v/vt`, `v//vn` or `v/vt/vn` against the elements defined so far.
+    fn parse_corner(&self, token: &[u8], base: &Counts) -> Result<Corner, ParseErrorKind> {
         let bad = || ParseErrorKind::BadFaceVertex(lex::show(token));
         let mut parts = token.split(|&b| b == b'/');
         let position = parts.next().filter(|p| !p.is_empty()).ok_or_else(bad)?;
@@ -205,46 +293,137 @@ impl ObjReader<'_> {
             return Err(bad());
         }
         let texcoord = texcoord.filter(|t| !t.is_empty());
-        let position = resolve(position, IndexKind::Vertex, self.scene.positions.len())?;
+        let defined = |global: usize, local: usize| global + local;
+        let position = resolve(
+            position,
+            IndexKind::Vertex,
+            defined(base.positions, self.positions.len()),
+        )?;
         if let Some(vt) = texcoord {
-            resolve(vt, IndexKind::TexCoord, self.scene.texcoords.len())?;
+            let count = defined(base.texcoords, self.texcoords.len());
+            resolve(vt, IndexKind::TexCoord, count)?;
         }
         let normal = normal
-            .map(|vn| resolve(vn, IndexKind::Normal, self.scene.normals.len()))
+            .map(|vn| {
+                let count = defined(base.normals, self.normals.len());
+                resolve(vn, IndexKind::Normal, count)
+            })
             .transpose()?;
         Ok(Corner { position, normal })
     }
+}
 
-    fn load_mtl(&mut self, name: &[u8]) -> Result<(), LineError> {
-        let relative = PathBuf::from(String::from_utf8_lossy(name).as_ref());
+/// Pass 3: replays chunks in file order into one description.
+struct Resolver<'a> {
+    path: &'a Path,
+    scene: SceneDescription,
+    material_ids: HashMap<String, MaterialId>,
+    current_material: Option<MaterialId>,
+    fallback_material: Option<MaterialId>,
+    warned_no_usemtl: bool,
+    warned_unknown: HashSet<String>,
+}
+
+impl<'a> Resolver<'a> {
+    fn new(path: &'a Path, total: &Counts) -> Resolver<'a> {
+        let mut scene = SceneDescription::default();
+        scene.positions.reserve_exact(total.positions);
+        scene.texcoords.reserve_exact(total.texcoords);
+        scene.normals.reserve_exact(total.normals);
+        Resolver {
+            path,
+            scene,
+            material_ids: HashMap::new(),
+            current_material: None,
+            fallback_material: None,
+            warned_no_usemtl: false,
+            warned_unknown: HashSet::new(),
+        }
+    }
+
+    fn append(&mut self, chunk: Chunk) -> Result<(), SceneError> {
+        // Events all precede the chunk's error line (parsing stopped there), so
+        // replaying them first reports problems in file order.
+        let mut slots = vec![self.current_material];
+        for event in &chunk.events {
+            match event {
+                Event::Mtllib { file, .. } => self.load_mtl(file)?,
+                Event::Usemtl { line, name } => {
+                    let id = match self.material_ids.get(name) {
+                        Some(&id) => id,
+                        None => {
+                            if self.warned_unknown.insert(name.clone()) {
+                                self.warn(
+                                    *line,
+                                    &format!(
+                                        "unknown material '{name}'; using the default material"
+                                    ),
+                                );
+                            }
+                            self.fallback_material()
+                        }
+                    };
+                    self.current_material = Some(id);
+                    slots.push(Some(id));
+                }
+            }
+        }
+        if let Some((line, kind)) = chunk.error {
+            return Err(SceneError::Parse {
+                path: self.path.to_path_buf(),
+                line,
+                kind,
+            });
+        }
+        if slots[0].is_none()
+            && let Some(line) = chunk.first_inherited_shape
+        {
+            if !self.warned_no_usemtl {
+                self.warned_no_usemtl = true;
+                self.warn(line, "shapes before any 'usemtl' get the default material");
+            }
+            slots[0] = Some(self.fallback_material());
+        }
+        let material = |slot: MaterialId| slots[slot.0 as usize].unwrap_or_default();
+        let scene = &mut self.scene;
+        if scene.triangles.len() + chunk.triangles.len() > u32::MAX as usize {
+            return Err(SceneError::Parse {
+                path: self.path.to_path_buf(),
+                line: chunk.first_line,
+                kind: ParseErrorKind::TooMany("triangles"),
+            });
+        }
+        scene.positions.extend_from_slice(&chunk.positions);
+        scene.texcoords.extend_from_slice(&chunk.texcoords);
+        scene.normals.extend_from_slice(&chunk.normals);
+        scene
+            .triangles
+            .extend(chunk.triangles.iter().map(|t| TriangleDesc {
+                material: material(t.material),
+                ..*t
+            }));
+        scene
+            .spheres
+            .extend(chunk.spheres.iter().map(|s| SphereDesc {
+                material: material(s.material),
+                ..*s
+            }));
+        scene.lights.extend_from_slice(&chunk.lights);
+        Ok(())
+    }
+
+    fn load_mtl(&mut self, relative: &Path) -> Result<(), SceneError> {
         let mtl_path = match self.path.parent() {
-            Some(dir) => dir.join(&relative),
-            None => relative,
+            Some(dir) => dir.join(relative),
+            None => relative.to_path_buf(),
         };
-        let text = read_file(&mtl_path).map_err(LineError::Nested)?;
-        let materials = mtl::parse_mtl(&text, &mtl_path).map_err(LineError::Nested)?;
-        for material in materials {
+        let text = read_file(&mtl_path)?;
+        for material in mtl::parse_mtl(&text, &mtl_path)? {
             let id = MaterialId(self.scene.materials.len() as u32);
             self.material_ids.insert(material.name.clone(), id);
             self.scene.materials.push(material);
         }
         Ok(())
-    }
-
-    /// The material for a new face or sphere, falling back (with one warning) when no
-    /// `usemtl` came before.
-    fn material_for_shape(&mut self, line_number: usize) -> MaterialId {
-        if let Some(id) = self.current_material {
-            return id;
-        }
-        if !self.warned_no_usemtl {
-            self.warned_no_usemtl = true;
-            self.warn(
-                line_number,
-                "shapes before any 'usemtl' get the default material",
-            );
-        }
-        self.fallback_material()
     }
 
     fn fallback_material(&mut self) -> MaterialId {
@@ -262,6 +441,7 @@ impl ObjReader<'_> {
 }
 
 /// Resolves a 1-based (or negative, counting back) index against `defined` elements.
+#[inline]
 fn resolve(token: &[u8], kind: IndexKind, defined: usize) -> Result<u32, ParseErrorKind> {
     let index =
         parse_index(token).ok_or_else(|| ParseErrorKind::BadFaceVertex(lex::show(token)))?;
@@ -270,7 +450,7 @@ fn resolve(token: &[u8], kind: IndexKind, defined: usize) -> Result<u32, ParseEr
         i if i > 0 => i - 1,
         i => defined as i64 + i,
     };
-    if resolved < 0 || resolved >= defined as i64 {
+    if resolved < 0 || resolved >= defined as i64 || resolved > u32::MAX as i64 {
         return Err(ParseErrorKind::IndexOutOfRange {
             kind,
             index,
@@ -280,8 +460,9 @@ fn resolve(token: &[u8], kind: IndexKind, defined: usize) -> Result<u32, ParseEr
     Ok(resolved as u32)
 }
 
-/// Parses an optionally negative decimal integer; `None` if malformed or beyond 18
+/// Parses an optionally signed decimal integer; `None` if malformed or beyond 18
 /// digits (no file defines that many elements).
+#[inline]
 fn parse_index(token: &[u8]) -> Option<i64> {
     let (negative, digits) = match token.split_first() {
         Some((b'-', rest)) => (true, rest),
@@ -299,4 +480,41 @@ fn parse_index(token: &[u8]) -> Option<i64> {
         value = value * 10 + (d - b'0') as i64;
     }
     Some(if negative { -value } else { value })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The parallel reader must give exactly what one chunk gives, whatever the cuts.
+    #[test]
+    fn chunked_parse_equals_single_chunk_parse() {
+        let mut text = String::new();
+        for i in 0..200 {
+            text.push_str(&format!("v {i} 0 0\nv {i} 1 0\nvn 0 0 1\nv {i} 0 1\n"));
+            text.push_str("f -3//-1 -2//-1 -1//-1\n");
+            if i % 50 == 0 {
+                text.push_str(&format!("S {i} 0 0 1\nP 0 {i} 0 1 1 1\n"));
+            }
+            text.push_str(&format!("f {} {} {}\n", 1 + 3 * i, 2 + 3 * i, 3));
+        }
+        let single = {
+            let chunk = Chunk::parse(text.as_bytes(), Counts::default());
+            assert!(chunk.error.is_none());
+            chunk.triangles
+        };
+        for size in [1, 7, 64, 1000] {
+            let chunks = split_into_chunks(text.as_bytes(), size);
+            assert_eq!(chunks.concat(), text.as_bytes());
+            let mut base = Counts::default();
+            let mut triangles = Vec::new();
+            for c in chunks {
+                let chunk = Chunk::parse(c, base);
+                assert!(chunk.error.is_none(), "{:?}", chunk.error);
+                triangles.extend(chunk.triangles);
+                base.add(&Counts::of(c));
+            }
+            assert_eq!(triangles, single, "chunk size {size}");
+        }
+    }
 }

@@ -154,6 +154,7 @@ struct CameraTable {
 struct RenderTable {
     mode: Option<ModeName>,
     depth: Option<Spanned<u32>>,
+    spp: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -373,6 +374,7 @@ impl Builder<'_> {
             up: value(&camera.up),
             depth: render.depth.as_ref().map(|s| *s.get_ref()),
             mode: render.mode.map(Mode::from),
+            samples_per_pixel: render.spp.as_ref().map(|s| *s.get_ref()),
         };
         if let Err(e) = options.resolve().validate() {
             // Name the key behind the flag the library's message speaks of.
@@ -386,6 +388,7 @@ impl Builder<'_> {
                 "--fov" => ("camera.fov", span_of(&camera.fov)),
                 "--up" => ("camera.up", span_of(&camera.up)),
                 "--depth" => ("render.depth", span_of(&render.depth)),
+                "--spp" => ("render.spp", span_of(&render.spp)),
                 _ if camera.look_from.is_some() => ("camera.look_from", span_of(&camera.look_from)),
                 _ => ("camera.look_to", span_of(&camera.look_to)),
             };
@@ -559,6 +562,7 @@ height = 24
 [render]
 mode = "normal"
 depth = 7
+spp = 9
 
 [[mesh]]
 file = "tri.obj"
@@ -611,6 +615,7 @@ al = [0.1, 0.2, 0.7]
         assert_eq!(o.fov_degrees, Some(35.5));
         assert_eq!((o.width, o.height), (Some(32), Some(24)));
         assert_eq!((o.mode, o.depth), (Some(Mode::Normal), Some(7)));
+        assert_eq!(o.samples_per_pixel, Some(9));
 
         let d = loaded.description;
         let names: Vec<&str> = d.materials.iter().map(|m| m.name.as_str()).collect();
@@ -727,6 +732,10 @@ al = [0.1, 0.2, 0.7]
             (
                 "[render]\ndepth = 65\n",
                 "DIR/s.toml:2: render.depth: 65 is not in 1..=64",
+            ),
+            (
+                "[render]\nspp = 0\n",
+                "DIR/s.toml:2: render.spp: 0 is not in 1..=65536",
             ),
             (
                 "[render]\nmode = \"fast\"\n",

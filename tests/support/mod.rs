@@ -26,3 +26,40 @@ pub fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
         .collect();
     (info.width, info.height, rgb)
 }
+
+/// Decodes an OpenEXR file's first layer into (width, height, channels by name), every
+/// sample as `f32`, row by row from the top.
+pub fn read_exr(path: &Path) -> (usize, usize, std::collections::BTreeMap<String, Vec<f32>>) {
+    let image = exr::prelude::read_first_flat_layer_from_file(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let layer = image.layer_data;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|channel| {
+            let name = channel.name.to_string();
+            let values = match &channel.sample_data {
+                exr::prelude::FlatSamples::F32(values) => values.clone(),
+                other => panic!("{}: channel {name} is not f32: {other:?}", path.display()),
+            };
+            (name, values)
+        })
+        .collect();
+    (layer.size.width(), layer.size.height(), channels)
+}
+
+/// The bundled Cornell box with the camera of the README's first command.
+pub fn cornell_box() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cornell-box/scene.obj")
+}
+
+/// The README's camera for [`cornell_box`], as command-line flags.
+pub const CORNELL_CAMERA: [&str; 6] = [
+    "--fov",
+    "60",
+    "--look-from",
+    "0,0.7,1.75",
+    "--look-to",
+    "0,0.7,0",
+];

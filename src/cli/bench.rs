@@ -1,0 +1,52 @@
+//! `raytracer bench`: medians of parse, build, primary-ray and shadow-ray times on
+//! one scene, printed as one JSON object for `bench/run.sh`.
+
+use raytracer::benchmark::{RayWorkload, count_occluded, median_time, trace_closest};
+use raytracer::{BvhParams, Scene, render};
+
+use super::args::BenchArgs;
+
+/// Measures as `args` say.
+pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    let path = &args.view.scene;
+    let file_bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let (loaded, parse_s) = median_time(args.repeat, || super::load_scene(&args.view));
+    let (description, options) = loaded?;
+    let options = &options;
+    let triangles = description.triangles.len();
+    let params = BvhParams::default();
+    let (scene, build_s) = median_time(args.repeat, || Scene::build(description.clone(), &params));
+    let workload = RayWorkload::new(&scene, options);
+    let (hits, primary_s) = median_time(args.repeat, || trace_closest(&scene, &workload.primary));
+    debug_assert_eq!(hits.iter().flatten().count(), workload.primary_hits);
+    let (occluded, shadow_s) =
+        median_time(args.repeat, || count_occluded(&scene, &workload.shadow));
+    let (_, render_s) = median_time(args.repeat, || render(&scene, options));
+    let mrays = |n: usize, s: f64| n as f64 / s / 1e6;
+    println!(
+        concat!(
+            "{{\"file_bytes\": {}, \"triangles\": {}, \"parse_ms\": {:.2}, \"parse_mb_per_s\": {:.1}, ",
+            "\"build_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, ",
+            "\"primary_rays\": {}, \"primary_hits\": {}, \"primary_ms\": {:.2}, \"primary_mrays_per_s\": {:.2}, ",
+            "\"shadow_rays\": {}, \"shadow_occluded\": {}, \"shadow_ms\": {:.2}, \"shadow_mrays_per_s\": {:.2}, ",
+            "\"render_ms\": {:.2}}}"
+        ),
+        file_bytes,
+        triangles,
+        parse_s * 1e3,
+        file_bytes as f64 / parse_s / 1e6,
+        build_s * 1e3,
+        scene.bvh().nodes.len(),
+        scene.bvh().sah_cost(&params),
+        workload.primary.len(),
+        workload.primary_hits,
+        primary_s * 1e3,
+        mrays(workload.primary.len(), primary_s),
+        workload.shadow.len(),
+        occluded,
+        shadow_s * 1e3,
+        mrays(workload.shadow.len(), shadow_s),
+        render_s * 1e3,
+    );
+    Ok(())
+}

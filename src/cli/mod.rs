@@ -1,0 +1,42 @@
+//! The command line: flag definitions ([`args`]), the commands, and the progress
+//! bar. The library knows nothing of clap or terminals.
+
+mod args;
+mod bench;
+mod info;
+pub mod progress;
+mod render;
+
+pub use args::Cli;
+use args::{Command, ViewArgs};
+
+use anyhow::Context;
+use raytracer::{RenderOptions, SceneDescription, scene};
+
+/// Sets up the thread pool and runs the command.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let view = match &cli.command {
+        Command::Render(args) => &args.view,
+        Command::Bench(args) => &args.view,
+        Command::Info { scene } => return info::run(scene),
+    };
+    // Before loading: readers use the global pool, which can be set up only once.
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(view.threads)
+        .build_global()
+        .context("cannot start worker threads")?;
+    match &cli.command {
+        Command::Render(args) => render::run(args, cli.quiet),
+        Command::Bench(args) => bench::run(args),
+        Command::Info { scene } => info::run(scene),
+    }
+}
+
+/// Loads the scene and the validated options: each from the flag if given, else
+/// from the scene file (TOML), else the default.
+fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
+    let loaded = scene::load(&view.scene)?;
+    let options = view.options().or(loaded.options).resolve();
+    options.validate()?;
+    Ok((loaded.description, options))
+}

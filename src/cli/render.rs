@@ -1,0 +1,98 @@
+//! `raytracer render`: load, build, render, write, with optional `--stats`.
+
+use std::time::Instant;
+
+use raytracer::stats::{RayCounts, peak_memory_bytes};
+use raytracer::{BvhParams, ImageFormat, Scene, render_with_progress};
+
+use super::args::RenderArgs;
+use super::progress::Progress;
+
+/// Renders as `args` say.
+pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
+    // Before the render, so a typo does not cost a long render.
+    let format = ImageFormat::from_path(&args.output)?;
+    let warn = |message: &str| {
+        if !quiet {
+            eprintln!("warning: {message}");
+        }
+    };
+
+    let start = Instant::now();
+    let loading = Progress::start("loading the scene", None, !quiet);
+    let (description, options) = super::load_scene(&args.view)?;
+    let options = &options;
+    let parsed = Instant::now();
+    let params = BvhParams::default();
+    let scene = Scene::build(description, &params);
+    let built = Instant::now();
+    drop(loading);
+    if options.samples_per_pixel_in_mode() != options.samples_per_pixel {
+        warn(&format!(
+            "--spp {} applies to full mode only; {} mode takes one sample per pixel",
+            options.samples_per_pixel,
+            format!("{:?}", options.mode).to_lowercase()
+        ));
+    }
+    for warning in &scene.warnings {
+        warn(warning);
+    }
+
+    let rendering = Progress::start("rendering", Some(options.height.into()), !quiet);
+    let (film, rays) = render_with_progress(&scene, options, &|_row| rendering.inc());
+    drop(rendering);
+    let rendered = Instant::now();
+    film.write(options.mode, format, &args.output)?;
+    let written = Instant::now();
+
+    if args.stats {
+        let stages = Stages {
+            parse: (parsed - start).as_secs_f64(),
+            build: (built - parsed).as_secs_f64(),
+            render: (rendered - built).as_secs_f64(),
+            write: (written - rendered).as_secs_f64(),
+        };
+        print_stats(&scene, &params, &stages, &rays);
+    }
+    Ok(())
+}
+
+/// Seconds spent in each stage.
+struct Stages {
+    parse: f64,
+    build: f64,
+    render: f64,
+    write: f64,
+}
+
+fn print_stats(scene: &Scene, params: &BvhParams, stages: &Stages, rays: &RayCounts) {
+    let bvh = scene.bvh();
+    let ms = |s: f64| s * 1e3;
+    eprintln!("parse         {:9.1} ms", ms(stages.parse));
+    eprintln!(
+        "build         {:9.1} ms  {} primitives, {} nodes, depth {}, SAH cost {:.2}",
+        ms(stages.build),
+        scene.prim_count(),
+        bvh.nodes.len(),
+        bvh.max_depth,
+        bvh.sah_cost(params)
+    );
+    eprintln!(
+        "render        {:9.1} ms  {} rays: {} primary, {} shadow, {} reflected, {} refracted; {:.1} Mrays/s",
+        ms(stages.render),
+        rays.total(),
+        rays.primary,
+        rays.shadow,
+        rays.reflected,
+        rays.refracted,
+        rays.total() as f64 / stages.render / 1e6
+    );
+    eprintln!("post+write    {:9.1} ms", ms(stages.write));
+    eprintln!(
+        "total         {:9.1} ms",
+        ms(stages.parse + stages.build + stages.render + stages.write)
+    );
+    if let Some(peak) = peak_memory_bytes() {
+        eprintln!("peak memory   {:9.1} MB", peak as f64 / 1e6);
+    }
+}

@@ -146,6 +146,15 @@ fn main() {
         size(&le),
         ms(raw)
     );
+    let gunzip = median_time(|| {
+        std::hint::black_box(raytracer_gunzip(&gz));
+    });
+    println!(
+        "{:<30} {:>10.1} {:>10.1}",
+        "gunzip of the npm file",
+        size(&gz),
+        ms(gunzip)
+    );
 }
 
 /// The decompressed bytes of a gzip file.

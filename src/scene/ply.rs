@@ -749,6 +749,44 @@ impl<const BIG_ENDIAN: bool> Body for BinaryBody<'_, BIG_ENDIAN> {
     }
 }
 
+/// Binary elements with at least this many instances are decoded on all threads.
+const PARALLEL_BINARY_ELEMENTS: usize = 1 << 16;
+
+/// One output array of fixed-stride records decoded on all threads: the values of the
+/// `fields` whose slots are `first_slot..first_slot + N`, turned into `T` by `make`.
+fn gather<const BIG_ENDIAN: bool, const N: usize, T: Send>(
+    records: &[u8],
+    stride: usize,
+    fields: &[(usize, usize, Scalar)],
+    first_slot: usize,
+    make: impl Fn([Float; N]) -> T + Sync,
+) -> Vec<T> {
+    let fields: Vec<(usize, usize, Scalar)> = fields
+        .iter()
+        .filter(|&&(slot, _, _)| (first_slot..first_slot + N).contains(&slot))
+        .map(|&(slot, offset, ty)| (slot - first_slot, offset, ty))
+        .collect();
+    records
+        .par_chunks_exact(stride)
+        .map(|record| {
+            let mut values = [0.0; N];
+            for &(slot, offset, ty) in &fields {
+                values[slot] = decode::<BIG_ENDIAN>(&record[offset..], ty).as_float() as Float;
+            }
+            make(values)
+        })
+        .collect()
+}
+
+/// `to` followed by `from`, moving `from` over whole when `to` is empty.
+fn append_triangles(to: &mut Vec<TriangleDesc>, mut from: Vec<TriangleDesc>) {
+    if to.is_empty() {
+        *to = from;
+    } else {
+        to.append(&mut from);
+    }
+}
+
 /// Ascii elements with at least this many instances are parsed on all threads, in
 /// runs of whole lines; for fewer, splitting costs more than it saves.
 const PARALLEL_ASCII_ELEMENTS: usize = 1 << 15;
@@ -1121,6 +1159,29 @@ impl MeshReader {
             0 => element.count,
             _ => element.count.min(bytes.len() / stride),
         };
+        if !fields.is_empty() && complete == element.count && complete >= PARALLEL_BINARY_ELEMENTS {
+            let records = &bytes[..complete * stride];
+            let positions = gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, 0, Vec3::from);
+            let normals = match self.has_normals {
+                true => gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, NORMAL, Vec3::from),
+                false => Vec::new(),
+            };
+            let texcoords = match self.has_texcoords {
+                true => gather::<BIG_ENDIAN, 2, _>(records, stride, &fields, TEXCOORD, Vec2::from),
+                false => Vec::new(),
+            };
+            // Serial checks: rayon's short-circuiting `all` pays an atomic per item.
+            let finite = positions.iter().all(|p| p.is_finite())
+                && normals.iter().all(|n| n.is_finite())
+                && texcoords.iter().all(|t| t.is_finite());
+            // Otherwise the serial loop below finds and reports the bad value.
+            if finite {
+                self.scene.positions = positions;
+                self.scene.normals = normals;
+                self.scene.texcoords = texcoords;
+                return Ok(complete * stride);
+            }
+        }
         if !fields.is_empty() {
             for (index, record) in bytes[..complete * stride].chunks_exact(stride).enumerate() {
                 let mut values: [Float; 8] = [0.0; 8];
@@ -1159,6 +1220,14 @@ impl MeshReader {
     ) -> Result<usize, (usize, ParseErrorKind)> {
         let defined = self.vertex_count;
         let (count_size, item_size) = (count.size(), item.size());
+        if faces >= PARALLEL_BINARY_ELEMENTS
+            && let Some(triangles) =
+                self.read_triangle_records::<BIG_ENDIAN>(faces, count, item, bytes)
+        {
+            let read = triangles.len() * (count_size + 3 * item_size);
+            append_triangles(&mut self.scene.triangles, triangles);
+            return Ok(read);
+        }
         let mut pos = 0;
         for face in 0..faces {
             let at = |kind| (face, kind);
@@ -1197,6 +1266,85 @@ impl MeshReader {
             }
         }
         Ok(pos)
+    }
+
+    /// The faces as triangles decoded on all threads, when every face is a valid
+    /// triangle: then records have one size and can be cut apart without reading
+    /// them in order. `None` otherwise (the serial loop then reads, or reports).
+    fn read_triangle_records<const BIG_ENDIAN: bool>(
+        &self,
+        faces: usize,
+        count: Scalar,
+        item: Scalar,
+        bytes: &[u8],
+    ) -> Option<Vec<TriangleDesc>> {
+        let record = count.size() + 3 * item.size();
+        let records = bytes.get(..faces.checked_mul(record)?)?;
+        // One loop per index type, so the hot loop has no type dispatch.
+        let four = |b: &[u8]| [b[0], b[1], b[2], b[3]];
+        let triangles = match (item, BIG_ENDIAN) {
+            (Scalar::I32, false) => {
+                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
+                    i32::from_le_bytes(four(b)) as i64
+                })
+            }
+            (Scalar::I32, true) => {
+                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
+                    i32::from_be_bytes(four(b)) as i64
+                })
+            }
+            (Scalar::U32, false) => {
+                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
+                    u32::from_le_bytes(four(b)) as i64
+                })
+            }
+            (Scalar::U32, true) => {
+                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
+                    u32::from_be_bytes(four(b)) as i64
+                })
+            }
+            _ => self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
+                decode_int::<BIG_ENDIAN>(b, item)
+            }),
+        };
+        // Serial: rayon's short-circuiting `all` pays an atomic per item.
+        let valid = triangles.iter().all(|t| !t.positions.contains(&u32::MAX));
+        valid.then_some(triangles)
+    }
+
+    /// Decodes records of a count of type `count` and three indices of `item_size`
+    /// bytes read by `index`. A record whose count is not 3 or whose index is out of
+    /// range gets index `u32::MAX`, which no valid index equals (there are at most
+    /// `u32::MAX` vertices), so one check afterwards finds them.
+    fn decode_triangles<const BIG_ENDIAN: bool>(
+        &self,
+        records: &[u8],
+        count: Scalar,
+        item_size: usize,
+        index: impl Fn(&[u8]) -> i64 + Sync,
+    ) -> Vec<TriangleDesc> {
+        let count_size = count.size();
+        let defined = self.vertex_count as u64;
+        let has_normals = self.has_normals;
+        records
+            .par_chunks_exact(count_size + 3 * item_size)
+            .map(|r| {
+                let is_triangle = decode_int::<BIG_ENDIAN>(r, count) == 3;
+                let positions = [0, 1, 2].map(|k| {
+                    let i = index(&r[count_size + k * item_size..]);
+                    if is_triangle && (i as u64) < defined {
+                        i as u32
+                    } else {
+                        u32::MAX
+                    }
+                });
+                TriangleDesc {
+                    positions,
+                    normals: has_normals.then_some(positions),
+                    material: MaterialId(0),
+                }
+            })
+            .collect()
     }
 
     fn finish(mut self) -> SceneDescription {
@@ -1714,6 +1862,85 @@ mod tests {
                 15 + 2 * n + 5
             )
         );
+    }
+
+    #[test]
+    fn large_binary_files_decode_in_parallel_exactly_like_small_ones() {
+        // A triangle strip with normals and texture coordinates, long enough for the
+        // parallel paths; the ascii encoding (read in line runs) is the reference.
+        let n = PARALLEL_BINARY_ELEMENTS + 100;
+        let (f, d, u, i) = (Scalar::F32, Scalar::F64, Scalar::U8, Scalar::U32);
+        let mut rows: Vec<Vec<(Scalar, f64)>> = (0..n + 2)
+            .map(|k| {
+                let (x, y) = ((k / 2) as f64, (k % 2) as f64);
+                vec![
+                    (f, x),
+                    (d, y),
+                    (f, 0.5),
+                    (f, 0.0),
+                    (f, 0.0),
+                    (f, 1.0),
+                    (u, 7.0),
+                    (f, x / 8.0),
+                    (f, y),
+                ]
+            })
+            .collect();
+        rows.extend((0..n).map(|t| {
+            vec![
+                (u, 3.0),
+                (i, t as f64),
+                (i, t as f64 + 1.0),
+                (i, t as f64 + 2.0),
+            ]
+        }));
+        let header = format!(
+            "element vertex {}\nproperty float x\nproperty double y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar quality\nproperty float u\nproperty float v\nelement face {n}\nproperty list uchar uint vertex_indices\n",
+            n + 2
+        );
+        let mut mesh = Mesh { header, rows };
+        let reference = parse(&mesh.ascii()).unwrap();
+        assert_eq!(reference.triangles.len(), n);
+        assert_eq!(
+            reference.texcoords[n + 1],
+            Vec2::new((n + 1).div_euclid(2) as f32 / 8.0, 1.0)
+        );
+        for big_endian in [false, true] {
+            let scene = parse(&mesh.binary(big_endian)).unwrap();
+            assert_eq!(scene.positions, reference.positions);
+            assert_eq!(scene.normals, reference.normals);
+            assert_eq!(scene.texcoords, reference.texcoords);
+            assert_eq!(scene.triangles, reference.triangles);
+        }
+        // Bad data late in the file is reported at its own index.
+        let late = n - 7;
+        mesh.rows[n + 2 + late][2].1 = (n + 2) as f64;
+        mesh.rows[late][1].1 = f64::INFINITY;
+        for big_endian in [false, true] {
+            let message = parse(&mesh.binary(big_endian)).unwrap_err().to_string();
+            assert_eq!(
+                message,
+                format!("t.ply: vertex {late}: non-finite value 'inf'")
+            );
+        }
+        mesh.rows[late][1].1 = 0.0;
+        for big_endian in [false, true] {
+            let message = parse(&mesh.binary(big_endian)).unwrap_err().to_string();
+            assert_eq!(
+                message,
+                format!(
+                    "t.ply: face {late}: face index {} out of range ({} vertices defined)",
+                    n + 2,
+                    n + 2
+                )
+            );
+        }
+        // A quad among the triangles takes the serial path, with the same result.
+        mesh.rows[n + 2 + late] = vec![(u, 4.0), (i, 0.0), (i, 1.0), (i, 3.0), (i, 2.0)];
+        let scene = parse(&mesh.binary(true)).unwrap();
+        assert_eq!(scene.triangles.len(), n + 1);
+        assert_eq!(scene.triangles[late].positions, [0, 1, 3]);
+        assert_eq!(scene.triangles[late + 1].positions, [0, 3, 2]);
     }
 
     #[test]

@@ -12,6 +12,8 @@ pub use obj::{load_obj, parse_obj};
 
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3};
@@ -163,26 +165,70 @@ impl Scene {
             ..
         } = description;
 
-        let mut shapes = Vec::with_capacity(triangles.len() + spheres.len());
-        let mut shading = Vec::with_capacity(shapes.capacity());
+        // Step 1: keep the triangles with an area; spheres follow them. Primitive
+        // `i < kept.len()` is triangle `kept[i]`, the rest are spheres.
+        let corners = |t: &TriangleDesc| t.positions.map(|i| positions[i as usize]);
+        let kept: Vec<u32> = (0..triangles.len() as u32)
+            .into_par_iter()
+            .filter(|&i| {
+                let [a, b, c] = corners(&triangles[i as usize]);
+                let normal = Triangle::new(a, b, c).normal();
+                normal.length_squared() > 0.0 && normal.is_finite()
+            })
+            .collect();
+        let degenerate = triangles.len() - kept.len();
+        if degenerate > 0 {
+            warnings.push(format!(
+                "skipped {degenerate} degenerate (zero-area) triangle{}",
+                if degenerate == 1 { "" } else { "s" }
+            ));
+        }
+
+        // Step 2: the BVH, straight from the description (no second copy of the
+        // shapes exists while the builder's own arrays do).
+        let sphere_shape = |s: &SphereDesc| Sphere {
+            center: s.center,
+            radius: s.radius,
+        };
+        let prim_count = kept.len() + spheres.len();
+        let (bvh, order) = Bvh::build_with(
+            prim_count,
+            |i| match kept.get(i) {
+                // The box of the stored form (v0 and edges), whose rounded corners the
+                // kernel intersects, not of the file's corners.
+                Some(&t) => {
+                    let [a, b, c] = corners(&triangles[t as usize]);
+                    Triangle::new(a, b, c).bounds()
+                }
+                None => sphere_shape(&spheres[i - kept.len()]).bounds(),
+            },
+            params,
+        );
+
+        // Step 3: shapes and shading data in leaf order.
+        let mut shapes = Vec::with_capacity(prim_count);
+        let mut shading = Vec::with_capacity(prim_count);
         let mut vertex_normals = Vec::new();
-        let mut degenerate = 0usize;
-        for tri in &triangles {
-            let [a, b, c] = tri.positions.map(|i| positions[i as usize]);
-            let triangle = Triangle::new(a, b, c);
-            let normal = triangle.normal();
-            if normal.length_squared() == 0.0 || !normal.is_finite() {
-                degenerate += 1;
+        for &i in &order {
+            let i = i as usize;
+            let Some(&t) = kept.get(i) else {
+                let sphere = &spheres[i - kept.len()];
+                shapes.push(Shape::Sphere(sphere_shape(sphere)));
+                shading.push(PrimShading {
+                    material: sphere.material,
+                    vertex_normals: NO_NORMALS,
+                });
                 continue;
-            }
-            let unit = normal.normalize();
-            let normals = tri.normals.map(|ids| {
-                // A zero-length `vn` cannot be normalized: use the geometric normal.
-                ids.map(|i| normals[i as usize].try_normalize().unwrap_or(unit))
-            });
-            let vertex_normals_index = match normals {
-                Some(ns) => {
-                    vertex_normals.push(ns);
+            };
+            let tri = &triangles[t as usize];
+            let [a, b, c] = corners(tri);
+            let triangle = Triangle::new(a, b, c);
+            let unit = triangle.normal().normalize();
+            let vertex_normals_index = match tri.normals {
+                Some(ids) => {
+                    // A zero-length `vn` cannot be normalized: use the geometric normal.
+                    vertex_normals
+                        .push(ids.map(|n| normals[n as usize].try_normalize().unwrap_or(unit)));
                     vertex_normals.len() as u32 - 1
                 }
                 None => NO_NORMALS,
@@ -193,27 +239,6 @@ impl Scene {
                 vertex_normals: vertex_normals_index,
             });
         }
-        if degenerate > 0 {
-            warnings.push(format!(
-                "skipped {degenerate} degenerate (zero-area) triangle{}",
-                if degenerate == 1 { "" } else { "s" }
-            ));
-        }
-        for s in &spheres {
-            shapes.push(Shape::Sphere(Sphere {
-                center: s.center,
-                radius: s.radius,
-            }));
-            shading.push(PrimShading {
-                material: s.material,
-                vertex_normals: NO_NORMALS,
-            });
-        }
-
-        let bounds: Vec<Aabb> = shapes.iter().map(Shape::bounds).collect();
-        let (bvh, order) = Bvh::build(&bounds, params);
-        let shapes = order.iter().map(|&i| shapes[i as usize]).collect();
-        let shading = order.iter().map(|&i| shading[i as usize]).collect();
         Scene {
             shapes,
             shading,

@@ -123,6 +123,9 @@ impl Image {
             let mut writer = BufWriter::new(file);
             let mut encoder = png::Encoder::new(&mut writer, self.width, self.height);
             encoder.set_color(png::ColorType::Rgb);
+            // fdeflate: several times faster than zlib level 6 on renders, for files
+            // a few percent larger.
+            encoder.set_compression(png::Compression::Fast);
             encoder.set_depth(png::BitDepth::Eight);
             let mut png_writer = encoder.write_header().map_err(io::Error::other)?;
             png_writer

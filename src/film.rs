@@ -44,6 +44,20 @@ impl Film {
     /// depth divides by the largest distance (misses white), normal maps directly,
     /// full applies SPEC's tone mapping and gamma.
     pub fn to_image(&self, mode: Mode) -> Image {
+        let rgb = self
+            .display_values(mode)
+            .flat_map(|v| v.to_array().map(to_byte))
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            rgb,
+        }
+    }
+
+    /// The post-processed value of every pixel, row by row, before quantization to
+    /// 8 bits: what [`Film::to_image`] encodes.
+    pub fn display_values(&self, mode: Mode) -> impl Iterator<Item = Vec3> + '_ {
         let encode: Box<dyn Fn(Vec3) -> Vec3> = match mode {
             Mode::Depth => {
                 let farthest = self.max_channel(|v| v.x.is_finite());
@@ -63,16 +77,7 @@ impl Film {
                 Box::new(move |v| tone_map(v, c).powf(1.0 / 2.2))
             }
         };
-        let rgb = self
-            .pixels
-            .iter()
-            .flat_map(|&v| encode(v).to_array().map(to_byte))
-            .collect();
-        Image {
-            width: self.width,
-            height: self.height,
-            rgb,
-        }
+        self.pixels.iter().map(move |&v| encode(v))
     }
 
     /// The largest channel value over the pixels that `keep` accepts (0 if none).
@@ -87,12 +92,18 @@ impl Film {
 
 /// SPEC's tone curve `v (1 + v / c^2) / (1 + v)` with `c` the image's largest
 /// channel; an all-black image (`c = 0`) stays black.
+///
+/// Written as `(v + (v/c)^2) / (1 + v)`: with `0 <= v <= c` every term stays in
+/// range, where `c * c` would overflow for large `c` or vanish for tiny ones.
+/// Negative values (negative colours or lights in the scene) are black.
 #[inline]
 fn tone_map(v: Vec3, c: Float) -> Vec3 {
     if c <= 0.0 {
         return Vec3::ZERO;
     }
-    v * (Vec3::ONE + v / (c * c)) / (Vec3::ONE + v)
+    let v = v.max(Vec3::ZERO);
+    let r = v / c;
+    (v + r * r) / (Vec3::ONE + v)
 }
 
 /// Scales 0..1 to 0..255, rounding to nearest; out-of-range values clamp.

@@ -68,6 +68,15 @@ pub enum ParseErrorKind {
     /// A sphere with a negative radius.
     #[error("sphere radius {0} is negative")]
     NegativeRadius(f32),
+    /// A value that must not be negative, such as the Phong exponent `Ns` (a negative
+    /// exponent makes the highlight infinite where it should vanish).
+    #[error("'{statement}' cannot be negative, found {value}")]
+    Negative {
+        /// The keyword, such as `Ns`.
+        statement: &'static str,
+        /// The value as read.
+        value: f32,
+    },
     /// A statement that needs a name has none.
     #[error("'{0}' needs a name")]
     MissingName(&'static str),

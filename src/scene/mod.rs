@@ -14,7 +14,7 @@ use std::path::Path;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Aabb, Float, Ray, Vec2, Vec3};
+use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
 use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
@@ -170,15 +170,14 @@ impl Scene {
         for tri in &triangles {
             let [a, b, c] = tri.positions.map(|i| positions[i as usize]);
             let triangle = Triangle::new(a, b, c);
-            let normal = triangle.normal();
-            if normal.length_squared() == 0.0 || !normal.is_finite() {
+            // No normal: zero area, or an area beyond f32 (vertices near 1e38).
+            let Some(unit) = try_unit(triangle.normal()) else {
                 degenerate += 1;
                 continue;
-            }
-            let unit = normal.normalize();
+            };
             let normals = tri.normals.map(|ids| {
                 // A zero-length `vn` cannot be normalized: use the geometric normal.
-                ids.map(|i| normals[i as usize].try_normalize().unwrap_or(unit))
+                ids.map(|i| try_unit(normals[i as usize]).unwrap_or(unit))
             });
             let vertex_normals_index = match normals {
                 Some(ns) => {
@@ -286,22 +285,21 @@ impl Scene {
         let shading = self.shading[prim as usize];
         let (p, n, ns) = match self.shape(prim) {
             Shape::Triangle(tri) => {
-                let n = tri.normal().normalize();
+                // `build` kept only triangles whose normal `try_unit` accepts.
+                let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
                 let ns = match shading.vertex_normals {
                     NO_NORMALS => n,
                     i => {
                         let [n0, n1, n2] = self.vertex_normals[i as usize];
                         let w = 1.0 - hit.u - hit.v;
-                        (n0 * w + n1 * hit.u + n2 * hit.v)
-                            .try_normalize()
-                            .unwrap_or(n)
+                        try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
                     }
                 };
                 (ray.at(hit.t), n, ns)
             }
             Shape::Sphere(s) => {
                 let p = ray.at(hit.t);
-                let n = (p - s.center).try_normalize().unwrap_or(-ray.dir);
+                let n = try_unit(p - s.center).unwrap_or(-ray.dir);
                 (s.center + n * s.radius, n, n)
             }
         };

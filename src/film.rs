@@ -31,12 +31,12 @@ pub struct Image {
 
 /// Why an image could not be written.
 #[derive(Debug, thiserror::Error)]
-#[error("cannot write {}: {source}", path.display())]
+#[error("cannot write {}: {error}", path.display())]
 pub struct WriteError {
     /// The file we were asked to write.
     pub path: PathBuf,
-    /// What failed.
-    pub source: io::Error,
+    /// What failed (part of the message, so not also a `source`).
+    pub error: io::Error,
 }
 
 impl Film {
@@ -115,30 +115,18 @@ fn to_byte(v: Float) -> u8 {
 impl Image {
     /// Writes the image as an 8-bit RGB PNG, atomically: into a temporary file in the
     /// same folder, renamed over `path` only once complete. A failure leaves any
-    /// existing file untouched and no temporary file behind.
+    /// existing file untouched and no temporary file behind; so does an interrupt, if
+    /// its handler calls [`remove_temp_files`].
     ///
     /// # Errors
-    /// The folder is missing or not writable, or the disk is full.
+    /// As [`check_output`], or the disk is full.
     pub fn write_png(&self, path: &Path) -> Result<(), WriteError> {
-        let fail = |source| WriteError {
+        let fail = |error| WriteError {
             path: path.to_path_buf(),
-            source,
+            error,
         };
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        if path.is_dir() {
-            return Err(fail(io::Error::new(
-                io::ErrorKind::IsADirectory,
-                "is a directory",
-            )));
-        }
-        let mut temp = tempfile::Builder::new()
-            .prefix(".raytracer-")
-            .suffix(".png.tmp")
-            .tempfile_in(dir)
-            .map_err(fail)?;
+        check_output(path)?;
+        let mut temp = create_temp_file(output_folder(path)).map_err(fail)?;
         {
             let mut writer = BufWriter::new(temp.as_file_mut());
             let mut encoder = png::Encoder::new(&mut writer, self.width, self.height);
@@ -155,8 +143,109 @@ impl Image {
         }
         temp.as_file().sync_all().map_err(fail)?;
         set_output_permissions(temp.path(), path).map_err(fail)?;
-        temp.persist(path).map_err(|e| fail(e.error))?;
+        temp.persist(path)
+            .map_err(|e| fail(without_path(e.error)))?;
         Ok(())
+    }
+}
+
+/// Checks, before any work, that [`Image::write_png`] can write `path`: its folder
+/// exists and takes new files (tried by creating and removing a temporary file), and
+/// `path` is neither a folder nor a read-only file.
+///
+/// # Errors
+/// The first of those that fails, naming `path`.
+pub fn check_output(path: &Path) -> Result<(), WriteError> {
+    let fail = |error| WriteError {
+        path: path.to_path_buf(),
+        error,
+    };
+    let folder = output_folder(path);
+    match fs::metadata(folder) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => {
+            let message = format!("{} is not a folder", folder.display());
+            return Err(fail(io::Error::new(io::ErrorKind::NotADirectory, message)));
+        }
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+            let message = format!("folder {} does not exist", folder.display());
+            return Err(fail(io::Error::new(io::ErrorKind::NotFound, message)));
+        }
+        Err(e) => return Err(fail(e)),
+    }
+    if let Ok(m) = fs::metadata(path) {
+        if m.is_dir() {
+            let message = "is a folder, not a file";
+            return Err(fail(io::Error::new(io::ErrorKind::IsADirectory, message)));
+        }
+        // Renaming over a read-only file would work, but would not respect it.
+        if m.permissions().readonly() {
+            let message = "the file is read-only";
+            return Err(fail(io::Error::new(
+                io::ErrorKind::PermissionDenied,
+                message,
+            )));
+        }
+    }
+    create_temp_file(folder).map(drop).map_err(fail)
+}
+
+/// Removes the temporary files this process has open for writing `output` (see
+/// [`Image::write_png`]), and returns how many it removed. Meant for a Ctrl-C
+/// handler, since exiting from one skips the destructors that would remove them.
+///
+/// # Errors
+/// The output's folder cannot be listed, or a file cannot be removed.
+pub fn remove_temp_files(output: &Path) -> io::Result<usize> {
+    let prefix = temp_prefix();
+    let mut removed = 0;
+    for entry in fs::read_dir(output_folder(output))? {
+        let entry = entry?;
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(&prefix) && name.ends_with(TEMP_SUFFIX) {
+            match fs::remove_file(entry.path()) {
+                Ok(()) => removed += 1,
+                // Renamed into place or removed meanwhile: nothing left to clean.
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// Temporary files are named `.raytracer-<pid>-<random>.png.tmp`: hidden, and
+/// carrying the process id so that [`remove_temp_files`] takes only its own.
+fn temp_prefix() -> String {
+    format!(".raytracer-{}-", std::process::id())
+}
+
+const TEMP_SUFFIX: &str = ".png.tmp";
+
+fn create_temp_file(folder: &Path) -> io::Result<tempfile::NamedTempFile> {
+    tempfile::Builder::new()
+        .prefix(&temp_prefix())
+        .suffix(TEMP_SUFFIX)
+        .tempfile_in(folder)
+        .map_err(without_path)
+}
+
+/// The folder `path` goes into (`.` for a bare file name).
+fn output_folder(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+/// tempfile's errors end with ` at path "<temporary file>"`, a name that means
+/// nothing to the user: keep only what the system said.
+fn without_path(error: io::Error) -> io::Error {
+    let message = error.to_string();
+    match message.find(" at path ") {
+        Some(end) => io::Error::new(error.kind(), &message[..end]),
+        None => error,
     }
 }
 

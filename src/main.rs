@@ -6,7 +6,13 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::math::Vec3;
-use raytracer::{BvhParams, Mode, RenderOptions, Scene, render, scene};
+use raytracer::options::{MAX_DIMENSION, MAX_RECURSION_DEPTH};
+use raytracer::{BvhParams, Mode, RenderOptions, Scene, film, render, scene};
+
+mod cli_values;
+mod interrupt;
+
+use cli_values::{MAX_THREADS, check_not_input, fov_degrees, whole_number};
 
 /// A Whitted-style ray tracer for Wavefront OBJ/MTL scenes.
 #[derive(Parser, Debug)]
@@ -31,13 +37,31 @@ struct RenderArgs {
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
     /// Image width in pixels (1..=65536).
-    #[arg(long, default_value_t = 640, value_name = "PIXELS")]
+    #[arg(
+        long,
+        default_value_t = 640,
+        value_name = "PIXELS",
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_DIMENSION),
+    )]
     width: u32,
     /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all).
-    #[arg(long, default_value_t = 480, value_name = "PIXELS")]
+    #[arg(
+        long,
+        default_value_t = 480,
+        value_name = "PIXELS",
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_DIMENSION),
+    )]
     height: u32,
     /// Vertical field of view in degrees, strictly between 0 and 180.
-    #[arg(long, default_value_t = 90.0, value_name = "DEGREES")]
+    #[arg(
+        long,
+        default_value_t = 90.0,
+        value_name = "DEGREES",
+        allow_hyphen_values = true,
+        value_parser = fov_degrees,
+    )]
     fov: f32,
     /// Camera position.
     #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -46,14 +70,28 @@ struct RenderArgs {
     #[arg(long, default_value = "0,0,-1", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     look_to: Vec3,
     /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
-    #[arg(long, default_value_t = 4, value_name = "N")]
+    /// With glass, each level can double the rays per pixel.
+    #[arg(
+        long,
+        default_value_t = 4,
+        value_name = "N",
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_RECURSION_DEPTH),
+    )]
     depth: u32,
     /// What to render.
     #[arg(long, value_enum, default_value_t = ModeArg::Full)]
     mode: ModeArg,
-    /// Worker threads; 0 uses every core.
-    #[arg(short = 'j', long, default_value_t = 0, value_name = "N")]
-    threads: usize,
+    /// Worker threads (0..=1024); 0 uses every core.
+    #[arg(
+        short = 'j',
+        long,
+        default_value_t = 0,
+        value_name = "N",
+        allow_hyphen_values = true,
+        value_parser = whole_number(0, MAX_THREADS),
+    )]
+    threads: u32,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -117,8 +155,11 @@ fn run_render(args: RenderArgs) -> anyhow::Result<()> {
         mode: args.mode.into(),
     };
     options.validate()?;
+    film::check_output(&args.output)?;
+    check_not_input(&args.scene, &args.output)?;
+    interrupt::install(args.output.clone())?;
     rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
+        .num_threads(args.threads as usize)
         .build_global()
         .context("cannot start worker threads")?;
 

@@ -7,12 +7,12 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum SceneError {
     /// A file could not be read.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file, as it was named.
         path: PathBuf,
-        /// What the system said.
-        source: io::Error,
+        /// What the system said (part of the message, so not also a `source`).
+        error: io::Error,
     },
     /// A line of a scene file is malformed.
     #[error("{}:{line}: {kind}", path.display())]
@@ -76,6 +76,14 @@ pub enum ParseErrorKind {
         statement: &'static str,
         /// The value as read.
         value: f32,
+    },
+    /// A file named by `mtllib` cannot be read.
+    #[error("cannot read material library {}: {reason}", path.display())]
+    MaterialLibrary {
+        /// Where the library was looked for (relative to the OBJ file's folder).
+        path: PathBuf,
+        /// What the system said.
+        reason: String,
     },
     /// A statement that needs a name has none.
     #[error("'{0}' needs a name")]

@@ -2,6 +2,7 @@
 //! [`Scene`] (primitives in BVH leaf order, materials, lights).
 
 mod error;
+mod file;
 mod lex;
 mod mtl;
 mod obj;
@@ -10,7 +11,7 @@ pub use error::{IndexKind, ParseErrorKind, SceneError};
 pub use mtl::parse_mtl;
 pub use obj::{load_obj, parse_obj};
 
-use std::path::Path;
+pub(crate) use file::read_file;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
@@ -60,14 +61,6 @@ pub struct SphereDesc {
     pub radius: Float,
     /// The material.
     pub material: MaterialId,
-}
-
-/// Reads a whole file, naming it in the error.
-pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
-    std::fs::read(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
 }
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),

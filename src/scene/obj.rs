@@ -1,7 +1,7 @@
 //! The OBJ reader: `v`, `vt`, `vn`, `f` (any polygon, all four vertex forms, negative
 //! indices), `mtllib`, `usemtl`, and the extensions `S` (sphere) and `P` (point light).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
@@ -31,6 +31,7 @@ pub fn parse_obj(text: &[u8], path: &Path) -> Result<SceneDescription, SceneErro
         current_material: None,
         fallback_material: None,
         warned_no_usemtl: false,
+        loaded_libraries: HashSet::new(),
     };
     for (line_number, line) in lex::lines(text) {
         reader
@@ -73,6 +74,8 @@ struct ObjReader<'a> {
     current_material: Option<MaterialId>,
     fallback_material: Option<MaterialId>,
     warned_no_usemtl: bool,
+    /// Canonical paths of the `mtllib` files read so far.
+    loaded_libraries: HashSet<PathBuf>,
 }
 
 /// One corner of a face, resolved to 0-based indices.
@@ -140,13 +143,15 @@ impl ObjReader<'_> {
                 if name.is_empty() {
                     return Err(ParseErrorKind::MissingName("usemtl").into());
                 }
+                let shown = lex::show(name);
                 let name = String::from_utf8_lossy(name);
                 self.current_material = Some(match self.material_ids.get(name.as_ref()) {
                     Some(&id) => id,
                     None => {
+                        // Robustness: the name is shown cut, as tokens in errors are.
                         self.warn(
                             line_number,
-                            &format!("unknown material '{name}'; using the default material"),
+                            &format!("unknown material '{shown}'; using the default material"),
                         );
                         self.fallback_material()
                     }
@@ -218,7 +223,18 @@ impl ObjReader<'_> {
             Some(dir) => dir.join(&relative),
             None => relative,
         };
-        let text = read_file(&mtl_path).map_err(LineError::Nested)?;
+        // Robustness: a library named again (under any spelling of its path) is not
+        // read again, so `mtllib a.mtl a.mtl ...` cannot multiply memory use.
+        let identity =
+            std::fs::canonicalize(&mtl_path).map_err(|error| library_error(&mtl_path, &error))?;
+        if !self.loaded_libraries.insert(identity) {
+            return Ok(());
+        }
+        // Robustness: a library that cannot be read is reported at the `mtllib` line.
+        let text = read_file(&mtl_path).map_err(|e| match e {
+            SceneError::Io { path, error } => library_error(&path, &error),
+            other => LineError::Nested(other),
+        })?;
         let materials = mtl::parse_mtl(&text, &mtl_path).map_err(LineError::Nested)?;
         for material in materials {
             let id = MaterialId(self.scene.materials.len() as u32);
@@ -256,6 +272,14 @@ impl ObjReader<'_> {
             .warnings
             .push(format!("{}:{line_number}: {message}", self.path.display()));
     }
+}
+
+/// A material library that cannot be read, as an error of the `mtllib` line.
+fn library_error(path: &Path, error: &std::io::Error) -> LineError {
+    LineError::Parse(ParseErrorKind::MaterialLibrary {
+        path: path.to_path_buf(),
+        reason: error.to_string(),
+    })
 }
 
 /// Resolves a 1-based (or negative, counting back) index against `defined` elements.

@@ -202,6 +202,16 @@ impl Scene {
             });
         }
 
+        if shapes.is_empty() {
+            warnings.push("the scene has no triangles or spheres: every ray misses".into());
+        }
+        if lights.is_empty() {
+            warnings.push(
+                "the scene has no lights ('P'): full mode shows only ambient and emitted colour"
+                    .into(),
+            );
+        }
+
         let bounds: Vec<Aabb> = shapes.iter().map(Shape::bounds).collect();
         let (bvh, order) = Bvh::build(&bounds, params);
         let shapes = order.iter().map(|&i| shapes[i as usize]).collect();

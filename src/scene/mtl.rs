@@ -12,13 +12,15 @@ use crate::math::{Float, Vec3};
 /// # Errors
 /// A malformed supported line, with its line number.
 pub fn parse_mtl(text: &[u8], path: &Path) -> Result<Vec<Material>, SceneError> {
+    let at = |line, kind| SceneError::Parse {
+        path: path.to_path_buf(),
+        line,
+        kind,
+    };
+    lex::check_text(text).map_err(|(line, kind)| at(line, kind))?;
     let mut materials: Vec<Material> = Vec::new();
     for (line_number, line) in lex::lines(text) {
-        parse_line(line, &mut materials).map_err(|kind| SceneError::Parse {
-            path: path.to_path_buf(),
-            line: line_number,
-            kind,
-        })?;
+        parse_line(line, &mut materials).map_err(|kind| at(line_number, kind))?;
     }
     Ok(materials)
 }

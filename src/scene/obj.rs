@@ -24,6 +24,8 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// # Errors
 /// As [`load_obj`].
 pub fn parse_obj(text: &[u8], path: &Path) -> Result<SceneDescription, SceneError> {
+    // Robustness: binary data is refused, not read as lines of unknown statements.
+    lex::check_text(text).map_err(|(line, kind)| LineError::from(kind).at(path, line))?;
     let mut reader = ObjReader {
         path,
         scene: SceneDescription::default(),

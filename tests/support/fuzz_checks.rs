@@ -175,6 +175,6 @@ fn check_error(err: &SceneError, data: &[u8], path: &Path) {
         }
         _ => panic!("unexpected error kind: {message}"),
     };
-    let limit = 300 + at.as_os_str().len();
+    let limit = 1000 + at.as_os_str().len();
     assert!(message.len() < limit, "message of {} bytes", message.len());
 }

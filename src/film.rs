@@ -126,7 +126,7 @@ impl Image {
             error,
         };
         check_output(path)?;
-        let mut temp = create_temp_file(output_folder(path)).map_err(fail)?;
+        let mut temp = create_temp_file(output_folder(path), TEMP_SUFFIX).map_err(fail)?;
         {
             let mut writer = BufWriter::new(temp.as_file_mut());
             let mut encoder = png::Encoder::new(&mut writer, self.width, self.height);
@@ -187,7 +187,9 @@ pub fn check_output(path: &Path) -> Result<(), WriteError> {
             )));
         }
     }
-    create_temp_file(folder).map(drop).map_err(fail)
+    create_temp_file(folder, PROBE_SUFFIX)
+        .map(drop)
+        .map_err(fail)
 }
 
 /// Removes the temporary files this process has open for writing `output` (see
@@ -203,7 +205,7 @@ pub fn remove_temp_files(output: &Path) -> io::Result<usize> {
         let entry = entry?;
         let name = entry.file_name();
         let name = name.to_string_lossy();
-        if name.starts_with(&prefix) && name.ends_with(TEMP_SUFFIX) {
+        if name.starts_with(&prefix) {
             match fs::remove_file(entry.path()) {
                 Ok(()) => removed += 1,
                 // Renamed into place or removed meanwhile: nothing left to clean.
@@ -215,18 +217,21 @@ pub fn remove_temp_files(output: &Path) -> io::Result<usize> {
     Ok(removed)
 }
 
-/// Temporary files are named `.raytracer-<pid>-<random>.png.tmp`: hidden, and
+/// Temporary files are named `.raytracer-<pid>-<random><suffix>`: hidden, and
 /// carrying the process id so that [`remove_temp_files`] takes only its own.
 fn temp_prefix() -> String {
     format!(".raytracer-{}-", std::process::id())
 }
 
+/// Suffix of the file a PNG is encoded into.
 const TEMP_SUFFIX: &str = ".png.tmp";
+/// Suffix of the empty file [`check_output`] creates to test the folder.
+const PROBE_SUFFIX: &str = ".probe.tmp";
 
-fn create_temp_file(folder: &Path) -> io::Result<tempfile::NamedTempFile> {
+fn create_temp_file(folder: &Path, suffix: &str) -> io::Result<tempfile::NamedTempFile> {
     tempfile::Builder::new()
         .prefix(&temp_prefix())
-        .suffix(TEMP_SUFFIX)
+        .suffix(suffix)
         .tempfile_in(folder)
         .map_err(without_path)
 }

@@ -154,10 +154,10 @@ fn run_render(args: RenderArgs) -> anyhow::Result<()> {
         depth: args.depth,
         mode: args.mode.into(),
     };
+    interrupt::install(args.output.clone())?;
     options.validate()?;
     film::check_output(&args.output)?;
     check_not_input(&args.scene, &args.output)?;
-    interrupt::install(args.output.clone())?;
     rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads as usize)
         .build_global()

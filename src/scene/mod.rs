@@ -203,7 +203,7 @@ impl Scene {
         }
 
         if shapes.is_empty() {
-            warnings.push("the scene has no triangles or spheres: every ray misses".into());
+            warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
         if lights.is_empty() {
             warnings.push(

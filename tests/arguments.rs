@@ -105,6 +105,10 @@ fn bad_camera_vectors_and_modes_are_refused() {
         &["--look-from", "1,2,3", "--look-to", "1,2,3"],
         "invalid --look-from/--look-to: the camera cannot look at its own position",
     );
+    assert_refused(
+        &["--look-from", "3e38,0,0", "--look-to", "-3e38,0,0"],
+        "invalid --look-from/--look-to: the points are too far apart (their distance overflows)",
+    );
     render(&["--mode", "fancy"])
         .assert()
         .code(2)

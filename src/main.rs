@@ -33,7 +33,8 @@ struct RenderArgs {
     /// The scene: a Wavefront .obj file (its .mtl files are found beside it).
     #[arg(value_name = "SCENE.obj")]
     scene: PathBuf,
-    /// Where to write the PNG image (replaced atomically).
+    /// Where to write the PNG image (replaced atomically: an error or Ctrl-C leaves the
+    /// previous file as it was).
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
     /// Image width in pixels (1..=65536).

@@ -4,7 +4,10 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::math::Vec3;
+use raytracer::options::{MAX_DIMENSION, MAX_RECURSION_DEPTH};
 use raytracer::{Mode, RenderOptions};
+
+use super::values::{MAX_THREADS, fov_degrees, whole_number};
 
 /// A Whitted-style ray tracer for Wavefront OBJ/MTL scenes.
 #[derive(Parser, Debug)]
@@ -61,7 +64,8 @@ pub struct ViewArgs {
         long,
         default_value_t = 640,
         value_name = "PIXELS",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_DIMENSION),
     )]
     pub width: u32,
     /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all).
@@ -69,7 +73,8 @@ pub struct ViewArgs {
         long,
         default_value_t = 480,
         value_name = "PIXELS",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_DIMENSION),
     )]
     pub height: u32,
     /// Vertical field of view in degrees, strictly between 0 and 180.
@@ -77,7 +82,8 @@ pub struct ViewArgs {
         long,
         default_value_t = 90.0,
         value_name = "DEGREES",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = fov_degrees,
     )]
     pub fov: f32,
     /// Camera position.
@@ -87,11 +93,13 @@ pub struct ViewArgs {
     #[arg(long, default_value = "0,0,-1", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub look_to: Vec3,
     /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
+    /// With glass, each level can double the rays per pixel.
     #[arg(
         long,
         default_value_t = 4,
         value_name = "N",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_RECURSION_DEPTH),
     )]
     pub depth: u32,
     /// What to render.
@@ -106,9 +114,16 @@ pub struct ViewArgs {
         allow_hyphen_values = true
     )]
     pub spp: u32,
-    /// Worker threads; 0 uses every core.
-    #[arg(short = 'j', long, default_value_t = 0, value_name = "N")]
-    pub threads: usize,
+    /// Worker threads (0..=1024); 0 uses every core.
+    #[arg(
+        short = 'j',
+        long,
+        default_value_t = 0,
+        value_name = "N",
+        allow_hyphen_values = true,
+        value_parser = whole_number(0, MAX_THREADS),
+    )]
+    pub threads: u32,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]

@@ -3,8 +3,10 @@
 
 mod args;
 mod bench;
+mod interrupt;
 pub mod progress;
 mod render;
+mod values;
 
 pub use args::Cli;
 use args::Command;
@@ -20,7 +22,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let options = view.options();
     options.validate()?;
     rayon::ThreadPoolBuilder::new()
-        .num_threads(view.threads)
+        .num_threads(view.threads as usize)
         .build_global()
         .context("cannot start worker threads")?;
     match &cli.command {

@@ -1,18 +1,18 @@
 use std::fmt;
 use std::io;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SceneError {
     /// A file could not be read.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file, as it was named.
         path: PathBuf,
-        /// What the system said.
-        source: io::Error,
+        /// What the system said (part of the message, so not also a `source`).
+        error: io::Error,
     },
     /// A line of a scene file is malformed.
     #[error("{}:{line}: {kind}", path.display())]
@@ -53,7 +53,7 @@ pub enum ParseErrorKind {
     #[error("{0} index 0 is invalid (indices start at 1)")]
     ZeroIndex(IndexKind),
     /// A face index points outside the elements defined so far.
-    #[error("{kind} index {index} out of range ({defined} {} defined)", kind.plural())]
+    #[error("{kind} index {index} out of range ({defined} {} defined)", kind.counted(*defined))]
     IndexOutOfRange {
         /// Which array.
         kind: IndexKind,
@@ -68,6 +68,26 @@ pub enum ParseErrorKind {
     /// A sphere with a negative radius.
     #[error("sphere radius {0} is negative")]
     NegativeRadius(f32),
+    /// A value that must not be negative, such as the Phong exponent `Ns` (a negative
+    /// exponent makes the highlight infinite where it should vanish).
+    #[error("'{statement}' cannot be negative, found {value}")]
+    Negative {
+        /// The keyword, such as `Ns`.
+        statement: &'static str,
+        /// The value as read.
+        value: f32,
+    },
+    /// A file named by `mtllib` cannot be read.
+    #[error("cannot read material library {}: {reason}", shown_path(path))]
+    MaterialLibrary {
+        /// Where the library was looked for (relative to the OBJ file's folder).
+        path: PathBuf,
+        /// What the system said.
+        reason: String,
+    },
+    /// The file holds a NUL byte: binary data, or text in UTF-16 rather than UTF-8.
+    #[error("not a text file: a NUL byte (binary data, or UTF-16 text)")]
+    NotText,
     /// A statement that needs a name has none.
     #[error("'{0}' needs a name")]
     MissingName(&'static str),
@@ -78,6 +98,18 @@ pub enum ParseErrorKind {
     #[error("too many {0} (the limit is 4294967295)")]
     TooMany(&'static str),
 }
+
+/// A path for a message, cut after [`MAX_SHOWN_PATH`] characters: it comes from a
+/// line of the file, which may be megabytes long.
+fn shown_path(path: &Path) -> String {
+    let full = path.display().to_string();
+    match full.char_indices().nth(MAX_SHOWN_PATH) {
+        Some((cut, _)) => format!("{}...", &full[..cut]),
+        None => full,
+    }
+}
+
+const MAX_SHOWN_PATH: usize = 120;
 
 /// Which array a face index refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -91,11 +123,15 @@ pub enum IndexKind {
 }
 
 impl IndexKind {
-    fn plural(self) -> &'static str {
-        match self {
-            IndexKind::Vertex => "vertices",
-            IndexKind::TexCoord => "texture coordinates",
-            IndexKind::Normal => "normals",
+    /// The elements' name, singular for a count of 1.
+    fn counted(self, count: usize) -> &'static str {
+        match (self, count) {
+            (IndexKind::Vertex, 1) => "vertex",
+            (IndexKind::Vertex, _) => "vertices",
+            (IndexKind::TexCoord, 1) => "texture coordinate",
+            (IndexKind::TexCoord, _) => "texture coordinates",
+            (IndexKind::Normal, 1) => "normal",
+            (IndexKind::Normal, _) => "normals",
         }
     }
 }

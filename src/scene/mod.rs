@@ -2,6 +2,7 @@
 //! [`Scene`] (primitives in BVH leaf order, materials, lights).
 
 mod error;
+mod file;
 mod lex;
 mod mtl;
 mod obj;
@@ -10,13 +11,13 @@ pub use error::{IndexKind, ParseErrorKind, SceneError};
 pub use mtl::parse_mtl;
 pub use obj::{load_obj, parse_obj};
 
-use std::path::Path;
+pub(crate) use file::read_file;
 
 use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Aabb, Float, Ray, Vec2, Vec3};
+use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
 use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
@@ -62,14 +63,6 @@ pub struct SphereDesc {
     pub radius: Float,
     /// The material.
     pub material: MaterialId,
-}
-
-/// Reads a whole file, naming it in the error.
-pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
-    std::fs::read(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
 }
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
@@ -172,8 +165,8 @@ impl Scene {
             .into_par_iter()
             .filter(|&i| {
                 let [a, b, c] = corners(&triangles[i as usize]);
-                let normal = Triangle::new(a, b, c).normal();
-                normal.length_squared() > 0.0 && normal.is_finite()
+                // No normal: zero area, or an area beyond f32 (vertices near 1e38).
+                try_unit(Triangle::new(a, b, c).normal()).is_some()
             })
             .collect();
         let degenerate = triangles.len() - kept.len();
@@ -182,6 +175,16 @@ impl Scene {
                 "skipped {degenerate} degenerate (zero-area) triangle{}",
                 if degenerate == 1 { "" } else { "s" }
             ));
+        }
+
+        if kept.is_empty() && spheres.is_empty() {
+            warnings.push("the scene has no shapes left to render: every ray misses".into());
+        }
+        if lights.is_empty() {
+            warnings.push(
+                "the scene has no lights ('P'): full mode shows only ambient and emitted colour"
+                    .into(),
+            );
         }
 
         // Step 2: the BVH, straight from the description (no second copy of the
@@ -223,12 +226,13 @@ impl Scene {
             let tri = &triangles[t as usize];
             let [a, b, c] = corners(tri);
             let triangle = Triangle::new(a, b, c);
-            let unit = triangle.normal().normalize();
+            let Some(unit) = try_unit(triangle.normal()) else {
+                unreachable!("degenerate triangles were filtered out")
+            };
             let vertex_normals_index = match tri.normals {
                 Some(ids) => {
                     // A zero-length `vn` cannot be normalized: use the geometric normal.
-                    vertex_normals
-                        .push(ids.map(|n| normals[n as usize].try_normalize().unwrap_or(unit)));
+                    vertex_normals.push(ids.map(|n| try_unit(normals[n as usize]).unwrap_or(unit)));
                     vertex_normals.len() as u32 - 1
                 }
                 None => NO_NORMALS,
@@ -311,22 +315,21 @@ impl Scene {
         let shading = self.shading[prim as usize];
         let (p, n, ns) = match self.shape(prim) {
             Shape::Triangle(tri) => {
-                let n = tri.normal().normalize();
+                // `build` kept only triangles whose normal `try_unit` accepts.
+                let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
                 let ns = match shading.vertex_normals {
                     NO_NORMALS => n,
                     i => {
                         let [n0, n1, n2] = self.vertex_normals[i as usize];
                         let w = 1.0 - hit.u - hit.v;
-                        (n0 * w + n1 * hit.u + n2 * hit.v)
-                            .try_normalize()
-                            .unwrap_or(n)
+                        try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
                     }
                 };
                 (ray.at(hit.t), n, ns)
             }
             Shape::Sphere(s) => {
                 let p = ray.at(hit.t);
-                let n = (p - s.center).try_normalize().unwrap_or(-ray.dir);
+                let n = try_unit(p - s.center).unwrap_or(-ray.dir);
                 (s.center + n * s.radius, n, n)
             }
         };

@@ -30,11 +30,6 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
         let to_eye = -ray.dir;
         let mut local = Vec3::ZERO;
         for light in &scene.lights {
-            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
-            rays.shadow += 1;
-            if scene.occluded(&shadow_ray, distance) {
-                continue;
-            }
             // A light exactly at the hit point lights it from no direction.
             let Some(to_light) = try_unit(light.position - hit.p) else {
                 continue;
@@ -46,7 +41,17 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
             // large `Ns` would raise to infinity.
             let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
             let specular = material.specular * cos_mirror.powf(material.shininess);
-            local += light.intensity * (diffuse + specular);
+            let lit = light.intensity * (diffuse + specular);
+            // Shading first, shadow ray second: a light that would add nothing (behind
+            // a diffuse surface, say) needs no visibility test. The image is the same.
+            if lit == Vec3::ZERO {
+                continue;
+            }
+            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+            rays.shadow += 1;
+            if !scene.occluded(&shadow_ray, distance) {
+                local += lit;
+            }
         }
         value += local_weight * local;
     }

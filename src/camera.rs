@@ -1,7 +1,7 @@
 //! The pinhole LookAt camera of SPEC: focal length 1, vertical field of view, square
 //! pixels, rays through pixel centres, row 0 at the top.
 
-use crate::math::{Float, Ray, Vec3};
+use crate::math::{Float, Ray, Vec3, try_unit};
 
 /// A pinhole camera placed by LookAt.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -49,7 +49,9 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Camera {
-        let backward = (look_from - look_to).normalize();
+        // `try_unit` keeps points 1e-30 apart apart; `validate` refused the rest.
+        let backward = try_unit(look_from - look_to).unwrap_or(Vec3::Z);
+        let up = try_unit(up).unwrap_or(Vec3::Y);
         let right = up.cross(backward).try_normalize().unwrap_or_else(|| {
             (Vec3::X - backward * Vec3::X.dot(backward))
                 .try_normalize()
@@ -107,6 +109,13 @@ mod tests {
         assert!((top.dir - Vec3::new(0.0, 1.0, -1.0).normalize()).length() < 1e-6);
         let right = cam.ray(200.0, 50.0);
         assert!((right.dir - Vec3::new(2.0, 0.0, -1.0).normalize()).length() < 1e-6);
+    }
+
+    #[test]
+    fn points_a_hair_apart_still_give_the_view_direction() {
+        let cam = Camera::new(Vec3::ZERO, Vec3::new(0.0, 0.0, -1e-30), 90.0, 10, 10);
+        let centre = cam.ray(5.0, 5.0);
+        assert!((centre.dir - Vec3::NEG_Z).length() < 1e-6, "{}", centre.dir);
     }
 
     #[test]

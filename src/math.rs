@@ -122,15 +122,41 @@ pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
 /// Refraction of the unit direction `d` through a surface with unit normal `n` facing
 /// against `d`, where `eta = n1 / n2` (index of the medium left over the one entered).
 ///
-/// Returns `None` on total internal reflection, so it cannot be traced by accident.
+/// Returns `None` on total internal reflection, so it cannot be traced by accident, and
+/// when `eta` is so extreme (an index of 0 or near it) that no finite direction exists.
 #[inline]
 pub fn refract(d: Vec3, n: Vec3, eta: Float) -> Option<Vec3> {
     let cos_i = -d.dot(n);
     let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-    if k < 0.0 {
+    // NaN comes from `inf * 0` when `eta` is infinite (an index of 0).
+    if k.is_nan() || k < 0.0 {
         return None;
     }
-    Some(eta * d + (eta * cos_i - k.sqrt()) * n)
+    let t = eta * d + (eta * cos_i - k.sqrt()) * n;
+    try_unit(t)
+}
+
+/// The unit vector along `v`, or `None` if `v` is zero or not finite.
+///
+/// Unlike glam's `try_normalize` it also works when the squared length of `v`
+/// overflows or underflows `f32` (components beyond about 1e19 or below 1e-19), by
+/// scaling the largest component to 1 first.
+#[inline]
+pub fn try_unit(v: Vec3) -> Option<Vec3> {
+    let largest = v.abs().max_element();
+    if !(largest > 0.0 && largest.is_finite()) {
+        return None;
+    }
+    (v / largest).try_normalize()
+}
+
+/// `v` with NaN channels set to 0 and infinite ones to the largest finite value of
+/// their sign: where absurd scene values (lights of 1e38, say) overflow, the pixel
+/// saturates instead of turning the image's tone mapping into NaN.
+#[inline]
+pub fn saturate_finite(v: Vec3) -> Vec3 {
+    let clamped = v.clamp(Vec3::splat(Float::MIN), Vec3::splat(Float::MAX));
+    Vec3::select(v.is_nan_mask(), Vec3::ZERO, clamped)
 }
 
 #[cfg(test)]
@@ -148,6 +174,33 @@ mod tests {
     fn refract_grazing_from_dense_medium_is_total_internal_reflection() {
         let d = Vec3::new(1.0, 0.0, -0.1).normalize();
         assert_eq!(refract(d, Vec3::Z, 1.5), None);
+    }
+
+    #[test]
+    fn refract_with_extreme_index_gives_no_direction() {
+        let d = Vec3::new(0.0, 0.0, -1.0);
+        // Index 0 makes eta infinite: straight on, eta^2 * 0 is NaN.
+        assert_eq!(refract(d, Vec3::Z, Float::INFINITY), None);
+        let slanted = Vec3::new(0.6, 0.0, -0.8);
+        assert_eq!(refract(slanted, Vec3::Z, 1e30), None);
+    }
+
+    #[test]
+    fn try_unit_handles_huge_tiny_zero_and_non_finite_vectors() {
+        let huge = try_unit(Vec3::new(3e30, 4e30, 0.0)).unwrap();
+        assert!((huge - Vec3::new(0.6, 0.8, 0.0)).length() < 1e-6);
+        let tiny = try_unit(Vec3::new(0.0, 3e-30, -4e-30)).unwrap();
+        assert!((tiny - Vec3::new(0.0, 0.6, -0.8)).length() < 1e-6);
+        assert_eq!(try_unit(Vec3::ZERO), None);
+        assert_eq!(try_unit(Vec3::new(1.0, Float::NAN, 0.0)), None);
+        assert_eq!(try_unit(Vec3::new(Float::INFINITY, 0.0, 0.0)), None);
+    }
+
+    #[test]
+    fn saturate_finite_clamps_infinities_and_zeroes_nan() {
+        let v = saturate_finite(Vec3::new(Float::INFINITY, Float::NAN, -Float::INFINITY));
+        assert_eq!(v, Vec3::new(Float::MAX, 0.0, Float::MIN));
+        assert_eq!(saturate_finite(Vec3::ONE), Vec3::ONE);
     }
 
     #[test]

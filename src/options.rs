@@ -1,7 +1,7 @@
 //! What to render: image size, camera and mode, validated once at the boundary.
 
 use crate::integrators::Mode;
-use crate::math::{Float, Vec3};
+use crate::math::{Float, Vec3, try_unit};
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
 
 /// Largest width or height accepted.
@@ -102,7 +102,13 @@ impl RenderOptions {
                 "the camera cannot look at its own position".into(),
             );
         }
-        if !self.up.is_finite() || self.up == Vec3::ZERO {
+        if try_unit(self.look_from - self.look_to).is_none() {
+            return fail(
+                "--look-from/--look-to",
+                "the points are too far apart (their distance overflows)".into(),
+            );
+        }
+        if try_unit(self.up).is_none() {
             return fail("--up", "components must be finite and not all zero".into());
         }
         if self.depth == 0 || self.depth > MAX_RECURSION_DEPTH {

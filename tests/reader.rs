@@ -196,7 +196,11 @@ fn missing_files_and_mtl_errors_name_their_path() {
     std::fs::write(&obj, "mtllib gone.mtl\n").unwrap();
     let message = scene::load_obj(&obj).unwrap_err().to_string();
     assert!(
-        message.starts_with(&format!("{}: ", dir.path().join("gone.mtl").display())),
+        message.starts_with(&format!(
+            "{}:1: cannot read material library {}: ",
+            obj.display(),
+            dir.path().join("gone.mtl").display()
+        )),
         "{message}"
     );
 

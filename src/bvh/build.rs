@@ -232,23 +232,34 @@ impl Bvh {
     /// If there are more than `u32::MAX` primitives or `params.bins` is not in
     /// `4..=16`.
     pub fn build(prim_bounds: &[Aabb], params: &BvhParams) -> (Bvh, Vec<u32>) {
-        assert!(
-            u32::try_from(prim_bounds.len()).is_ok(),
-            "too many primitives"
-        );
+        Bvh::build_with(prim_bounds.len(), |i| prim_bounds[i], params)
+    }
+
+    /// [`Bvh::build`] for `prim_count` primitives whose boxes `bounds_of(i)` gives,
+    /// so that callers need not hold a second array of boxes.
+    ///
+    /// # Panics
+    /// As [`Bvh::build`].
+    pub fn build_with<F>(prim_count: usize, bounds_of: F, params: &BvhParams) -> (Bvh, Vec<u32>)
+    where
+        F: Fn(usize) -> Aabb + Sync,
+    {
+        assert!(u32::try_from(prim_count).is_ok(), "too many primitives");
         assert!(
             (MIN_BINS..=MAX_BINS).contains(&params.bins),
             "bins out of range"
         );
-        if prim_bounds.is_empty() {
+        if prim_count == 0 {
             return (Bvh::default(), Vec::new());
         }
-        let mut refs: Vec<PrimRef> = prim_bounds
-            .par_iter()
-            .enumerate()
-            .map(|(i, b)| PrimRef {
-                min_and_index: b.min.extend(f32::from_bits(i as u32)),
-                max: b.max.extend(0.0),
+        let mut refs: Vec<PrimRef> = (0..prim_count)
+            .into_par_iter()
+            .map(|i| {
+                let b = bounds_of(i);
+                PrimRef {
+                    min_and_index: b.min.extend(f32::from_bits(i as u32)),
+                    max: b.max.extend(0.0),
+                }
             })
             .collect();
         let (bounds, centroids) = refs
@@ -367,7 +378,10 @@ fn build_subtree(task: Task<'_>, params: &BvhParams, max_depth: &mut usize) -> S
 /// array, children allocated as adjacent pairs.
 fn build_sequential(task: Task<'_>, params: &BvhParams, max_depth: &mut usize) -> Vec<BvhNode> {
     let refs = task.refs;
-    let mut nodes = Vec::with_capacity(refs.len() / 2 + 1);
+    // A binary tree over n leaves-worth of primitives has at most 2n - 1 nodes.
+    // Reserving that bound never reallocates; the unused tail is never touched, so
+    // it costs address space, not memory.
+    let mut nodes = Vec::with_capacity(2 * refs.len());
     nodes.push(BvhNode::default());
     // (node index, start, end relative to `refs`, bounds, centroid bounds, depth)
     let mut work = vec![(

@@ -1,43 +1,66 @@
 //! Iterative traversal with a fixed stack, nearest child first.
 
 use super::{Bvh, BvhNode, MAX_DEPTH};
+use glam::{BVec4A, Vec4};
+
 use crate::math::{Float, Ray, Vec3};
 
 /// Slack on the exit distance of the slab test so that rounding in `(min - o) / d`
 /// never culls a box the ray grazes: pbrt's `1 + 2 * gamma(3)`.
 const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.5);
 
+/// Smallest direction component the slab test divides by. A zero component would
+/// give an infinite reciprocal and `0 * inf = NaN` for a ray lying in a slab's plane;
+/// with this floor the product is 0 and such a ray counts as inside the (closed) box,
+/// as it should (obvhs's `safe_inverse` does the same).
+const MIN_DIR_COMPONENT: Float = 1e-30;
+
 /// A ray prepared for box tests: origin and the reciprocal of its direction,
 /// computed once per ray.
 #[derive(Clone, Copy, Debug)]
 pub struct RayQuery {
-    /// Ray origin.
-    pub origin: Vec3,
-    /// `1 / dir` per component; an axis-parallel ray has infinite components, which
-    /// the slab test handles.
-    pub inv_dir: Vec3,
+    /// Ray origin; the fourth lane is 0.
+    pub origin: Vec4,
+    /// `1 / dir` per component, finite; the fourth lane is 0.
+    pub inv_dir: Vec4,
 }
 
 impl RayQuery {
     /// Prepares `ray` for traversal.
     #[inline]
     pub fn new(ray: &Ray) -> RayQuery {
+        let safe = |d: Float| {
+            if d.abs() < MIN_DIR_COMPONENT {
+                MIN_DIR_COMPONENT.copysign(d)
+            } else {
+                d
+            }
+        };
+        let inv_dir = Vec3::new(safe(ray.dir.x), safe(ray.dir.y), safe(ray.dir.z)).recip();
+        debug_assert!(inv_dir.is_finite());
         RayQuery {
-            origin: ray.origin,
-            inv_dir: ray.dir.recip(),
+            origin: ray.origin.extend(0.0),
+            inv_dir: inv_dir.extend(0.0),
         }
     }
 
-    /// Entry distance into `node`'s box if the ray meets it within `[0, t_max]`,
+    /// Entry distance into `node`'s box if the ray meets it within `[0, t_max)`,
     /// otherwise `Float::INFINITY`. A ray starting inside the box enters at 0.
-    /// `0 * inf` (origin on a slab plane of an axis-parallel ray) gives NaN, which
-    /// `min`/`max` ignore, so that axis simply does not cull.
+    ///
+    /// The six slab distances are computed four lanes at a time; the node's index
+    /// words sit in the fourth lanes and are masked to zero first, since as floats
+    /// they would be denormals, which cost a microcode assist in arithmetic.
     #[inline(always)]
     fn entry(&self, node: &BvhNode, t_max: Float) -> Float {
-        let t1 = (Vec3::from(node.min) - self.origin) * self.inv_dir;
-        let t2 = (Vec3::from(node.max) - self.origin) * self.inv_dir;
-        let t_enter = t1.min(t2).max_element().max(0.0);
-        let t_exit = t1.max(t2).min_element() * SLAB_EXIT_SLACK;
+        let min = Vec4::select(XYZ, node.min_lane(), Vec4::ZERO);
+        let max = Vec4::select(XYZ, node.max_lane(), Vec4::ZERO);
+        let t1 = (min - self.origin) * self.inv_dir;
+        let t2 = (max - self.origin) * self.inv_dir;
+        // The fourth lane is 0 in both: it clamps the entry at 0 for free, and the
+        // exit at 0 would be wrong, so the exit takes only x, y, z.
+        let t_enter = t1.min(t2).max_element();
+        let far = t1.max(t2);
+        let t_exit = far.x.min(far.y).min(far.z) * SLAB_EXIT_SLACK;
         if t_enter <= t_exit && t_enter < t_max {
             t_enter
         } else {
@@ -45,6 +68,9 @@ impl RayQuery {
         }
     }
 }
+
+/// Keeps x, y, z and clears w.
+const XYZ: BVec4A = BVec4A::from_array([true, true, true, false]);
 
 impl Bvh {
     /// Finds the closest hit. `hit(prim, t_max)` intersects primitive `prim` (leaf

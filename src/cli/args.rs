@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::Mode;
 use raytracer::math::Vec3;
-use raytracer::options::PartialOptions;
+use raytracer::options::{MAX_DIMENSION, MAX_RECURSION_DEPTH, PartialOptions};
+
+use super::values::{MAX_THREADS, fov_degrees, whole_number};
 
 /// A Whitted-style ray tracer for OBJ/MTL, PLY and TOML scenes.
 #[derive(Parser, Debug)]
@@ -65,14 +67,30 @@ pub struct ViewArgs {
     /// (docs/scene-format.md); any may be gzip-compressed.
     #[arg(value_name = "SCENE")]
     pub scene: PathBuf,
-    /// Image width in pixels, 1..=65536 [default: 640].
-    #[arg(long, value_name = "PIXELS", allow_hyphen_values = true)]
+    /// Image width in pixels (1..=65536) [default: 640].
+    #[arg(
+        long,
+        value_name = "PIXELS",
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_DIMENSION),
+    )]
     pub width: Option<u32>,
-    /// Image height in pixels, 1..=65536, at most 16384x16384 in all [default: 480].
-    #[arg(long, value_name = "PIXELS", allow_hyphen_values = true)]
+    /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all)
+    /// [default: 480].
+    #[arg(
+        long,
+        value_name = "PIXELS",
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_DIMENSION),
+    )]
     pub height: Option<u32>,
     /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90].
-    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "DEGREES",
+        allow_hyphen_values = true,
+        value_parser = fov_degrees,
+    )]
     pub fov: Option<f32>,
     /// Camera position [default: 0,0,0].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -83,9 +101,14 @@ pub struct ViewArgs {
     /// World up direction of the camera [default: 0,1,0].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<Vec3>,
-    /// Recursion depth of full mode, 1..=64; 1 traces primary and shadow rays only
-    /// [default: 4].
-    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
+    /// With glass, each level can double the rays per pixel [default: 4].
+    #[arg(
+        long,
+        value_name = "N",
+        allow_hyphen_values = true,
+        value_parser = whole_number(1, MAX_RECURSION_DEPTH),
+    )]
     pub depth: Option<u32>,
     /// What to render [default: full].
     #[arg(long, value_enum)]
@@ -95,9 +118,16 @@ pub struct ViewArgs {
     /// [default: 1].
     #[arg(long, value_name = "N", allow_hyphen_values = true)]
     pub spp: Option<u32>,
-    /// Worker threads; 0 uses every core.
-    #[arg(short = 'j', long, default_value_t = 0, value_name = "N")]
-    pub threads: usize,
+    /// Worker threads (0..=1024); 0 uses every core.
+    #[arg(
+        short = 'j',
+        long,
+        default_value_t = 0,
+        value_name = "N",
+        allow_hyphen_values = true,
+        value_parser = whole_number(0, MAX_THREADS),
+    )]
+    pub threads: u32,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]

@@ -4,8 +4,10 @@
 mod args;
 mod bench;
 mod info;
+mod interrupt;
 pub mod progress;
 mod render;
+mod values;
 
 pub use args::Cli;
 use args::{Command, ViewArgs};
@@ -22,7 +24,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     };
     // Before loading: readers use the global pool, which can be set up only once.
     rayon::ThreadPoolBuilder::new()
-        .num_threads(view.threads)
+        .num_threads(view.threads as usize)
         .build_global()
         .context("cannot start worker threads")?;
     match &cli.command {

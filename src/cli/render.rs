@@ -3,14 +3,19 @@
 use std::time::Instant;
 
 use raytracer::stats::{RayCounts, peak_memory_bytes};
-use raytracer::{BvhParams, ImageFormat, Scene, render_with_progress};
+use raytracer::{BvhParams, ImageFormat, Scene, film, render_with_progress};
 
 use super::args::RenderArgs;
+use super::interrupt;
 use super::progress::Progress;
+use super::values::check_not_input;
 
 /// Renders as `args` say.
 pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
-    // Before the render, so a typo does not cost a long render.
+    interrupt::install(args.output.clone())?;
+    // Before any work, so that a typo or a read-only folder does not cost a render.
+    film::check_output(&args.output)?;
+    check_not_input(&args.view.scene, &args.output)?;
     let format = ImageFormat::from_path(&args.output)?;
     let warn = |message: &str| {
         if !quiet {

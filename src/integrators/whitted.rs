@@ -1,7 +1,7 @@
 //! SPEC's Whitted-style integrator: Phong lighting with hard shadows, mirror
 //! reflection and refraction, recursion limited by depth.
 
-use crate::math::{Ray, Vec3, reflect, refract};
+use crate::math::{Ray, Vec3, reflect, refract, saturate_finite, try_unit};
 use crate::scene::Scene;
 use crate::stats::RayCounts;
 
@@ -15,6 +15,9 @@ pub fn radiance(scene: &Scene, ray: &Ray, max_depth: u32, rays: &mut RayCounts) 
 /// `inside` tells whether the ray travels inside an object: set by refracting into
 /// one, cleared by refracting out. Inside, reflection is skipped, indices swap and
 /// refraction is weighted 1 instead of `al2`.
+///
+/// The result is always finite ([`saturate_finite`]), so that no sum or product of
+/// huge scene values can reach the film as infinity or NaN.
 fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCounts) -> Vec3 {
     let Some(hit) = scene.intersect(ray) else {
         return Vec3::ZERO;
@@ -27,18 +30,28 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
         let to_eye = -ray.dir;
         let mut local = Vec3::ZERO;
         for light in &scene.lights {
-            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
-            rays.shadow += 1;
-            if scene.occluded(&shadow_ray, distance) {
+            // A light exactly at the hit point lights it from no direction.
+            let Some(to_light) = try_unit(light.position - hit.p) else {
                 continue;
-            }
-            let to_light = (light.position - hit.p).normalize();
+            };
             let cos_light = hit.ns.dot(to_light);
             let mirrored = 2.0 * cos_light * hit.ns - to_light;
             let diffuse = material.diffuse * cos_light.max(0.0);
-            let specular =
-                material.specular * to_eye.dot(mirrored).max(0.0).powf(material.shininess);
-            local += light.intensity * (diffuse + specular);
+            // Clamped to 1 as well: rounding can push the cosine just past 1, which a
+            // large `Ns` would raise to infinity.
+            let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
+            let specular = material.specular * cos_mirror.powf(material.shininess);
+            let lit = light.intensity * (diffuse + specular);
+            // Shading first, shadow ray second: a light that would add nothing (behind
+            // a diffuse surface, say) needs no visibility test. The image is the same.
+            if lit == Vec3::ZERO {
+                continue;
+            }
+            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+            rays.shadow += 1;
+            if !scene.occluded(&shadow_ray, distance) {
+                local += lit;
+            }
         }
         value += local_weight * local;
     }
@@ -62,5 +75,5 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
             }
         }
     }
-    value
+    saturate_finite(value)
 }

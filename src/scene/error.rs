@@ -1,18 +1,18 @@
 use std::fmt;
 use std::io;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SceneError {
     /// A file could not be read.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file, as it was named.
         path: PathBuf,
-        /// What the system said.
-        source: io::Error,
+        /// What the system said (part of the message, so not also a `source`).
+        error: io::Error,
     },
     /// A line of a scene file is malformed.
     #[error("{}:{line}: {kind}", path.display())]
@@ -35,8 +35,8 @@ pub enum SceneError {
         element: String,
         /// 0-based index of the element among those of its name.
         index: usize,
-        /// What is wrong.
-        kind: ParseErrorKind,
+        /// What is wrong (boxed: it keeps every `Result<_, SceneError>` small).
+        kind: Box<ParseErrorKind>,
     },
     /// A file named by a scene file failed to load; `error` carries its own location.
     #[error("{}:{line}: {key}: {error}", path.display())]
@@ -88,7 +88,7 @@ pub enum ParseErrorKind {
     #[error("{0} index 0 is invalid (indices start at 1)")]
     ZeroIndex(IndexKind),
     /// A face index points outside the elements defined so far.
-    #[error("{kind} index {index} out of range ({defined} {} defined)", kind.plural())]
+    #[error("{kind} index {index} out of range ({defined} {} defined)", kind.counted(*defined))]
     IndexOutOfRange {
         /// Which array.
         kind: IndexKind,
@@ -103,6 +103,26 @@ pub enum ParseErrorKind {
     /// A sphere with a negative radius.
     #[error("sphere radius {0} is negative")]
     NegativeRadius(f32),
+    /// A value that must not be negative, such as the Phong exponent `Ns` (a negative
+    /// exponent makes the highlight infinite where it should vanish).
+    #[error("'{statement}' cannot be negative, found {value}")]
+    Negative {
+        /// The keyword, such as `Ns`.
+        statement: &'static str,
+        /// The value as read.
+        value: f32,
+    },
+    /// A file named by `mtllib` cannot be read.
+    #[error("cannot read material library {}: {reason}", shown_path(path))]
+    MaterialLibrary {
+        /// Where the library was looked for (relative to the OBJ file's folder).
+        path: PathBuf,
+        /// What the system said.
+        reason: String,
+    },
+    /// The file holds a NUL byte: binary data, or text in UTF-16 rather than UTF-8.
+    #[error("not a text file: a NUL byte (binary data, or UTF-16 text)")]
+    NotText,
     /// A statement that needs a name has none.
     #[error("'{0}' needs a name")]
     MissingName(&'static str),
@@ -147,6 +167,18 @@ pub enum ParseErrorKind {
     NegativeCount(i64),
 }
 
+/// A path for a message, cut after [`MAX_SHOWN_PATH`] characters: it comes from a
+/// line of the file, which may be megabytes long.
+fn shown_path(path: &Path) -> String {
+    let full = path.display().to_string();
+    match full.char_indices().nth(MAX_SHOWN_PATH) {
+        Some((cut, _)) => format!("{}...", &full[..cut]),
+        None => full,
+    }
+}
+
+const MAX_SHOWN_PATH: usize = 120;
+
 /// Which array a face index refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum IndexKind {
@@ -159,11 +191,15 @@ pub enum IndexKind {
 }
 
 impl IndexKind {
-    fn plural(self) -> &'static str {
-        match self {
-            IndexKind::Vertex => "vertices",
-            IndexKind::TexCoord => "texture coordinates",
-            IndexKind::Normal => "normals",
+    /// The elements' name, singular for a count of 1.
+    fn counted(self, count: usize) -> &'static str {
+        match (self, count) {
+            (IndexKind::Vertex, 1) => "vertex",
+            (IndexKind::Vertex, _) => "vertices",
+            (IndexKind::TexCoord, 1) => "texture coordinate",
+            (IndexKind::TexCoord, _) => "texture coordinates",
+            (IndexKind::Normal, 1) => "normal",
+            (IndexKind::Normal, _) => "normals",
         }
     }
 }

@@ -54,6 +54,18 @@ impl<'a> Iterator for Tokens<'a> {
     }
 }
 
+/// Checks that `text` is text: a NUL byte never occurs in an OBJ or MTL file, but
+/// does in binary data and in UTF-16 text. Returns the 1-based line of the first one.
+pub(crate) fn check_text(text: &[u8]) -> Result<(), (usize, ParseErrorKind)> {
+    match text.iter().position(|&b| b == 0) {
+        None => Ok(()),
+        Some(at) => {
+            let line = 1 + text[..at].iter().filter(|&&b| b == b'\n').count();
+            Err((line, ParseErrorKind::NotText))
+        }
+    }
+}
+
 /// A token as text for error messages, cut to a readable length.
 pub(crate) fn show(token: &[u8]) -> String {
     const MAX_SHOWN: usize = 40;
@@ -127,6 +139,15 @@ mod tests {
         assert_eq!(got[0], (1, vec![&b"v"[..], b"1", b"2", b"3"]));
         assert_eq!(got[1], (2, vec![]));
         assert_eq!(got[2], (3, vec![&b"f"[..], b"1", b"2", b"3"]));
+    }
+
+    #[test]
+    fn a_nul_byte_is_not_text_and_names_its_line() {
+        assert_eq!(check_text(b"v 1 2 3\n# caf\xe9\n"), Ok(()));
+        assert_eq!(
+            check_text(b"v 1 2 3\nv 1\x002 3\n"),
+            Err((2, ParseErrorKind::NotText))
+        );
     }
 
     #[test]

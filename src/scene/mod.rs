@@ -3,6 +3,7 @@
 
 mod compose;
 mod error;
+mod file;
 mod info;
 mod lex;
 mod load;
@@ -20,12 +21,13 @@ pub use obj::{load_obj, parse_obj};
 pub use ply::{load_ply, parse_ply};
 pub use toml_scene::{load_toml, parse_toml};
 
-use std::io::Read;
-use std::path::Path;
+pub(crate) use file::read_file;
+
+use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Aabb, Float, Ray, Vec2, Vec3};
+use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
 use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
@@ -71,38 +73,6 @@ pub struct SphereDesc {
     pub radius: Float,
     /// The material.
     pub material: MaterialId,
-}
-
-/// The first two bytes of every gzip member (RFC 1952).
-const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
-
-/// Reads a whole file, naming it in the error. A gzip-compressed file (named `.gz`
-/// or starting with the gzip magic bytes) is decompressed, so every reader accepts
-/// compressed input.
-pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
-    let io_error = |source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let bytes = std::fs::read(path).map_err(io_error)?;
-    let gz_name = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    if !gz_name && !bytes.starts_with(&GZIP_MAGIC) {
-        return Ok(bytes);
-    }
-    // The trailer's ISIZE is the uncompressed size modulo 2^32: a good capacity
-    // hint, capped by deflate's best ratio (~1032:1) so a forged one cannot
-    // reserve absurd memory.
-    let hint = match bytes.last_chunk::<4>() {
-        Some(&isize) => (u32::from_le_bytes(isize) as usize).min(bytes.len() * 1032),
-        None => 0,
-    };
-    let mut text = Vec::with_capacity(hint);
-    flate2::read::MultiGzDecoder::new(&bytes[..])
-        .read_to_end(&mut text)
-        .map_err(io_error)?;
-    Ok(text)
 }
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
@@ -198,26 +168,81 @@ impl Scene {
             ..
         } = description;
 
-        let mut shapes = Vec::with_capacity(triangles.len() + spheres.len());
-        let mut shading = Vec::with_capacity(shapes.capacity());
+        // Step 1: keep the triangles with an area; spheres follow them. Primitive
+        // `i < kept.len()` is triangle `kept[i]`, the rest are spheres.
+        let corners = |t: &TriangleDesc| t.positions.map(|i| positions[i as usize]);
+        let kept: Vec<u32> = (0..triangles.len() as u32)
+            .into_par_iter()
+            .filter(|&i| {
+                let [a, b, c] = corners(&triangles[i as usize]);
+                // No normal: zero area, or an area beyond f32 (vertices near 1e38).
+                try_unit(Triangle::new(a, b, c).normal()).is_some()
+            })
+            .collect();
+        let degenerate = triangles.len() - kept.len();
+        if degenerate > 0 {
+            warnings.push(format!(
+                "skipped {degenerate} degenerate (zero-area) triangle{}",
+                if degenerate == 1 { "" } else { "s" }
+            ));
+        }
+
+        if kept.is_empty() && spheres.is_empty() {
+            warnings.push("the scene has no shapes left to render: every ray misses".into());
+        }
+        if lights.is_empty() {
+            warnings.push(
+                "the scene has no lights ('P'): full mode shows only ambient and emitted colour"
+                    .into(),
+            );
+        }
+
+        // Step 2: the BVH, straight from the description (no second copy of the
+        // shapes exists while the builder's own arrays do).
+        let sphere_shape = |s: &SphereDesc| Sphere {
+            center: s.center,
+            radius: s.radius,
+        };
+        let prim_count = kept.len() + spheres.len();
+        let (bvh, order) = Bvh::build_with(
+            prim_count,
+            |i| match kept.get(i) {
+                // The box of the stored form (v0 and edges), whose rounded corners the
+                // kernel intersects, not of the file's corners.
+                Some(&t) => {
+                    let [a, b, c] = corners(&triangles[t as usize]);
+                    Triangle::new(a, b, c).bounds()
+                }
+                None => sphere_shape(&spheres[i - kept.len()]).bounds(),
+            },
+            params,
+        );
+
+        // Step 3: shapes and shading data in leaf order.
+        let mut shapes = Vec::with_capacity(prim_count);
+        let mut shading = Vec::with_capacity(prim_count);
         let mut vertex_normals = Vec::new();
-        let mut degenerate = 0usize;
-        for tri in &triangles {
-            let [a, b, c] = tri.positions.map(|i| positions[i as usize]);
-            let triangle = Triangle::new(a, b, c);
-            let normal = triangle.normal();
-            if normal.length_squared() == 0.0 || !normal.is_finite() {
-                degenerate += 1;
+        for &i in &order {
+            let i = i as usize;
+            let Some(&t) = kept.get(i) else {
+                let sphere = &spheres[i - kept.len()];
+                shapes.push(Shape::Sphere(sphere_shape(sphere)));
+                shading.push(PrimShading {
+                    material: sphere.material,
+                    vertex_normals: NO_NORMALS,
+                });
                 continue;
-            }
-            let unit = normal.normalize();
-            let normals = tri.normals.map(|ids| {
-                // A zero-length `vn` cannot be normalized: use the geometric normal.
-                ids.map(|i| normals[i as usize].try_normalize().unwrap_or(unit))
-            });
-            let vertex_normals_index = match normals {
-                Some(ns) => {
-                    vertex_normals.push(ns);
+            };
+            let tri = &triangles[t as usize];
+            let [a, b, c] = corners(tri);
+            let triangle = Triangle::new(a, b, c);
+            let Some(unit) = try_unit(triangle.normal()) else {
+                unreachable!("degenerate triangles were filtered out")
+            };
+            let vertex_normals_index = match tri.normals {
+                Some(ids) => {
+                    // A zero-length `vn` cannot be normalized: use the geometric normal.
+                    vertex_normals.push(ids.map(|n| try_unit(normals[n as usize]).unwrap_or(unit)));
                     vertex_normals.len() as u32 - 1
                 }
                 None => NO_NORMALS,
@@ -228,27 +253,6 @@ impl Scene {
                 vertex_normals: vertex_normals_index,
             });
         }
-        if degenerate > 0 {
-            warnings.push(format!(
-                "skipped {degenerate} degenerate (zero-area) triangle{}",
-                if degenerate == 1 { "" } else { "s" }
-            ));
-        }
-        for s in &spheres {
-            shapes.push(Shape::Sphere(Sphere {
-                center: s.center,
-                radius: s.radius,
-            }));
-            shading.push(PrimShading {
-                material: s.material,
-                vertex_normals: NO_NORMALS,
-            });
-        }
-
-        let bounds: Vec<Aabb> = shapes.iter().map(Shape::bounds).collect();
-        let (bvh, order) = Bvh::build(&bounds, params);
-        let shapes = order.iter().map(|&i| shapes[i as usize]).collect();
-        let shading = order.iter().map(|&i| shading[i as usize]).collect();
         Scene {
             shapes,
             shading,
@@ -321,22 +325,21 @@ impl Scene {
         let shading = self.shading[prim as usize];
         let (p, n, ns) = match self.shape(prim) {
             Shape::Triangle(tri) => {
-                let n = tri.normal().normalize();
+                // `build` kept only triangles whose normal `try_unit` accepts.
+                let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
                 let ns = match shading.vertex_normals {
                     NO_NORMALS => n,
                     i => {
                         let [n0, n1, n2] = self.vertex_normals[i as usize];
                         let w = 1.0 - hit.u - hit.v;
-                        (n0 * w + n1 * hit.u + n2 * hit.v)
-                            .try_normalize()
-                            .unwrap_or(n)
+                        try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
                     }
                 };
                 (ray.at(hit.t), n, ns)
             }
             Shape::Sphere(s) => {
                 let p = ray.at(hit.t);
-                let n = (p - s.center).try_normalize().unwrap_or(-ray.dir);
+                let n = try_unit(p - s.center).unwrap_or(-ray.dir);
                 (s.center + n * s.radius, n, n)
             }
         };

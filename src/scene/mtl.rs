@@ -12,13 +12,15 @@ use crate::math::{Float, Vec3};
 /// # Errors
 /// A malformed supported line, with its line number.
 pub fn parse_mtl(text: &[u8], path: &Path) -> Result<Vec<Material>, SceneError> {
+    let at = |line, kind| SceneError::Parse {
+        path: path.to_path_buf(),
+        line,
+        kind,
+    };
+    lex::check_text(text).map_err(|(line, kind)| at(line, kind))?;
     let mut materials: Vec<Material> = Vec::new();
     for (line_number, line) in lex::lines(text) {
-        parse_line(line, &mut materials).map_err(|kind| SceneError::Parse {
-            path: path.to_path_buf(),
-            line: line_number,
-            kind,
-        })?;
+        parse_line(line, &mut materials).map_err(|kind| at(line_number, kind))?;
     }
     Ok(materials)
 }
@@ -56,7 +58,7 @@ fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<(), ParseErr
         b"Kd" => material.diffuse = colour("Kd", &mut tokens)?,
         b"Ks" => material.specular = colour("Ks", &mut tokens)?,
         b"Ke" => material.emission = colour("Ke", &mut tokens)?,
-        b"Ns" => material.shininess = lex::floats::<1>("Ns", &mut tokens)?[0],
+        b"Ns" => material.shininess = non_negative("Ns", &mut tokens)?,
         b"Ni" => material.ior = lex::floats::<1>("Ni", &mut tokens)?[0],
         b"d" => material.opacity = lex::floats::<1>("d", &mut tokens)?[0],
         b"Tr" => material.opacity = 1.0 - lex::floats::<1>("Tr", &mut tokens)?[0],
@@ -64,6 +66,18 @@ fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<(), ParseErr
         _ => unreachable!("filtered by `known` above"),
     }
     Ok(())
+}
+
+/// One value that must be at least 0.
+fn non_negative<'a>(
+    statement: &'static str,
+    tokens: &mut impl Iterator<Item = &'a [u8]>,
+) -> Result<Float, ParseErrorKind> {
+    let value = lex::floats::<1>(statement, tokens)?[0];
+    if value < 0.0 {
+        return Err(ParseErrorKind::Negative { statement, value });
+    }
+    Ok(value)
 }
 
 /// An RGB triple; a single value means grey.
@@ -114,5 +128,10 @@ mod tests {
         assert_eq!(err.to_string(), "test.mtl:2: 'Ks' needs 3 values, found 2");
         let err = parse("newmtl a\nNs\n").unwrap_err();
         assert_eq!(err.to_string(), "test.mtl:2: 'Ns' needs 1 value, found 0");
+        let err = parse("newmtl a\nNs -0.5\n").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "test.mtl:2: 'Ns' cannot be negative, found -0.5"
+        );
     }
 }

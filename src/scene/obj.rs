@@ -43,6 +43,12 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// # Errors
 /// As [`load_obj`].
 pub fn parse_obj(text: &[u8], path: &Path) -> Result<SceneDescription, SceneError> {
+    // Binary data is refused, not read as lines of unknown statements.
+    lex::check_text(text).map_err(|(line, kind)| SceneError::Parse {
+        path: path.to_path_buf(),
+        line,
+        kind,
+    })?;
     let chunks = split_into_chunks(text, CHUNK_BYTES);
     let counts: Vec<Counts> = chunks.par_iter().map(|c| Counts::of(c)).collect();
     let mut bases = Vec::with_capacity(chunks.len());
@@ -123,7 +129,7 @@ impl Counts {
 
 /// A statement whose effect depends on earlier chunks, replayed in file order.
 enum Event {
-    Mtllib { file: PathBuf },
+    Mtllib { line: usize, file: PathBuf },
     Usemtl { line: usize, name: String },
 }
 
@@ -217,6 +223,7 @@ impl Chunk {
                 for name in tokens {
                     any = true;
                     self.events.push(Event::Mtllib {
+                        line: line_number,
                         file: PathBuf::from(String::from_utf8_lossy(name).as_ref()),
                     });
                 }
@@ -322,6 +329,8 @@ struct Resolver<'a> {
     fallback_material: Option<MaterialId>,
     warned_no_usemtl: bool,
     warned_unknown: HashSet<String>,
+    /// Canonical paths of the `mtllib` files read so far.
+    loaded_libraries: HashSet<PathBuf>,
 }
 
 impl<'a> Resolver<'a> {
@@ -338,6 +347,7 @@ impl<'a> Resolver<'a> {
             fallback_material: None,
             warned_no_usemtl: false,
             warned_unknown: HashSet::new(),
+            loaded_libraries: HashSet::new(),
         }
     }
 
@@ -347,16 +357,18 @@ impl<'a> Resolver<'a> {
         let mut slots = vec![self.current_material];
         for event in &chunk.events {
             match event {
-                Event::Mtllib { file, .. } => self.load_mtl(file)?,
+                Event::Mtllib { line, file } => self.load_mtl(*line, file)?,
                 Event::Usemtl { line, name } => {
                     let id = match self.material_ids.get(name) {
                         Some(&id) => id,
                         None => {
                             if self.warned_unknown.insert(name.clone()) {
+                                // Shown cut, as tokens in errors are.
+                                let shown = lex::show(name.as_bytes());
                                 self.warn(
                                     *line,
                                     &format!(
-                                        "unknown material '{name}'; using the default material"
+                                        "unknown material '{shown}'; using the default material"
                                     ),
                                 );
                             }
@@ -412,12 +424,31 @@ impl<'a> Resolver<'a> {
         Ok(())
     }
 
-    fn load_mtl(&mut self, relative: &Path) -> Result<(), SceneError> {
+    /// Reads the library `relative` named at line `line`. A library named again
+    /// (under any spelling of its path) is not read again, so `mtllib a.mtl a.mtl ...`
+    /// cannot multiply memory use; one that cannot be read is an error of that line.
+    fn load_mtl(&mut self, line: usize, relative: &Path) -> Result<(), SceneError> {
         let mtl_path = match self.path.parent() {
             Some(dir) => dir.join(relative),
             None => relative.to_path_buf(),
         };
-        let text = read_file(&mtl_path)?;
+        let library_error = |path: &Path, error: &std::io::Error| SceneError::Parse {
+            path: self.path.to_path_buf(),
+            line,
+            kind: ParseErrorKind::MaterialLibrary {
+                path: path.to_path_buf(),
+                reason: error.to_string(),
+            },
+        };
+        let identity =
+            std::fs::canonicalize(&mtl_path).map_err(|error| library_error(&mtl_path, &error))?;
+        if !self.loaded_libraries.insert(identity) {
+            return Ok(());
+        }
+        let text = read_file(&mtl_path).map_err(|e| match e {
+            SceneError::Io { path, error } => library_error(&path, &error),
+            other => other,
+        })?;
         for material in mtl::parse_mtl(&text, &mtl_path)? {
             let id = MaterialId(self.scene.materials.len() as u32);
             self.material_ids.insert(material.name.clone(), id);

@@ -61,7 +61,7 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<SceneDescription, SceneErr
         line: e.line,
         element: header.elements[e.element].name.clone(),
         index: e.index,
-        kind: e.kind,
+        kind: Box::new(e.kind),
     })?;
     Ok(reader.finish())
 }

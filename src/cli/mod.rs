@@ -13,7 +13,8 @@ pub use args::Cli;
 use args::{Command, ViewArgs};
 
 use anyhow::Context;
-use raytracer::{RenderOptions, SceneDescription, scene};
+use raytracer::scene::{self, SceneFormat};
+use raytracer::{RenderOptions, SceneDescription};
 
 /// Sets up the thread pool and runs the command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -37,8 +38,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// Loads the scene and the validated options: each from the flag if given, else
 /// from the scene file (TOML), else the default.
 fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
+    let flags = view.options();
+    // OBJ and PLY files set no options, so the flags can be checked before a long
+    // load; a TOML file's values must be merged first.
+    if SceneFormat::of(&view.scene) != SceneFormat::Toml {
+        flags.resolve().validate()?;
+    }
     let loaded = scene::load(&view.scene)?;
-    let options = view.options().or(loaded.options).resolve();
+    let options = flags.or(loaded.options).resolve();
     options.validate()?;
     Ok((loaded.description, options))
 }

@@ -126,7 +126,7 @@ mod tests {
             assert_eq!(read_file(&path).unwrap(), text, "{name}");
         }
         let path = dir.path().join("b.obj.gz");
-        std::fs::write(&path, b"v 1 2 3\n").unwrap();
+        std::fs::write(&path, b"v 1 2 3\nv 4 5 6\n").unwrap();
         assert_eq!(
             read_file(&path).unwrap_err().to_string(),
             format!("{}: invalid gzip header", path.display())

@@ -26,9 +26,10 @@ impl RayWorkload {
     /// Generates the rays for `options`' camera (tracing the primary rays once to find
     /// where the shadow rays start).
     pub fn new(scene: &Scene, options: &RenderOptions) -> RayWorkload {
-        let camera = Camera::new(
+        let camera = Camera::with_up(
             options.look_from,
             options.look_to,
+            options.up,
             options.fov_degrees,
             options.width,
             options.height,

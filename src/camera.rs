@@ -33,9 +33,30 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Camera {
+        Camera::with_up(look_from, look_to, Vec3::Y, fov_degrees, width, height)
+    }
+
+    /// As [`Camera::new`] with world up `up` (any non-zero length) instead of +y.
+    ///
+    /// When the view direction is parallel to `up`, `right` is +x made perpendicular
+    /// to the view direction (+x itself in SPEC's case of up = +y), or +z if the camera
+    /// looks along x.
+    pub fn with_up(
+        look_from: Vec3,
+        look_to: Vec3,
+        up: Vec3,
+        fov_degrees: Float,
+        width: u32,
+        height: u32,
+    ) -> Camera {
         // `try_unit` keeps points 1e-30 apart apart; `validate` refused the rest.
         let backward = try_unit(look_from - look_to).unwrap_or(Vec3::Z);
-        let right = Vec3::Y.cross(backward).try_normalize().unwrap_or(Vec3::X);
+        let up = try_unit(up).unwrap_or(Vec3::Y);
+        let right = up.cross(backward).try_normalize().unwrap_or_else(|| {
+            (Vec3::X - backward * Vec3::X.dot(backward))
+                .try_normalize()
+                .unwrap_or(Vec3::Z)
+        });
         let up = backward.cross(right);
         let half_height = (fov_degrees.to_radians() * 0.5).tan();
         let half_width = half_height * width as Float / height as Float;
@@ -106,5 +127,33 @@ mod tests {
         assert!(right.dir.x > 0.5 && right.dir.is_finite());
         // camera up = forward x right = (0,1,0) x (1,0,0) = (0,0,-1): the top row looks to -z.
         assert!(cam.ray(50.0, 0.0).dir.z < -0.5);
+    }
+
+    #[test]
+    fn up_z_camera_is_the_up_y_camera_rotated() {
+        // Rotating the world by +90 degrees about x maps +y to +z and -z to +y.
+        let y_up = Camera::new(Vec3::ZERO, Vec3::NEG_Z, 60.0, 40, 30);
+        let z_up = Camera::with_up(Vec3::ZERO, Vec3::Y, Vec3::Z, 60.0, 40, 30);
+        let rotate = |v: Vec3| Vec3::new(v.x, -v.z, v.y);
+        for (x, y) in [(0.0, 0.0), (40.0, 0.0), (13.0, 29.0), (20.0, 15.0)] {
+            let expected = rotate(y_up.ray(x, y).dir);
+            assert!((z_up.ray(x, y).dir - expected).length() < 1e-6, "{x},{y}");
+        }
+        assert_eq!(
+            Camera::with_up(Vec3::ONE, Vec3::ZERO, Vec3::Y * 3.0, 45.0, 8, 8),
+            Camera::new(Vec3::ONE, Vec3::ZERO, 45.0, 8, 8)
+        );
+    }
+
+    #[test]
+    fn view_parallel_to_a_general_up_still_gives_a_frame() {
+        for (from, up) in [(Vec3::X, Vec3::X), (Vec3::new(0.0, 0.0, 2.0), Vec3::NEG_Z)] {
+            let cam = Camera::with_up(from, Vec3::ZERO, up, 90.0, 10, 10);
+            let corner = cam.ray(0.0, 0.0).dir;
+            assert!(corner.is_finite());
+            let centre = cam.ray(5.0, 5.0).dir;
+            assert!((centre + from.normalize()).length() < 1e-6);
+            assert!(corner.dot(centre) < 0.99);
+        }
     }
 }

@@ -1,7 +1,8 @@
-//! A Whitted-style CPU ray tracer for Wavefront OBJ/MTL scenes.
+//! A Whitted-style CPU ray tracer for Wavefront OBJ/MTL, PLY and TOML scenes.
 //!
 //! Data flows one way, one module per stage:
-//! files ([`scene::load_obj`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
+//! files ([`scene::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
+//! [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
 //! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an integrator per pixel)
 //! -> linear [`Film`] -> either [`Image`] (post-processing) -> PNG, or the film's
 //! linear values -> OpenEXR ([`output`]).
@@ -39,7 +40,7 @@
 //! # Conventions
 //!
 //! - World space is right-handed. In camera space the eye looks down -z with y up
-//!   and x to the right (world up is +y).
+//!   and x to the right (world up is +y unless [`RenderOptions::up`] says otherwise).
 //! - Images and films are stored row by row, row 0 at the top.
 //! - Surface normals are flipped to face the incoming ray.
 //! - Colours are linear from the integrators through the [`Film`]; only

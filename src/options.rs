@@ -26,6 +26,8 @@ pub struct RenderOptions {
     pub look_from: Vec3,
     /// Point the camera looks at.
     pub look_to: Vec3,
+    /// World up direction (need not be unit length); +y by default.
+    pub up: Vec3,
     /// Recursion depth of full mode: 1 means primary and shadow rays only.
     pub depth: u32,
     /// What to compute.
@@ -45,6 +47,7 @@ impl Default for RenderOptions {
             fov_degrees: 90.0,
             look_from: Vec3::ZERO,
             look_to: Vec3::NEG_Z,
+            up: Vec3::Y,
             depth: 4,
             mode: Mode::Full,
             samples_per_pixel: 1,
@@ -105,6 +108,9 @@ impl RenderOptions {
                 "the points are too far apart (their distance overflows)".into(),
             );
         }
+        if try_unit(self.up).is_none() {
+            return fail("--up", "components must be finite and not all zero".into());
+        }
         if self.depth == 0 || self.depth > MAX_RECURSION_DEPTH {
             return fail(
                 "--depth",
@@ -131,6 +137,108 @@ impl RenderOptions {
         match self.mode {
             Mode::Full => self.samples_per_pixel,
             Mode::Depth | Mode::Normal => 1,
+        }
+    }
+}
+
+/// [`RenderOptions`] with every value optional: what one source (the command line or a
+/// scene file) says, before sources are merged. Precedence is explicit:
+/// `flags.or(file).resolve()` takes each value from the flags, else from the file, else
+/// from [`RenderOptions::default`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PartialOptions {
+    /// Image width in pixels.
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    pub height: Option<u32>,
+    /// Vertical field of view in degrees.
+    pub fov_degrees: Option<Float>,
+    /// Camera position.
+    pub look_from: Option<Vec3>,
+    /// Point the camera looks at.
+    pub look_to: Option<Vec3>,
+    /// World up direction.
+    pub up: Option<Vec3>,
+    /// Recursion depth of full mode.
+    pub depth: Option<u32>,
+    /// What to compute.
+    pub mode: Option<Mode>,
+    /// Camera rays per pixel in full mode.
+    pub samples_per_pixel: Option<u32>,
+}
+
+impl PartialOptions {
+    /// Each value from `self` if set, else from `fallback`.
+    pub fn or(self, fallback: PartialOptions) -> PartialOptions {
+        PartialOptions {
+            width: self.width.or(fallback.width),
+            height: self.height.or(fallback.height),
+            fov_degrees: self.fov_degrees.or(fallback.fov_degrees),
+            look_from: self.look_from.or(fallback.look_from),
+            look_to: self.look_to.or(fallback.look_to),
+            up: self.up.or(fallback.up),
+            depth: self.depth.or(fallback.depth),
+            mode: self.mode.or(fallback.mode),
+            samples_per_pixel: self.samples_per_pixel.or(fallback.samples_per_pixel),
+        }
+    }
+
+    /// The complete options, unset values taken from [`RenderOptions::default`]. Not
+    /// validated: call [`RenderOptions::validate`].
+    pub fn resolve(self) -> RenderOptions {
+        let d = RenderOptions::default();
+        // A full struct literal, so that a new option cannot be forgotten here.
+        RenderOptions {
+            width: self.width.unwrap_or(d.width),
+            height: self.height.unwrap_or(d.height),
+            fov_degrees: self.fov_degrees.unwrap_or(d.fov_degrees),
+            look_from: self.look_from.unwrap_or(d.look_from),
+            look_to: self.look_to.unwrap_or(d.look_to),
+            up: self.up.unwrap_or(d.up),
+            depth: self.depth.unwrap_or(d.depth),
+            mode: self.mode.unwrap_or(d.mode),
+            samples_per_pixel: self.samples_per_pixel.unwrap_or(d.samples_per_pixel),
+        }
+    }
+}
+
+#[cfg(test)]
+mod partial_tests {
+    use super::*;
+
+    #[test]
+    fn set_values_win_then_fallback_then_defaults() {
+        let flags = PartialOptions {
+            width: Some(10),
+            mode: Some(Mode::Depth),
+            ..PartialOptions::default()
+        };
+        let file = PartialOptions {
+            width: Some(20),
+            height: Some(30),
+            up: Some(Vec3::Z),
+            ..PartialOptions::default()
+        };
+        let options = flags.or(file).resolve();
+        assert_eq!((options.width, options.height), (10, 30));
+        assert_eq!((options.mode, options.up), (Mode::Depth, Vec3::Z));
+        assert_eq!(options.fov_degrees, RenderOptions::default().fov_degrees);
+        assert_eq!(
+            PartialOptions::default().resolve(),
+            RenderOptions::default()
+        );
+    }
+
+    #[test]
+    fn up_must_be_finite_and_non_zero() {
+        for up in [Vec3::ZERO, Vec3::new(0.0, Float::NAN, 0.0)] {
+            let err = RenderOptions {
+                up,
+                ..RenderOptions::default()
+            }
+            .validate()
+            .unwrap_err();
+            assert_eq!(err.option, "--up");
         }
     }
 }

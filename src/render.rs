@@ -31,9 +31,10 @@ pub fn render_with_progress(
     options: &RenderOptions,
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts) {
-    let camera = Camera::new(
+    let camera = Camera::with_up(
         options.look_from,
         options.look_to,
+        options.up,
         options.fov_degrees,
         options.width,
         options.height,

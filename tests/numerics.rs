@@ -55,6 +55,7 @@ fn reference_scenes_give_finite_pixels_in_every_mode() {
                 fov_degrees: case.fov_degrees,
                 look_from: case.look_from.into(),
                 look_to: case.look_to.into(),
+                up: Vec3::Y,
                 depth: case.depth.max(4),
                 mode,
                 samples_per_pixel: 1,

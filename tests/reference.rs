@@ -46,6 +46,7 @@ fn render_case(dir: &Path, case: &Case) -> Image {
         fov_degrees: case.fov_degrees,
         look_from: Vec3::from(case.look_from),
         look_to: Vec3::from(case.look_to),
+        up: Vec3::Y,
         depth: case.depth,
         mode,
         samples_per_pixel: 1,

@@ -1,15 +1,15 @@
-//! Flag definitions (clap derive), converted to the library's [`RenderOptions`].
+//! Flag definitions (clap derive), converted to the library's [`PartialOptions`].
 
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
+use raytracer::Mode;
 use raytracer::math::Vec3;
-use raytracer::options::{MAX_DIMENSION, MAX_RECURSION_DEPTH};
-use raytracer::{Mode, RenderOptions};
+use raytracer::options::{MAX_DIMENSION, MAX_RECURSION_DEPTH, PartialOptions};
 
 use super::values::{MAX_THREADS, fov_degrees, whole_number};
 
-/// A Whitted-style ray tracer for Wavefront OBJ/MTL scenes.
+/// A Whitted-style ray tracer for OBJ/MTL, PLY and TOML scenes.
 #[derive(Parser, Debug)]
 #[command(version, about)]
 pub struct Cli {
@@ -26,6 +26,11 @@ pub enum Command {
     Render(RenderArgs),
     /// Measure parsing, BVH build and ray throughput on a scene; prints JSON.
     Bench(BenchArgs),
+    /// Describe a scene: counts, bounds, materials, memory a render needs, warnings.
+    Info {
+        /// The scene: OBJ, PLY or TOML, optionally gzip-compressed.
+        scene: PathBuf,
+    },
 }
 
 /// Flags of `bench`.
@@ -53,67 +58,66 @@ pub struct RenderArgs {
     pub stats: bool,
 }
 
-/// The scene and how to look at it: shared by `render` and `bench`.
+/// The scene and how to look at it: shared by `render` and `bench`. Camera and render
+/// flags are optional so that a TOML scene's values show through: a flag overrides
+/// the file, the file overrides the default shown.
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
-    /// The scene: a Wavefront .obj file (its .mtl files are found beside it).
-    #[arg(value_name = "SCENE.obj")]
+    /// The scene: OBJ (MTL files beside it), PLY, or a TOML scene file
+    /// (docs/scene-format.md); any may be gzip-compressed.
+    #[arg(value_name = "SCENE")]
     pub scene: PathBuf,
-    /// Image width in pixels (1..=65536).
+    /// Image width in pixels (1..=65536) [default: 640].
     #[arg(
         long,
-        default_value_t = 640,
         value_name = "PIXELS",
         allow_hyphen_values = true,
         value_parser = whole_number(1, MAX_DIMENSION),
     )]
-    pub width: u32,
-    /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all).
+    pub width: Option<u32>,
+    /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all)
+    /// [default: 480].
     #[arg(
         long,
-        default_value_t = 480,
         value_name = "PIXELS",
         allow_hyphen_values = true,
         value_parser = whole_number(1, MAX_DIMENSION),
     )]
-    pub height: u32,
-    /// Vertical field of view in degrees, strictly between 0 and 180.
+    pub height: Option<u32>,
+    /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90].
     #[arg(
         long,
-        default_value_t = 90.0,
         value_name = "DEGREES",
         allow_hyphen_values = true,
         value_parser = fov_degrees,
     )]
-    pub fov: f32,
-    /// Camera position.
-    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_from: Vec3,
-    /// Point the camera looks at (world up is +y).
-    #[arg(long, default_value = "0,0,-1", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_to: Vec3,
+    pub fov: Option<f32>,
+    /// Camera position [default: 0,0,0].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_from: Option<Vec3>,
+    /// Point the camera looks at [default: 0,0,-1].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_to: Option<Vec3>,
+    /// World up direction of the camera [default: 0,1,0].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<Vec3>,
     /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
-    /// With glass, each level can double the rays per pixel.
+    /// With glass, each level can double the rays per pixel [default: 4].
     #[arg(
         long,
-        default_value_t = 4,
         value_name = "N",
         allow_hyphen_values = true,
         value_parser = whole_number(1, MAX_RECURSION_DEPTH),
     )]
-    pub depth: u32,
-    /// What to render.
-    #[arg(long, value_enum, default_value_t = ModeArg::Full)]
-    pub mode: ModeArg,
+    pub depth: Option<u32>,
+    /// What to render [default: full].
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
     /// Samples per pixel in full mode (1..=65536): 1 traces pixel centres, more take
-    /// stratified jittered positions with a fixed seed (same image every run).
-    #[arg(
-        long,
-        default_value_t = 1,
-        value_name = "N",
-        allow_hyphen_values = true
-    )]
-    pub spp: u32,
+    /// stratified jittered positions with a fixed seed (same image every run)
+    /// [default: 1].
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    pub spp: Option<u32>,
     /// Worker threads (0..=1024); 0 uses every core.
     #[arg(
         short = 'j',
@@ -160,16 +164,18 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
 }
 
 impl ViewArgs {
-    /// The library's options for these flags (not yet validated).
-    pub fn options(&self) -> RenderOptions {
-        RenderOptions {
+    /// The options these flags set; unset ones stay unset, for a scene file's values
+    /// or the defaults to fill in.
+    pub fn options(&self) -> PartialOptions {
+        PartialOptions {
             width: self.width,
             height: self.height,
             fov_degrees: self.fov,
             look_from: self.look_from,
             look_to: self.look_to,
+            up: self.up,
             depth: self.depth,
-            mode: self.mode.into(),
+            mode: self.mode.map(Mode::from),
             samples_per_pixel: self.spp,
         }
     }
@@ -212,7 +218,8 @@ mod tests {
             let Command::Render(args) = Cli::try_parse_from(argv).unwrap().command else {
                 panic!("not render");
             };
-            assert_eq!(args.view.look_from, Vec3::new(-1.0, 2.0, -3.0));
+            assert_eq!(args.view.look_from, Some(Vec3::new(-1.0, 2.0, -3.0)));
+            assert_eq!(args.view.width, None);
         }
     }
 }

@@ -2,16 +2,17 @@
 //! one scene, printed as one JSON object for `bench/run.sh`.
 
 use raytracer::benchmark::{RayWorkload, count_occluded, median_time, trace_closest};
-use raytracer::{BvhParams, RenderOptions, Scene, render, scene};
+use raytracer::{BvhParams, Scene, render};
 
 use super::args::BenchArgs;
 
-/// Measures as `args` say; `options` are already validated.
-pub fn run(args: &BenchArgs, options: &RenderOptions) -> anyhow::Result<()> {
+/// Measures as `args` say.
+pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let path = &args.view.scene;
     let file_bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    let (description, parse_s) = median_time(args.repeat, || scene::load_obj(path));
-    let description = description?;
+    let (loaded, parse_s) = median_time(args.repeat, || super::load_scene(&args.view));
+    let (description, options) = loaded?;
+    let options = &options;
     let triangles = description.triangles.len();
     let params = BvhParams::default();
     let (scene, build_s) = median_time(args.repeat, || Scene::build(description.clone(), &params));

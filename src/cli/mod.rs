@@ -3,30 +3,42 @@
 
 mod args;
 mod bench;
+mod info;
 mod interrupt;
 pub mod progress;
 mod render;
 mod values;
 
 pub use args::Cli;
-use args::Command;
+use args::{Command, ViewArgs};
 
 use anyhow::Context;
+use raytracer::{RenderOptions, SceneDescription, scene};
 
-/// Validates the options, sets up the thread pool and runs the command.
+/// Sets up the thread pool and runs the command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let view = match &cli.command {
         Command::Render(args) => &args.view,
         Command::Bench(args) => &args.view,
+        Command::Info { scene } => return info::run(scene),
     };
-    let options = view.options();
-    options.validate()?;
+    // Before loading: readers use the global pool, which can be set up only once.
     rayon::ThreadPoolBuilder::new()
         .num_threads(view.threads as usize)
         .build_global()
         .context("cannot start worker threads")?;
     match &cli.command {
-        Command::Render(args) => render::run(args, &options, cli.quiet),
-        Command::Bench(args) => bench::run(args, &options),
+        Command::Render(args) => render::run(args, cli.quiet),
+        Command::Bench(args) => bench::run(args),
+        Command::Info { scene } => info::run(scene),
     }
+}
+
+/// Loads the scene and the validated options: each from the flag if given, else
+/// from the scene file (TOML), else the default.
+fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
+    let loaded = scene::load(&view.scene)?;
+    let options = view.options().or(loaded.options).resolve();
+    options.validate()?;
+    Ok((loaded.description, options))
 }

@@ -3,15 +3,15 @@
 use std::time::Instant;
 
 use raytracer::stats::{RayCounts, peak_memory_bytes};
-use raytracer::{BvhParams, ImageFormat, RenderOptions, Scene, film, render_with_progress, scene};
+use raytracer::{BvhParams, ImageFormat, Scene, film, render_with_progress};
 
 use super::args::RenderArgs;
 use super::interrupt;
 use super::progress::Progress;
 use super::values::check_not_input;
 
-/// Renders as `args` say; `options` are already validated.
-pub fn run(args: &RenderArgs, options: &RenderOptions, quiet: bool) -> anyhow::Result<()> {
+/// Renders as `args` say.
+pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     interrupt::install(args.output.clone())?;
     // Before any work, so that a typo or a read-only folder does not cost a render.
     film::check_output(&args.output)?;
@@ -22,6 +22,16 @@ pub fn run(args: &RenderArgs, options: &RenderOptions, quiet: bool) -> anyhow::R
             eprintln!("warning: {message}");
         }
     };
+
+    let start = Instant::now();
+    let loading = Progress::start("loading the scene", None, !quiet);
+    let (description, options) = super::load_scene(&args.view)?;
+    let options = &options;
+    let parsed = Instant::now();
+    let params = BvhParams::default();
+    let scene = Scene::build(description, &params);
+    let built = Instant::now();
+    drop(loading);
     if options.samples_per_pixel_in_mode() != options.samples_per_pixel {
         warn(&format!(
             "--spp {} applies to full mode only; {} mode takes one sample per pixel",
@@ -29,15 +39,6 @@ pub fn run(args: &RenderArgs, options: &RenderOptions, quiet: bool) -> anyhow::R
             format!("{:?}", options.mode).to_lowercase()
         ));
     }
-
-    let start = Instant::now();
-    let loading = Progress::start("loading the scene", None, !quiet);
-    let description = scene::load_obj(&args.view.scene)?;
-    let parsed = Instant::now();
-    let params = BvhParams::default();
-    let scene = Scene::build(description, &params);
-    let built = Instant::now();
-    drop(loading);
     for warning in &scene.warnings {
         warn(warning);
     }

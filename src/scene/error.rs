@@ -24,6 +24,41 @@ pub enum SceneError {
         /// What is wrong with the line.
         kind: ParseErrorKind,
     },
+    /// An element of a PLY file's body is malformed or cut short.
+    #[error("{}: {element} {index}: {kind}", location(path, *line))]
+    Element {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line where the element starts, for ascii files.
+        line: Option<usize>,
+        /// The element's name, such as `face`.
+        element: String,
+        /// 0-based index of the element among those of its name.
+        index: usize,
+        /// What is wrong (boxed: it keeps every `Result<_, SceneError>` small).
+        kind: Box<ParseErrorKind>,
+    },
+    /// A file named by a scene file failed to load; `error` carries its own location.
+    #[error("{}:{line}: {key}: {error}", path.display())]
+    Included {
+        /// The scene file that names the failing file.
+        path: PathBuf,
+        /// 1-based line of the naming key.
+        line: usize,
+        /// The key, such as `mesh.file`.
+        key: String,
+        /// Why the named file failed. Not a `source`: the message already includes it,
+        /// and `{:#}` would print it twice.
+        error: Box<SceneError>,
+    },
+}
+
+/// `path:line`, or `path` alone when there is no line (binary files).
+fn location(path: &std::path::Path, line: Option<usize>) -> String {
+    match line {
+        Some(line) => format!("{}:{line}", path.display()),
+        None => path.display().to_string(),
+    }
 }
 
 /// What is wrong with a malformed line.
@@ -97,6 +132,39 @@ pub enum ParseErrorKind {
     /// More elements than the renderer can index with 32 bits.
     #[error("too many {0} (the limit is 4294967295)")]
     TooMany(&'static str),
+    /// A TOML document that is not valid TOML.
+    #[error("{0}")]
+    TomlSyntax(String),
+    /// A TOML key with a wrong, unknown or out-of-range value.
+    #[error("{key}: {message}")]
+    TomlValue {
+        /// The dotted key, such as `camera.fov`.
+        key: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A file that does not start with the PLY magic line.
+    #[error("not a PLY file (the first line must be 'ply')")]
+    NotPly,
+    /// A PLY header line that is not understood.
+    #[error("{0}")]
+    PlyHeader(String),
+    /// A PLY file that ends inside an element.
+    #[error("file ends inside the element")]
+    Truncated,
+    /// An ascii PLY element line with fewer values than its properties need.
+    #[error("the line ends before property '{0}'")]
+    MissingValue(String),
+    /// An ascii PLY element line with more values than its properties (or a wrong
+    /// list count).
+    #[error("unexpected value '{0}' after the element's last property")]
+    ExtraValue(String),
+    /// A transform that would turn spheres into ellipsoids.
+    #[error("spheres need the same scale on every axis")]
+    NonUniformSphereScale,
+    /// A PLY list count that is negative.
+    #[error("negative list length {0}")]
+    NegativeCount(i64),
 }
 
 /// A path for a message, cut after [`MAX_SHOWN_PATH`] characters: it comes from a

@@ -1,15 +1,25 @@
 //! Scenes: reading files into a [`SceneDescription`], and building the renderable
 //! [`Scene`] (primitives in BVH leaf order, materials, lights).
 
+mod compose;
 mod error;
 mod file;
+mod info;
 mod lex;
+mod load;
 mod mtl;
 mod obj;
+mod ply;
+mod toml_scene;
 
+pub use compose::Transform;
 pub use error::{IndexKind, ParseErrorKind, SceneError};
+pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
+pub use load::{LoadedScene, SceneFormat, load, load_mesh};
 pub use mtl::parse_mtl;
 pub use obj::{load_obj, parse_obj};
+pub use ply::{load_ply, parse_ply};
+pub use toml_scene::{load_toml, parse_toml};
 
 pub(crate) use file::read_file;
 

@@ -1,0 +1,14 @@
+//! `raytracer info`: a scene's counts, bounds, materials, memory needs and warnings.
+
+use std::path::Path;
+
+use raytracer::scene::{self, SceneSummary};
+
+/// Prints the summary of the scene at `path` on stdout, for the image size its file
+/// sets (or the default).
+pub fn run(path: &Path) -> anyhow::Result<()> {
+    let loaded = scene::load(path)?;
+    let summary = SceneSummary::new(&loaded.description, &loaded.options.resolve());
+    print!("{summary}");
+    Ok(())
+}

@@ -1,0 +1,240 @@
+//! Combining meshes into one description: index offsets, material ids and placement.
+
+use glam::Mat3;
+
+use super::SceneDescription;
+use super::error::ParseErrorKind;
+use crate::material::MaterialId;
+use crate::math::{Float, Vec3};
+
+/// Where a mesh goes in the world: `world_from_object = translate * rotate * scale`,
+/// that is scale first, then rotate about x, then y, then z (right-handed,
+/// counter-clockwise looking down the axis), then translate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// The linear part, `rotate * scale`.
+    linear: Mat3,
+    /// The inverse transpose of `linear`: it keeps normals perpendicular to their
+    /// surface under non-uniform scale, where `linear` itself would tilt them.
+    normal_from_object: Mat3,
+    translation: Vec3,
+    scale: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Transform::IDENTITY
+    }
+}
+
+impl Transform {
+    /// The transform that leaves everything in place.
+    pub const IDENTITY: Transform = Transform {
+        linear: Mat3::IDENTITY,
+        normal_from_object: Mat3::IDENTITY,
+        translation: Vec3::ZERO,
+        scale: Vec3::ONE,
+    };
+
+    /// Scale per axis, then rotate by `rotate_degrees` about x, y and z in turn, then
+    /// translate. Every scale component must be non-zero (a flattened mesh has no
+    /// normals); the TOML reader checks this.
+    pub fn new(scale: Vec3, rotate_degrees: Vec3, translate: Vec3) -> Transform {
+        debug_assert!(scale.cmpne(Vec3::ZERO).all(), "zero scale");
+        let r = rotate_degrees * (std::f32::consts::PI / 180.0);
+        let rotation =
+            Mat3::from_rotation_z(r.z) * Mat3::from_rotation_y(r.y) * Mat3::from_rotation_x(r.x);
+        let linear = rotation * Mat3::from_diagonal(scale);
+        Transform {
+            linear,
+            normal_from_object: linear.inverse().transpose(),
+            translation: translate,
+            scale,
+        }
+    }
+
+    /// A point moved into the world.
+    #[inline]
+    pub fn point(&self, p: Vec3) -> Vec3 {
+        self.linear * p + self.translation
+    }
+
+    /// A normal moved into the world (not normalized).
+    #[inline]
+    pub fn normal(&self, n: Vec3) -> Vec3 {
+        self.normal_from_object * n
+    }
+
+    /// The factor by which lengths grow in every direction, when the scale has the
+    /// same magnitude on all axes (so spheres stay spheres).
+    pub fn uniform_scale(&self) -> Option<Float> {
+        let s = self.scale.abs();
+        (s.x == s.y && s.y == s.z).then_some(s.x)
+    }
+}
+
+impl SceneDescription {
+    /// Adds `mesh` to this description: its points (vertices, sphere centres and
+    /// lights) moved by `transform`, its indices and material ids shifted to follow
+    /// what is already here. With `material`, every shape of `mesh` gets that material
+    /// and the mesh's own materials are dropped; otherwise they are appended.
+    ///
+    /// # Errors
+    /// More vertices or triangles in all than 32-bit indices can address. If `mesh`
+    /// has spheres, `transform` must have a [`Transform::uniform_scale`]; otherwise
+    /// this returns an error, too.
+    pub fn append(
+        &mut self,
+        mesh: SceneDescription,
+        transform: &Transform,
+        material: Option<MaterialId>,
+    ) -> Result<(), ParseErrorKind> {
+        let radius_scale = match transform.uniform_scale() {
+            Some(s) => s,
+            None if mesh.spheres.is_empty() => 1.0,
+            None => return Err(ParseErrorKind::NonUniformSphereScale),
+        };
+        let fits = |a: usize, b: usize| a.checked_add(b).is_some_and(|n| n <= u32::MAX as usize);
+        if !fits(self.positions.len(), mesh.positions.len())
+            || !fits(self.normals.len(), mesh.normals.len())
+        {
+            return Err(ParseErrorKind::TooMany("vertices"));
+        }
+        if !fits(self.triangles.len(), mesh.triangles.len()) {
+            return Err(ParseErrorKind::TooMany("triangles"));
+        }
+        let position_offset = self.positions.len() as u32;
+        let normal_offset = self.normals.len() as u32;
+        let material_offset = self.materials.len() as u32;
+        let material_of = |id: MaterialId| material.unwrap_or(MaterialId(id.0 + material_offset));
+
+        // Work in place on the mesh's arrays and then move them over: a large first
+        // mesh (the usual case) is never copied.
+        let mut mesh = mesh;
+        for p in &mut mesh.positions {
+            *p = transform.point(*p);
+        }
+        for n in &mut mesh.normals {
+            *n = transform.normal(*n);
+        }
+        for t in &mut mesh.triangles {
+            t.positions = t.positions.map(|i| i + position_offset);
+            t.normals = t.normals.map(|ns| ns.map(|i| i + normal_offset));
+            t.material = material_of(t.material);
+        }
+        for s in &mut mesh.spheres {
+            s.center = transform.point(s.center);
+            s.radius *= radius_scale;
+            s.material = material_of(s.material);
+        }
+        for l in &mut mesh.lights {
+            l.position = transform.point(l.position);
+        }
+        append(&mut self.positions, mesh.positions);
+        append(&mut self.normals, mesh.normals);
+        append(&mut self.texcoords, mesh.texcoords);
+        append(&mut self.triangles, mesh.triangles);
+        append(&mut self.spheres, mesh.spheres);
+        append(&mut self.lights, mesh.lights);
+        if material.is_none() {
+            append(&mut self.materials, mesh.materials);
+        }
+        append(&mut self.warnings, mesh.warnings);
+        Ok(())
+    }
+}
+
+/// `to` followed by `from`, moving `from` over whole when `to` is empty.
+fn append<T>(to: &mut Vec<T>, mut from: Vec<T>) {
+    if to.is_empty() {
+        *to = from;
+    } else {
+        to.append(&mut from);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::{Material, PointLight};
+    use crate::scene::{SphereDesc, TriangleDesc};
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    #[test]
+    fn scale_then_rotate_then_translate() {
+        let t = Transform::new(Vec3::new(2.0, 1.0, 1.0), Vec3::new(0.0, 90.0, 0.0), Vec3::X);
+        // (1,0,0) scaled to (2,0,0), turned 90 degrees about y to (0,0,-2), moved by +x.
+        assert!(close(t.point(Vec3::X), Vec3::new(1.0, 0.0, -2.0)));
+        // Rotations apply about x first, then z: x 90 takes +y to +z, z 90 leaves it.
+        let t = Transform::new(Vec3::ONE, Vec3::new(90.0, 0.0, 90.0), Vec3::ZERO);
+        assert!(close(t.point(Vec3::Y), Vec3::Z));
+        assert!(close(t.point(Vec3::X), Vec3::Y));
+    }
+
+    #[test]
+    fn normals_stay_perpendicular_under_non_uniform_scale() {
+        // The plane x + y = 1 has normal (1,1,0); stretching x by 4 tilts the plane.
+        let t = Transform::new(
+            Vec3::new(4.0, 1.0, 1.0),
+            Vec3::new(10.0, 20.0, 30.0),
+            Vec3::ONE,
+        );
+        let (a, b) = (t.point(Vec3::X), t.point(Vec3::Y));
+        let n = t.normal(Vec3::new(1.0, 1.0, 0.0));
+        assert!((b - a).dot(n).abs() < 1e-5, "{}", (b - a).dot(n));
+        assert!((t.point(Vec3::Z) - t.point(Vec3::ZERO)).dot(n).abs() < 1e-5);
+        assert_eq!(t.uniform_scale(), None);
+        assert_eq!(
+            Transform::new(Vec3::new(-2.0, 2.0, 2.0), Vec3::ZERO, Vec3::ZERO).uniform_scale(),
+            Some(2.0)
+        );
+    }
+
+    #[test]
+    fn append_shifts_indices_and_materials_or_overrides_them() {
+        let mesh = SceneDescription {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: vec![Vec3::Z],
+            triangles: vec![TriangleDesc {
+                positions: [0, 1, 2],
+                normals: Some([0, 0, 0]),
+                material: MaterialId(0),
+            }],
+            spheres: vec![SphereDesc {
+                center: Vec3::ZERO,
+                radius: 1.0,
+                material: MaterialId(0),
+            }],
+            lights: vec![PointLight {
+                position: Vec3::Y,
+                intensity: Vec3::ONE,
+            }],
+            materials: vec![Material::named("m")],
+            ..SceneDescription::default()
+        };
+        let mut all = SceneDescription::default();
+        all.append(mesh.clone(), &Transform::IDENTITY, None)
+            .unwrap();
+        let moved = Transform::new(Vec3::splat(3.0), Vec3::ZERO, Vec3::Z);
+        all.append(mesh.clone(), &moved, None).unwrap();
+        all.append(mesh.clone(), &Transform::IDENTITY, Some(MaterialId(0)))
+            .unwrap();
+        assert_eq!(all.positions.len(), 9);
+        assert_eq!(all.triangles[1].positions, [3, 4, 5]);
+        assert_eq!(all.triangles[1].normals, Some([1, 1, 1]));
+        assert_eq!(all.triangles[1].material, MaterialId(1));
+        assert_eq!(all.triangles[2].material, MaterialId(0));
+        assert_eq!(all.materials.len(), 2);
+        assert_eq!(all.spheres[1].radius, 3.0);
+        assert_eq!(all.spheres[1].center, Vec3::Z);
+        assert_eq!(all.lights[1].position, Vec3::new(0.0, 3.0, 1.0));
+        assert_eq!(all.positions[4], Vec3::new(3.0, 0.0, 1.0));
+
+        let squash = Transform::new(Vec3::new(1.0, 2.0, 1.0), Vec3::ZERO, Vec3::ZERO);
+        let err = all.append(mesh, &squash, None).unwrap_err();
+        assert_eq!(err, ParseErrorKind::NonUniformSphereScale);
+    }
+}

@@ -1,0 +1,831 @@
+//! The TOML scene description: camera and render settings, meshes read from OBJ or
+//! PLY files (placed by a transform, optionally given one material), spheres, point
+//! lights and materials. `docs/scene-format.md` documents every key.
+//!
+//! Reading goes in two steps: serde checks the document's shape and types (unknown
+//! keys are errors), then the values are checked and the meshes loaded. Both steps
+//! report `file:line: key: message`.
+
+use std::collections::HashMap;
+use std::ops::Range;
+use std::path::Path;
+
+use serde::Deserialize;
+use serde::de::{self, Deserializer};
+use toml::Spanned;
+use toml::de::{DeTable, DeValue};
+
+use super::error::{ParseErrorKind, SceneError};
+use super::{
+    LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh, read_file,
+};
+use crate::integrators::Mode;
+use crate::material::{Material, MaterialId, PointLight};
+use crate::math::{Float, Vec3};
+use crate::options::PartialOptions;
+
+/// Reads a TOML scene file and the meshes it names (relative to its folder).
+///
+/// # Errors
+/// Invalid TOML, an unknown key, a value of the wrong type or out of range, an
+/// unknown material name, or a mesh that fails to load: each names the TOML file,
+/// line and key (a failing mesh adds its own error).
+pub fn load_toml(path: &Path) -> Result<LoadedScene, SceneError> {
+    let bytes = read_file(path)?;
+    parse_toml(&bytes, path)
+}
+
+/// Parses a TOML scene; `path` names it in messages and locates its meshes.
+///
+/// # Errors
+/// As [`load_toml`].
+pub fn parse_toml(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| SceneError::Parse {
+        path: path.to_path_buf(),
+        line: line_of(&bytes[..e.valid_up_to()], e.valid_up_to()),
+        kind: ParseErrorKind::TomlSyntax("invalid UTF-8".into()),
+    })?;
+    let file: SceneFile = toml::from_str(text).map_err(|e| {
+        let offset = e.span().map_or(0, |s| s.start);
+        let message = e.message().trim_end().to_owned();
+        let kind = match key_at(text, offset) {
+            Some(key) => ParseErrorKind::TomlValue { key, message },
+            None => ParseErrorKind::TomlSyntax(message),
+        };
+        SceneError::Parse {
+            path: path.to_path_buf(),
+            line: line_of(text.as_bytes(), offset),
+            kind,
+        }
+    })?;
+    Builder {
+        path,
+        text,
+        scene: SceneDescription::default(),
+        material_ids: HashMap::new(),
+        fallback_material: None,
+    }
+    .build(file)
+}
+
+/// 1-based line of byte `offset`.
+fn line_of(text: &[u8], offset: usize) -> usize {
+    1 + text[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+}
+
+/// The dotted key (`camera.fov`, `mesh.transform.scale`) whose key or value holds
+/// byte `offset`: the innermost one. `None` if the document does not parse, or the
+/// offset is outside every entry.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    fn consider(span: Range<usize>, offset: usize, path: &str, best: &mut Option<(usize, String)>) {
+        let inside = span.contains(&offset) || span.start == offset;
+        if inside && best.as_ref().is_none_or(|(len, _)| span.len() <= *len) {
+            *best = Some((span.len(), path.to_owned()));
+        }
+    }
+    fn visit_table(
+        table: &DeTable,
+        prefix: &str,
+        offset: usize,
+        best: &mut Option<(usize, String)>,
+    ) {
+        for (key, value) in table.iter() {
+            let path = match prefix {
+                "" => key.get_ref().to_string(),
+                _ => format!("{prefix}.{}", key.get_ref()),
+            };
+            consider(key.span(), offset, &path, best);
+            consider(value.span(), offset, &path, best);
+            visit_value(value.get_ref(), &path, offset, best);
+        }
+    }
+    fn visit_value(value: &DeValue, path: &str, offset: usize, best: &mut Option<(usize, String)>) {
+        match value {
+            DeValue::Table(table) => visit_table(table, path, offset, best),
+            DeValue::Array(items) => {
+                for item in items {
+                    consider(item.span(), offset, path, best);
+                    visit_value(item.get_ref(), path, offset, best);
+                }
+            }
+            _ => {}
+        }
+    }
+    let root = DeTable::parse(text).ok()?;
+    let mut best = None;
+    visit_table(root.get_ref(), "", offset, &mut best);
+    best.map(|(_, path)| path)
+}
+
+/// The whole document.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    camera: CameraTable,
+    #[serde(default)]
+    render: RenderTable,
+    #[serde(default)]
+    mesh: Vec<MeshTable>,
+    #[serde(default)]
+    sphere: Vec<SphereTable>,
+    #[serde(default)]
+    light: Vec<LightTable>,
+    #[serde(default)]
+    materials: NamedMaterials,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct CameraTable {
+    look_from: Option<Spanned<Point>>,
+    look_to: Option<Spanned<Point>>,
+    up: Option<Spanned<Point>>,
+    fov: Option<Spanned<Float>>,
+    width: Option<Spanned<u32>>,
+    height: Option<Spanned<u32>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RenderTable {
+    mode: Option<ModeName>,
+    depth: Option<Spanned<u32>>,
+    spp: Option<Spanned<u32>>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum ModeName {
+    Full,
+    Depth,
+    Normal,
+}
+
+impl From<ModeName> for Mode {
+    fn from(m: ModeName) -> Mode {
+        match m {
+            ModeName::Full => Mode::Full,
+            ModeName::Depth => Mode::Depth,
+            ModeName::Normal => Mode::Normal,
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshTable {
+    file: Spanned<String>,
+    material: Option<Spanned<String>>,
+    #[serde(default)]
+    transform: TransformTable,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct TransformTable {
+    translate: Option<Point>,
+    rotate: Option<Point>,
+    scale: Option<Spanned<Splat>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SphereTable {
+    center: Point,
+    radius: Spanned<Finite>,
+    material: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightTable {
+    position: Point,
+    intensity: Splat,
+}
+
+/// A material's MTL fields, under their MTL names.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialTable {
+    #[serde(rename = "Ka")]
+    ambient: Option<Splat>,
+    #[serde(rename = "Kd")]
+    diffuse: Option<Splat>,
+    #[serde(rename = "Ks")]
+    specular: Option<Splat>,
+    #[serde(rename = "Ke")]
+    emission: Option<Splat>,
+    #[serde(rename = "Ns")]
+    shininess: Option<Finite>,
+    #[serde(rename = "Ni")]
+    ior: Option<Finite>,
+    #[serde(rename = "d")]
+    opacity: Option<Finite>,
+    #[serde(rename = "al")]
+    albedo: Option<Splat>,
+}
+
+/// `[materials.NAME]` tables in file order (which fixes their [`MaterialId`]s).
+#[derive(Default)]
+struct NamedMaterials(Vec<(String, MaterialTable)>);
+
+impl<'de> Deserialize<'de> for NamedMaterials {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> de::Visitor<'de> for Visitor {
+            type Value = NamedMaterials;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table of materials")
+            }
+            fn visit_map<A: de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+                let mut materials = Vec::new();
+                while let Some(entry) = map.next_entry()? {
+                    materials.push(entry);
+                }
+                Ok(NamedMaterials(materials))
+            }
+        }
+        deserializer.deserialize_map(Visitor)
+    }
+}
+
+/// A finite number.
+#[derive(Clone, Copy)]
+struct Finite(Float);
+
+impl<'de> Deserialize<'de> for Finite {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let value = f64::deserialize(deserializer)?;
+        finite(value).map(Finite).map_err(de::Error::custom)
+    }
+}
+
+fn finite(value: f64) -> Result<Float, String> {
+    let narrowed = value as Float;
+    if narrowed.is_finite() {
+        Ok(narrowed)
+    } else {
+        Err(format!("{value} is not a finite number"))
+    }
+}
+
+/// A point or direction: an array of three finite numbers.
+#[derive(Clone, Copy)]
+struct Point(Vec3);
+
+impl<'de> Deserialize<'de> for Point {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let [x, y, z] = <[f64; 3]>::deserialize(deserializer)?;
+        let v = [finite(x), finite(y), finite(z)];
+        match v {
+            [Ok(x), Ok(y), Ok(z)] => Ok(Point(Vec3::new(x, y, z))),
+            _ => Err(de::Error::custom(
+                v.into_iter().find_map(Result::err).unwrap_or_default(),
+            )),
+        }
+    }
+}
+
+/// A colour or scale: three finite numbers, or one for all three.
+#[derive(Clone, Copy)]
+struct Splat(Vec3);
+
+impl<'de> Deserialize<'de> for Splat {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged, expecting = "a number or an array of three numbers")]
+        enum Raw {
+            One(Finite),
+            Three(Point),
+        }
+        Ok(match Raw::deserialize(deserializer)? {
+            Raw::One(Finite(v)) => Splat(Vec3::splat(v)),
+            Raw::Three(Point(v)) => Splat(v),
+        })
+    }
+}
+
+/// Turns the checked document into a description.
+struct Builder<'a> {
+    path: &'a Path,
+    text: &'a str,
+    scene: SceneDescription,
+    material_ids: HashMap<String, MaterialId>,
+    fallback_material: Option<MaterialId>,
+}
+
+impl Builder<'_> {
+    fn build(mut self, file: SceneFile) -> Result<LoadedScene, SceneError> {
+        let options = self.options(&file.camera, &file.render)?;
+        for (name, table) in file.materials.0 {
+            let id = MaterialId(self.scene.materials.len() as u32);
+            self.scene.materials.push(material(&name, &table));
+            self.material_ids.insert(name, id);
+        }
+        for mesh in &file.mesh {
+            self.add_mesh(mesh)?;
+        }
+        for sphere in &file.sphere {
+            let radius = sphere.radius.get_ref().0;
+            if radius < 0.0 {
+                return Err(self.error(
+                    sphere.radius.span(),
+                    "sphere.radius",
+                    format!("{radius} is negative"),
+                ));
+            }
+            let material = self.material(sphere.material.as_ref(), "sphere.material")?;
+            self.scene.spheres.push(SphereDesc {
+                center: sphere.center.0,
+                radius,
+                material,
+            });
+        }
+        self.scene
+            .lights
+            .extend(file.light.iter().map(|light| PointLight {
+                position: light.position.0,
+                intensity: light.intensity.0,
+            }));
+        Ok(LoadedScene {
+            description: self.scene,
+            options,
+        })
+    }
+
+    /// The file's render settings, checked as if rendered with no flags: a scene
+    /// file must be renderable on its own.
+    fn options(
+        &self,
+        camera: &CameraTable,
+        render: &RenderTable,
+    ) -> Result<PartialOptions, SceneError> {
+        let value = |v: &Option<Spanned<Point>>| v.as_ref().map(|s| s.get_ref().0);
+        let options = PartialOptions {
+            width: camera.width.as_ref().map(|s| *s.get_ref()),
+            height: camera.height.as_ref().map(|s| *s.get_ref()),
+            fov_degrees: camera.fov.as_ref().map(|s| *s.get_ref()),
+            look_from: value(&camera.look_from),
+            look_to: value(&camera.look_to),
+            up: value(&camera.up),
+            depth: render.depth.as_ref().map(|s| *s.get_ref()),
+            mode: render.mode.map(Mode::from),
+            samples_per_pixel: render.spp.as_ref().map(|s| *s.get_ref()),
+        };
+        if let Err(e) = options.resolve().validate() {
+            // Name the key behind the flag the library's message speaks of.
+            let (key, span) = match e.option {
+                "--width" => ("camera.width", span_of(&camera.width)),
+                "--height" => ("camera.height", span_of(&camera.height)),
+                "--width/--height" => (
+                    "camera.width",
+                    span_of(&camera.width).or(span_of(&camera.height)),
+                ),
+                "--fov" => ("camera.fov", span_of(&camera.fov)),
+                "--up" => ("camera.up", span_of(&camera.up)),
+                "--depth" => ("render.depth", span_of(&render.depth)),
+                "--spp" => ("render.spp", span_of(&render.spp)),
+                _ if camera.look_from.is_some() => ("camera.look_from", span_of(&camera.look_from)),
+                _ => ("camera.look_to", span_of(&camera.look_to)),
+            };
+            return Err(self.error(span.unwrap_or(0..0), key, e.message));
+        }
+        Ok(options)
+    }
+
+    fn add_mesh(&mut self, mesh: &MeshTable) -> Result<(), SceneError> {
+        // Everything the TOML says is checked before the (maybe large) file is read.
+        let file = mesh.file.get_ref();
+        let file_span = mesh.file.span();
+        let mesh_path = match self.path.parent() {
+            Some(dir) => dir.join(file),
+            None => file.into(),
+        };
+        if SceneFormat::of(&mesh_path) == SceneFormat::Toml {
+            return Err(self.error(
+                file_span,
+                "mesh.file",
+                format!("'{file}' is a scene file, not a mesh (OBJ or PLY)"),
+            ));
+        }
+        let material = match &mesh.material {
+            Some(name) => Some(self.material(Some(name), "mesh.material")?),
+            None => None,
+        };
+        let t = &mesh.transform;
+        let scale = t.scale.as_ref().map_or(Vec3::ONE, |s| s.get_ref().0);
+        let scale_span = t.scale.as_ref().map_or(file_span.clone(), Spanned::span);
+        if scale.cmpeq(Vec3::ZERO).any() {
+            return Err(self.error(
+                scale_span,
+                "mesh.transform.scale",
+                "scale components must not be zero".into(),
+            ));
+        }
+        let transform = Transform::new(
+            scale,
+            t.rotate.map_or(Vec3::ZERO, |r| r.0),
+            t.translate.map_or(Vec3::ZERO, |r| r.0),
+        );
+
+        let mut description = load_mesh(&mesh_path).map_err(|error| SceneError::Included {
+            path: self.path.to_path_buf(),
+            line: line_of(self.text.as_bytes(), file_span.start),
+            key: "mesh.file".into(),
+            error: Box::new(error),
+        })?;
+        if material.is_some() {
+            // The mesh's own material assignments are replaced, so what its reader
+            // said about them (a missing `usemtl`, an unknown name) no longer holds.
+            description.warnings.retain(|w| !w.contains("material"));
+        }
+        self.scene
+            .append(description, &transform, material)
+            .map_err(|kind| match kind {
+                ParseErrorKind::NonUniformSphereScale => {
+                    self.error(scale_span, "mesh.transform.scale", kind.to_string())
+                }
+                _ => self.error(file_span, "mesh.file", kind.to_string()),
+            })
+    }
+
+    /// The id of a named material, or of the default material when there is no name.
+    fn material(
+        &mut self,
+        name: Option<&Spanned<String>>,
+        key: &str,
+    ) -> Result<MaterialId, SceneError> {
+        let Some(name) = name else {
+            return Ok(*self.fallback_material.get_or_insert_with(|| {
+                self.scene.materials.push(Material::fallback());
+                MaterialId(self.scene.materials.len() as u32 - 1)
+            }));
+        };
+        self.material_ids
+            .get(name.get_ref())
+            .copied()
+            .ok_or_else(|| {
+                self.error(
+                    name.span(),
+                    key,
+                    format!("unknown material '{}'", name.get_ref()),
+                )
+            })
+    }
+
+    fn error(&self, span: Range<usize>, key: &str, message: String) -> SceneError {
+        SceneError::Parse {
+            path: self.path.to_path_buf(),
+            line: line_of(self.text.as_bytes(), span.start),
+            kind: ParseErrorKind::TomlValue {
+                key: key.to_owned(),
+                message,
+            },
+        }
+    }
+}
+
+fn span_of<T>(value: &Option<Spanned<T>>) -> Option<Range<usize>> {
+    value.as_ref().map(Spanned::span)
+}
+
+/// A material from its table: MTL defaults for what is not given.
+fn material(name: &str, table: &MaterialTable) -> Material {
+    let mut m = Material::named(name);
+    let colour = |v: Option<Splat>, default: Vec3| v.map_or(default, |s| s.0);
+    m.ambient = colour(table.ambient, m.ambient);
+    m.diffuse = colour(table.diffuse, m.diffuse);
+    m.specular = colour(table.specular, m.specular);
+    m.emission = colour(table.emission, m.emission);
+    m.shininess = table.shininess.map_or(m.shininess, |v| v.0);
+    m.ior = table.ior.map_or(m.ior, |v| v.0);
+    m.opacity = table.opacity.map_or(m.opacity, |v| v.0);
+    m.albedo = table.albedo.map_or(m.albedo, |v| v.0.into());
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::fs;
+
+    /// A folder with `tri.obj` (one triangle with `vn` normals, material `red` from
+    /// `tri.mtl`) and `bad.obj`, and a way to parse TOML text placed in it.
+    struct Folder(tempfile::TempDir);
+
+    impl Folder {
+        fn new() -> Folder {
+            let dir = tempfile::tempdir().unwrap();
+            let write = |name: &str, text: &str| fs::write(dir.path().join(name), text).unwrap();
+            write("tri.mtl", "newmtl red\nKd 1 0 0\n");
+            write(
+                "tri.obj",
+                "mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nusemtl red\nf 1//1 2//1 3//1\n",
+            );
+            write("ball.obj", "S 0 0 0 1\nP 0 5 0 1 1 1\n");
+            write("bad.obj", "v 0 x 0\n");
+            Folder(dir)
+        }
+
+        fn path(&self) -> std::path::PathBuf {
+            self.0.path().join("s.toml")
+        }
+
+        fn parse(&self, text: &str) -> Result<LoadedScene, SceneError> {
+            parse_toml(text.as_bytes(), &self.path())
+        }
+
+        fn error(&self, text: &str) -> String {
+            let message = self.parse(text).unwrap_err().to_string();
+            message.replace(&self.0.path().display().to_string(), "DIR")
+        }
+    }
+
+    #[test]
+    fn every_key_is_read() {
+        let folder = Folder::new();
+        let loaded = folder
+            .parse(
+                r#"
+[camera]
+look_from = [1, 2, 3]
+look_to = [0, 0.5, 0]
+up = [0, 0, 1]
+fov = 35.5
+width = 32
+height = 24
+
+[render]
+mode = "normal"
+depth = 7
+spp = 9
+
+[[mesh]]
+file = "tri.obj"
+
+[[mesh]]
+file = "tri.obj"
+material = "glass"
+transform = { translate = [10, 0, 0], rotate = [0, 0, 90], scale = 2 }
+
+[[mesh]]
+file = "tri.obj"
+[mesh.transform]
+scale = [1, 3, 1]
+
+[[sphere]]
+center = [0, 1, 0]
+radius = 0.5
+material = "glass"
+
+[[sphere]]
+center = [0, 0, 0]
+radius = 0
+
+[[light]]
+position = [0, 9, 0]
+intensity = 0.5
+
+[[light]]
+position = [1, 9, 0]
+intensity = [1, 0.5, 0.25]
+
+[materials.glass]
+Ka = 0.1
+Kd = [0.1, 0.2, 0.3]
+Ks = [1, 1, 1]
+Ke = [0, 0, 2]
+Ns = 64
+Ni = 1.5
+d = 0.25
+al = [0.1, 0.2, 0.7]
+
+[materials.plain]
+"#,
+            )
+            .unwrap();
+        let o = loaded.options;
+        assert_eq!(o.look_from, Some(Vec3::new(1.0, 2.0, 3.0)));
+        assert_eq!(o.look_to, Some(Vec3::new(0.0, 0.5, 0.0)));
+        assert_eq!(o.up, Some(Vec3::Z));
+        assert_eq!(o.fov_degrees, Some(35.5));
+        assert_eq!((o.width, o.height), (Some(32), Some(24)));
+        assert_eq!((o.mode, o.depth), (Some(Mode::Normal), Some(7)));
+        assert_eq!(o.samples_per_pixel, Some(9));
+
+        let d = loaded.description;
+        let names: Vec<&str> = d.materials.iter().map(|m| m.name.as_str()).collect();
+        // TOML materials in file order, then the first and third mesh's own, then the
+        // default material of the sphere that names none.
+        assert_eq!(names, ["glass", "plain", "red", "red", "default"]);
+        let glass = &d.materials[0];
+        assert_eq!(glass.ambient, Vec3::splat(0.1));
+        assert_eq!(glass.diffuse, Vec3::new(0.1, 0.2, 0.3));
+        assert_eq!(glass.specular, Vec3::ONE);
+        assert_eq!(glass.emission, Vec3::new(0.0, 0.0, 2.0));
+        assert_eq!(
+            (glass.shininess, glass.ior, glass.opacity),
+            (64.0, 1.5, 0.25)
+        );
+        assert_eq!(glass.albedo, [0.1, 0.2, 0.7]);
+        assert_eq!(d.materials[1], Material::named("plain"));
+
+        let material_ids: Vec<u32> = d.triangles.iter().map(|t| t.material.0).collect();
+        assert_eq!(material_ids, [2, 0, 3]);
+        // Mesh 2: scaled by 2, turned 90 degrees about z (x -> y), moved by +10 x.
+        let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+        assert!(close(d.positions[4], Vec3::new(10.0, 2.0, 0.0)));
+        assert!(close(d.positions[5], Vec3::new(8.0, 0.0, 0.0)));
+        assert!(close(d.positions[8], Vec3::new(0.0, 3.0, 0.0)));
+        assert_eq!(d.triangles[1].positions, [3, 4, 5]);
+        assert!(close(d.normals[1].normalize(), Vec3::Z));
+
+        assert_eq!(d.spheres.len(), 2);
+        assert_eq!(d.spheres[0].material, MaterialId(0));
+        assert_eq!(
+            (d.spheres[1].radius, d.spheres[1].material),
+            (0.0, MaterialId(4))
+        );
+        assert_eq!(d.lights[0].intensity, Vec3::splat(0.5));
+        assert_eq!(d.lights[1].intensity, Vec3::new(1.0, 0.5, 0.25));
+        assert_eq!(d.lights[1].position, Vec3::new(1.0, 9.0, 0.0));
+    }
+
+    #[test]
+    fn an_empty_file_is_an_empty_scene_with_no_settings() {
+        let loaded = Folder::new().parse("# nothing\n").unwrap();
+        assert_eq!(loaded.options, PartialOptions::default());
+        assert!(loaded.description.triangles.is_empty());
+    }
+
+    #[test]
+    fn obj_spheres_and_lights_follow_the_transform() {
+        let folder = Folder::new();
+        let text =
+            "[[mesh]]\nfile = \"ball.obj\"\ntransform = { scale = -3, translate = [0, 1, 0] }\n";
+        let d = folder.parse(text).unwrap().description;
+        assert_eq!(d.spheres[0].radius, 3.0);
+        assert_eq!(d.spheres[0].center, Vec3::Y);
+        assert_eq!(d.lights[0].position, Vec3::new(0.0, -14.0, 0.0));
+        assert_eq!(
+            folder.error("[[mesh]]\nfile = \"ball.obj\"\ntransform = { scale = [1, 2, 1] }\n"),
+            "DIR/s.toml:3: mesh.transform.scale: spheres need the same scale on every axis"
+        );
+    }
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        let folder = Folder::new();
+        let cases = [
+            (
+                "[camera]\nfov = \"wide\"\n",
+                "DIR/s.toml:2: camera.fov: invalid type: string \"wide\", expected f32",
+            ),
+            (
+                "[camera]\nzoom = 2\n",
+                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`",
+            ),
+            (
+                "title = \"x\"\n",
+                "DIR/s.toml:1: title: unknown field `title`, expected one of `camera`, `render`, `mesh`, `sphere`, `light`, `materials`",
+            ),
+            (
+                "[camera]\nlook_from = [1, 2]\n",
+                "DIR/s.toml:2: camera.look_from: invalid length 2, expected an array of length 3",
+            ),
+            (
+                "[camera]\nlook_to = [1, nan, 2]\n",
+                "DIR/s.toml:2: camera.look_to: NaN is not a finite number",
+            ),
+            (
+                "[camera]\nwidth = -4\n",
+                "DIR/s.toml:2: camera.width: invalid value: integer `-4`, expected u32",
+            ),
+            (
+                "[camera]\nwidth = 0\n",
+                "DIR/s.toml:2: camera.width: 0 is not in 1..=65536",
+            ),
+            (
+                "[camera]\nheight = 70000\n",
+                "DIR/s.toml:2: camera.height: 70000 is not in 1..=65536",
+            ),
+            (
+                "[camera]\nwidth = 60000\nheight = 60000\n",
+                "DIR/s.toml:2: camera.width: 60000x60000 has more than 268435456 pixels",
+            ),
+            (
+                "[camera]\nfov = 180\n",
+                "DIR/s.toml:2: camera.fov: 180 is not strictly between 0 and 180",
+            ),
+            (
+                "[camera]\n\nlook_from = [0, 0, -1]\n",
+                "DIR/s.toml:3: camera.look_from: the camera cannot look at its own position",
+            ),
+            (
+                "[camera]\nup = [0, 0, 0]\n",
+                "DIR/s.toml:2: camera.up: components must be finite and not all zero",
+            ),
+            (
+                "[render]\ndepth = 65\n",
+                "DIR/s.toml:2: render.depth: 65 is not in 1..=64",
+            ),
+            (
+                "[render]\nspp = 0\n",
+                "DIR/s.toml:2: render.spp: 0 is not in 1..=65536",
+            ),
+            (
+                "[render]\nmode = \"fast\"\n",
+                "DIR/s.toml:2: render.mode: unknown variant `fast`, expected one of `full`, `depth`, `normal`",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\n",
+                "DIR/s.toml:1: sphere: missing field `radius`",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\nradius = -1\n",
+                "DIR/s.toml:3: sphere.radius: -1 is negative",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\nradius = inf\n",
+                "DIR/s.toml:3: sphere.radius: inf is not a finite number",
+            ),
+            (
+                "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"gold\"\n",
+                "DIR/s.toml:4: sphere.material: unknown material 'gold'",
+            ),
+            (
+                "[[light]]\nposition = [0, 0, 0]\nintensity = \"bright\"\n",
+                "DIR/s.toml:3: light.intensity: a number or an array of three numbers",
+            ),
+            (
+                "[materials.m]\nKd = [1, 1]\n",
+                "DIR/s.toml:2: materials.m.Kd: a number or an array of three numbers",
+            ),
+            (
+                "[materials.m]\nTr = 0.5\n",
+                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`",
+            ),
+            (
+                "[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n",
+                "DIR/s.toml:3: mesh.material: unknown material 'gold'",
+            ),
+            (
+                "[[mesh]]\nfile = \"missing.obj\"\n",
+                "DIR/s.toml:2: mesh.file: DIR/missing.obj: No such file or directory (os error 2)",
+            ),
+            (
+                "[[mesh]]\nfile = \"bad.obj\"\n",
+                "DIR/s.toml:2: mesh.file: DIR/bad.obj:1: invalid number 'x'",
+            ),
+            (
+                "[[mesh]]\nfile = \"other.toml\"\n",
+                "DIR/s.toml:2: mesh.file: 'other.toml' is a scene file, not a mesh (OBJ or PLY)",
+            ),
+            (
+                "[[mesh]]\nmaterial = \"m\"\n",
+                "DIR/s.toml:1: mesh: missing field `file`",
+            ),
+            (
+                "[[mesh]]\nfile = \"tri.obj\"\ntransform = { scale = [1, 0, 1] }\n",
+                "DIR/s.toml:3: mesh.transform.scale: scale components must not be zero",
+            ),
+            (
+                "[[mesh]]\nfile = \"tri.obj\"\ntransform = { shear = 1 }\n",
+                "DIR/s.toml:3: mesh.transform.shear: unknown field `shear`, expected one of `translate`, `rotate`, `scale`",
+            ),
+            ("[camera\n", "DIR/s.toml:1: unclosed table, expected `]`"),
+            ("a = 1\na = 2\n", "DIR/s.toml:2: duplicate key"),
+        ];
+        for (text, expected) in cases {
+            assert_eq!(folder.error(text), expected, "for {text:?}");
+        }
+        assert_eq!(
+            parse_toml(b"a = 1\n\xff", &folder.path())
+                .unwrap_err()
+                .to_string()
+                .replace(&folder.0.path().display().to_string(), "DIR"),
+            "DIR/s.toml:2: invalid UTF-8"
+        );
+    }
+
+    #[test]
+    fn a_material_override_silences_the_mesh_reader_on_materials() {
+        let folder = Folder::new();
+        fs::write(
+            folder.0.path().join("plain.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let without = folder.parse("[[mesh]]\nfile = \"plain.obj\"\n").unwrap();
+        assert_eq!(without.description.warnings.len(), 1);
+        let with = folder
+            .parse("[materials.m]\n[[mesh]]\nfile = \"plain.obj\"\nmaterial = \"m\"\n")
+            .unwrap();
+        assert!(with.description.warnings.is_empty());
+        assert_eq!(with.description.materials.len(), 1);
+    }
+}

@@ -26,14 +26,7 @@ impl RayWorkload {
     /// Generates the rays for `options`' camera (tracing the primary rays once to find
     /// where the shadow rays start).
     pub fn new(scene: &Scene, options: &RenderOptions) -> RayWorkload {
-        let camera = Camera::with_up(
-            options.look_from,
-            options.look_to,
-            options.up,
-            options.fov_degrees,
-            options.width,
-            options.height,
-        );
+        let camera = Camera::for_options(options);
         let primary: Vec<Ray> = (0..options.height)
             .flat_map(|row| (0..options.width).map(move |column| camera.pixel_ray(column, row)))
             .collect();

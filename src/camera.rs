@@ -2,6 +2,7 @@
 //! pixels, rays through pixel centres, row 0 at the top.
 
 use crate::math::{Float, Ray, Vec3, try_unit};
+use crate::options::RenderOptions;
 
 /// A pinhole camera placed by LookAt.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,6 +35,18 @@ impl Camera {
         height: u32,
     ) -> Camera {
         Camera::with_up(look_from, look_to, Vec3::Y, fov_degrees, width, height)
+    }
+
+    /// The camera `options` describe (position, target, up, field of view, size).
+    pub fn for_options(options: &RenderOptions) -> Camera {
+        Camera::with_up(
+            options.look_from,
+            options.look_to,
+            options.up,
+            options.fov_degrees,
+            options.width,
+            options.height,
+        )
     }
 
     /// As [`Camera::new`] with world up `up` (any non-zero length) instead of +y.

@@ -31,14 +31,7 @@ pub fn render_with_progress(
     options: &RenderOptions,
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts) {
-    let camera = Camera::with_up(
-        options.look_from,
-        options.look_to,
-        options.up,
-        options.fov_degrees,
-        options.width,
-        options.height,
-    );
+    let camera = Camera::for_options(options);
     let sampler = PixelSampler::new(options.samples_per_pixel_in_mode());
     let width = options.width as usize;
     let mut pixels = vec![Vec3::ZERO; width * options.height as usize];

@@ -17,34 +17,14 @@ use raytracer::{
     BvhParams, Film, Material, Mode, PointLight, RenderOptions, Scene, SceneDescription, render,
     scene,
 };
-use serde::Deserialize;
 
 const MODES: [Mode; 3] = [Mode::Depth, Mode::Normal, Mode::Full];
-
-#[derive(Deserialize)]
-struct Cases {
-    case: Vec<Case>,
-}
-
-/// The fields of a reference case that place the camera.
-#[derive(Deserialize)]
-struct Case {
-    name: String,
-    scene: String,
-    width: u32,
-    height: u32,
-    fov_degrees: f32,
-    look_from: [f32; 3],
-    look_to: [f32; 3],
-    depth: u32,
-}
 
 #[test]
 fn reference_scenes_give_finite_pixels_in_every_mode() {
     let dir = support::reference_dir();
-    let text = std::fs::read_to_string(dir.join("cases.toml")).unwrap();
-    let cases: Cases = toml::from_str(&text).unwrap();
-    for case in &cases.case {
+    let cases = support::reference_cases();
+    for case in &cases {
         let description = scene::load_obj(&dir.join(&case.scene)).unwrap();
         let scene = Scene::build(description, &BvhParams::default());
         for mode in MODES {

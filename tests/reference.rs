@@ -9,31 +9,11 @@ use std::path::Path;
 
 use raytracer::math::Vec3;
 use raytracer::{BvhParams, Image, Mode, RenderOptions, Scene, render, scene};
-use serde::Deserialize;
-
-#[derive(Deserialize)]
-struct Cases {
-    case: Vec<Case>,
-}
-
-#[derive(Deserialize)]
-struct Case {
-    name: String,
-    scene: String,
-    expected: String,
-    width: u32,
-    height: u32,
-    fov_degrees: f32,
-    look_from: [f32; 3],
-    look_to: [f32; 3],
-    depth: u32,
-    mode: String,
-}
 
 const PASS_FRACTION: f64 = 0.99;
 const MAX_DISTANCE: f64 = 2.0;
 
-fn render_case(dir: &Path, case: &Case) -> Image {
+fn render_case(dir: &Path, case: &support::ReferenceCase) -> Image {
     let mode = match case.mode.as_str() {
         "depth" => Mode::Depth,
         "normal" => Mode::Normal,
@@ -86,12 +66,11 @@ fn compare(got: &Image, expected: &[u8]) -> (f64, Image) {
 #[test]
 fn every_reference_case_matches_its_expected_image() {
     let dir = support::reference_dir();
-    let text = std::fs::read_to_string(dir.join("cases.toml")).unwrap();
-    let cases: Cases = toml::from_str(&text).unwrap();
-    assert_eq!(cases.case.len(), 20, "the suite has 20 cases");
+    let cases = support::reference_cases();
+    assert_eq!(cases.len(), 20, "the suite has 20 cases");
     let out_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/reference-failures");
     let mut failures = Vec::new();
-    for case in &cases.case {
+    for case in &cases {
         let got = render_case(&dir, case);
         let (width, height, expected) = support::read_png(&dir.join(&case.expected));
         assert_eq!(

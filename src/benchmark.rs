@@ -59,6 +59,21 @@ pub fn trace_closest(scene: &Scene, rays: &[Ray]) -> Vec<Option<Hit>> {
     hits
 }
 
+/// The primitive each of `rays` hits first (`u32::MAX` for a miss), in parallel:
+/// closest-hit queries without shading, as a ray-query library such as Embree
+/// answers them (its Python binding returns an array of primitive ids).
+pub fn trace_closest_primitives(scene: &Scene, rays: &[Ray]) -> Vec<u32> {
+    let mut ids = Vec::with_capacity(rays.len());
+    rays.par_iter()
+        .map(|ray| {
+            scene
+                .intersect_primitive(ray)
+                .map_or(u32::MAX, |(prim, _)| prim)
+        })
+        .collect_into_vec(&mut ids);
+    ids
+}
+
 /// How many of `rays` are blocked before their distance, in parallel.
 pub fn count_occluded(scene: &Scene, rays: &[(Ray, Float)]) -> usize {
     rays.par_iter()
@@ -69,11 +84,22 @@ pub fn count_occluded(scene: &Scene, rays: &[(Ray, Float)]) -> usize {
 /// Runs `f` `repeat` times (at least once) and returns its last result and the median
 /// wall time in seconds.
 pub fn median_time<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+    median_time_with_input(repeat, || (), |()| f())
+}
+
+/// [`median_time`] of `f(input())`, timing only `f`: `input` prepares what `f`
+/// consumes (a copy of a scene description to build, say) outside the clock.
+pub fn median_time_with_input<I, T>(
+    repeat: usize,
+    mut input: impl FnMut() -> I,
+    mut f: impl FnMut(I) -> T,
+) -> (T, f64) {
     let mut times = Vec::with_capacity(repeat.max(1));
     let mut result = None;
     for _ in 0..repeat.max(1) {
+        let prepared = input();
         let start = Instant::now();
-        result = Some(f());
+        result = Some(f(prepared));
         times.push(start.elapsed().as_secs_f64());
     }
     times.sort_by(f64::total_cmp);

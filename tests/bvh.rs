@@ -74,8 +74,10 @@ fn assert_bvh_matches_linear(scene: &Scene, rays: &[Ray]) {
         match (fast, slow) {
             (Some(a), Some(b)) => {
                 hits += 1;
+                // Both run the same kernel arithmetic (the SIMD leaves lane for lane),
+                // so the distances agree to the bit unless the BVH culled a box wrongly.
                 assert!(
-                    (a.t - b.t).abs() <= 1e-5 * a.t.max(1.0),
+                    a.t == b.t,
                     "closest hit differs for {ray:?}: {} vs {}",
                     a.t,
                     b.t

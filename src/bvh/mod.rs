@@ -8,10 +8,12 @@
 mod build;
 mod node;
 mod traverse;
+mod wide;
 
 pub use build::BvhParams;
 pub use node::BvhNode;
 pub use traverse::RayQuery;
+pub use wide::{WideBvh, WideNode};
 
 use crate::math::Aabb;
 

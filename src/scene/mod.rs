@@ -25,10 +25,10 @@ pub(crate) use file::read_file;
 
 use rayon::prelude::*;
 
-use crate::bvh::{Bvh, BvhParams, RayQuery};
+use crate::bvh::{Bvh, BvhParams, RayQuery, WideBvh};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
-use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
+use crate::shapes::{LANES, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
 /// built yet. Shapes, lights and materials keep file order.
@@ -102,6 +102,11 @@ pub struct Scene {
     /// The point lights.
     pub lights: Vec<PointLight>,
     bvh: Bvh,
+    /// The BVH that rays traverse: `bvh` collapsed to eight children per node, its
+    /// leaves ranges of `packets`.
+    wide: WideBvh,
+    /// Leaf primitives grouped by four for SIMD tests; see [`SPHERE_PACKET`].
+    packets: Vec<TrianglePacket>,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
 }
@@ -253,6 +258,7 @@ impl Scene {
                 vertex_normals: vertex_normals_index,
             });
         }
+        let (wide, packets) = packetize(&bvh, &shapes);
         Scene {
             shapes,
             shading,
@@ -260,6 +266,8 @@ impl Scene {
             materials,
             lights,
             bvh,
+            wide,
+            packets,
             warnings,
         }
     }
@@ -282,23 +290,45 @@ impl Scene {
     /// The closest hit along `ray`, if any.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let (prim, hit) = self.intersect_primitive(ray)?;
+        Some(self.hit_details(ray, prim, hit))
+    }
+
+    /// The first phase of [`Scene::intersect`]: the closest primitive hit (its index
+    /// in leaf order) with distance and barycentric coordinates, and no shading data.
+    /// This is what ray-query libraries such as Embree return, so benchmarks compare
+    /// against it.
+    #[inline]
+    pub fn intersect_primitive(&self, ray: &Ray) -> Option<(u32, PrimHit)> {
         let query = RayQuery::new(ray);
+        let lanes = PacketRay::new(ray);
         let mut closest: Option<(u32, PrimHit)> = None;
-        self.bvh.intersect(&query, Float::INFINITY, |prim, t_max| {
-            let hit = self.shape(prim).intersect(ray, t_max)?;
-            closest = Some((prim, hit));
-            Some(hit.t)
-        });
-        closest.map(|(prim, hit)| self.hit_details(ray, prim, hit))
+        let mut t_max = Float::INFINITY;
+        self.wide
+            .walk_ordered(&query, &mut t_max, |first, count, t_max| {
+                for packet in &self.packets[first as usize..(first + count) as usize] {
+                    if let Some((prim, hit)) = self.intersect_packet(packet, ray, &lanes, *t_max) {
+                        *t_max = hit.t;
+                        closest = Some((prim, hit));
+                    }
+                }
+                false
+            });
+        closest
     }
 
     /// Whether anything blocks `ray` before distance `t_max`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
         let query = RayQuery::new(ray);
-        self.bvh.occluded(&query, t_max, |prim, t_max| {
-            self.shape(prim).intersect(ray, t_max).is_some()
-        })
+        let lanes = PacketRay::new(ray);
+        let mut t_max = t_max;
+        self.wide
+            .walk_any(&query, &mut t_max, |first, count, t_max| {
+                self.packets[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|packet| self.intersect_packet(packet, ray, &lanes, *t_max).is_some())
+            })
     }
 
     /// The closest hit by testing every primitive: the slow reference for tests.
@@ -312,6 +342,35 @@ impl Scene {
             }
         }
         closest.map(|(prim, hit)| self.hit_details(ray, prim, hit))
+    }
+
+    /// The nearest hit in one packet, as `(primitive, hit)`.
+    #[inline(always)]
+    fn intersect_packet(
+        &self,
+        packet: &TrianglePacket,
+        ray: &Ray,
+        lanes: &PacketRay,
+        t_max: Float,
+    ) -> Option<(u32, PrimHit)> {
+        if packet.prims[0] & SPHERE_PACKET == 0 {
+            let (lane, hit) = packet.intersect(lanes, t_max)?;
+            return Some((packet.prims[lane], hit));
+        }
+        // Spheres are rare (none in a mesh): tested one by one, in lane order.
+        let mut nearest = None;
+        let mut t_max = t_max;
+        for &prim in &packet.prims {
+            if prim == NO_SPHERE {
+                break;
+            }
+            let prim = prim & !SPHERE_PACKET;
+            if let Some(hit) = self.shape(prim).intersect(ray, t_max) {
+                t_max = hit.t;
+                nearest = Some((prim, hit));
+            }
+        }
+        nearest
     }
 
     #[inline(always)]
@@ -352,4 +411,65 @@ impl Scene {
             material: shading.material,
         }
     }
+}
+
+/// Flag in [`TrianglePacket::prims`] of a packet that holds spheres instead of
+/// triangles: its geometry lanes are zero (they never hit), and each flagged lane
+/// names a sphere to test with the scalar kernel.
+const SPHERE_PACKET: u32 = 1 << 31;
+/// An unused lane of a sphere packet.
+const NO_SPHERE: u32 = u32::MAX;
+
+/// Collapses `bvh` into the wide BVH whose leaves are ranges of packets, making the
+/// packets of each leaf from its primitives (triangles four by four, spheres apart).
+#[inline(never)]
+fn packetize(bvh: &Bvh, shapes: &[Shape]) -> (WideBvh, Vec<TrianglePacket>) {
+    assert!(
+        shapes.len() < SPHERE_PACKET as usize,
+        "too many primitives for packet indices"
+    );
+    let mut packets: Vec<TrianglePacket> = Vec::with_capacity(shapes.len() / 3 + 1);
+    let mut triangles: Vec<(u32, Triangle)> = Vec::with_capacity(LANES);
+    let mut spheres: Vec<u32> = Vec::with_capacity(LANES);
+    let wide = WideBvh::collapse(bvh, LANES as u32, |first, count| {
+        let start = packets.len();
+        for prim in first..first + count {
+            match shapes[prim as usize] {
+                Shape::Triangle(tri) => {
+                    triangles.push((prim, tri));
+                    if triangles.len() == LANES {
+                        packets.push(TrianglePacket::new(&triangles));
+                        triangles.clear();
+                    }
+                }
+                Shape::Sphere(_) => {
+                    spheres.push(prim | SPHERE_PACKET);
+                    if spheres.len() == LANES {
+                        packets.push(sphere_packet(&spheres));
+                        spheres.clear();
+                    }
+                }
+            }
+        }
+        if !triangles.is_empty() {
+            packets.push(TrianglePacket::new(&triangles));
+            triangles.clear();
+        }
+        if !spheres.is_empty() {
+            packets.push(sphere_packet(&spheres));
+            spheres.clear();
+        }
+        (start as u32, (packets.len() - start) as u32)
+    });
+    (wide, packets)
+}
+
+/// A packet of one to four flagged sphere indices.
+fn sphere_packet(spheres: &[u32]) -> TrianglePacket {
+    // Zero triangles never hit; only the indices matter.
+    let zero = Triangle::new(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+    let mut packet = TrianglePacket::new(&[(0, zero)]);
+    packet.prims = [NO_SPHERE; LANES];
+    packet.prims[..spheres.len()].copy_from_slice(spheres);
+    packet
 }

@@ -4,9 +4,11 @@
 //! hit ([`PrimHit`]); points, normals and materials are rebuilt once, for the closest
 //! hit, by the scene (two-phase hits, as pbrt's `TriangleIntersection`).
 
+mod packet;
 mod sphere;
 mod triangle;
 
+pub use packet::{LANES, PacketRay, TrianglePacket};
 pub use sphere::Sphere;
 pub use triangle::Triangle;
 

@@ -1,0 +1,476 @@
+//! An 8-wide BVH collapsed from the binary one, for traversal: each node holds the
+//! boxes of up to eight children in structure-of-arrays form, so one ray meets all
+//! eight boxes in a handful of 8-lane SIMD operations (the layout of Embree's BVH8 and
+//! obvhs's `Bvh8`/tinybvh's `BVH8_CPU`, built the same way: by pulling the largest
+//! grandchildren of a binary node up into it).
+//!
+//! Like [`Bvh`], the wide BVH knows nothing of geometry: a leaf is a range of "items"
+//! that the caller created for a range of primitives (the scene turns them into SIMD
+//! triangle packets), and traversal hands that range to a closure.
+
+use std::mem::MaybeUninit;
+
+use wide::f32x8;
+
+use super::{Bvh, MAX_DEPTH, RayQuery};
+use crate::math::{Aabb, Float, Vec3};
+
+/// Children per node: one 256-bit AVX register of `f32`.
+pub const WIDTH: usize = 8;
+
+/// Slack on the exit distance of the slab test, as in the binary traversal.
+const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.5);
+
+/// One node: eight child boxes as planes `[min x, max x, min y, max y, min z, max z]`
+/// of eight lanes each, then what each child is. 256 bytes, four cache lines.
+///
+/// An unused slot has an inverted box (`min = +inf`, `max = -inf`), which the slab test
+/// rejects for every ray, so traversal never needs to know how many slots are used.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct WideNode {
+    /// Box planes of the children, lane `i` belonging to child `i`.
+    pub planes: [f32x8; 6],
+    /// Interior child: index of its node. Leaf child: index of its first item.
+    pub child: [u32; WIDTH],
+    /// Interior child or unused slot: 0. Leaf child: number of items, at least 1.
+    pub item_count: [u32; WIDTH],
+}
+
+const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
+
+impl WideNode {
+    const EMPTY: WideNode = WideNode {
+        planes: [
+            f32x8::splat(Float::INFINITY),
+            f32x8::splat(Float::NEG_INFINITY),
+            f32x8::splat(Float::INFINITY),
+            f32x8::splat(Float::NEG_INFINITY),
+            f32x8::splat(Float::INFINITY),
+            f32x8::splat(Float::NEG_INFINITY),
+        ],
+        child: [0; WIDTH],
+        item_count: [0; WIDTH],
+    };
+
+    /// The box of child slot `slot` (inverted for an unused slot).
+    pub fn child_bounds(&self, slot: usize) -> Aabb {
+        let plane = |p: usize| self.planes[p].as_array()[slot];
+        Aabb {
+            min: Vec3::new(plane(0), plane(2), plane(4)),
+            max: Vec3::new(plane(1), plane(3), plane(5)),
+        }
+    }
+
+    fn set_child_bounds(&mut self, slot: usize, bounds: Aabb) {
+        let values = [
+            bounds.min.x,
+            bounds.max.x,
+            bounds.min.y,
+            bounds.max.y,
+            bounds.min.z,
+            bounds.max.z,
+        ];
+        for (plane, value) in self.planes.iter_mut().zip(values) {
+            plane.as_mut_array()[slot] = value;
+        }
+    }
+}
+
+/// The wide BVH: node 0 is the root (when there is any primitive).
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    /// All nodes.
+    pub nodes: Vec<WideNode>,
+}
+
+/// Most entries the traversal stack can hold: at most `WIDTH - 1` pending siblings per
+/// level, and the wide tree is no deeper than the binary one it came from.
+const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+
+/// What a slot or stack entry points at: a node (`item_count == 0`) or a leaf's items.
+#[derive(Clone, Copy, Debug)]
+struct ChildRef {
+    index: u32,
+    item_count: u32,
+}
+
+impl WideBvh {
+    /// Collapses `bvh` into a wide BVH. Every binary subtree of at most
+    /// `max_leaf_prims` primitives, and every binary leaf, becomes one wide leaf:
+    /// `make_leaf(first_prim, prim_count)` receives its primitive range (leaf order)
+    /// and returns the range of items it made for them, `(first_item, item_count)`
+    /// with `item_count >= 1`.
+    pub fn collapse<F>(bvh: &Bvh, max_leaf_prims: u32, mut make_leaf: F) -> WideBvh
+    where
+        F: FnMut(u32, u32) -> (u32, u32),
+    {
+        let binary = &bvh.nodes;
+        let Some(root) = binary.first() else {
+            return WideBvh::default();
+        };
+        // Primitive range of every binary subtree. The builder appends children after
+        // their parent and partitions primitives in place, so a backwards sweep sees
+        // children first and every subtree's primitives are contiguous.
+        let mut ranges = vec![(0u32, 0u32); binary.len()];
+        for index in (0..binary.len()).rev() {
+            let node = &binary[index];
+            ranges[index] = if node.is_leaf() {
+                (node.first_index, node.prim_count)
+            } else {
+                let first = node.first_index as usize;
+                let (left, right) = (ranges[first], ranges[first + 1]);
+                debug_assert_eq!(left.0 + left.1, right.0, "subtree ranges not contiguous");
+                (left.0, left.1 + right.1)
+            };
+        }
+        let becomes_leaf =
+            |index: usize| binary[index].is_leaf() || ranges[index].1 <= max_leaf_prims;
+
+        let mut nodes = vec![WideNode::EMPTY];
+        if becomes_leaf(0) {
+            let (first, count) = ranges[0];
+            let (item, items) = make_leaf(first, count);
+            nodes[0].child[0] = item;
+            nodes[0].item_count[0] = items;
+            nodes[0].set_child_bounds(0, root.bounds());
+            return WideBvh { nodes };
+        }
+        // (binary interior node, wide node to fill from it)
+        let mut pending = vec![(0usize, 0usize)];
+        let mut slots: Vec<usize> = Vec::with_capacity(WIDTH);
+        while let Some((binary_index, wide_index)) = pending.pop() {
+            // Open the binary node, then keep opening the largest opened child that
+            // is still interior until eight slots are used.
+            let first = binary[binary_index].first_index as usize;
+            slots.clear();
+            slots.extend([first, first + 1]);
+            while slots.len() < WIDTH {
+                let widest = slots
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &s)| !becomes_leaf(s))
+                    .max_by(|a, b| {
+                        let area = |s: usize| binary[s].bounds().half_area();
+                        area(*a.1).total_cmp(&area(*b.1))
+                    })
+                    .map(|(position, _)| position);
+                let Some(position) = widest else {
+                    break;
+                };
+                let opened = slots.swap_remove(position);
+                let first = binary[opened].first_index as usize;
+                slots.extend([first, first + 1]);
+            }
+            for (slot, &child) in slots.iter().enumerate() {
+                nodes[wide_index].set_child_bounds(slot, binary[child].bounds());
+                if becomes_leaf(child) {
+                    let (first, count) = ranges[child];
+                    let (item, items) = make_leaf(first, count);
+                    debug_assert!(items >= 1);
+                    nodes[wide_index].child[slot] = item;
+                    nodes[wide_index].item_count[slot] = items;
+                } else {
+                    nodes[wide_index].child[slot] = nodes.len() as u32;
+                    pending.push((child, nodes.len()));
+                    nodes.push(WideNode::EMPTY);
+                }
+            }
+        }
+        WideBvh { nodes }
+    }
+
+    /// Visits the leaves the ray may hit within `t_max`, nearest box first (by entry
+    /// distance), skipping any whose box starts beyond the current `t_max`.
+    /// `leaf(first_item, item_count, t_max)` may shrink `t_max` and returns `true`
+    /// to stop the walk; returns whether it stopped.
+    #[inline(always)]
+    pub fn walk_ordered<F>(&self, ray: &RayQuery, t_max: &mut Float, leaf: F) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        self.walk::<true, F>(ray, t_max, leaf)
+    }
+
+    /// As [`WideBvh::walk_ordered`] in no particular order, for any-hit queries, where
+    /// the first blocker found ends the walk and sorting would be wasted.
+    #[inline(always)]
+    pub fn walk_any<F>(&self, ray: &RayQuery, t_max: &mut Float, leaf: F) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        self.walk::<false, F>(ray, t_max, leaf)
+    }
+
+    #[inline(always)]
+    fn walk<const ORDERED: bool, F>(&self, ray: &RayQuery, t_max: &mut Float, mut leaf: F) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let slabs = WideRay::new(ray);
+        // Uninitialised: zeroing 10 KB per ray would cost more than many node visits.
+        let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
+        let mut stack_len = 0usize;
+        let mut current = ChildRef {
+            index: 0,
+            item_count: 0,
+        };
+        loop {
+            if current.item_count > 0 {
+                if leaf(current.index, current.item_count, t_max) {
+                    return true;
+                }
+            } else {
+                let node = &self.nodes[current.index as usize];
+                let (mut hits, t_enter) = slabs.hit_children(node, *t_max);
+                if hits != 0 {
+                    let child = |slot: usize| ChildRef {
+                        index: node.child[slot],
+                        item_count: node.item_count[slot],
+                    };
+                    let first = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    if hits == 0 {
+                        current = child(first);
+                        continue;
+                    }
+                    let t_enter = t_enter.as_array();
+                    let second = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    if hits == 0 {
+                        // Two children, the most common case after one: no sort.
+                        let (near, far) = if !ORDERED || t_enter[first] <= t_enter[second] {
+                            (first, second)
+                        } else {
+                            (second, first)
+                        };
+                        debug_assert!(stack_len < STACK_SIZE);
+                        stack[stack_len].write((child(far), t_enter[far]));
+                        stack_len += 1;
+                        current = child(near);
+                        continue;
+                    }
+                    // Three or more: push all, then, if ordered, sort the pushed run
+                    // so that the nearest is on top, and take it as the current node.
+                    let run_start = stack_len;
+                    hits |= (1 << first) | (1 << second);
+                    while hits != 0 {
+                        let slot = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        debug_assert!(stack_len < STACK_SIZE);
+                        stack[stack_len].write((child(slot), t_enter[slot]));
+                        stack_len += 1;
+                    }
+                    if ORDERED {
+                        // SAFETY: entries `run_start..stack_len` were written just above.
+                        let run = unsafe {
+                            &mut *(&mut stack[run_start..stack_len] as *mut [_]
+                                as *mut [(ChildRef, Float)])
+                        };
+                        sort_far_to_near(run);
+                    }
+                    stack_len -= 1;
+                    // SAFETY: written above (at least three entries were pushed).
+                    current = unsafe { stack[stack_len].assume_init() }.0;
+                    continue;
+                }
+            }
+            // Pop the next pending child that can still hold a closer hit.
+            loop {
+                if stack_len == 0 {
+                    return false;
+                }
+                stack_len -= 1;
+                // SAFETY: every entry below `stack_len` was written before.
+                let (next, t_entry) = unsafe { stack[stack_len].assume_init() };
+                if !ORDERED || t_entry < *t_max {
+                    current = next;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// Insertion sort by decreasing entry distance: at most eight entries, mostly two or
+/// three, where it beats any general sort.
+#[inline(always)]
+fn sort_far_to_near(run: &mut [(ChildRef, Float)]) {
+    for i in 1..run.len() {
+        let entry = run[i];
+        let mut j = i;
+        while j > 0 && run[j - 1].1 < entry.1 {
+            run[j] = run[j - 1];
+            j -= 1;
+        }
+        run[j] = entry;
+    }
+}
+
+/// A ray set up for eight-box slab tests: origin and reciprocal direction in every
+/// lane, and for each axis which plane the ray meets first.
+struct WideRay {
+    origin: [f32x8; 3],
+    inv_dir: [f32x8; 3],
+    /// Index into [`WideNode::planes`] of the near plane of each axis (the far plane
+    /// is the other one of the pair).
+    near_plane: [usize; 3],
+}
+
+impl WideRay {
+    #[inline(always)]
+    fn new(ray: &RayQuery) -> WideRay {
+        let origin = ray.origin.to_array();
+        let inv_dir = ray.inv_dir.to_array();
+        WideRay {
+            origin: [0, 1, 2].map(|a| f32x8::splat(origin[a])),
+            inv_dir: [0, 1, 2].map(|a| f32x8::splat(inv_dir[a])),
+            near_plane: [0, 1, 2].map(|a| 2 * a + usize::from(inv_dir[a] < 0.0)),
+        }
+    }
+
+    /// Bit `i` set if the ray meets child `i`'s box within `[0, t_max)`, and each
+    /// child's entry distance. Taking each axis's near plane by the sign of the
+    /// direction (rather than min/max of both) makes inverted boxes miss.
+    #[inline(always)]
+    fn hit_children(&self, node: &WideNode, t_max: Float) -> (u32, f32x8) {
+        let mut t_enter = f32x8::ZERO;
+        let mut t_exit = f32x8::splat(Float::INFINITY);
+        for axis in 0..3 {
+            let near = self.near_plane[axis];
+            let far = near ^ 1;
+            // `(plane - origin) * inv_dir` rather than one fused `plane * inv_dir -
+            // origin * inv_dir`: the fused form is no faster here (measured) and loses
+            // precision to cancellation when the origin is far from the world origin.
+            let t_near = (node.planes[near] - self.origin[axis]) * self.inv_dir[axis];
+            let t_far = (node.planes[far] - self.origin[axis]) * self.inv_dir[axis];
+            t_enter = t_enter.fast_max(t_near);
+            t_exit = t_exit.fast_min(t_far);
+        }
+        let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
+        let hit = t_enter.simd_le(t_exit) & t_enter.simd_lt(f32x8::splat(t_max));
+        (hit.to_bitmask(), t_enter)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::BvhParams;
+    use rand::{Rng, SeedableRng};
+
+    fn random_boxes(count: usize, seed: u64) -> Vec<Aabb> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        (0..count)
+            .map(|_| {
+                let min = Vec3::new(
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-10.0..10.0),
+                );
+                let size = Vec3::new(rng.random_range(0.0..1.0), rng.random_range(0.0..1.0), 0.0);
+                Aabb {
+                    min,
+                    max: min + size,
+                }
+            })
+            .collect()
+    }
+
+    /// Collapses with one item per primitive and checks every invariant traversal
+    /// relies on: each node reached once, unused slots empty, each primitive in
+    /// exactly one leaf, leaves no bigger than asked unless the binary
+    /// leaf was, and every primitive inside the box of the slot that holds it.
+    fn check_collapse(count: usize, max_leaf_prims: u32, seed: u64) {
+        let boxes = random_boxes(count, seed);
+        let (bvh, order) = Bvh::build(&boxes, &BvhParams::default());
+        let leaf_order: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+        let mut leaves = Vec::new();
+        let wide = WideBvh::collapse(&bvh, max_leaf_prims, |first, count| {
+            leaves.push((first, count));
+            (first, count)
+        });
+        let mut prim_seen = vec![false; count];
+        let mut node_seen = vec![false; wide.nodes.len()];
+        let mut pending = vec![0usize];
+        while let Some(index) = pending.pop() {
+            assert!(
+                !std::mem::replace(&mut node_seen[index], true),
+                "node {index} twice"
+            );
+            let node = &wide.nodes[index];
+            for slot in 0..WIDTH {
+                let bounds = node.child_bounds(slot);
+                if bounds.min.x > bounds.max.x {
+                    assert_eq!(node.item_count[slot], 0, "unused slot {slot} with items");
+                    continue;
+                }
+                if node.item_count[slot] == 0 {
+                    let child = node.child[slot] as usize;
+                    for inner in 0..WIDTH {
+                        let b = wide.nodes[child].child_bounds(inner);
+                        assert!(b.min.x > b.max.x || bounds.contains(&b), "child sticks out");
+                    }
+                    pending.push(child);
+                    continue;
+                }
+                let (first, items) = (node.child[slot], node.item_count[slot]);
+                for prim in first..first + items {
+                    assert!(!std::mem::replace(&mut prim_seen[prim as usize], true));
+                    assert!(
+                        bounds.contains(&leaf_order[prim as usize]),
+                        "prim outside its slot"
+                    );
+                }
+            }
+        }
+        assert!(node_seen.iter().all(|&s| s), "unreachable node");
+        assert!(prim_seen.iter().all(|&s| s), "primitive in no leaf");
+        let binary_leaf_max = bvh.nodes.iter().map(|n| n.prim_count).max().unwrap();
+        assert!(
+            leaves
+                .iter()
+                .all(|&(_, n)| n <= max_leaf_prims.max(binary_leaf_max))
+        );
+        // Collapsing must actually widen: far fewer nodes than the binary tree.
+        if count > 1000 {
+            assert!(
+                wide.nodes.len() * 4 < bvh.nodes.len(),
+                "{} wide nodes",
+                wide.nodes.len()
+            );
+        }
+    }
+
+    #[test]
+    fn collapse_keeps_every_invariant() {
+        for (count, leaf, seed) in [
+            (1, 4, 1),
+            (2, 4, 2),
+            (9, 4, 3),
+            (100, 1, 4),
+            (5000, 4, 5),
+            (20_000, 8, 6),
+        ] {
+            check_collapse(count, leaf, seed);
+        }
+    }
+
+    #[test]
+    fn inverted_boxes_of_unused_slots_miss_every_ray() {
+        let node = WideNode::EMPTY;
+        for dir in [
+            Vec3::X,
+            -Vec3::X,
+            Vec3::new(1e-31, 0.0, 1.0),
+            Vec3::new(-0.5, 0.5, -0.7),
+        ] {
+            let ray = crate::math::Ray::new(Vec3::ZERO, dir.normalize());
+            let slabs = WideRay::new(&RayQuery::new(&ray));
+            assert_eq!(slabs.hit_children(&node, Float::INFINITY).0, 0, "{dir:?}");
+        }
+    }
+}

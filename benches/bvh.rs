@@ -84,8 +84,8 @@ fn benches(c: &mut Criterion) {
         let scene = Scene::build(description.clone(), &params);
         eprintln!(
             "{name}: SAH cost {:.2}, {} nodes",
-            scene.bvh().sah_cost(&params),
-            scene.bvh().nodes.len()
+            scene.bvh_summary().sah_cost,
+            scene.bvh_summary().nodes
         );
         let rays: Vec<Ray> = rays(7, *scale)
             .into_iter()

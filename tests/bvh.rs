@@ -66,7 +66,7 @@ fn random_rays(rng: &mut Rng64, count: usize, scale: f32) -> Vec<Ray> {
 }
 
 fn assert_bvh_matches_linear(scene: &Scene, rays: &[Ray]) {
-    scene.bvh().validate(&scene.prim_bounds()).unwrap();
+    scene.validate().unwrap();
     let mut hits = 0;
     for ray in rays {
         let fast = scene.intersect(ray);
@@ -145,11 +145,22 @@ fn parallel_build_is_valid_and_matches_sequential_hits() {
         parallel_threshold: usize::MAX,
         ..BvhParams::default()
     };
+    // The binary trees themselves, as the scene builds them before collapsing.
+    let boxes: Vec<Aabb> = soup
+        .triangles
+        .iter()
+        .map(|t| Aabb::from_points(&t.positions.map(|i| soup.positions[i as usize])))
+        .collect();
+    for params in [&parallel, &sequential] {
+        let (bvh, order) = Bvh::build(&boxes, params);
+        let ordered: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+        bvh.validate(&ordered).unwrap();
+    }
     let a = Scene::build(soup.clone(), &parallel);
     let b = Scene::build(soup, &sequential);
-    a.bvh().validate(&a.prim_bounds()).unwrap();
-    b.bvh().validate(&b.prim_bounds()).unwrap();
-    assert_eq!(a.bvh().nodes.len(), b.bvh().nodes.len());
+    a.validate().unwrap();
+    b.validate().unwrap();
+    assert_eq!(a.bvh_summary(), b.bvh_summary());
     for ray in random_rays(&mut rng, 2000, 10.0) {
         assert_eq!(
             a.intersect(&ray).map(|h| h.t),
@@ -217,7 +228,7 @@ proptest! {
     fn any_seeded_soup_agrees_with_linear_scan(seed in any::<u64>(), n in 1usize..300) {
         let mut rng = Rng64::seed_from_u64(seed);
         let scene = Scene::build(random_soup(&mut rng, n, n / 10), &BvhParams::default());
-        scene.bvh().validate(&scene.prim_bounds()).unwrap();
+        scene.validate().unwrap();
         for ray in random_rays(&mut rng, 100, 10.0) {
             let a = scene.intersect(&ray).map(|h| h.t);
             let b = scene.intersect_linear(&ray).map(|h| h.t);

@@ -154,7 +154,7 @@ fn random_scene(seed: u64) -> SceneDescription {
 fn seeded_random_scenes_give_finite_pixels_in_every_mode() {
     for seed in 0..200 {
         let scene = Scene::build(random_scene(seed), &BvhParams::default());
-        if let Err(e) = scene.bvh().validate(&scene.prim_bounds()) {
+        if let Err(e) = scene.validate() {
             panic!("seed {seed}: {e}");
         }
         for (look_from, look_to) in [

@@ -12,7 +12,7 @@ use std::mem::MaybeUninit;
 
 use wide::f32x8;
 
-use super::{Bvh, MAX_DEPTH, RayQuery};
+use super::{Bvh, BvhInvariantError, MAX_DEPTH, RayQuery};
 use crate::math::{Aabb, Float, Vec3};
 
 /// Children per node: one 256-bit AVX register of `f32`.
@@ -97,14 +97,11 @@ struct ChildRef {
 
 impl WideBvh {
     /// Collapses `bvh` into a wide BVH. Every binary subtree of at most
-    /// `max_leaf_prims` primitives, and every binary leaf, becomes one wide leaf:
-    /// `make_leaf(first_prim, prim_count)` receives its primitive range (leaf order)
-    /// and returns the range of items it made for them, `(first_item, item_count)`
-    /// with `item_count >= 1`.
-    pub fn collapse<F>(bvh: &Bvh, max_leaf_prims: u32, mut make_leaf: F) -> WideBvh
-    where
-        F: FnMut(u32, u32) -> (u32, u32),
-    {
+    /// `max_leaf_prims` primitives, and every binary leaf, becomes one wide leaf,
+    /// which at first refers to its primitive range (leaf order) as its items; the
+    /// caller then makes its own items per leaf and points the leaves at them with
+    /// [`WideBvh::assign_leaf_items`].
+    pub fn collapse(bvh: &Bvh, max_leaf_prims: u32) -> WideBvh {
         let binary = &bvh.nodes;
         let Some(root) = binary.first() else {
             return WideBvh::default();
@@ -126,13 +123,12 @@ impl WideBvh {
         }
         let becomes_leaf =
             |index: usize| binary[index].is_leaf() || ranges[index].1 <= max_leaf_prims;
+        let area = |index: usize| binary[index].bounds().half_area();
 
-        let mut nodes = vec![WideNode::EMPTY];
+        let mut nodes = Vec::with_capacity(binary.len() / (2 * WIDTH));
+        nodes.push(WideNode::EMPTY);
         if becomes_leaf(0) {
-            let (first, count) = ranges[0];
-            let (item, items) = make_leaf(first, count);
-            nodes[0].child[0] = item;
-            nodes[0].item_count[0] = items;
+            (nodes[0].child[0], nodes[0].item_count[0]) = ranges[0];
             nodes[0].set_child_bounds(0, root.bounds());
             return WideBvh { nodes };
         }
@@ -146,15 +142,9 @@ impl WideBvh {
             slots.clear();
             slots.extend([first, first + 1]);
             while slots.len() < WIDTH {
-                let widest = slots
-                    .iter()
-                    .enumerate()
-                    .filter(|&(_, &s)| !becomes_leaf(s))
-                    .max_by(|a, b| {
-                        let area = |s: usize| binary[s].bounds().half_area();
-                        area(*a.1).total_cmp(&area(*b.1))
-                    })
-                    .map(|(position, _)| position);
+                let widest = (0..slots.len())
+                    .filter(|&position| !becomes_leaf(slots[position]))
+                    .max_by(|&a, &b| area(slots[a]).total_cmp(&area(slots[b])));
                 let Some(position) = widest else {
                     break;
                 };
@@ -165,11 +155,10 @@ impl WideBvh {
             for (slot, &child) in slots.iter().enumerate() {
                 nodes[wide_index].set_child_bounds(slot, binary[child].bounds());
                 if becomes_leaf(child) {
-                    let (first, count) = ranges[child];
-                    let (item, items) = make_leaf(first, count);
-                    debug_assert!(items >= 1);
-                    nodes[wide_index].child[slot] = item;
-                    nodes[wide_index].item_count[slot] = items;
+                    (
+                        nodes[wide_index].child[slot],
+                        nodes[wide_index].item_count[slot],
+                    ) = ranges[child];
                 } else {
                     nodes[wide_index].child[slot] = nodes.len() as u32;
                     pending.push((child, nodes.len()));
@@ -178,6 +167,113 @@ impl WideBvh {
             }
         }
         WideBvh { nodes }
+    }
+
+    /// The `(first, count)` item range of every leaf, in node and slot order: the
+    /// order [`WideBvh::assign_leaf_items`] expects.
+    pub fn leaf_items(&self) -> Vec<(u32, u32)> {
+        self.nodes
+            .iter()
+            .flat_map(|node| {
+                (0..WIDTH)
+                    .filter(|&slot| node.item_count[slot] > 0)
+                    .map(|slot| (node.child[slot], node.item_count[slot]))
+            })
+            .collect()
+    }
+
+    /// Points leaf `i` (in [`WideBvh::leaf_items`] order) at items
+    /// `first_items[i]..first_items[i + 1]`, so `first_items` holds one entry more
+    /// than there are leaves, and the ranges must be non-empty.
+    ///
+    /// # Panics
+    /// If `first_items` has the wrong length or a range is empty.
+    pub fn assign_leaf_items(&mut self, first_items: &[u32]) {
+        let mut leaf = 0;
+        for node in &mut self.nodes {
+            for slot in 0..WIDTH {
+                if node.item_count[slot] > 0 {
+                    let (first, end) = (first_items[leaf], first_items[leaf + 1]);
+                    assert!(end > first, "leaf {leaf} has no items");
+                    (node.child[slot], node.item_count[slot]) = (first, end - first);
+                    leaf += 1;
+                }
+            }
+        }
+        assert_eq!(
+            leaf + 1,
+            first_items.len(),
+            "one first item per leaf, plus the end"
+        );
+    }
+
+    /// Checks every invariant traversal relies on: each node reached exactly once
+    /// from the root, unused slots empty (inverted box, no items), each item
+    /// `0..item_count` in exactly one leaf and inside that leaf's box
+    /// (`item_bounds(item)`), and each child node's slots inside its parent's slot.
+    ///
+    /// # Errors
+    /// The first broken invariant found.
+    pub fn validate<F>(&self, item_count: usize, item_bounds: F) -> Result<(), BvhInvariantError>
+    where
+        F: Fn(u32) -> Aabb,
+    {
+        let fail = |msg: String| Err(BvhInvariantError(msg));
+        if self.nodes.is_empty() {
+            return match item_count {
+                0 => Ok(()),
+                n => fail(format!("no nodes for {n} items")),
+            };
+        }
+        let mut node_seen = vec![false; self.nodes.len()];
+        let mut item_seen = vec![false; item_count];
+        // (node, the box of the slot that points at it)
+        let mut pending = vec![(0usize, None)];
+        while let Some((index, parent_box)) = pending.pop() {
+            match node_seen.get_mut(index) {
+                Some(seen) if !*seen => *seen = true,
+                _ => return fail(format!("node {index} reached twice or out of range")),
+            }
+            let node = &self.nodes[index];
+            for slot in 0..WIDTH {
+                let bounds = node.child_bounds(slot);
+                let unused = bounds.min.cmpgt(bounds.max).any();
+                if unused {
+                    if node.item_count[slot] != 0 {
+                        return fail(format!("node {index}: empty slot {slot} has items"));
+                    }
+                    continue;
+                }
+                if let Some(parent) = parent_box
+                    && !Aabb::contains(&parent, &bounds)
+                {
+                    return fail(format!(
+                        "node {index}: slot {slot} sticks out of its parent"
+                    ));
+                }
+                let (child, items) = (node.child[slot], node.item_count[slot]);
+                if items == 0 {
+                    pending.push((child as usize, Some(bounds)));
+                    continue;
+                }
+                for item in child..child.saturating_add(items) {
+                    match item_seen.get_mut(item as usize) {
+                        Some(seen) if !*seen => *seen = true,
+                        _ => return fail(format!("item {item} in two leaves or out of range")),
+                    }
+                    if !bounds.contains(&item_bounds(item)) {
+                        return fail(format!("item {item} outside its leaf in node {index}"));
+                    }
+                }
+            }
+        }
+        if let Some(unseen) = node_seen.iter().position(|&s| !s) {
+            return fail(format!("node {unseen} unreachable"));
+        }
+        if let Some(missing) = item_seen.iter().position(|&s| !s) {
+            return fail(format!("item {missing} in no leaf"));
+        }
+        Ok(())
     }
 
     /// Visits the leaves the ray may hit within `t_max`, nearest box first (by entry
@@ -380,55 +476,26 @@ mod tests {
             .collect()
     }
 
-    /// Collapses with one item per primitive and checks every invariant traversal
-    /// relies on: each node reached once, unused slots empty, each primitive in
-    /// exactly one leaf, leaves no bigger than asked unless the binary
-    /// leaf was, and every primitive inside the box of the slot that holds it.
+    /// Collapses with one item per primitive, validates, and checks that leaves are
+    /// no bigger than asked (unless a binary leaf was) and that renumbering items
+    /// works.
     fn check_collapse(count: usize, max_leaf_prims: u32, seed: u64) {
         let boxes = random_boxes(count, seed);
         let (bvh, order) = Bvh::build(&boxes, &BvhParams::default());
         let leaf_order: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
-        let mut leaves = Vec::new();
-        let wide = WideBvh::collapse(&bvh, max_leaf_prims, |first, count| {
-            leaves.push((first, count));
-            (first, count)
-        });
-        let mut prim_seen = vec![false; count];
-        let mut node_seen = vec![false; wide.nodes.len()];
-        let mut pending = vec![0usize];
-        while let Some(index) = pending.pop() {
-            assert!(
-                !std::mem::replace(&mut node_seen[index], true),
-                "node {index} twice"
-            );
-            let node = &wide.nodes[index];
-            for slot in 0..WIDTH {
-                let bounds = node.child_bounds(slot);
-                if bounds.min.x > bounds.max.x {
-                    assert_eq!(node.item_count[slot], 0, "unused slot {slot} with items");
-                    continue;
-                }
-                if node.item_count[slot] == 0 {
-                    let child = node.child[slot] as usize;
-                    for inner in 0..WIDTH {
-                        let b = wide.nodes[child].child_bounds(inner);
-                        assert!(b.min.x > b.max.x || bounds.contains(&b), "child sticks out");
-                    }
-                    pending.push(child);
-                    continue;
-                }
-                let (first, items) = (node.child[slot], node.item_count[slot]);
-                for prim in first..first + items {
-                    assert!(!std::mem::replace(&mut prim_seen[prim as usize], true));
-                    assert!(
-                        bounds.contains(&leaf_order[prim as usize]),
-                        "prim outside its slot"
-                    );
-                }
-            }
+        let wide = WideBvh::collapse(&bvh, max_leaf_prims);
+        let leaves = wide.leaf_items();
+        wide.validate(count, |prim| leaf_order[prim as usize])
+            .unwrap();
+        // Items made per leaf (here: two per primitive) end up where the leaves point.
+        let mut renumbered = wide.clone();
+        let mut firsts = vec![0];
+        for &(_, count) in &leaves {
+            firsts.push(firsts.last().unwrap() + 2 * count);
         }
-        assert!(node_seen.iter().all(|&s| s), "unreachable node");
-        assert!(prim_seen.iter().all(|&s| s), "primitive in no leaf");
+        renumbered.assign_leaf_items(&firsts);
+        let expected: Vec<(u32, u32)> = firsts.windows(2).map(|w| (w[0], w[1] - w[0])).collect();
+        assert_eq!(renumbered.leaf_items(), expected);
         let binary_leaf_max = bvh.nodes.iter().map(|n| n.prim_count).max().unwrap();
         assert!(
             leaves
@@ -471,6 +538,49 @@ mod tests {
             let ray = crate::math::Ray::new(Vec3::ZERO, dir.normalize());
             let slabs = WideRay::new(&RayQuery::new(&ray));
             assert_eq!(slabs.hit_children(&node, Float::INFINITY).0, 0, "{dir:?}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod validate_tests {
+    use super::*;
+    use crate::bvh::BvhParams;
+
+    #[test]
+    fn validate_catches_broken_trees() {
+        let boxes: Vec<Aabb> = (0..200)
+            .map(|i| {
+                let min = Vec3::new(i as f32, (i % 7) as f32, 0.0);
+                Aabb {
+                    min,
+                    max: min + Vec3::ONE,
+                }
+            })
+            .collect();
+        let (bvh, order) = Bvh::build(&boxes, &BvhParams::default());
+        let leaf_order: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+        let bounds = |item: u32| leaf_order[item as usize];
+        let wide = WideBvh::collapse(&bvh, 4);
+        wide.validate(200, bounds).unwrap();
+        assert!(wide.validate(201, bounds).is_err(), "a missing item");
+        let mut shrunk = wide.clone();
+        let slot = (0..WIDTH)
+            .find(|&s| shrunk.nodes[0].item_count[s] == 0)
+            .unwrap();
+        shrunk.nodes[0].planes[1].as_mut_array()[slot] -= 1.0;
+        assert!(
+            shrunk.validate(200, bounds).is_err(),
+            "a slot smaller than its contents"
+        );
+        let mut dangling = wide.clone();
+        let unused = (0..WIDTH).find(|&s| dangling.nodes[0].child_bounds(s).min.x.is_infinite());
+        if let Some(unused) = unused {
+            dangling.nodes[0].item_count[unused] = 1;
+            assert!(
+                dangling.validate(200, bounds).is_err(),
+                "items in an unused slot"
+            );
         }
     }
 }

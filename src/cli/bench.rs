@@ -38,7 +38,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     println!(
         concat!(
             "{{\"file_bytes\": {}, \"triangles\": {}, \"parse_ms\": {:.2}, \"parse_mb_per_s\": {:.1}, ",
-            "\"build_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, ",
+            "\"build_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, \"wide_nodes\": {}, \"packets\": {}, ",
             "\"primary_rays\": {}, \"primary_hits\": {}, \"primary_ms\": {:.2}, \"primary_mrays_per_s\": {:.2}, ",
             "\"shadow_rays\": {}, \"shadow_occluded\": {}, \"shadow_ms\": {:.2}, \"shadow_mrays_per_s\": {:.2}, ",
             "\"render_ms\": {:.2}}}"
@@ -48,8 +48,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         parse_s * 1e3,
         file_bytes as f64 / parse_s / 1e6,
         build_s * 1e3,
-        scene.bvh().nodes.len(),
-        scene.bvh().sah_cost(&params),
+        scene.bvh_summary().nodes,
+        scene.bvh_summary().sah_cost,
+        scene.bvh_summary().wide_nodes,
+        scene.bvh_summary().packets,
         workload.primary.len(),
         workload.primary_hits,
         primary_s * 1e3,

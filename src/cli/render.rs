@@ -57,7 +57,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
             render: (rendered - built).as_secs_f64(),
             write: (written - rendered).as_secs_f64(),
         };
-        print_stats(&scene, &params, &stages, &rays);
+        print_stats(&scene, &stages, &rays);
     }
     Ok(())
 }
@@ -70,17 +70,19 @@ struct Stages {
     write: f64,
 }
 
-fn print_stats(scene: &Scene, params: &BvhParams, stages: &Stages, rays: &RayCounts) {
-    let bvh = scene.bvh();
+fn print_stats(scene: &Scene, stages: &Stages, rays: &RayCounts) {
+    let bvh = scene.bvh_summary();
     let ms = |s: f64| s * 1e3;
     eprintln!("parse         {:9.1} ms", ms(stages.parse));
     eprintln!(
-        "build         {:9.1} ms  {} primitives, {} nodes, depth {}, SAH cost {:.2}",
+        "build         {:9.1} ms  {} primitives, {} binary nodes (depth {}, SAH cost {:.2}) -> {} 8-wide nodes, {} packets",
         ms(stages.build),
         scene.prim_count(),
-        bvh.nodes.len(),
+        bvh.nodes,
         bvh.max_depth,
-        bvh.sah_cost(params)
+        bvh.sah_cost,
+        bvh.wide_nodes,
+        bvh.packets,
     );
     eprintln!(
         "render        {:9.1} ms  {} rays: {} primary, {} shadow, {} reflected, {} refracted; {:.1} Mrays/s",

@@ -23,12 +23,14 @@ pub use toml_scene::{load_toml, parse_toml};
 
 pub(crate) use file::read_file;
 
+use std::mem::MaybeUninit;
+
 use rayon::prelude::*;
 
-use crate::bvh::{Bvh, BvhParams, RayQuery, WideBvh};
+use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
-use crate::shapes::{LANES, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
+use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
 /// built yet. Shapes, lights and materials keep file order.
@@ -79,34 +81,53 @@ pub struct SphereDesc {
 /// by which secondary rays start off the surface.
 const SPAWN_OFFSET: Float = 1e-4;
 
-/// Shading data of one primitive, stored in leaf order beside the shapes.
+/// Shading data of one primitive, in leaf order.
 #[derive(Clone, Copy, Debug)]
 struct PrimShading {
     material: MaterialId,
-    /// Index into `Scene::vertex_normals`, or `NO_NORMALS`.
-    vertex_normals: u32,
+    /// Indices into `Scene::vertex_normals` of the corners' normals, or
+    /// `[NO_NORMALS; 3]`.
+    normals: [u32; 3],
 }
 
 const NO_NORMALS: u32 = u32::MAX;
 
-/// A renderable scene: shapes in BVH leaf order with their shading data, materials,
-/// lights and the BVH.
+/// Figures about the binary BVH the scene was built with, kept after it is collapsed
+/// into the wide one that rays traverse.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhSummary {
+    /// Nodes of the binary BVH.
+    pub nodes: usize,
+    /// Its greatest depth, the root being depth 0.
+    pub max_depth: usize,
+    /// Its SAH cost ([`Bvh::sah_cost`]).
+    pub sah_cost: f64,
+    /// Nodes of the wide BVH.
+    pub wide_nodes: usize,
+    /// SIMD primitive packets in the wide BVH's leaves.
+    pub packets: usize,
+    /// The box around all primitives (empty for an empty scene).
+    pub bounds: Aabb,
+}
+
+/// A renderable scene: primitives in BVH leaf order (their geometry in the SIMD
+/// packets of the wide BVH's leaves) with their shading data, materials and lights.
 #[derive(Clone, Debug)]
 pub struct Scene {
-    shapes: Vec<Shape>,
+    /// The BVH that rays traverse, its leaves ranges of `packets`.
+    wide: WideBvh,
+    /// The primitives' geometry, grouped by four for SIMD tests: the only copy.
+    packets: Vec<TrianglePacket>,
+    /// Shading data by primitive (leaf order).
     shading: Vec<PrimShading>,
-    /// Unit vertex normals of triangles that have them, one triple per triangle.
-    vertex_normals: Vec<[Vec3; 3]>,
+    /// The description's vertex normals, unit length, or zero where a `vn` has no
+    /// direction (the geometric normal stands in for it then).
+    vertex_normals: Vec<Vec3>,
     /// The materials, indexed by [`MaterialId`].
     pub materials: Vec<Material>,
     /// The point lights.
     pub lights: Vec<PointLight>,
-    bvh: Bvh,
-    /// The BVH that rays traverse: `bvh` collapsed to eight children per node, its
-    /// leaves ranges of `packets`.
-    wide: WideBvh,
-    /// Leaf primitives grouped by four for SIMD tests; see [`SPHERE_PACKET`].
-    packets: Vec<TrianglePacket>,
+    summary: BvhSummary,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
 }
@@ -223,75 +244,120 @@ impl Scene {
             params,
         );
 
-        // Step 3: shapes and shading data in leaf order.
-        let mut shapes = Vec::with_capacity(prim_count);
-        let mut shading = Vec::with_capacity(prim_count);
-        let mut vertex_normals = Vec::new();
-        for &i in &order {
-            let i = i as usize;
-            let Some(&t) = kept.get(i) else {
-                let sphere = &spheres[i - kept.len()];
-                shapes.push(Shape::Sphere(sphere_shape(sphere)));
-                shading.push(PrimShading {
-                    material: sphere.material,
-                    vertex_normals: NO_NORMALS,
-                });
-                continue;
-            };
-            let tri = &triangles[t as usize];
-            let [a, b, c] = corners(tri);
-            let triangle = Triangle::new(a, b, c);
-            let Some(unit) = try_unit(triangle.normal()) else {
-                unreachable!("degenerate triangles were filtered out")
-            };
-            let vertex_normals_index = match tri.normals {
-                Some(ids) => {
-                    // A zero-length `vn` cannot be normalized: use the geometric normal.
-                    vertex_normals.push(ids.map(|n| try_unit(normals[n as usize]).unwrap_or(unit)));
-                    vertex_normals.len() as u32 - 1
+        // Step 3: the wide BVH and its packets; then the binary BVH can go.
+        let shape_of = |prim: u32| {
+            let i = order[prim as usize] as usize;
+            match kept.get(i) {
+                Some(&t) => {
+                    let [a, b, c] = corners(&triangles[t as usize]);
+                    Shape::Triangle(Triangle::new(a, b, c))
                 }
-                None => NO_NORMALS,
-            };
-            shapes.push(Shape::Triangle(triangle));
-            shading.push(PrimShading {
-                material: tri.material,
-                vertex_normals: vertex_normals_index,
-            });
-        }
-        let (wide, packets) = packetize(&bvh, &shapes);
+                None => Shape::Sphere(sphere_shape(&spheres[i - kept.len()])),
+            }
+        };
+        let mut summary = BvhSummary {
+            nodes: bvh.nodes.len(),
+            max_depth: bvh.max_depth,
+            sah_cost: bvh.sah_cost(params),
+            wide_nodes: 0,
+            packets: 0,
+            bounds: bvh
+                .nodes
+                .first()
+                .map_or(Aabb::default(), |root| root.bounds()),
+        };
+        let (wide, packets) = packetize(bvh, order.len(), shape_of);
+        summary.wide_nodes = wide.nodes.len();
+        summary.packets = packets.len();
+
+        // Step 4: shading data in leaf order.
+        let shading = order
+            .par_iter()
+            .map(|&i| match kept.get(i as usize) {
+                Some(&t) => {
+                    let tri = &triangles[t as usize];
+                    PrimShading {
+                        material: tri.material,
+                        normals: tri.normals.unwrap_or([NO_NORMALS; 3]),
+                    }
+                }
+                None => PrimShading {
+                    material: spheres[i as usize - kept.len()].material,
+                    normals: [NO_NORMALS; 3],
+                },
+            })
+            .collect();
+        // A zero-length `vn` cannot be normalized: zero marks it, and the hit's
+        // geometric normal stands in for it.
+        let vertex_normals = normals
+            .par_iter()
+            .map(|&n| try_unit(n).unwrap_or(Vec3::ZERO))
+            .collect();
         Scene {
-            shapes,
+            wide,
+            packets,
             shading,
             vertex_normals,
             materials,
             lights,
-            bvh,
-            wide,
-            packets,
+            summary,
             warnings,
         }
     }
 
-    /// The BVH over the scene's primitives.
-    pub fn bvh(&self) -> &Bvh {
-        &self.bvh
+    /// Figures about the scene's BVH.
+    pub fn bvh_summary(&self) -> &BvhSummary {
+        &self.summary
     }
 
     /// Number of primitives (triangles and spheres).
     pub fn prim_count(&self) -> usize {
-        self.shapes.len()
+        self.shading.len()
     }
 
-    /// The primitives' boxes in leaf order, for [`Bvh::validate`].
-    pub fn prim_bounds(&self) -> Vec<Aabb> {
-        self.shapes.iter().map(Shape::bounds).collect()
+    /// Checks that the wide BVH and its packets hold every primitive exactly once,
+    /// each inside the box of the leaf that holds it, and every invariant of
+    /// [`WideBvh::validate`].
+    ///
+    /// # Errors
+    /// The first broken invariant found.
+    pub fn validate(&self) -> Result<(), BvhInvariantError> {
+        let packet_bounds = |index: u32| {
+            let packet = &self.packets[index as usize];
+            (0..LANES)
+                .filter_map(|lane| packet.shape(lane))
+                .fold(Aabb::default(), |b, shape| b.union(shape.bounds()))
+        };
+        self.wide.validate(self.packets.len(), packet_bounds)?;
+        let mut seen = vec![false; self.prim_count()];
+        for (index, packet) in self.packets.iter().enumerate() {
+            for lane in 0..LANES {
+                let Some(prim) = packet.prim(lane) else {
+                    continue;
+                };
+                match seen.get_mut(prim as usize) {
+                    Some(seen) if !*seen => *seen = true,
+                    _ => {
+                        return Err(BvhInvariantError(format!(
+                            "packet {index} holds primitive {prim} twice or out of range"
+                        )));
+                    }
+                }
+            }
+        }
+        match seen.iter().position(|&s| !s) {
+            Some(missing) => Err(BvhInvariantError(format!(
+                "primitive {missing} in no packet"
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// The closest hit along `ray`, if any.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let (prim, hit) = self.intersect_primitive(ray)?;
-        Some(self.hit_details(ray, prim, hit))
+        let (packet, lane, hit) = self.closest_lane(ray)?;
+        Some(self.hit_details(ray, packet, lane, hit))
     }
 
     /// The first phase of [`Scene::intersect`]: the closest primitive hit (its index
@@ -300,16 +366,24 @@ impl Scene {
     /// against it.
     #[inline]
     pub fn intersect_primitive(&self, ray: &Ray) -> Option<(u32, PrimHit)> {
+        let (packet, lane, hit) = self.closest_lane(ray)?;
+        Some((self.packets[packet as usize].prim(lane)?, hit))
+    }
+
+    /// The closest hit as the packet and lane that hold its primitive.
+    #[inline(always)]
+    fn closest_lane(&self, ray: &Ray) -> Option<(u32, usize, PrimHit)> {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
-        let mut closest: Option<(u32, PrimHit)> = None;
+        let mut closest = None;
         let mut t_max = Float::INFINITY;
         self.wide
             .walk_ordered(&query, &mut t_max, |first, count, t_max| {
-                for packet in &self.packets[first as usize..(first + count) as usize] {
-                    if let Some((prim, hit)) = self.intersect_packet(packet, ray, &lanes, *t_max) {
+                for index in first..first + count {
+                    let packet = &self.packets[index as usize];
+                    if let Some((lane, hit)) = packet.intersect_any_kind(ray, &lanes, *t_max) {
                         *t_max = hit.t;
-                        closest = Some((prim, hit));
+                        closest = Some((index, lane, hit));
                     }
                 }
                 false
@@ -327,69 +401,47 @@ impl Scene {
             .walk_any(&query, &mut t_max, |first, count, t_max| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
-                    .any(|packet| self.intersect_packet(packet, ray, &lanes, *t_max).is_some())
+                    .any(|packet| packet.occludes_any_kind(ray, &lanes, *t_max))
             })
     }
 
-    /// The closest hit by testing every primitive: the slow reference for tests.
+    /// The closest hit by testing every primitive with the scalar kernels: the slow
+    /// reference for tests.
     pub fn intersect_linear(&self, ray: &Ray) -> Option<Hit> {
-        let mut closest: Option<(u32, PrimHit)> = None;
+        let mut closest = None;
         let mut t_max = Float::INFINITY;
-        for (prim, shape) in self.shapes.iter().enumerate() {
-            if let Some(hit) = shape.intersect(ray, t_max) {
-                t_max = hit.t;
-                closest = Some((prim as u32, hit));
+        for (index, packet) in self.packets.iter().enumerate() {
+            for lane in 0..LANES {
+                let Some(shape) = packet.shape(lane) else {
+                    continue;
+                };
+                if let Some(hit) = shape.intersect(ray, t_max) {
+                    t_max = hit.t;
+                    closest = Some((index as u32, lane, hit));
+                }
             }
         }
-        closest.map(|(prim, hit)| self.hit_details(ray, prim, hit))
-    }
-
-    /// The nearest hit in one packet, as `(primitive, hit)`.
-    #[inline(always)]
-    fn intersect_packet(
-        &self,
-        packet: &TrianglePacket,
-        ray: &Ray,
-        lanes: &PacketRay,
-        t_max: Float,
-    ) -> Option<(u32, PrimHit)> {
-        if packet.prims[0] & SPHERE_PACKET == 0 {
-            let (lane, hit) = packet.intersect(lanes, t_max)?;
-            return Some((packet.prims[lane], hit));
-        }
-        // Spheres are rare (none in a mesh): tested one by one, in lane order.
-        let mut nearest = None;
-        let mut t_max = t_max;
-        for &prim in &packet.prims {
-            if prim == NO_SPHERE {
-                break;
-            }
-            let prim = prim & !SPHERE_PACKET;
-            if let Some(hit) = self.shape(prim).intersect(ray, t_max) {
-                t_max = hit.t;
-                nearest = Some((prim, hit));
-            }
-        }
-        nearest
-    }
-
-    #[inline(always)]
-    fn shape(&self, prim: u32) -> &Shape {
-        debug_assert!((prim as usize) < self.shapes.len());
-        &self.shapes[prim as usize]
+        closest.map(|(packet, lane, hit)| self.hit_details(ray, packet, lane, hit))
     }
 
     /// Second phase of a hit: point, normals and material, for the closest hit only.
-    fn hit_details(&self, ray: &Ray, prim: u32, hit: PrimHit) -> Hit {
+    fn hit_details(&self, ray: &Ray, packet: u32, lane: usize, hit: PrimHit) -> Hit {
+        let packet = &self.packets[packet as usize];
+        let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
+            unreachable!("hits come from used lanes")
+        };
         let shading = self.shading[prim as usize];
-        let (p, n, ns) = match self.shape(prim) {
+        let (p, n, ns) = match shape {
             Shape::Triangle(tri) => {
                 // `build` kept only triangles whose normal `try_unit` accepts.
                 let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
-                let ns = match shading.vertex_normals {
-                    NO_NORMALS => n,
-                    i => {
-                        let [n0, n1, n2] = self.vertex_normals[i as usize];
+                let ns = match shading.normals {
+                    [NO_NORMALS, ..] => n,
+                    ids => {
+                        let [n0, n1, n2] = ids.map(|i| match self.vertex_normals[i as usize] {
+                            Vec3::ZERO => n,
+                            unit => unit,
+                        });
                         let w = 1.0 - hit.u - hit.v;
                         try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
                     }
@@ -413,63 +465,109 @@ impl Scene {
     }
 }
 
-/// Flag in [`TrianglePacket::prims`] of a packet that holds spheres instead of
-/// triangles: its geometry lanes are zero (they never hit), and each flagged lane
-/// names a sphere to test with the scalar kernel.
-const SPHERE_PACKET: u32 = 1 << 31;
-/// An unused lane of a sphere packet.
-const NO_SPHERE: u32 = u32::MAX;
-
-/// Collapses `bvh` into the wide BVH whose leaves are ranges of packets, making the
-/// packets of each leaf from its primitives (triangles four by four, spheres apart).
-#[inline(never)]
-fn packetize(bvh: &Bvh, shapes: &[Shape]) -> (WideBvh, Vec<TrianglePacket>) {
+/// Collapses `bvh` (dropped as soon as it is collapsed) into the wide BVH whose
+/// leaves are ranges of packets, and makes the packets of each leaf from its
+/// primitives (`shape_of(prim)`, leaf order): triangles four by four, spheres apart.
+/// Leaves are filled in parallel, each into its own slice of the packet array.
+fn packetize<F>(bvh: Bvh, prim_count: usize, shape_of: F) -> (WideBvh, Vec<TrianglePacket>)
+where
+    F: Fn(u32) -> Shape + Sync,
+{
     assert!(
-        shapes.len() < SPHERE_PACKET as usize,
+        prim_count <= MAX_PRIM as usize + 1,
         "too many primitives for packet indices"
     );
-    let mut packets: Vec<TrianglePacket> = Vec::with_capacity(shapes.len() / 3 + 1);
-    let mut triangles: Vec<(u32, Triangle)> = Vec::with_capacity(LANES);
-    let mut spheres: Vec<u32> = Vec::with_capacity(LANES);
-    let wide = WideBvh::collapse(bvh, LANES as u32, |first, count| {
-        let start = packets.len();
-        for prim in first..first + count {
-            match shapes[prim as usize] {
-                Shape::Triangle(tri) => {
-                    triangles.push((prim, tri));
-                    if triangles.len() == LANES {
-                        packets.push(TrianglePacket::new(&triangles));
-                        triangles.clear();
-                    }
-                }
-                Shape::Sphere(_) => {
-                    spheres.push(prim | SPHERE_PACKET);
-                    if spheres.len() == LANES {
-                        packets.push(sphere_packet(&spheres));
-                        spheres.clear();
-                    }
-                }
-            }
-        }
-        if !triangles.is_empty() {
-            packets.push(TrianglePacket::new(&triangles));
-            triangles.clear();
-        }
-        if !spheres.is_empty() {
-            packets.push(sphere_packet(&spheres));
-            spheres.clear();
-        }
-        (start as u32, (packets.len() - start) as u32)
-    });
+    let mut wide = WideBvh::collapse(&bvh, LANES as u32);
+    drop(bvh);
+    let leaves = wide.leaf_items();
+    let packet_counts: Vec<u32> = leaves
+        .par_iter()
+        .map(|&(first, count)| {
+            let spheres = (first..first + count)
+                .filter(|&prim| matches!(shape_of(prim), Shape::Sphere(_)))
+                .count();
+            ((count as usize - spheres).div_ceil(LANES) + spheres.div_ceil(LANES)) as u32
+        })
+        .collect();
+    let mut first_packets = Vec::with_capacity(leaves.len() + 1);
+    first_packets.push(0u32);
+    for &count in &packet_counts {
+        first_packets.push(first_packets.last().unwrap() + count);
+    }
+    let total = *first_packets.last().unwrap() as usize;
+
+    // Each leaf writes its own slice, so the writes (and the page faults of the fresh
+    // array) are spread over all threads.
+    let mut packets: Vec<TrianglePacket> = Vec::with_capacity(total);
+    let mut unwritten = &mut packets.spare_capacity_mut()[..total];
+    let mut slices = Vec::with_capacity(leaves.len());
+    for &count in &packet_counts {
+        let (slice, rest) = unwritten.split_at_mut(count as usize);
+        slices.push(slice);
+        unwritten = rest;
+    }
+    slices
+        .into_par_iter()
+        .zip(&leaves)
+        .for_each(|(slice, &(first, count))| write_leaf_packets(first, count, &shape_of, slice));
+    // SAFETY: the slices cover `0..total` exactly and `write_leaf_packets` wrote every
+    // element of its slice (it asserts so).
+    unsafe { packets.set_len(total) };
+    wide.assign_leaf_items(&first_packets);
     (wide, packets)
 }
 
-/// A packet of one to four flagged sphere indices.
-fn sphere_packet(spheres: &[u32]) -> TrianglePacket {
-    // Zero triangles never hit; only the indices matter.
+/// Writes the packets of the leaf holding primitives `first..first + count` into
+/// `out`, which must have room for exactly as many as it needs.
+fn write_leaf_packets<F>(
+    first: u32,
+    count: u32,
+    shape_of: &F,
+    out: &mut [MaybeUninit<TrianglePacket>],
+) where
+    F: Fn(u32) -> Shape,
+{
+    let mut written = 0;
+    let mut emit = |packet: TrianglePacket| {
+        out[written].write(packet);
+        written += 1;
+    };
     let zero = Triangle::new(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
-    let mut packet = TrianglePacket::new(&[(0, zero)]);
-    packet.prims = [NO_SPHERE; LANES];
-    packet.prims[..spheres.len()].copy_from_slice(spheres);
-    packet
+    let mut triangles = [(0u32, zero); LANES];
+    let mut triangle_count = 0;
+    let mut spheres = [(
+        0u32,
+        Sphere {
+            center: Vec3::ZERO,
+            radius: 0.0,
+        },
+    ); LANES];
+    let mut sphere_count = 0;
+    for prim in first..first + count {
+        match shape_of(prim) {
+            Shape::Triangle(tri) => {
+                triangles[triangle_count] = (prim, tri);
+                triangle_count += 1;
+                if triangle_count == LANES {
+                    emit(TrianglePacket::new(&triangles));
+                    triangle_count = 0;
+                }
+            }
+            Shape::Sphere(sphere) => {
+                spheres[sphere_count] = (prim, sphere);
+                sphere_count += 1;
+                if sphere_count == LANES {
+                    emit(TrianglePacket::spheres(&spheres));
+                    sphere_count = 0;
+                }
+            }
+        }
+    }
+    if triangle_count > 0 {
+        emit(TrianglePacket::new(&triangles[..triangle_count]));
+    }
+    if sphere_count > 0 {
+        emit(TrianglePacket::spheres(&spheres[..sphere_count]));
+    }
+    assert_eq!(written, out.len(), "packet count of a leaf");
 }

@@ -8,7 +8,7 @@ mod packet;
 mod sphere;
 mod triangle;
 
-pub use packet::{LANES, PacketRay, TrianglePacket};
+pub use packet::{LANES, MAX_PRIM, PacketRay, TrianglePacket};
 pub use sphere::Sphere;
 pub use triangle::Triangle;
 

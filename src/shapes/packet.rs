@@ -1,6 +1,7 @@
 //! Four triangles in structure-of-arrays form, intersected with one ray at once by a
 //! 4-lane Möller–Trumbore (the leaf layout of Embree's `Triangle4` and tinybvh's
-//! SIMD leaves).
+//! SIMD leaves). A packet may instead hold up to four spheres, tested one by one:
+//! packets are the only copy of the scene's geometry.
 //!
 //! Each lane computes exactly what [`Triangle::intersect`] computes, operation for
 //! operation (no fused multiply-adds), so a packet finds the same hits, bit for bit,
@@ -8,25 +9,34 @@
 
 use wide::f32x4;
 
-use super::{PrimHit, Triangle};
-use crate::math::{Float, Ray};
+use super::{PrimHit, Shape, Sphere, Triangle};
+use crate::math::{Float, Ray, Vec3};
 
 use super::triangle::EDGE_SLACK;
 
 /// Lanes per packet.
 pub const LANES: usize = 4;
 
+/// Flag on the primitive indices of a packet of spheres.
+const SPHERE_FLAG: u32 = 1 << 31;
+/// The primitive index of an unused lane.
+const UNUSED: u32 = u32::MAX;
+/// Largest primitive index a packet can hold.
+pub const MAX_PRIM: u32 = SPHERE_FLAG - 2;
+
 /// Up to four triangles, each lane holding one triangle's vertex 0 and two edges, and
-/// the primitive it stands for. Unused lanes hold a zero triangle (zero determinant for
-/// every ray), so they never hit.
+/// the primitive it stands for; or up to four spheres, each lane holding a centre in
+/// `v0` and a radius in `e1`'s x. Unused lanes hold a zero triangle (zero determinant
+/// for every ray), so they never hit. 160 bytes.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct TrianglePacket {
     v0: [f32x4; 3],
     e1: [f32x4; 3],
     e2: [f32x4; 3],
-    /// Primitive index (leaf order) of each lane; unused lanes repeat lane 0's.
-    pub prims: [u32; LANES],
+    /// Primitive index (leaf order) of each lane, [`SPHERE_FLAG`] set in a sphere
+    /// packet; [`UNUSED`] for an unused lane.
+    prims: [u32; LANES],
 }
 
 /// A ray with each component splatted over four lanes, prepared once per ray.
@@ -54,13 +64,39 @@ impl TrianglePacket {
     ///
     /// # Panics
     /// If `triangles` is empty or holds more than [`LANES`] entries.
+    /// Also if a primitive index exceeds [`MAX_PRIM`].
     pub fn new(triangles: &[(u32, Triangle)]) -> TrianglePacket {
-        assert!((1..=LANES).contains(&triangles.len()), "1 to 4 triangles");
+        let lanes = triangles
+            .iter()
+            .map(|&(prim, tri)| (prim, [tri.v0, tri.e1, tri.e2]));
+        TrianglePacket::from_lanes(lanes, 0)
+    }
+
+    /// A packet of one to four `(primitive, sphere)` pairs.
+    ///
+    /// # Panics
+    /// As [`TrianglePacket::new`].
+    pub fn spheres(spheres: &[(u32, Sphere)]) -> TrianglePacket {
+        let lanes = spheres
+            .iter()
+            .map(|&(prim, s)| (prim, [s.center, Vec3::new(s.radius, 0.0, 0.0), Vec3::ZERO]));
+        TrianglePacket::from_lanes(lanes, SPHERE_FLAG)
+    }
+
+    fn from_lanes<I>(values: I, flag: u32) -> TrianglePacket
+    where
+        I: ExactSizeIterator<Item = (u32, [Vec3; 3])>,
+    {
+        assert!((1..=LANES).contains(&values.len()), "1 to 4 shapes");
         let mut lanes = [[[0.0 as Float; LANES]; 3]; 3];
-        let mut prims = [triangles[0].0; LANES];
-        for (lane, &(prim, tri)) in triangles.iter().enumerate() {
-            prims[lane] = prim;
-            for (vector, value) in lanes.iter_mut().zip([tri.v0, tri.e1, tri.e2]) {
+        let mut prims = [UNUSED; LANES];
+        for (lane, (prim, vectors)) in values.enumerate() {
+            assert!(
+                prim <= MAX_PRIM,
+                "primitive index {prim} too large for a packet"
+            );
+            prims[lane] = prim | flag;
+            for (vector, value) in lanes.iter_mut().zip(vectors) {
                 for axis in 0..3 {
                     vector[axis][lane] = value[axis];
                 }
@@ -70,8 +106,91 @@ impl TrianglePacket {
         TrianglePacket { v0, e1, e2, prims }
     }
 
-    /// The nearest hit with `0 < t < t_max` among the lanes, as `(lane, hit)`; on equal
-    /// distances the lowest lane wins, as it would in a scalar loop.
+    /// Whether the packet holds spheres rather than triangles.
+    #[inline(always)]
+    pub fn holds_spheres(&self) -> bool {
+        self.prims[0] & SPHERE_FLAG != 0
+    }
+
+    /// The primitive in `lane` (leaf order), if the lane is used.
+    #[inline(always)]
+    pub fn prim(&self, lane: usize) -> Option<u32> {
+        match self.prims[lane] {
+            UNUSED => None,
+            prim => Some(prim & !SPHERE_FLAG),
+        }
+    }
+
+    /// The shape in `lane`, if the lane is used: exactly the values it was made from.
+    pub fn shape(&self, lane: usize) -> Option<Shape> {
+        self.prim(lane)?;
+        let vector = |v: &[f32x4; 3]| {
+            Vec3::new(
+                v[0].as_array()[lane],
+                v[1].as_array()[lane],
+                v[2].as_array()[lane],
+            )
+        };
+        let (v0, e1) = (vector(&self.v0), vector(&self.e1));
+        Some(if self.holds_spheres() {
+            Shape::Sphere(Sphere {
+                center: v0,
+                radius: e1.x,
+            })
+        } else {
+            Shape::Triangle(Triangle {
+                v0,
+                e1,
+                e2: vector(&self.e2),
+            })
+        })
+    }
+
+    /// The nearest hit with `0 < t < t_max` in the packet, as `(lane, hit)`: all
+    /// triangle lanes at once, or each sphere in turn.
+    #[inline(always)]
+    pub fn intersect_any_kind(
+        &self,
+        ray: &Ray,
+        lanes: &PacketRay,
+        t_max: Float,
+    ) -> Option<(usize, PrimHit)> {
+        if !self.holds_spheres() {
+            return self.intersect(lanes, t_max);
+        }
+        self.intersect_spheres(ray, t_max)
+    }
+
+    /// Whether any lane is hit with `0 < t < t_max`, whatever the packet holds.
+    #[inline(always)]
+    pub fn occludes_any_kind(&self, ray: &Ray, lanes: &PacketRay, t_max: Float) -> bool {
+        if !self.holds_spheres() {
+            return self.occludes(lanes, t_max);
+        }
+        self.intersect_spheres(ray, t_max).is_some()
+    }
+
+    /// Spheres are rare (none in a mesh): tested one by one, in lane order, off the
+    /// hot path.
+    #[inline(never)]
+    fn intersect_spheres(&self, ray: &Ray, t_max: Float) -> Option<(usize, PrimHit)> {
+        let mut nearest = None;
+        let mut t_max = t_max;
+        for lane in 0..LANES {
+            let Some(shape) = self.shape(lane) else {
+                break;
+            };
+            if let Some(hit) = shape.intersect(ray, t_max) {
+                t_max = hit.t;
+                nearest = Some((lane, hit));
+            }
+        }
+        nearest
+    }
+
+    /// The nearest hit with `0 < t < t_max` among the lanes of a triangle packet, as
+    /// `(lane, hit)`; on equal distances the lowest lane wins, as it would in a scalar
+    /// loop.
     #[inline(always)]
     pub fn intersect(&self, ray: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
         let (valid, t, u, v) = self.lanes(ray, t_max);
@@ -99,7 +218,7 @@ impl TrianglePacket {
         ))
     }
 
-    /// Whether any lane is hit with `0 < t < t_max`.
+    /// Whether any lane of a triangle packet is hit with `0 < t < t_max`.
     #[inline(always)]
     pub fn occludes(&self, ray: &PacketRay, t_max: Float) -> bool {
         self.lanes(ray, t_max).0.any()
@@ -143,7 +262,6 @@ impl TrianglePacket {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Vec3;
     use rand::{Rng, SeedableRng};
 
     fn random_vec(rng: &mut rand::rngs::StdRng, scale: f32) -> Vec3 {
@@ -214,9 +332,14 @@ mod tests {
                 expected.is_some()
             );
             if let Some((lane, _)) = got {
-                assert_eq!(packet.prims[lane], tris[lane].0);
+                assert_eq!(packet.prim(lane), Some(tris[lane].0));
                 hits += 1;
             }
+            for (lane, &(prim, tri)) in tris.iter().enumerate() {
+                assert_eq!(packet.prim(lane), Some(prim));
+                assert_eq!(packet.shape(lane), Some(Shape::Triangle(tri)));
+            }
+            assert!(!packet.holds_spheres());
         }
         assert!(hits > 2_000, "too few hits ({hits}) to mean anything");
     }
@@ -229,7 +352,8 @@ mod tests {
             Vec3::new(0.0, 1.0, 0.0),
         );
         let packet = TrianglePacket::new(&[(7, tri)]);
-        assert_eq!(packet.prims, [7; LANES]);
+        assert_eq!(packet.prim(0), Some(7));
+        assert!((1..LANES).all(|lane| packet.prim(lane).is_none() && packet.shape(lane).is_none()));
         // A ray through the origin (where the zero triangles of unused lanes sit) in
         // every direction hits lane 0 or nothing.
         for dir in [
@@ -243,5 +367,47 @@ mod tests {
                 assert_eq!(lane, 0);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod sphere_tests {
+    use super::*;
+
+    #[test]
+    fn sphere_packets_keep_their_spheres_and_hit_like_the_scalar_kernel() {
+        let spheres = [
+            (
+                3,
+                Sphere {
+                    center: Vec3::new(0.0, 0.0, -5.0),
+                    radius: 1.0,
+                },
+            ),
+            (
+                MAX_PRIM,
+                Sphere {
+                    center: Vec3::new(0.0, 0.0, -3.0),
+                    radius: 0.5,
+                },
+            ),
+        ];
+        let packet = TrianglePacket::spheres(&spheres);
+        assert!(packet.holds_spheres());
+        for (lane, &(prim, sphere)) in spheres.iter().enumerate() {
+            assert_eq!(packet.prim(lane), Some(prim));
+            assert_eq!(packet.shape(lane), Some(Shape::Sphere(sphere)));
+        }
+        assert_eq!(packet.prim(2), None);
+        let ray = Ray::new(Vec3::ZERO, Vec3::NEG_Z);
+        let (lane, hit) = packet
+            .intersect_any_kind(&ray, &PacketRay::new(&ray), Float::INFINITY)
+            .unwrap();
+        assert_eq!(lane, 1);
+        assert_eq!(Some(hit), spheres[1].1.intersect(&ray, Float::INFINITY));
+        assert_eq!(
+            packet.intersect_any_kind(&ray, &PacketRay::new(&ray), 2.0),
+            None
+        );
     }
 }

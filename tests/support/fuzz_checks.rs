@@ -61,7 +61,7 @@ pub fn check_pipeline(data: &[u8], dir: &Path) {
     };
     check_description(&description);
     let scene = Scene::build(description, &BvhParams::default());
-    if let Err(err) = scene.bvh().validate(&scene.prim_bounds()) {
+    if let Err(err) = scene.validate() {
         panic!("{err}");
     }
     for (look_from, look_to) in cameras(&scene) {
@@ -86,8 +86,8 @@ pub fn check_pipeline(data: &[u8], dir: &Path) {
 /// The default camera, and one looking at the middle of the scene from outside it.
 fn cameras(scene: &Scene) -> Vec<(Vec3, Vec3)> {
     let mut cameras = vec![(Vec3::ZERO, Vec3::NEG_Z)];
-    if let Some(root) = scene.bvh().nodes.first() {
-        let bounds = root.bounds();
+    let bounds = scene.bvh_summary().bounds;
+    if !bounds.is_empty() {
         let centre = bounds.center();
         let reach = (bounds.max - bounds.min).length();
         let look_from = centre + Vec3::new(0.3, 0.4, 1.0).normalize() * reach;

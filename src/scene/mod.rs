@@ -477,7 +477,7 @@ where
         prim_count <= MAX_PRIM as usize + 1,
         "too many primitives for packet indices"
     );
-    let mut wide = WideBvh::collapse(&bvh, LANES as u32);
+    let mut wide = WideBvh::collapse(&bvh, 2 * LANES as u32);
     drop(bvh);
     let leaves = wide.leaf_items();
     let packet_counts: Vec<u32> = leaves

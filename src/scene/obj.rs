@@ -1,15 +1,19 @@
 //! The OBJ reader: `v`, `vt`, `vn`, `f` (any polygon, all four vertex forms, negative
 //! indices), `mtllib`, `usemtl`, and the extensions `S` (sphere) and `P` (point light).
 //!
-//! Large files are parsed in parallel, in three passes:
-//! 1. split the text into chunks at line ends and count, per chunk, its lines and
-//!    its `v`/`vt`/`vn` statements (a cheap scan), so that every chunk knows how
-//!    many elements precede it: face indices, negative ones included, resolve
-//!    locally against those global counts;
-//! 2. parse the chunks in parallel; statements whose meaning depends on what came
-//!    before in other chunks (`mtllib`, `usemtl`) are recorded as events, and shapes
-//!    refer to "the material of the chunk's n-th `usemtl`" (0: the one in force when
-//!    the chunk starts);
+//! Large files are parsed in parallel, in three passes over chunks cut at line ends:
+//! 1. every chunk is parsed on its own by a fast scanner ([`scan`]) that does not
+//!    know what precedes it: its line numbers are local, and a positive face index
+//!    `i` met when the chunk has defined `n` elements only records that at least
+//!    `i - n` elements must precede the chunk. Statements whose meaning depends on
+//!    earlier chunks (`mtllib`, `usemtl`) are recorded as events, and shapes refer
+//!    to "the material of the chunk's k-th `usemtl`" (0: the one in force when the
+//!    chunk starts). On anything uncommon (a negative index, a malformed line) the
+//!    scanner gives up and the chunk is only counted;
+//! 2. with every chunk's counts, each chunk knows how many lines and elements
+//!    precede it. Chunks the scanner gave up on, or whose indices need more elements
+//!    than precede them, are parsed again by the general parser, which resolves
+//!    every index against those global counts and stops at the first problem;
 //! 3. in file order, load the MTL files, resolve the events to material ids, and
 //!    append each chunk's elements. The first problem in file order is the one
 //!    reported, exactly as a sequential reader would.
@@ -21,6 +25,8 @@ use rayon::prelude::*;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
 use super::{SceneDescription, SphereDesc, TriangleDesc, lex, mtl, read_file};
+
+mod scan;
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Vec2, Vec3};
 
@@ -43,30 +49,103 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// # Errors
 /// As [`load_obj`].
 pub fn parse_obj(text: &[u8], path: &Path) -> Result<SceneDescription, SceneError> {
-    // Binary data is refused, not read as lines of unknown statements.
-    lex::check_text(text).map_err(|(line, kind)| SceneError::Parse {
-        path: path.to_path_buf(),
-        line,
-        kind,
-    })?;
     let chunks = split_into_chunks(text, CHUNK_BYTES);
-    let counts: Vec<Counts> = chunks.par_iter().map(|c| Counts::of(c)).collect();
+    // Pass 1. A chunk the scanner gives up on is counted, for the chunks after it.
+    let scanned: Vec<(Option<Chunk>, Counts, bool)> = chunks
+        .par_iter()
+        .map(|text| {
+            let has_nul = memchr::memchr(0, text).is_some();
+            match scan::parse_chunk(text) {
+                Some(chunk) => {
+                    let counts = chunk.counts();
+                    (Some(chunk), counts, has_nul)
+                }
+                None => (None, Counts::of(text), has_nul),
+            }
+        })
+        .collect();
+    // Binary data is refused, not read as lines of unknown statements.
+    if scanned.iter().any(|&(_, _, has_nul)| has_nul) {
+        lex::check_text(text).map_err(|(line, kind)| SceneError::Parse {
+            path: path.to_path_buf(),
+            line,
+            kind,
+        })?;
+    }
+    // Pass 2.
     let mut bases = Vec::with_capacity(chunks.len());
     let mut total = Counts::default();
-    for c in &counts {
+    for (_, counts, _) in &scanned {
         bases.push(total);
-        total.add(c);
+        total.add(counts);
     }
-    let parsed: Vec<Chunk> = chunks
-        .par_iter()
+    let parsed: Vec<Chunk> = scanned
+        .into_par_iter()
+        .zip(chunks)
         .zip(bases)
-        .map(|(text, base)| Chunk::parse(text, base))
+        .map(|(((scanned, _, _), text), base)| match scanned {
+            Some(chunk) if chunk.required.fits_in(&base) => chunk.placed_after(&base),
+            _ => Chunk::parse(text, base),
+        })
         .collect();
-    let mut resolver = Resolver::new(path, &total);
-    for chunk in parsed {
-        resolver.append(chunk)?;
+    // Pass 3.
+    let mut resolver = Resolver::new(path);
+    let mut materials = Vec::with_capacity(parsed.len());
+    for chunk in &parsed {
+        materials.push(resolver.resolve(chunk)?);
     }
-    Ok(resolver.scene)
+    let mut scene = resolver.scene;
+    concat(&parsed, |c| &c.positions, |_, &p| p, &mut scene.positions);
+    concat(&parsed, |c| &c.texcoords, |_, &t| t, &mut scene.texcoords);
+    concat(&parsed, |c| &c.normals, |_, &n| n, &mut scene.normals);
+    let material = |chunk: usize, slot: MaterialId| materials[chunk][slot.0 as usize];
+    let triangle = |chunk, t: &TriangleDesc| TriangleDesc {
+        material: material(chunk, t.material),
+        ..*t
+    };
+    concat(&parsed, |c| &c.triangles, triangle, &mut scene.triangles);
+    let sphere = |chunk, s: &SphereDesc| SphereDesc {
+        material: material(chunk, s.material),
+        ..*s
+    };
+    concat(&parsed, |c| &c.spheres, sphere, &mut scene.spheres);
+    concat(&parsed, |c| &c.lights, |_, &l| l, &mut scene.lights);
+    // Freeing the chunks' arrays returns their pages to the system, which costs
+    // about as much as taking them: on all cores too.
+    parsed.into_par_iter().for_each(drop);
+    Ok(scene)
+}
+
+/// Fills `out` with every chunk's `part`, in file order, each element passed through
+/// `map` with its chunk's index. All threads write at once, straight into `out`.
+fn concat<T: Sync, U: Send>(
+    chunks: &[Chunk],
+    part: impl Fn(&Chunk) -> &[T] + Sync,
+    map: impl Fn(usize, &T) -> U + Sync + Send,
+    out: &mut Vec<U>,
+) {
+    let mut starts = Vec::with_capacity(chunks.len() + 1);
+    starts.push(0);
+    for chunk in chunks {
+        starts.push(starts[starts.len() - 1] + part(chunk).len());
+    }
+    let total = starts[chunks.len()];
+    let chunk_of = |i: usize| starts.partition_point(|&start| start <= i) - 1;
+    // Each thread takes runs of consecutive elements, so the chunk found for one is
+    // most often the next one's too.
+    (0..total)
+        .into_par_iter()
+        .with_min_len(1 << 12)
+        .map_init(
+            || 0,
+            |chunk: &mut usize, i| {
+                if !(starts[*chunk]..starts[*chunk + 1]).contains(&i) {
+                    *chunk = chunk_of(i);
+                }
+                map(*chunk, &part(&chunks[*chunk])[i - starts[*chunk]])
+            },
+        )
+        .collect_into_vec(out);
 }
 
 /// Cuts `text` into pieces of about `size` bytes, each ending just after a `\n`
@@ -125,6 +204,13 @@ impl Counts {
         self.texcoords += other.texcoords;
         self.normals += other.normals;
     }
+
+    /// Whether `base` holds at least as many elements of each kind as `self`.
+    fn fits_in(&self, base: &Counts) -> bool {
+        self.positions <= base.positions
+            && self.texcoords <= base.texcoords
+            && self.normals <= base.normals
+    }
 }
 
 /// A statement whose effect depends on earlier chunks, replayed in file order.
@@ -150,6 +236,11 @@ struct Chunk {
     error: Option<(usize, ParseErrorKind)>,
     /// Number of the chunk's first line.
     first_line: usize,
+    /// Lines (`\n`) of the chunk, counted by the scanner.
+    lines: usize,
+    /// For a scanned chunk: how many elements of each kind must precede it for all
+    /// its face indices to be in range.
+    required: Counts,
 }
 
 /// One corner of a face, resolved to 0-based indices.
@@ -160,6 +251,32 @@ struct Corner {
 }
 
 impl Chunk {
+    /// The lines and elements of a scanned chunk.
+    fn counts(&self) -> Counts {
+        Counts {
+            lines: self.lines,
+            positions: self.positions.len(),
+            texcoords: self.texcoords.len(),
+            normals: self.normals.len(),
+        }
+    }
+
+    /// A scanned chunk with its line numbers made global, once `base` is known.
+    fn placed_after(mut self, base: &Counts) -> Chunk {
+        self.first_line = base.lines + 1;
+        for event in &mut self.events {
+            match event {
+                Event::Mtllib { line, .. } | Event::Usemtl { line, .. } => *line += base.lines,
+            }
+        }
+        if let Some(line) = &mut self.first_inherited_shape {
+            *line += base.lines;
+        }
+        self
+    }
+
+    /// The general parser: resolves indices against `base`, the counts of everything
+    /// before the chunk, and stops at the first problem.
     fn parse(text: &[u8], base: Counts) -> Chunk {
         let mut chunk = Chunk {
             first_line: base.lines + 1,
@@ -187,6 +304,21 @@ impl Chunk {
         let Some(keyword) = tokens.next() else {
             return Ok(());
         };
+        if keyword == b"f" {
+            return self.parse_face(tokens, line_number, base, *slot);
+        }
+        self.parse_statement(keyword, tokens, line, line_number, slot)
+    }
+
+    /// Any statement but `f`: none depends on the elements before it.
+    fn parse_statement(
+        &mut self,
+        keyword: &[u8],
+        mut tokens: lex::Tokens<'_>,
+        line: &[u8],
+        line_number: usize,
+        slot: &mut u32,
+    ) -> Result<(), ParseErrorKind> {
         match keyword {
             b"v" => self.positions.push(lex::vec3("v", &mut tokens)?),
             b"vn" => self.normals.push(lex::vec3("vn", &mut tokens)?),
@@ -198,7 +330,6 @@ impl Chunk {
                 };
                 self.texcoords.push(Vec2::new(u, v));
             }
-            b"f" => self.parse_face(tokens, line_number, base, *slot)?,
             b"S" => {
                 let [x, y, z, radius] = lex::floats::<4>("S", &mut tokens)?;
                 if radius < 0.0 {
@@ -320,7 +451,7 @@ impl Chunk {
     }
 }
 
-/// Pass 3: replays chunks in file order into one description.
+/// Pass 3: replays chunks' statements in file order.
 struct Resolver<'a> {
     path: &'a Path,
     scene: SceneDescription,
@@ -331,27 +462,29 @@ struct Resolver<'a> {
     warned_unknown: HashSet<String>,
     /// Canonical paths of the `mtllib` files read so far.
     loaded_libraries: HashSet<PathBuf>,
+    /// Triangles of the chunks resolved so far.
+    triangles: usize,
 }
 
 impl<'a> Resolver<'a> {
-    fn new(path: &'a Path, total: &Counts) -> Resolver<'a> {
-        let mut scene = SceneDescription::default();
-        scene.positions.reserve_exact(total.positions);
-        scene.texcoords.reserve_exact(total.texcoords);
-        scene.normals.reserve_exact(total.normals);
+    fn new(path: &'a Path) -> Resolver<'a> {
         Resolver {
             path,
-            scene,
+            scene: SceneDescription::default(),
             material_ids: HashMap::new(),
             current_material: None,
             fallback_material: None,
             warned_no_usemtl: false,
             warned_unknown: HashSet::new(),
             loaded_libraries: HashSet::new(),
+            triangles: 0,
         }
     }
 
-    fn append(&mut self, chunk: Chunk) -> Result<(), SceneError> {
+    /// Replays the chunk's statements that depend on earlier ones (reading MTL files,
+    /// warning) and returns the material of each of its slots; the chunk's elements
+    /// are appended afterwards, for all chunks at once.
+    fn resolve(&mut self, chunk: &Chunk) -> Result<Vec<MaterialId>, SceneError> {
         // Events all precede the chunk's error line (parsing stopped there), so
         // replaying them first reports problems in file order.
         let mut slots = vec![self.current_material];
@@ -380,11 +513,11 @@ impl<'a> Resolver<'a> {
                 }
             }
         }
-        if let Some((line, kind)) = chunk.error {
+        if let Some((line, kind)) = &chunk.error {
             return Err(SceneError::Parse {
                 path: self.path.to_path_buf(),
-                line,
-                kind,
+                line: *line,
+                kind: kind.clone(),
             });
         }
         if slots[0].is_none()
@@ -396,32 +529,15 @@ impl<'a> Resolver<'a> {
             }
             slots[0] = Some(self.fallback_material());
         }
-        let material = |slot: MaterialId| slots[slot.0 as usize].unwrap_or_default();
-        let scene = &mut self.scene;
-        if scene.triangles.len() + chunk.triangles.len() > u32::MAX as usize {
+        self.triangles += chunk.triangles.len();
+        if self.triangles > u32::MAX as usize {
             return Err(SceneError::Parse {
                 path: self.path.to_path_buf(),
                 line: chunk.first_line,
                 kind: ParseErrorKind::TooMany("triangles"),
             });
         }
-        scene.positions.extend_from_slice(&chunk.positions);
-        scene.texcoords.extend_from_slice(&chunk.texcoords);
-        scene.normals.extend_from_slice(&chunk.normals);
-        scene
-            .triangles
-            .extend(chunk.triangles.iter().map(|t| TriangleDesc {
-                material: material(t.material),
-                ..*t
-            }));
-        scene
-            .spheres
-            .extend(chunk.spheres.iter().map(|s| SphereDesc {
-                material: material(s.material),
-                ..*s
-            }));
-        scene.lights.extend_from_slice(&chunk.lights);
-        Ok(())
+        Ok(slots.into_iter().map(Option::unwrap_or_default).collect())
     }
 
     /// Reads the library `relative` named at line `line`. A library named again

@@ -139,8 +139,7 @@ fn eight_digits(text: &[u8]) -> (u64, usize) {
     // A byte's high bit is set here if it is below `'0'` (the subtraction borrows)
     // or above `'9'` (adding 0x46 reaches 0x80). A borrow only disturbs the bytes
     // after the first non-digit, which are not used.
-    let non_digits =
-        (values | word.wrapping_add(0x4646_4646_4646_4646)) & 0x8080_8080_8080_8080;
+    let non_digits = (values | word.wrapping_add(0x4646_4646_4646_4646)) & 0x8080_8080_8080_8080;
     let count = (non_digits.trailing_zeros() / 8) as usize;
     if count == 0 {
         return (0, 0);
@@ -202,15 +201,38 @@ mod tests {
     #[test]
     fn edges_of_the_fast_path_and_what_it_leaves_to_fast_float2() {
         for text in [
-            "0", "-0", "-0.0", "0e99", "16777216", "1.6777216", "-0.0503644", "1e10", "1e-10",
-            "7E+3", "3.4028235e38",
+            "0",
+            "-0",
+            "-0.0",
+            "0e99",
+            "16777216",
+            "1.6777216",
+            "-0.0503644",
+            "1e10",
+            "1e-10",
+            "7E+3",
+            "3.4028235e38",
         ] {
             check(text);
         }
-        assert_eq!(parse_short(b"-0").map(|(v, _)| v.to_bits()), Some((-0.0f32).to_bits()));
+        assert_eq!(
+            parse_short(b"-0").map(|(v, _)| v.to_bits()),
+            Some((-0.0f32).to_bits())
+        );
         for text in [
-            "16777217", "1e11", "1e-11", "+1", ".5", "5.", "1e", "1e+", "-", "inf", "nan",
-            "12345678901234567890", "1e00001",
+            "16777217",
+            "1e11",
+            "1e-11",
+            "+1",
+            ".5",
+            "5.",
+            "1e",
+            "1e+",
+            "-",
+            "inf",
+            "nan",
+            "12345678901234567890",
+            "1e00001",
         ] {
             assert!(!check(text), "{text} should take the general parser");
         }

@@ -89,41 +89,8 @@ fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
     // Asked for up front, so that a file beyond memory fails here with a message
     // instead of aborting the process halfway through reading it.
     text.try_reserve_exact(size).map_err(|_| too_large())?;
-    #[cfg(unix)]
-    if size >= PARALLEL_READ_BYTES && read_in_parallel(&file, size, &mut text) {
-        return Ok(text);
-    }
-    text.clear();
     file.read_to_end(&mut text)?;
     Ok(text)
-}
-
-/// Files at least this large are read by all threads at once, each into its own
-/// part of the buffer. Reading a cached file costs mostly the page faults of the
-/// fresh buffer, and those are then spread over the cores.
-#[cfg(unix)]
-const PARALLEL_READ_BYTES: usize = 8 << 20;
-
-/// Bytes per parallel read.
-#[cfg(unix)]
-const READ_PIECE_BYTES: usize = 2 << 20;
-
-/// Reads the `size` bytes of `file` into `text` (reserved, empty) in parallel.
-/// `false` if the file is not `size` bytes long any more (it changed after its size
-/// was read), or a read failed: the caller then reads it the ordinary way.
-#[cfg(unix)]
-fn read_in_parallel(file: &File, size: usize, text: &mut Vec<u8>) -> bool {
-    use rayon::prelude::*;
-    use std::os::unix::fs::FileExt;
-    // Zeroing first is the safe way to get a buffer to read into; done in parallel,
-    // it also takes the page faults in parallel.
-    text.par_extend(rayon::iter::repeat_n(0u8, size));
-    let read = text
-        .par_chunks_mut(READ_PIECE_BYTES)
-        .enumerate()
-        .try_for_each(|(i, piece)| file.read_exact_at(piece, (i * READ_PIECE_BYTES) as u64));
-    let mut beyond = [0u8; 1];
-    read.is_ok() && matches!(file.read_at(&mut beyond, size as u64), Ok(0))
 }
 
 #[cfg(test)]

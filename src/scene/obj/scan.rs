@@ -235,8 +235,8 @@ impl Scanner<'_> {
     fn corner(&mut self) -> Option<Corner> {
         let position = self.index()?;
         let chunk = &mut self.chunk;
-        chunk.required.positions = (chunk.required.positions)
-            .max(position.saturating_sub(chunk.positions.len()));
+        chunk.required.positions =
+            (chunk.required.positions).max(position.saturating_sub(chunk.positions.len()));
         let mut normal = None;
         if self.text.get(self.at) == Some(&b'/') {
             self.at += 1;
@@ -244,8 +244,8 @@ impl Scanner<'_> {
             if self.text.get(self.at) != Some(&b'/') {
                 let texcoord = self.index()?;
                 let chunk = &mut self.chunk;
-                chunk.required.texcoords = (chunk.required.texcoords)
-                    .max(texcoord.saturating_sub(chunk.texcoords.len()));
+                chunk.required.texcoords =
+                    (chunk.required.texcoords).max(texcoord.saturating_sub(chunk.texcoords.len()));
                 slash = self.text.get(self.at) == Some(&b'/');
             }
             if slash {

@@ -20,57 +20,50 @@ const MAX_EXACT_MANTISSA: u64 = 1 << 24;
 const MAX_DIGITS: usize = 19;
 
 /// Parses `-?digits(.digits)?([eE][+-]?digits)?` at the start of `text` when the
-/// fast path applies. Returns the value and the number of bytes read; what follows
-/// is the caller's to check.
+/// fast path applies. Returns the value and the text after it, which is the
+/// caller's to check.
 #[inline(always)]
-pub(crate) fn parse_short(text: &[u8]) -> Option<(Float, usize)> {
-    let negative = text.first() == Some(&b'-');
-    let mut at = usize::from(negative);
-    let (mut mantissa, mut digits) = leading_digits(text.get(at..)?);
+pub(crate) fn parse_short(text: &[u8]) -> Option<(Float, &[u8])> {
+    let (negative, unsigned) = match text {
+        [b'-', rest @ ..] => (true, rest),
+        _ => (false, text),
+    };
+    let (mut mantissa, mut digits) = leading_digits(unsigned);
     if digits == 0 {
         return None;
     }
-    at += digits;
+    let mut rest = &unsigned[digits..];
     let mut exponent: i32 = 0;
-    if text.get(at) == Some(&b'.') {
-        at += 1;
-        let (fraction, fraction_digits) = leading_digits(&text[at..]);
+    if let [b'.', fraction @ ..] = rest {
+        let (fraction_value, fraction_digits) = leading_digits(fraction);
         if fraction_digits == 0 {
             return None;
         }
-        at += fraction_digits;
         digits += fraction_digits;
         if digits > MAX_DIGITS {
             return None;
         }
-        mantissa = mantissa * POWERS_OF_TEN_U64[fraction_digits] + fraction;
+        mantissa = mantissa * POWERS_OF_TEN_U64[fraction_digits] + fraction_value;
         exponent = -(fraction_digits as i32);
+        rest = &fraction[fraction_digits..];
     }
     if digits > MAX_DIGITS {
         return None;
     }
-    if let Some(b'e' | b'E') = text.get(at) {
-        at += 1;
-        let negative_exponent = text.get(at) == Some(&b'-');
-        if negative_exponent || text.get(at) == Some(&b'+') {
-            at += 1;
-        }
-        let exponent_start = at;
-        let mut written: i32 = 0;
-        while let Some(&d) = text.get(at)
-            && d.is_ascii_digit()
-        {
-            // Four digits already put the value out of the fast path's range.
-            if at - exponent_start == 4 {
-                return None;
-            }
-            written = written * 10 + i32::from(d - b'0');
-            at += 1;
-        }
-        if at == exponent_start {
+    if let [b'e' | b'E', after @ ..] = rest {
+        let (negative_exponent, unsigned_exponent) = match after {
+            [b'-', tail @ ..] => (true, tail),
+            [b'+', tail @ ..] => (false, tail),
+            _ => (false, after),
+        };
+        let (written, written_digits) = leading_digits(unsigned_exponent);
+        // Four digits already put the value out of the fast path's range.
+        if written_digits == 0 || written_digits > 3 {
             return None;
         }
+        let written = written as i32;
         exponent += if negative_exponent { -written } else { written };
+        rest = &unsigned_exponent[written_digits..];
     }
     let magnitude = if mantissa == 0 {
         0.0
@@ -84,7 +77,7 @@ pub(crate) fn parse_short(text: &[u8]) -> Option<(Float, usize)> {
             mantissa as Float * power
         }
     };
-    Some((if negative { -magnitude } else { magnitude }, at))
+    Some((if negative { -magnitude } else { magnitude }, rest))
 }
 
 /// `10^k` for `k` in `0..=19`.
@@ -103,18 +96,27 @@ const POWERS_OF_TEN_U64: [u64; 20] = {
 /// checks the count). Reads eight bytes at a time where the text has them.
 #[inline(always)]
 pub(crate) fn leading_digits(text: &[u8]) -> (u64, usize) {
-    let (mut value, mut count) = eight_digits(text);
-    while count % 8 == 0 && count > 0 {
+    let (value, count) = eight_digits(text);
+    if count < 8 {
+        return (value, count);
+    }
+    more_digits(text, value)
+}
+
+/// [`leading_digits`] past the first eight.
+#[cold]
+fn more_digits(text: &[u8], mut value: u64) -> (u64, usize) {
+    let mut count = 8;
+    loop {
         let (more, more_count) = eight_digits(&text[count..]);
-        if more_count == 0 {
-            break;
-        }
         value = value
             .wrapping_mul(POWERS_OF_TEN_U64[more_count])
             .wrapping_add(more);
         count += more_count;
+        if more_count < 8 {
+            return (value, count);
+        }
     }
-    (value, count)
 }
 
 /// Up to eight leading digits of `text`, as value and count.
@@ -161,7 +163,7 @@ mod tests {
     fn check(text: &str) -> bool {
         let expected: Result<Float, _> = fast_float2::parse(text);
         match parse_short(text.as_bytes()) {
-            Some((value, len)) if len == text.len() => {
+            Some((value, rest)) if rest.is_empty() => {
                 let expected = expected.unwrap_or_else(|_| panic!("{text} is not a number"));
                 assert_eq!(value.to_bits(), expected.to_bits(), "{text}");
                 true
@@ -237,7 +239,7 @@ mod tests {
             assert!(!check(text), "{text} should take the general parser");
         }
         // Stops before what is not part of the number.
-        assert_eq!(parse_short(b"1.5/2"), Some((1.5, 3)));
+        assert_eq!(parse_short(b"1.5/2"), Some((1.5, &b"/2"[..])));
         assert_eq!(parse_short(b"2e"), None);
     }
 }

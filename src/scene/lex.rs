@@ -83,8 +83,8 @@ pub(crate) fn show(token: &[u8]) -> String {
 /// no UTF-8 check and about twice as fast as `str::parse`.
 #[inline]
 pub(crate) fn float(token: &[u8]) -> Result<Float, ParseErrorKind> {
-    if let Some((value, len)) = decimal::parse_short(token)
-        && len == token.len()
+    if let Some((value, rest)) = decimal::parse_short(token)
+        && rest.is_empty()
     {
         return Ok(value);
     }

@@ -21,8 +21,7 @@ const MAX_INDEX_DIGITS: usize = 9;
 /// general parser.
 pub(super) fn parse_chunk(text: &[u8]) -> Option<Chunk> {
     let mut scanner = Scanner {
-        text,
-        at: 0,
+        rest: text,
         lines: 0,
         slot: 0,
         chunk: Chunk::default(),
@@ -37,20 +36,29 @@ pub(super) fn parse_chunk(text: &[u8]) -> Option<Chunk> {
     Some(scanner.chunk)
 }
 
+/// The separators of [`lex::is_space`], as a set of bytes below 64.
+const SPACES: u64 = 1 << b' ' | 1 << b'\t' | 1 << b'\r' | 1 << 0x0b | 1 << 0x0c;
+
+/// The bytes that end a token: separators, the end of the line and a comment.
+const TOKEN_ENDS: u64 = SPACES | 1 << b'\n' | 1 << b'#';
+
+/// Whether `b` is in `set` (bytes below 64): one shift instead of a chain of
+/// comparisons.
+#[inline(always)]
+fn in_set(set: u64, b: u8) -> bool {
+    b < 64 && (set >> b) & 1 != 0
+}
+
 /// Whether `b` ends a token: a separator, the end of the line, a comment or the end
 /// of the chunk (`None`).
 #[inline(always)]
 fn ends_token(b: Option<&u8>) -> bool {
-    match b {
-        None | Some(b'\n' | b'#') => true,
-        Some(&b) => lex::is_space(b),
-    }
+    b.is_none_or(|&b| in_set(TOKEN_ENDS, b))
 }
 
 struct Scanner<'a> {
-    text: &'a [u8],
-    /// Position of the next byte to read.
-    at: usize,
+    /// The text not read yet.
+    rest: &'a [u8],
     /// `\n` bytes passed so far: the current line's local number is `lines + 1`.
     lines: usize,
     /// The material slot in force (see [`Chunk`]).
@@ -62,36 +70,32 @@ impl Scanner<'_> {
     fn run(&mut self) -> Option<()> {
         loop {
             self.skip_spaces();
-            let Some(&first) = self.text.get(self.at) else {
-                return Some(());
-            };
-            let second = self.text.get(self.at + 1).copied();
-            let third = self.text.get(self.at + 2).copied();
-            match (first, second, third) {
-                (b'\n', _, _) => {
-                    self.at += 1;
+            match self.rest {
+                [] => return Some(()),
+                [b'\n', rest @ ..] => {
+                    self.rest = rest;
                     self.lines += 1;
                     continue;
                 }
-                (b'v', Some(b' '), _) => {
-                    self.at += 2;
+                [b'v', b' ', rest @ ..] => {
+                    self.rest = rest;
                     let position = self.vec3()?;
                     self.chunk.positions.push(position);
                 }
-                (b'f', Some(b' '), _) => {
-                    self.at += 2;
+                [b'f', b' ', rest @ ..] => {
+                    self.rest = rest;
                     self.face()?;
                 }
-                (b'v', Some(b'n'), Some(b' ')) => {
-                    self.at += 3;
+                [b'v', b'n', b' ', rest @ ..] => {
+                    self.rest = rest;
                     let normal = self.vec3()?;
                     self.chunk.normals.push(normal);
                 }
-                (b'v', Some(b't'), Some(b' ')) => {
-                    self.at += 3;
+                [b'v', b't', b' ', rest @ ..] => {
+                    self.rest = rest;
                     let u = self.number()?;
                     self.skip_spaces();
-                    let v = if ends_token(self.text.get(self.at)) {
+                    let v = if ends_token(self.rest.first()) {
                         0.0
                     } else {
                         self.number()?
@@ -109,9 +113,8 @@ impl Scanner<'_> {
 
     /// Any other line, by the general parser; `f` lines not written `f ` give up.
     fn other_line(&mut self) -> Option<()> {
-        let rest = &self.text[self.at..];
-        let end = memchr::memchr(b'\n', rest).unwrap_or(rest.len());
-        let line = &rest[..end];
+        let end = memchr::memchr(b'\n', self.rest).unwrap_or(self.rest.len());
+        let (line, rest) = self.rest.split_at(end);
         let line = match memchr::memchr(b'#', line) {
             Some(hash) => &line[..hash],
             None => line,
@@ -126,16 +129,16 @@ impl Scanner<'_> {
                 .parse_statement(keyword, tokens, line, line_number, &mut self.slot)
                 .ok()?;
         }
-        self.at += end;
+        self.rest = rest;
         Some(())
     }
 
     #[inline(always)]
     fn skip_spaces(&mut self) {
-        while let Some(&b) = self.text.get(self.at)
-            && lex::is_space(b)
+        while let [b, rest @ ..] = self.rest
+            && in_set(SPACES, *b)
         {
-            self.at += 1;
+            self.rest = rest;
         }
     }
 
@@ -143,16 +146,17 @@ impl Scanner<'_> {
     /// ignored, as the general parser does) and its `\n`.
     #[inline(always)]
     fn skip_line(&mut self) {
-        if self.text.get(self.at) != Some(&b'\n') {
-            match memchr::memchr(b'\n', &self.text[self.at..]) {
-                Some(offset) => self.at += offset,
+        let rest = match self.rest {
+            [b'\n', rest @ ..] => rest,
+            _ => match memchr::memchr(b'\n', self.rest) {
+                Some(end) => &self.rest[end + 1..],
                 None => {
-                    self.at = self.text.len();
+                    self.rest = &[];
                     return;
                 }
-            }
-        }
-        self.at += 1;
+            },
+        };
+        self.rest = rest;
         self.lines += 1;
     }
 
@@ -169,11 +173,10 @@ impl Scanner<'_> {
     #[inline(always)]
     fn number(&mut self) -> Option<Float> {
         self.skip_spaces();
-        let rest = &self.text[self.at..];
-        if let Some((value, len)) = decimal::parse_short(rest)
-            && ends_token(rest.get(len))
+        if let Some((value, rest)) = decimal::parse_short(self.rest)
+            && ends_token(rest.first())
         {
-            self.at += len;
+            self.rest = rest;
             return Some(value);
         }
         self.general_number()
@@ -181,16 +184,17 @@ impl Scanner<'_> {
 
     #[cold]
     fn general_number(&mut self) -> Option<Float> {
-        let rest = &self.text[self.at..];
-        let len = rest
+        let len = self
+            .rest
             .iter()
             .position(|b| ends_token(Some(b)))
-            .unwrap_or(rest.len());
+            .unwrap_or(self.rest.len());
         if len == 0 {
             return None;
         }
-        let value = lex::float(&rest[..len]).ok()?;
-        self.at += len;
+        let (token, rest) = self.rest.split_at(len);
+        let value = lex::float(token).ok()?;
+        self.rest = rest;
         Some(value)
     }
 
@@ -198,35 +202,39 @@ impl Scanner<'_> {
     #[inline(always)]
     fn face(&mut self) -> Option<()> {
         let slot = self.slot;
-        let mut first: Option<Corner> = None;
-        let mut previous: Option<Corner> = None;
-        let mut count = 0usize;
+        // Fewer than three corners is an error, left to the general parser.
+        let first = self.next_corner()??;
+        let mut previous = self.next_corner()??;
+        let mut corner = self.next_corner()??;
         loop {
-            self.skip_spaces();
-            if ends_token(self.text.get(self.at)) {
-                break;
+            let normals = match (first.normal, previous.normal, corner.normal) {
+                (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
+                _ => None,
+            };
+            self.chunk.triangles.push(TriangleDesc {
+                positions: [first.position, previous.position, corner.position],
+                normals,
+                material: MaterialId(slot),
+            });
+            previous = corner;
+            match self.next_corner()? {
+                Some(next) => corner = next,
+                None => break,
             }
-            let corner = self.corner()?;
-            count += 1;
-            if let (Some(a), Some(b), 3..) = (first, previous, count) {
-                let normals = match (a.normal, b.normal, corner.normal) {
-                    (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
-                    _ => None,
-                };
-                self.chunk.triangles.push(TriangleDesc {
-                    positions: [a.position, b.position, corner.position],
-                    normals,
-                    material: MaterialId(slot),
-                });
-            }
-            first.get_or_insert(corner);
-            previous = Some(corner);
-        }
-        if count < 3 {
-            return None;
         }
         self.chunk.note_shape(self.lines + 1, slot);
         Some(())
+    }
+
+    /// The next corner of a face, `Some(None)` at the end of the line, `None` if
+    /// the scanner gives up.
+    #[inline(always)]
+    fn next_corner(&mut self) -> Option<Option<Corner>> {
+        self.skip_spaces();
+        if ends_token(self.rest.first()) {
+            return Some(None);
+        }
+        self.corner().map(Some)
     }
 
     /// `v`, `v/vt`, `v//vn` or `v/vt/vn` with positive indices, as 0-based indices;
@@ -238,18 +246,18 @@ impl Scanner<'_> {
         chunk.required.positions =
             (chunk.required.positions).max(position.saturating_sub(chunk.positions.len()));
         let mut normal = None;
-        if self.text.get(self.at) == Some(&b'/') {
-            self.at += 1;
+        if let [b'/', rest @ ..] = self.rest {
+            self.rest = rest;
             let mut slash = true;
-            if self.text.get(self.at) != Some(&b'/') {
+            if self.rest.first() != Some(&b'/') {
                 let texcoord = self.index()?;
                 let chunk = &mut self.chunk;
                 chunk.required.texcoords =
                     (chunk.required.texcoords).max(texcoord.saturating_sub(chunk.texcoords.len()));
-                slash = self.text.get(self.at) == Some(&b'/');
+                slash = self.rest.first() == Some(&b'/');
             }
             if slash {
-                self.at += 1;
+                self.rest = &self.rest[1..];
                 let index = self.index()?;
                 let chunk = &mut self.chunk;
                 chunk.required.normals =
@@ -257,7 +265,7 @@ impl Scanner<'_> {
                 normal = Some(index as u32 - 1);
             }
         }
-        if !ends_token(self.text.get(self.at)) {
+        if !ends_token(self.rest.first()) {
             return None;
         }
         Some(Corner {
@@ -269,11 +277,26 @@ impl Scanner<'_> {
     /// A 1-based index of one to [`MAX_INDEX_DIGITS`] digits, not 0.
     #[inline(always)]
     fn index(&mut self) -> Option<usize> {
-        let (value, digits) = decimal::leading_digits(&self.text[self.at..]);
+        let (value, digits) = decimal::leading_digits(self.rest);
         if digits == 0 || digits > MAX_INDEX_DIGITS || value == 0 {
             return None;
         }
-        self.at += digits;
+        self.rest = &self.rest[digits..];
         Some(value as usize)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_sets_match_the_tokenizer() {
+        for b in 0..=u8::MAX {
+            assert_eq!(in_set(SPACES, b), lex::is_space(b), "{b:#x}");
+            let ends = lex::is_space(b) || b == b'\n' || b == b'#';
+            assert_eq!(ends_token(Some(&b)), ends, "{b:#x}");
+        }
+        assert!(ends_token(None));
     }
 }

@@ -163,7 +163,7 @@ mod tests {
     fn check(text: &str) -> bool {
         let expected: Result<Float, _> = fast_float2::parse(text);
         match parse_short(text.as_bytes()) {
-            Some((value, rest)) if rest.is_empty() => {
+            Some((value, [])) => {
                 let expected = expected.unwrap_or_else(|_| panic!("{text} is not a number"));
                 assert_eq!(value.to_bits(), expected.to_bits(), "{text}");
                 true

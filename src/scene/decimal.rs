@@ -28,7 +28,12 @@ pub(crate) fn parse_short(text: &[u8]) -> Option<(Float, &[u8])> {
         [b'-', rest @ ..] => (true, rest),
         _ => (false, text),
     };
-    let (mut mantissa, mut digits) = leading_digits(unsigned);
+    // Mesh coordinates mostly have one digit before the point: no need to gather
+    // eight bytes for it.
+    let (mut mantissa, mut digits) = match unsigned {
+        [d @ b'0'..=b'9', b'.', ..] => (u64::from(d - b'0'), 1),
+        _ => leading_digits(unsigned),
+    };
     if digits == 0 {
         return None;
     }

@@ -20,11 +20,12 @@
 
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, PoisonError};
 
 use rayon::prelude::*;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
-use super::{SceneDescription, SphereDesc, TriangleDesc, lex, mtl, read_file};
+use super::{SceneDescription, SphereDesc, TriangleDesc, file, lex, mtl, read_file};
 
 mod scan;
 use crate::material::{Material, MaterialId, PointLight};
@@ -36,12 +37,35 @@ const CHUNK_BYTES: usize = 1 << 20;
 
 /// Reads an OBJ file and the MTL files it names (relative to its folder).
 ///
+/// Chunks are parsed (pass 1) as soon as they are read, so that reading the file
+/// overlaps parsing it instead of coming first.
+///
 /// # Errors
 /// A missing or unreadable file (naming its path), or a malformed supported line
 /// (naming file and line).
 pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
-    let text = read_file(path)?;
-    parse_obj(&text, path)
+    let read = Mutex::new(Vec::new());
+    let whole = rayon::in_place_scope_fifo(|scope| {
+        file::read_in_pieces(path, CHUNK_BYTES, |index, chunk| {
+            let read = &read;
+            scope.spawn_fifo(move |_| {
+                let scanned = Scanned::of(&chunk, Scanner::Fast);
+                let mut read = read.lock().unwrap_or_else(PoisonError::into_inner);
+                read.push((index, chunk, scanned));
+            });
+        })
+    })?;
+    if let Some(text) = whole {
+        return parse_obj(&text, path);
+    }
+    let mut read = read.into_inner().unwrap_or_else(PoisonError::into_inner);
+    read.sort_unstable_by_key(|&(index, ..)| index);
+    let (texts, scanned): (Vec<Vec<u8>>, Vec<Scanned>) = read
+        .into_iter()
+        .map(|(_, text, scanned)| (text, scanned))
+        .unzip();
+    let chunks: Vec<&[u8]> = texts.iter().map(Vec::as_slice).collect();
+    parse_scanned(&chunks, scanned, path)
 }
 
 /// Parses OBJ text; `path` names it in messages and locates `mtllib` files.
@@ -67,45 +91,77 @@ fn parse_in_chunks(
     scanner: Scanner,
 ) -> Result<SceneDescription, SceneError> {
     let chunks = split_into_chunks(text, chunk_bytes);
-    // Pass 1. A chunk the scanner gives up on is counted, for the chunks after it.
-    let scanned: Vec<(Option<Chunk>, Counts, bool)> = chunks
+    let scanned = chunks
         .par_iter()
-        .map(|text| {
-            let has_nul = memchr::memchr(0, text).is_some();
-            let fast = match scanner {
-                Scanner::Fast => scan::parse_chunk(text),
-                #[cfg(test)]
-                Scanner::GeneralOnly => None,
-            };
-            match fast {
-                Some(chunk) => {
-                    let counts = chunk.counts();
-                    (Some(chunk), counts, has_nul)
-                }
-                None => (None, Counts::of(text), has_nul),
-            }
-        })
+        .map(|text| Scanned::of(text, scanner))
         .collect();
+    parse_scanned(&chunks, scanned, path)
+}
+
+/// Pass 1's result for one chunk.
+struct Scanned {
+    /// The chunk as the scanner read it, `None` if it gave up.
+    chunk: Option<Chunk>,
+    /// Its lines and elements.
+    counts: Counts,
+    /// Whether it holds a NUL byte.
+    has_nul: bool,
+}
+
+impl Scanned {
+    /// Pass 1 on one chunk. A chunk the scanner gives up on is counted, for the
+    /// chunks after it.
+    fn of(text: &[u8], scanner: Scanner) -> Scanned {
+        let has_nul = memchr::memchr(0, text).is_some();
+        let chunk = match scanner {
+            Scanner::Fast => scan::parse_chunk(text),
+            #[cfg(test)]
+            Scanner::GeneralOnly => None,
+        };
+        let counts = match &chunk {
+            Some(chunk) => chunk.counts(),
+            None => Counts::of(text),
+        };
+        Scanned {
+            chunk,
+            counts,
+            has_nul,
+        }
+    }
+}
+
+/// Passes 2 and 3 on the chunks of a file, in order, after pass 1 (`scanned`).
+fn parse_scanned(
+    chunks: &[&[u8]],
+    scanned: Vec<Scanned>,
+    path: &Path,
+) -> Result<SceneDescription, SceneError> {
     // Binary data is refused, not read as lines of unknown statements.
-    if scanned.iter().any(|&(_, _, has_nul)| has_nul) {
-        lex::check_text(text).map_err(|(line, kind)| SceneError::Parse {
-            path: path.to_path_buf(),
-            line,
-            kind,
-        })?;
+    let mut lines_before = 0;
+    for (text, scanned) in chunks.iter().zip(&scanned) {
+        if scanned.has_nul
+            && let Err((line, kind)) = lex::check_text(text)
+        {
+            return Err(SceneError::Parse {
+                path: path.to_path_buf(),
+                line: lines_before + line,
+                kind,
+            });
+        }
+        lines_before += scanned.counts.lines;
     }
     // Pass 2.
     let mut bases = Vec::with_capacity(chunks.len());
     let mut total = Counts::default();
-    for (_, counts, _) in &scanned {
+    for scanned in &scanned {
         bases.push(total);
-        total.add(counts);
+        total.add(&scanned.counts);
     }
     let parsed: Vec<Chunk> = scanned
         .into_par_iter()
         .zip(chunks)
         .zip(bases)
-        .map(|(((scanned, _, _), text), base)| match scanned {
+        .map(|((scanned, text), base)| match scanned.chunk {
             Some(chunk) if chunk.required.fits_in(&base) => chunk.placed_after(&base),
             _ => Chunk::parse(text, base),
         })
@@ -690,6 +746,49 @@ mod tests {
             }
             assert_eq!(triangles, single, "chunk size {size}");
         }
+    }
+
+    /// Reading a file in pieces must cut it exactly where `split_into_chunks` cuts
+    /// its text: the chunks, and so the reader's results, are the same.
+    #[test]
+    fn pieces_read_from_a_file_are_the_chunks_of_its_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.obj");
+        let mut long = String::new();
+        for i in 0..3000 {
+            long.push_str(&"x".repeat(i % 97));
+            long.push('\n');
+        }
+        long.push_str(&"y".repeat(2000));
+        let texts = [
+            String::new(),
+            "v 1 2 3".into(),
+            "v 1 2 3\n".into(),
+            "\n\n\n".into(),
+            long.clone(),
+            long + "\n",
+        ];
+        for text in &texts {
+            std::fs::write(&path, text).unwrap();
+            for size in [1, 5, 64, 300, 1000, 1 << 20] {
+                let mut pieces = Vec::new();
+                let whole = file::read_in_pieces(&path, size, |index, piece| {
+                    assert_eq!(index, pieces.len());
+                    pieces.push(piece);
+                })
+                .unwrap();
+                assert!(whole.is_none());
+                let expected = split_into_chunks(text.as_bytes(), size);
+                assert_eq!(pieces, expected, "size {size}, text of {}", text.len());
+            }
+        }
+        // A compressed file comes back whole, decompressed.
+        use std::io::Write;
+        let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        encoder.write_all(texts[4].as_bytes()).unwrap();
+        std::fs::write(&path, encoder.finish().unwrap()).unwrap();
+        let whole = file::read_in_pieces(&path, 64, |_, _| panic!("a piece of a gzip file"));
+        assert_eq!(whole.unwrap().unwrap(), texts[4].as_bytes());
     }
 
     /// Random OBJ documents: mostly the forms mesh files use, some rarer ones, and

@@ -63,8 +63,102 @@ fn gunzip(bytes: &[u8]) -> io::Result<Vec<u8>> {
     }
 }
 
+/// Reads a file as [`read_file`] does, but hands it over in pieces as they are
+/// read, so that they can be parsed while the rest is read: the chunks that the
+/// OBJ reader's `split_into_chunks(text, piece_bytes)` would cut, each to
+/// `take_piece` with its index, in order. A compressed file is decompressed whole
+/// and returned instead.
+pub(crate) fn read_in_pieces(
+    path: &Path,
+    piece_bytes: usize,
+    mut take_piece: impl FnMut(usize, Vec<u8>),
+) -> Result<Option<Vec<u8>>, SceneError> {
+    let io_error = |error| SceneError::Io {
+        path: path.to_path_buf(),
+        error,
+    };
+    let gz_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    if gz_name {
+        return read_file(path).map(Some);
+    }
+    let (mut file, size) = open_regular_file(path).map_err(io_error)?;
+    // As read_file, refuse up front what cannot be held.
+    Vec::<u8>::new()
+        .try_reserve_exact(size)
+        .map_err(|_| io_error(too_large(size)))?;
+    // Bytes read past a piece's end, which start the next piece.
+    let mut pending = Vec::new();
+    let mut index = 0;
+    loop {
+        // As `split_into_chunks` cuts text: a piece ends at the first `\n` from
+        // its `piece_bytes`-th byte on, the last one at the end of the text.
+        let mut piece = pending;
+        let mut read_to = piece_bytes.saturating_add(1);
+        let mut searched_to = piece_bytes;
+        let end = loop {
+            let wanted = read_to.saturating_sub(piece.len());
+            // With room for the piece's last line: growing a full piece to read
+            // it would copy the whole piece.
+            piece
+                .try_reserve(wanted.min(size) + LINE_SLACK_BYTES)
+                .map_err(|_| io_error(too_large(size)))?;
+            let read = (&mut file)
+                .take(wanted as u64)
+                .read_to_end(&mut piece)
+                .map_err(io_error)?;
+            if index == 0 && piece.starts_with(&GZIP_MAGIC) {
+                file.read_to_end(&mut piece).map_err(io_error)?;
+                return gunzip(&piece).map(Some).map_err(io_error);
+            }
+            if piece.len() > searched_to {
+                if let Some(newline) = memchr::memchr(b'\n', &piece[searched_to..]) {
+                    break Some(searched_to + newline + 1);
+                }
+                searched_to = piece.len();
+            }
+            if read < wanted {
+                break None;
+            }
+            // The piece's last line goes on: read more of it, twice as much each
+            // time for a line that is very long.
+            read_to = piece.len() + LINE_READ_BYTES.max(piece.len() - piece_bytes);
+        };
+        match end {
+            Some(end) => {
+                pending = piece.split_off(end);
+                take_piece(index, piece);
+                index += 1;
+            }
+            None => {
+                take_piece(index, piece);
+                return Ok(None);
+            }
+        }
+    }
+}
+
+/// Bytes read at a time to find the end of a piece's last line.
+const LINE_READ_BYTES: usize = 256;
+
+/// Room kept in a piece for its last line.
+const LINE_SLACK_BYTES: usize = 4096;
+
 fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
-    let mut file = File::open(path)?;
+    let (mut file, size) = open_regular_file(path)?;
+    let mut text = Vec::new();
+    // Asked for up front, so that a file beyond memory fails here with a message
+    // instead of aborting the process halfway through reading it.
+    text.try_reserve_exact(size).map_err(|_| too_large(size))?;
+    file.read_to_end(&mut text)?;
+    Ok(text)
+}
+
+/// Opens a regular file and checks that its size (returned) could be held in
+/// memory.
+fn open_regular_file(path: &Path) -> io::Result<(File, usize)> {
+    let file = File::open(path)?;
     let metadata = file.metadata()?;
     if metadata.is_dir() {
         return Err(io::Error::new(
@@ -78,19 +172,15 @@ fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
             "is not a regular file",
         ));
     }
-    let too_large = || {
-        io::Error::new(
-            io::ErrorKind::OutOfMemory,
-            format!("is too large to load ({} bytes)", metadata.len()),
-        )
-    };
-    let size = usize::try_from(metadata.len()).map_err(|_| too_large())?;
-    let mut text = Vec::new();
-    // Asked for up front, so that a file beyond memory fails here with a message
-    // instead of aborting the process halfway through reading it.
-    text.try_reserve_exact(size).map_err(|_| too_large())?;
-    file.read_to_end(&mut text)?;
-    Ok(text)
+    let size = usize::try_from(metadata.len()).map_err(|_| too_large(metadata.len()))?;
+    Ok((file, size))
+}
+
+fn too_large(size: impl std::fmt::Display) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::OutOfMemory,
+        format!("is too large to load ({size} bytes)"),
+    )
 }
 
 #[cfg(test)]

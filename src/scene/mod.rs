@@ -2,6 +2,7 @@
 //! [`Scene`] (primitives in BVH leaf order, materials, lights).
 
 mod compose;
+mod decimal;
 mod error;
 mod file;
 mod info;

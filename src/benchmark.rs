@@ -80,3 +80,25 @@ pub fn median_time<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
     let result = result.expect("ran at least once");
     (result, times[times.len() / 2])
 }
+
+/// [`median_time`] of `f` on a fresh `input()` each time, made before the clock
+/// starts; the previous result is dropped before it starts too, so that only `f` is
+/// timed.
+pub fn median_time_with<I, T>(
+    repeat: usize,
+    mut input: impl FnMut() -> I,
+    mut f: impl FnMut(I) -> T,
+) -> (T, f64) {
+    let mut times = Vec::with_capacity(repeat.max(1));
+    let mut result = None;
+    for _ in 0..repeat.max(1) {
+        drop(result.take());
+        let input = input();
+        let start = Instant::now();
+        result = Some(f(input));
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let result = result.expect("ran at least once");
+    (result, times[times.len() / 2])
+}

@@ -27,6 +27,7 @@ use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
+use crate::memory;
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
 use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
 
@@ -168,26 +169,40 @@ impl Scene {
             ..
         } = description;
 
-        // Step 1: keep the triangles with an area; spheres follow them. Primitive
-        // `i < kept.len()` is triangle `kept[i]`, the rest are spheres.
+        // Step 1: the BVH over the triangles with an area, then the spheres, straight
+        // from the description (no second copy of the shapes exists while the
+        // builder's own arrays do). Primitive `i < triangles.len()` is triangle `i`,
+        // the rest are spheres.
         let corners = |t: &TriangleDesc| t.positions.map(|i| positions[i as usize]);
-        let kept: Vec<u32> = (0..triangles.len() as u32)
-            .into_par_iter()
-            .filter(|&i| {
-                let [a, b, c] = corners(&triangles[i as usize]);
-                // No normal: zero area, or an area beyond f32 (vertices near 1e38).
-                try_unit(Triangle::new(a, b, c).normal()).is_some()
-            })
-            .collect();
-        let degenerate = triangles.len() - kept.len();
+        let sphere_shape = |s: &SphereDesc| Sphere {
+            center: s.center,
+            radius: s.radius,
+        };
+        let triangle_count = triangles.len();
+        let (bvh, order) = Bvh::build_filtered(
+            triangle_count + spheres.len(),
+            |i| match triangles.get(i) {
+                Some(t) => {
+                    let [a, b, c] = corners(t);
+                    let triangle = Triangle::new(a, b, c);
+                    // No normal: zero area, or an area beyond f32 (vertices near 1e38).
+                    // The box is that of the stored form (v0 and edges), whose rounded
+                    // corners the kernel intersects, not of the file's corners.
+                    try_unit(triangle.normal()).map(|_| triangle.bounds())
+                }
+                None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
+            },
+            params,
+        );
+
+        let degenerate = triangle_count + spheres.len() - order.len();
         if degenerate > 0 {
             warnings.push(format!(
                 "skipped {degenerate} degenerate (zero-area) triangle{}",
                 if degenerate == 1 { "" } else { "s" }
             ));
         }
-
-        if kept.is_empty() && spheres.is_empty() {
+        if order.is_empty() {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
         if lights.is_empty() {
@@ -197,62 +212,61 @@ impl Scene {
             );
         }
 
-        // Step 2: the BVH, straight from the description (no second copy of the
-        // shapes exists while the builder's own arrays do).
-        let sphere_shape = |s: &SphereDesc| Sphere {
-            center: s.center,
-            radius: s.radius,
-        };
-        let prim_count = kept.len() + spheres.len();
-        let (bvh, order) = Bvh::build_with(
-            prim_count,
-            |i| match kept.get(i) {
-                // The box of the stored form (v0 and edges), whose rounded corners the
-                // kernel intersects, not of the file's corners.
-                Some(&t) => {
-                    let [a, b, c] = corners(&triangles[t as usize]);
-                    Triangle::new(a, b, c).bounds()
+        // Step 2: shapes and shading data in leaf order, on all threads. Vertex
+        // normals are numbered in leaf order afterwards.
+        let mut shapes = Vec::with_capacity(order.len());
+        memory::advise_huge_pages(&shapes);
+        order
+            .par_iter()
+            .map(|&i| match triangles.get(i as usize) {
+                Some(t) => {
+                    let [a, b, c] = corners(t);
+                    Shape::Triangle(Triangle::new(a, b, c))
                 }
-                None => sphere_shape(&spheres[i - kept.len()]).bounds(),
-            },
-            params,
-        );
-
-        // Step 3: shapes and shading data in leaf order.
-        let mut shapes = Vec::with_capacity(prim_count);
-        let mut shading = Vec::with_capacity(prim_count);
-        let mut vertex_normals = Vec::new();
-        for &i in &order {
-            let i = i as usize;
-            let Some(&t) = kept.get(i) else {
-                let sphere = &spheres[i - kept.len()];
-                shapes.push(Shape::Sphere(sphere_shape(sphere)));
-                shading.push(PrimShading {
-                    material: sphere.material,
+                None => Shape::Sphere(sphere_shape(&spheres[i as usize - triangle_count])),
+            })
+            .collect_into_vec(&mut shapes);
+        const HAS_NORMALS: u32 = 0;
+        let mut shading = Vec::with_capacity(order.len());
+        order
+            .par_iter()
+            .map(|&i| match triangles.get(i as usize) {
+                Some(t) => PrimShading {
+                    material: t.material,
+                    vertex_normals: if t.normals.is_some() {
+                        HAS_NORMALS
+                    } else {
+                        NO_NORMALS
+                    },
+                },
+                None => PrimShading {
+                    material: spheres[i as usize - triangle_count].material,
                     vertex_normals: NO_NORMALS,
-                });
-                continue;
-            };
-            let tri = &triangles[t as usize];
-            let [a, b, c] = corners(tri);
-            let triangle = Triangle::new(a, b, c);
-            let Some(unit) = try_unit(triangle.normal()) else {
-                unreachable!("degenerate triangles were filtered out")
-            };
-            let vertex_normals_index = match tri.normals {
-                Some(ids) => {
-                    // A zero-length `vn` cannot be normalized: use the geometric normal.
-                    vertex_normals.push(ids.map(|n| try_unit(normals[n as usize]).unwrap_or(unit)));
-                    vertex_normals.len() as u32 - 1
-                }
-                None => NO_NORMALS,
-            };
-            shapes.push(Shape::Triangle(triangle));
-            shading.push(PrimShading {
-                material: tri.material,
-                vertex_normals: vertex_normals_index,
-            });
+                },
+            })
+            .collect_into_vec(&mut shading);
+        let mut normal_count = 0;
+        for s in shading.iter_mut().filter(|s| s.vertex_normals != NO_NORMALS) {
+            s.vertex_normals = normal_count;
+            normal_count += 1;
         }
+        let vertex_normals = if normal_count == 0 {
+            Vec::new()
+        } else {
+            order
+                .par_iter()
+                .filter_map(|&i| {
+                    let t = triangles.get(i as usize)?;
+                    let ids = t.normals?;
+                    let [a, b, c] = corners(t);
+                    let Some(unit) = try_unit(Triangle::new(a, b, c).normal()) else {
+                        unreachable!("degenerate triangles were left out")
+                    };
+                    // A zero-length `vn` cannot be normalized: use the geometric normal.
+                    Some(ids.map(|n| try_unit(normals[n as usize]).unwrap_or(unit)))
+                })
+                .collect()
+        };
         Scene {
             shapes,
             shading,

@@ -192,6 +192,14 @@ impl AxisBins {
         self.counts[bin as usize] += 1;
     }
 
+    /// Adds the first `bin_count` bins of `other`.
+    fn merge_from(&mut self, other: &AxisBins, bin_count: usize) {
+        for b in 0..bin_count {
+            self.bounds[b] = self.bounds[b].union(other.bounds[b]);
+            self.counts[b] += other.counts[b];
+        }
+    }
+
     fn merge(mut self, other: &AxisBins) -> AxisBins {
         for b in 0..MAX_BINS {
             self.bounds[b] = self.bounds[b].union(other.bounds[b]);
@@ -261,16 +269,33 @@ impl Binning {
     /// Bins `refs` on all three axes into `bins`.
     fn bin(&self, refs: &[PrimRef], bins: &mut [AxisBins; 3]) {
         let bin_count = self.last_bin as usize + 1;
-        for axis_bins in bins.iter_mut() {
+        // Neighbouring primitives mostly fall into the same bins, and each update
+        // must wait for the previous one's store: two sets of bins, taking every
+        // other primitive, halve that chain.
+        let mut odd = [AxisBins::EMPTY; 3];
+        for axis_bins in bins.iter_mut().chain(odd.iter_mut()) {
             axis_bins.reset(bin_count);
         }
-        for r in refs {
-            let (min, max) = (r.min(), r.max());
-            let [x, y, z] = self.bins_of(min + max);
-            bins[0].add(x, min, max);
-            bins[1].add(y, min, max);
-            bins[2].add(z, min, max);
+        let mut pairs = refs.chunks_exact(2);
+        for pair in &mut pairs {
+            self.add(&pair[0], bins);
+            self.add(&pair[1], &mut odd);
         }
+        if let [r] = pairs.remainder() {
+            self.add(r, bins);
+        }
+        for (axis_bins, odd) in bins.iter_mut().zip(&odd) {
+            axis_bins.merge_from(odd, bin_count);
+        }
+    }
+
+    #[inline(always)]
+    fn add(&self, r: &PrimRef, bins: &mut [AxisBins; 3]) {
+        let (min, max) = (r.min(), r.max());
+        let [x, y, z] = self.bins_of(min + max);
+        bins[0].add(x, min, max);
+        bins[1].add(y, min, max);
+        bins[2].add(z, min, max);
     }
 
     /// Bins `refs` along `axis` only, into `bins`. All three lanes cost the same as
@@ -793,6 +818,9 @@ fn split_node(
         });
         return split_by_count(refs, n / 2);
     }
+    if n == 2 {
+        return split_pair(refs, bounds, widest, params);
+    }
     let parallel = n > params.parallel_threshold;
     let block = params.parallel_threshold.max(1);
 
@@ -872,6 +900,36 @@ fn split_node(
             axis_bins.side(split_bin..bin_count),
         ],
         centroids: centroid_sides,
+    }
+}
+
+/// [`split_node`] for two primitives whose centroids differ along `widest`, where
+/// it is most of the calls: the same decision and order as binning them (they land
+/// in the first and the last bin, so every plane between costs `A_l + A_r`),
+/// without the bins.
+fn split_pair(refs: &mut [PrimRef], bounds: Bounds, widest: usize, params: &BvhParams) -> Split {
+    if refs[1].centroid2_on(widest) < refs[0].centroid2_on(widest) {
+        refs.swap(0, 1);
+    }
+    let box_of = |r: &PrimRef| Bounds {
+        min: r.min(),
+        max: r.max(),
+    };
+    let point_of = |r: &PrimRef| Bounds {
+        min: r.centroid2(),
+        max: r.centroid2(),
+    };
+    let (left, right) = (box_of(&refs[0]), box_of(&refs[1]));
+    let cost = left.half_area() + right.half_area();
+    let area = bounds.half_area().max(Float::MIN_POSITIVE);
+    let split_cost = params.traversal_cost + params.intersection_cost * cost / area;
+    if split_cost >= params.intersection_cost * 2.0 && 2 <= params.max_leaf_size {
+        return Split::Leaf;
+    }
+    Split::At {
+        mid: 1,
+        bounds: [left, right],
+        centroids: [point_of(&refs[0]), point_of(&refs[1])],
     }
 }
 

@@ -212,39 +212,38 @@ impl Scene {
             );
         }
 
-        // Step 2: shapes and shading data in leaf order, on all threads. Vertex
-        // normals are numbered in leaf order afterwards.
+        // Step 2: shapes and shading data in leaf order, on all threads, reading each
+        // triangle once. Vertex normals are numbered in leaf order afterwards.
+        const HAS_NORMALS: u32 = 0;
         let mut shapes = Vec::with_capacity(order.len());
+        let mut shading = Vec::with_capacity(order.len());
         memory::advise_huge_pages(&shapes);
+        memory::advise_huge_pages(&shading);
         order
             .par_iter()
             .map(|&i| match triangles.get(i as usize) {
                 Some(t) => {
                     let [a, b, c] = corners(t);
-                    Shape::Triangle(Triangle::new(a, b, c))
+                    let shading = PrimShading {
+                        material: t.material,
+                        vertex_normals: if t.normals.is_some() {
+                            HAS_NORMALS
+                        } else {
+                            NO_NORMALS
+                        },
+                    };
+                    (Shape::Triangle(Triangle::new(a, b, c)), shading)
                 }
-                None => Shape::Sphere(sphere_shape(&spheres[i as usize - triangle_count])),
+                None => {
+                    let sphere = &spheres[i as usize - triangle_count];
+                    let shading = PrimShading {
+                        material: sphere.material,
+                        vertex_normals: NO_NORMALS,
+                    };
+                    (Shape::Sphere(sphere_shape(sphere)), shading)
+                }
             })
-            .collect_into_vec(&mut shapes);
-        const HAS_NORMALS: u32 = 0;
-        let mut shading = Vec::with_capacity(order.len());
-        order
-            .par_iter()
-            .map(|&i| match triangles.get(i as usize) {
-                Some(t) => PrimShading {
-                    material: t.material,
-                    vertex_normals: if t.normals.is_some() {
-                        HAS_NORMALS
-                    } else {
-                        NO_NORMALS
-                    },
-                },
-                None => PrimShading {
-                    material: spheres[i as usize - triangle_count].material,
-                    vertex_normals: NO_NORMALS,
-                },
-            })
-            .collect_into_vec(&mut shading);
+            .unzip_into_vecs(&mut shapes, &mut shading);
         let mut normal_count = 0;
         for s in shading.iter_mut().filter(|s| s.vertex_normals != NO_NORMALS) {
             s.vertex_normals = normal_count;

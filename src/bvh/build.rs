@@ -59,6 +59,7 @@ impl Default for BvhParams {
 /// Most bins any [`BvhParams`] may ask for; bins live in fixed arrays on the stack,
 /// cleared for every node, so more would cost more than they gain.
 const MAX_BINS: usize = 16;
+const _: () = assert!(MAX_BINS.is_power_of_two());
 /// Fewest bins used for a node: small nodes use one bin per primitive (at least
 /// this many), which saves clearing and sweeping bins that would stay empty.
 const MIN_BINS: usize = 4;
@@ -143,8 +144,9 @@ impl Bounds {
     }
     #[inline(always)]
     fn half_area(&self) -> Float {
+        // `e.x * e.y + e.y * e.z + e.z * e.x`, the products in one instruction.
         let e = (self.max - self.min).max(Vec3A::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
+        (e * Vec3A::new(e.y, e.z, e.x)).element_sum()
     }
     fn to_aabb(self) -> Aabb {
         Aabb {
@@ -188,8 +190,10 @@ impl AxisBins {
 
     #[inline(always)]
     fn add(&mut self, bin: u32, min: Vec3A, max: Vec3A) {
-        self.bounds[bin as usize].grow(min, max);
-        self.counts[bin as usize] += 1;
+        // `bin` is below `MAX_BINS` already; the mask lets the compiler see it.
+        let bin = bin as usize & (MAX_BINS - 1);
+        self.bounds[bin].grow(min, max);
+        self.counts[bin] += 1;
     }
 
     /// Adds the first `bin_count` bins of `other`.
@@ -221,21 +225,20 @@ impl AxisBins {
             right_cost[b] = acc.half_area() * count as Float;
         }
         let total = count + self.counts[0];
-        let mut best: Option<(usize, Float)> = None;
+        // The first plane of least cost; `found` rather than an infinite start so
+        // that infinite or NaN costs still pick a plane, as for finite ones.
+        let (mut found, mut best_bin, mut best_cost) = (false, 0, Float::INFINITY);
         let mut acc = Bounds::EMPTY;
         let mut count = 0u32;
-        for (b, right) in right_cost.iter().enumerate().take(bin_count).skip(1) {
+        for b in 1..bin_count {
             acc = acc.union(self.bounds[b - 1]);
             count += self.counts[b - 1];
-            if count == 0 || count == total {
-                continue;
-            }
-            let cost = acc.half_area() * count as Float + right;
-            if best.is_none_or(|(_, c)| cost < c) {
-                best = Some((b, cost));
+            let cost = acc.half_area() * count as Float + right_cost[b];
+            if count != 0 && count != total && (!found || cost < best_cost) {
+                (found, best_bin, best_cost) = (true, b, cost);
             }
         }
-        best
+        found.then_some((best_bin, best_cost))
     }
 
     /// Box of bins `range`.
@@ -257,13 +260,12 @@ impl Binning {
     /// to `0..=last_bin` (NaN to 0).
     #[inline(always)]
     fn bins_of(&self, centroid2: Vec3A) -> [u32; 3] {
-        let scaled = ((centroid2 - self.origin) * self.scale).max(Vec3A::ZERO);
-        let [x, y, z] = truncate(scaled);
-        [
-            x.min(self.last_bin),
-            y.min(self.last_bin),
-            z.min(self.last_bin),
-        ]
+        // Clamped as floats, which also maps NaN to 0 (`max` returns its second
+        // operand when the first is NaN): one instruction for all lanes.
+        let scaled = ((centroid2 - self.origin) * self.scale)
+            .max(Vec3A::ZERO)
+            .min(Vec3A::splat(self.last_bin as Float));
+        truncate(scaled)
     }
 
     /// Bins `refs` on all three axes into `bins`.
@@ -322,9 +324,8 @@ impl Binning {
     }
 }
 
-/// `x` truncated towards zero, lane by lane, for lanes in `0..2^31` (larger ones
-/// and NaN give at least `2^31`, which callers clamp away). `as u32` on each lane
-/// would saturate in half a dozen scalar instructions per lane.
+/// `x` truncated towards zero, lane by lane, for lanes in `0..2^31`. `as u32` on
+/// each lane would saturate in half a dozen scalar instructions per lane.
 #[inline(always)]
 fn truncate(x: Vec3A) -> [u32; 3] {
     #[cfg(target_arch = "x86_64")]

@@ -84,12 +84,13 @@ pub fn count_occluded(scene: &Scene, rays: &[(Ray, Float)]) -> usize {
 /// Runs `f` `repeat` times (at least once) and returns its last result and the median
 /// wall time in seconds.
 pub fn median_time<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
-    median_time_with_input(repeat, || (), |()| f())
+    median_time_with(repeat, || (), |()| f())
 }
 
-/// [`median_time`] of `f(input())`, timing only `f`: `input` prepares what `f`
-/// consumes (a copy of a scene description to build, say) outside the clock.
-pub fn median_time_with_input<I, T>(
+/// [`median_time`] of `f` on a fresh `input()` each time, made before the clock
+/// starts; the previous result is dropped before it starts too, so that only `f` is
+/// timed.
+pub fn median_time_with<I, T>(
     repeat: usize,
     mut input: impl FnMut() -> I,
     mut f: impl FnMut(I) -> T,
@@ -97,9 +98,10 @@ pub fn median_time_with_input<I, T>(
     let mut times = Vec::with_capacity(repeat.max(1));
     let mut result = None;
     for _ in 0..repeat.max(1) {
-        let prepared = input();
+        drop(result.take());
+        let input = input();
         let start = Instant::now();
-        result = Some(f(prepared));
+        result = Some(f(input));
         times.push(start.elapsed().as_secs_f64());
     }
     times.sort_by(f64::total_cmp);

@@ -55,6 +55,7 @@ pub mod film;
 pub mod integrators;
 pub mod material;
 pub mod math;
+mod memory;
 pub mod options;
 pub mod output;
 mod render;

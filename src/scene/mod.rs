@@ -195,26 +195,40 @@ impl Scene {
             ..
         } = description;
 
-        // Step 1: keep the triangles with an area; spheres follow them. Primitive
-        // `i < kept.len()` is triangle `kept[i]`, the rest are spheres.
+        // Step 1: the BVH over the triangles with an area, then the spheres, straight
+        // from the description (no second copy of the shapes exists while the
+        // builder's own arrays do). Primitive `i < triangles.len()` is triangle `i`,
+        // the rest are spheres.
         let corners = |t: &TriangleDesc| t.positions.map(|i| positions[i as usize]);
-        let kept: Vec<u32> = (0..triangles.len() as u32)
-            .into_par_iter()
-            .filter(|&i| {
-                let [a, b, c] = corners(&triangles[i as usize]);
-                // No normal: zero area, or an area beyond f32 (vertices near 1e38).
-                try_unit(Triangle::new(a, b, c).normal()).is_some()
-            })
-            .collect();
-        let degenerate = triangles.len() - kept.len();
+        let sphere_shape = |s: &SphereDesc| Sphere {
+            center: s.center,
+            radius: s.radius,
+        };
+        let triangle_count = triangles.len();
+        let (bvh, order) = Bvh::build_filtered(
+            triangle_count + spheres.len(),
+            |i| match triangles.get(i) {
+                Some(t) => {
+                    let [a, b, c] = corners(t);
+                    let triangle = Triangle::new(a, b, c);
+                    // No normal: zero area, or an area beyond f32 (vertices near 1e38).
+                    // The box is that of the stored form (v0 and edges), whose rounded
+                    // corners the kernel intersects, not of the file's corners.
+                    try_unit(triangle.normal()).map(|_| triangle.bounds())
+                }
+                None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
+            },
+            params,
+        );
+
+        let degenerate = triangle_count + spheres.len() - order.len();
         if degenerate > 0 {
             warnings.push(format!(
                 "skipped {degenerate} degenerate (zero-area) triangle{}",
                 if degenerate == 1 { "" } else { "s" }
             ));
         }
-
-        if kept.is_empty() && spheres.is_empty() {
+        if order.is_empty() {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
         if lights.is_empty() {
@@ -224,36 +238,15 @@ impl Scene {
             );
         }
 
-        // Step 2: the BVH, straight from the description (no second copy of the
-        // shapes exists while the builder's own arrays do).
-        let sphere_shape = |s: &SphereDesc| Sphere {
-            center: s.center,
-            radius: s.radius,
-        };
-        let prim_count = kept.len() + spheres.len();
-        let (bvh, order) = Bvh::build_with(
-            prim_count,
-            |i| match kept.get(i) {
-                // The box of the stored form (v0 and edges), whose rounded corners the
-                // kernel intersects, not of the file's corners.
-                Some(&t) => {
-                    let [a, b, c] = corners(&triangles[t as usize]);
-                    Triangle::new(a, b, c).bounds()
-                }
-                None => sphere_shape(&spheres[i - kept.len()]).bounds(),
-            },
-            params,
-        );
-
-        // Step 3: the wide BVH and its packets; then the binary BVH can go.
+        // Step 2: the wide BVH and its packets; then the binary BVH can go.
         let shape_of = |prim: u32| {
             let i = order[prim as usize] as usize;
-            match kept.get(i) {
-                Some(&t) => {
-                    let [a, b, c] = corners(&triangles[t as usize]);
+            match triangles.get(i) {
+                Some(t) => {
+                    let [a, b, c] = corners(t);
                     Shape::Triangle(Triangle::new(a, b, c))
                 }
-                None => Shape::Sphere(sphere_shape(&spheres[i - kept.len()])),
+                None => Shape::Sphere(sphere_shape(&spheres[i - triangle_count])),
             }
         };
         let mut summary = BvhSummary {
@@ -271,19 +264,16 @@ impl Scene {
         summary.wide_nodes = wide.nodes.len();
         summary.packets = packets.len();
 
-        // Step 4: shading data in leaf order.
+        // Step 3: shading data in leaf order.
         let shading = order
             .par_iter()
-            .map(|&i| match kept.get(i as usize) {
-                Some(&t) => {
-                    let tri = &triangles[t as usize];
-                    PrimShading {
-                        material: tri.material,
-                        normals: tri.normals.unwrap_or([NO_NORMALS; 3]),
-                    }
-                }
+            .map(|&i| match triangles.get(i as usize) {
+                Some(t) => PrimShading {
+                    material: t.material,
+                    normals: t.normals.unwrap_or([NO_NORMALS; 3]),
+                },
                 None => PrimShading {
-                    material: spheres[i as usize - kept.len()].material,
+                    material: spheres[i as usize - triangle_count].material,
                     normals: [NO_NORMALS; 3],
                 },
             })

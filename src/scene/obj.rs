@@ -176,6 +176,16 @@ fn parse_surveyed(
         }
         lengths
     };
+    // Pass 1 counts the triangles of faces that may turn out malformed: memory
+    // for them is asked for fallibly, so that a file claiming absurdly many gets
+    // the general parser's error rather than an abort.
+    let reserved = scene.positions.try_reserve_exact(total.positions).is_ok()
+        && scene.texcoords.try_reserve_exact(total.texcoords).is_ok()
+        && scene.normals.try_reserve_exact(total.normals).is_ok()
+        && scene.triangles.try_reserve_exact(total.triangles).is_ok();
+    if !reserved {
+        return parse_generally(chunks, path);
+    }
     let positions = parts_of(&mut scene.positions, lengths(|c| c.positions));
     let texcoords = parts_of(&mut scene.texcoords, lengths(|c| c.texcoords));
     let normals = parts_of(&mut scene.normals, lengths(|c| c.normals));

@@ -1,39 +1,59 @@
-//! Pass 1's fast path: parses a chunk in one walk over its bytes, without splitting
-//! lines or tokens first. `v`, `vn`, `vt` and `f` lines are read in place (most of
-//! a mesh file); every other line goes through the general statement parser.
+//! Pass 2's fast path: reads a chunk's `v`, `vn`, `vt` and `f` lines in one walk
+//! over its bytes, without splitting lines or tokens first, and writes the
+//! elements straight into the chunk's parts of the final arrays. Pass 1 has read
+//! every other line; this one only counts `usemtl` lines, to know each face's
+//! material.
 //!
-//! The scanner never reports a problem: on a malformed line, a negative or zero
-//! index, or an index with more than [`MAX_INDEX_DIGITS`] digits, it gives up and
-//! the general parser reads the whole chunk again in pass 2 with the global counts.
-//! So what it returns is always what the general parser returns for the chunk, for
-//! any base that satisfies [`Chunk::required`]; it only has to be fast on the
-//! common forms.
+//! The scanner never reports a problem: on a malformed line, an index of 0 or out
+//! of range, an index with more than [`MAX_INDEX_DIGITS`] digits or an uncommon
+//! spelling, it gives up and the general parser reads the chunk. So what it writes
+//! is always what the general parser reads; it only has to be fast on the common
+//! forms.
+
+use std::mem::MaybeUninit;
 
 use super::super::decimal;
-use super::{Chunk, Corner, TriangleDesc, lex};
+use super::{Counts, TriangleDesc, lex};
 use crate::material::MaterialId;
 use crate::math::{Float, Vec2, Vec3};
 
 /// Longest index read here: nine digits always fit a `u32`.
 const MAX_INDEX_DIGITS: usize = 9;
 
-/// Parses a chunk on its own (line numbers local), or `None` if it needs the
-/// general parser.
-pub(super) fn parse_chunk(text: &[u8]) -> Option<Chunk> {
+/// A chunk's parts of the final arrays, each exactly as long as the chunk's
+/// elements of that kind.
+pub(super) struct Parts<'a> {
+    pub(super) positions: &'a mut [MaybeUninit<Vec3>],
+    pub(super) texcoords: &'a mut [MaybeUninit<Vec2>],
+    pub(super) normals: &'a mut [MaybeUninit<Vec3>],
+    pub(super) triangles: &'a mut [MaybeUninit<TriangleDesc>],
+}
+
+/// Fills `parts` from the chunk `text`, preceded in the file by `base`; `materials`
+/// are the chunk's material slots (see `Chunk`). `Some` only if every element of
+/// every part was written.
+pub(super) fn fill(
+    text: &[u8],
+    base: &Counts,
+    materials: &[MaterialId],
+    parts: &mut Parts<'_>,
+) -> Option<()> {
     let mut scanner = Scanner {
         rest: text,
-        lines: 0,
+        base,
+        materials,
         slot: 0,
-        chunk: Chunk::default(),
+        written: Counts::default(),
+        parts,
     };
-    // Room for the elements of a typical mesh chunk (about 30 bytes per `v` line
-    // and per triangle's `f` line, twice as many triangles as vertices): growing
-    // from nothing would copy them several times.
-    scanner.chunk.positions.reserve(text.len() / 64);
-    scanner.chunk.triangles.reserve(text.len() / 32);
     scanner.run()?;
-    scanner.chunk.lines = scanner.lines;
-    Some(scanner.chunk)
+    let parts = &scanner.parts;
+    let written = &scanner.written;
+    (written.positions == parts.positions.len()
+        && written.texcoords == parts.texcoords.len()
+        && written.normals == parts.normals.len()
+        && written.triangles == parts.triangles.len())
+    .then_some(())
 }
 
 /// The separators of [`lex::is_space`], as a set of bytes below 64.
@@ -56,17 +76,28 @@ fn ends_token(b: Option<&u8>) -> bool {
     b.is_none_or(|&b| in_set(TOKEN_ENDS, b))
 }
 
-struct Scanner<'a> {
-    /// The text not read yet.
-    rest: &'a [u8],
-    /// `\n` bytes passed so far: the current line's local number is `lines + 1`.
-    lines: usize,
-    /// The material slot in force (see [`Chunk`]).
-    slot: u32,
-    chunk: Chunk,
+/// One corner of a face, resolved to 0-based indices.
+#[derive(Clone, Copy)]
+struct Corner {
+    position: u32,
+    normal: Option<u32>,
 }
 
-impl Scanner<'_> {
+struct Scanner<'s, 'p> {
+    /// The text not read yet.
+    rest: &'s [u8],
+    /// The elements before the chunk.
+    base: &'s Counts,
+    /// The material of each slot.
+    materials: &'s [MaterialId],
+    /// The slot in force: how many `usemtl` lines were passed.
+    slot: usize,
+    /// Elements written so far.
+    written: Counts,
+    parts: &'s mut Parts<'p>,
+}
+
+impl Scanner<'_, '_> {
     fn run(&mut self) -> Option<()> {
         loop {
             self.skip_spaces();
@@ -74,13 +105,14 @@ impl Scanner<'_> {
                 [] => return Some(()),
                 [b'\n', rest @ ..] => {
                     self.rest = rest;
-                    self.lines += 1;
                     continue;
                 }
                 [b'v', b' ', rest @ ..] => {
                     self.rest = rest;
                     let position = self.vec3()?;
-                    self.chunk.positions.push(position);
+                    let written = &mut self.written.positions;
+                    self.parts.positions.get_mut(*written)?.write(position);
+                    *written += 1;
                 }
                 [b'f', b' ', rest @ ..] => {
                     self.rest = rest;
@@ -89,7 +121,9 @@ impl Scanner<'_> {
                 [b'v', b'n', b' ', rest @ ..] => {
                     self.rest = rest;
                     let normal = self.vec3()?;
-                    self.chunk.normals.push(normal);
+                    let written = &mut self.written.normals;
+                    self.parts.normals.get_mut(*written)?.write(normal);
+                    *written += 1;
                 }
                 [b'v', b't', b' ', rest @ ..] => {
                     self.rest = rest;
@@ -100,7 +134,12 @@ impl Scanner<'_> {
                     } else {
                         self.number()?
                     };
-                    self.chunk.texcoords.push(Vec2::new(u, v));
+                    let written = &mut self.written.texcoords;
+                    self.parts
+                        .texcoords
+                        .get_mut(*written)?
+                        .write(Vec2::new(u, v));
+                    *written += 1;
                 }
                 _ => {
                     self.other_line()?;
@@ -111,25 +150,49 @@ impl Scanner<'_> {
         }
     }
 
-    /// Any other line, by the general parser; `f` lines not written `f ` give up.
+    /// Any other line, by the tokenizer: elements not spelt as above, and the
+    /// statements pass 1 read, of which only `usemtl` matters here. Faces not spelt
+    /// as above give up.
     fn other_line(&mut self) -> Option<()> {
         let end = memchr::memchr(b'\n', self.rest).unwrap_or(self.rest.len());
         let (line, rest) = self.rest.split_at(end);
+        self.rest = rest;
         let line = match memchr::memchr(b'#', line) {
             Some(hash) => &line[..hash],
             None => line,
         };
         let mut tokens = lex::tokens(line);
-        if let Some(keyword) = tokens.next() {
-            if keyword == b"f" {
-                return None;
+        let parts = &mut self.parts;
+        let written = &mut self.written;
+        match tokens.next() {
+            Some(b"f") => return None,
+            Some(b"v") => {
+                let position = lex::vec3("v", &mut tokens).ok()?;
+                parts.positions.get_mut(written.positions)?.write(position);
+                written.positions += 1;
             }
-            let line_number = self.lines + 1;
-            self.chunk
-                .parse_statement(keyword, tokens, line, line_number, &mut self.slot)
-                .ok()?;
+            Some(b"vn") => {
+                let normal = lex::vec3("vn", &mut tokens).ok()?;
+                parts.normals.get_mut(written.normals)?.write(normal);
+                written.normals += 1;
+            }
+            Some(b"vt") => {
+                let u = lex::floats::<1>("vt", &mut tokens).ok()?[0];
+                let v = match tokens.next() {
+                    Some(token) => lex::float(token).ok()?,
+                    None => 0.0,
+                };
+                parts
+                    .texcoords
+                    .get_mut(written.texcoords)?
+                    .write(Vec2::new(u, v));
+                written.texcoords += 1;
+            }
+            // As the general parser counts them (one without a name is an error,
+            // which pass 1 found).
+            Some(b"usemtl") if !lex::rest_of_line(line, b"usemtl").is_empty() => self.slot += 1,
+            _ => {}
         }
-        self.rest = rest;
         Some(())
     }
 
@@ -146,18 +209,13 @@ impl Scanner<'_> {
     /// ignored, as the general parser does) and its `\n`.
     #[inline(always)]
     fn skip_line(&mut self) {
-        let rest = match self.rest {
+        self.rest = match self.rest {
             [b'\n', rest @ ..] => rest,
             _ => match memchr::memchr(b'\n', self.rest) {
                 Some(end) => &self.rest[end + 1..],
-                None => {
-                    self.rest = &[];
-                    return;
-                }
+                None => &[],
             },
         };
-        self.rest = rest;
-        self.lines += 1;
     }
 
     /// Three numbers.
@@ -201,7 +259,7 @@ impl Scanner<'_> {
     /// A face: triangles fanned from its first corner, as the general parser does.
     #[inline(always)]
     fn face(&mut self) -> Option<()> {
-        let slot = self.slot;
+        let material = *self.materials.get(self.slot)?;
         // Fewer than three corners is an error, left to the general parser.
         let first = self.next_corner()??;
         let mut previous = self.next_corner()??;
@@ -211,19 +269,19 @@ impl Scanner<'_> {
                 (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                 _ => None,
             };
-            self.chunk.triangles.push(TriangleDesc {
+            let written = &mut self.written.triangles;
+            self.parts.triangles.get_mut(*written)?.write(TriangleDesc {
                 positions: [first.position, previous.position, corner.position],
                 normals,
-                material: MaterialId(slot),
+                material,
             });
+            *written += 1;
             previous = corner;
             match self.next_corner()? {
                 Some(next) => corner = next,
-                None => break,
+                None => return Some(()),
             }
         }
-        self.chunk.note_shape(self.lines + 1, slot);
-        Some(())
     }
 
     /// The next corner of a face, `Some(None)` at the end of the line, `None` if
@@ -237,52 +295,51 @@ impl Scanner<'_> {
         self.corner().map(Some)
     }
 
-    /// `v`, `v/vt`, `v//vn` or `v/vt/vn` with positive indices, as 0-based indices;
-    /// records how many elements must precede the chunk for them to be in range.
+    /// `v`, `v/vt`, `v//vn` or `v/vt/vn`, resolved against the elements defined so
+    /// far.
     #[inline(always)]
     fn corner(&mut self) -> Option<Corner> {
-        let position = self.index()?;
-        let chunk = &mut self.chunk;
-        chunk.required.positions =
-            (chunk.required.positions).max(position.saturating_sub(chunk.positions.len()));
+        let defined = self.base.positions + self.written.positions;
+        let position = self.index(defined)?;
         let mut normal = None;
         if let [b'/', rest @ ..] = self.rest {
             self.rest = rest;
             let mut slash = true;
             if self.rest.first() != Some(&b'/') {
-                let texcoord = self.index()?;
-                let chunk = &mut self.chunk;
-                chunk.required.texcoords =
-                    (chunk.required.texcoords).max(texcoord.saturating_sub(chunk.texcoords.len()));
+                self.index(self.base.texcoords + self.written.texcoords)?;
                 slash = self.rest.first() == Some(&b'/');
             }
             if slash {
                 self.rest = &self.rest[1..];
-                let index = self.index()?;
-                let chunk = &mut self.chunk;
-                chunk.required.normals =
-                    (chunk.required.normals).max(index.saturating_sub(chunk.normals.len()));
-                normal = Some(index as u32 - 1);
+                normal = Some(self.index(self.base.normals + self.written.normals)?);
             }
         }
         if !ends_token(self.rest.first()) {
             return None;
         }
-        Some(Corner {
-            position: position as u32 - 1,
-            normal,
-        })
+        Some(Corner { position, normal })
     }
 
-    /// A 1-based index of one to [`MAX_INDEX_DIGITS`] digits, not 0.
+    /// A 1-based index of one to [`MAX_INDEX_DIGITS`] digits, or a negative one
+    /// counting back from the end, resolved to 0-based among `defined` elements.
     #[inline(always)]
-    fn index(&mut self) -> Option<usize> {
-        let (value, digits) = decimal::leading_digits(self.rest);
-        if digits == 0 || digits > MAX_INDEX_DIGITS || value == 0 {
+    fn index(&mut self, defined: usize) -> Option<u32> {
+        let (negative, digits) = match self.rest {
+            [b'-', rest @ ..] => (true, rest),
+            _ => (false, self.rest),
+        };
+        let (value, count) = decimal::leading_digits(digits);
+        if count == 0 || count > MAX_INDEX_DIGITS || value == 0 {
             return None;
         }
-        self.rest = &self.rest[digits..];
-        Some(value as usize)
+        self.rest = &digits[count..];
+        let value = value as usize;
+        let resolved = if negative {
+            defined.checked_sub(value)?
+        } else {
+            (value <= defined).then(|| value - 1)?
+        };
+        u32::try_from(resolved).ok()
     }
 }
 

@@ -230,10 +230,10 @@ impl AxisBins {
         let (mut found, mut best_bin, mut best_cost) = (false, 0, Float::INFINITY);
         let mut acc = Bounds::EMPTY;
         let mut count = 0u32;
-        for b in 1..bin_count {
+        for (b, right) in right_cost.iter().enumerate().take(bin_count).skip(1) {
             acc = acc.union(self.bounds[b - 1]);
             count += self.counts[b - 1];
-            let cost = acc.half_area() * count as Float + right_cost[b];
+            let cost = acc.half_area() * count as Float + right;
             if count != 0 && count != total && (!found || cost < best_cost) {
                 (found, best_bin, best_cost) = (true, b, cost);
             }
@@ -316,6 +316,8 @@ impl Binning {
     /// integers (truncation of `x >= 0` is below an integer `k` exactly when `x` is;
     /// negative and NaN values are bin 0).
     #[inline(always)]
+    // `!(x >= split)` rather than `x < split`: NaN goes left, as it is binned to 0.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     fn goes_left(&self, axis: usize, split_bin: u32) -> impl Fn(&PrimRef) -> bool + Sync + use<> {
         let origin = self.origin.to_array()[axis];
         let scale = self.scale.to_array()[axis];
@@ -515,11 +517,7 @@ impl Bvh {
     ///
     /// # Panics
     /// As [`Bvh::build`].
-    pub fn build_filtered<F>(
-        prim_count: usize,
-        bounds_of: F,
-        params: &BvhParams,
-    ) -> (Bvh, Vec<u32>)
+    pub fn build_filtered<F>(prim_count: usize, bounds_of: F, params: &BvhParams) -> (Bvh, Vec<u32>)
     where
         F: Fn(usize) -> Option<Aabb> + Sync,
     {
@@ -588,9 +586,11 @@ where
     let heads: Vec<usize> = blocks.iter().map(|b| b.0).collect();
     let kept = gather_block_heads(&mut refs, REF_BLOCK, &heads);
     refs.truncate(kept);
-    let (bounds, centroids) = blocks.iter().fold((Bounds::EMPTY, Bounds::EMPTY), |acc, b| {
-        (acc.0.union(b.1), acc.1.union(b.2))
-    });
+    let (bounds, centroids) = blocks
+        .iter()
+        .fold((Bounds::EMPTY, Bounds::EMPTY), |acc, b| {
+            (acc.0.union(b.1), acc.1.union(b.2))
+        });
     (refs, bounds, centroids)
 }
 
@@ -616,7 +616,14 @@ fn build_subtree(
     }
     let depth = task.depth;
     let mut bins = [AxisBins::EMPTY; 3];
-    match split_node(task.refs, task.bounds, task.centroids, depth, params, &mut bins) {
+    match split_node(
+        task.refs,
+        task.bounds,
+        task.centroids,
+        depth,
+        params,
+        &mut bins,
+    ) {
         Split::Leaf => {
             root.write(node(task.bounds, task.offset, n));
             (Vec::new(), depth)
@@ -702,7 +709,14 @@ fn build_sequential(
                 let left = used;
                 used += 2;
                 let split = start + mid;
-                work.push((left + 1, split, end, child_bounds[1], centroids[1], depth + 1));
+                work.push((
+                    left + 1,
+                    split,
+                    end,
+                    child_bounds[1],
+                    centroids[1],
+                    depth + 1,
+                ));
                 work.push((left, start, split, child_bounds[0], centroids[0], depth + 1));
                 node(bounds, base + left as u32, 0)
             }
@@ -767,21 +781,24 @@ fn close_gaps(slots: &[Slot], segments: &[Segment]) -> Vec<BvhNode> {
         rest = tail;
         copies.push((s, out));
     }
-    copies.into_par_iter().zip(new_starts.par_iter()).for_each(|((s, out), &new_start)| {
-        let start = s.start as usize;
-        let shift = s.start - new_start;
-        for (slot, out) in slots[start..start + out.len()].iter().zip(out) {
-            let mut node = read(slot);
-            if !node.is_leaf() {
-                node.first_index = if s.joined {
-                    moved(node.first_index)
-                } else {
-                    node.first_index - shift
-                };
+    copies
+        .into_par_iter()
+        .zip(new_starts.par_iter())
+        .for_each(|((s, out), &new_start)| {
+            let start = s.start as usize;
+            let shift = s.start - new_start;
+            for (slot, out) in slots[start..start + out.len()].iter().zip(out) {
+                let mut node = read(slot);
+                if !node.is_leaf() {
+                    node.first_index = if s.joined {
+                        moved(node.first_index)
+                    } else {
+                        node.first_index - shift
+                    };
+                }
+                out.write(node);
             }
-            out.write(node);
-        }
-    });
+        });
     // SAFETY: the root and the segments, whose lengths add up to `count`, were all
     // written above.
     unsafe { nodes.set_len(count) };

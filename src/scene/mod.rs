@@ -27,8 +27,8 @@ use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhParams, RayQuery};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::memory;
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
+use crate::memory;
 use crate::shapes::{PrimHit, Shape, Sphere, Triangle};
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
@@ -245,7 +245,10 @@ impl Scene {
             })
             .unzip_into_vecs(&mut shapes, &mut shading);
         let mut normal_count = 0;
-        for s in shading.iter_mut().filter(|s| s.vertex_normals != NO_NORMALS) {
+        for s in shading
+            .iter_mut()
+            .filter(|s| s.vertex_normals != NO_NORMALS)
+        {
             s.vertex_normals = normal_count;
             normal_count += 1;
         }

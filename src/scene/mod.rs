@@ -90,6 +90,13 @@ struct PrimShading {
 
 const NO_NORMALS: u32 = u32::MAX;
 
+/// Whether `try_unit(v)` is `Some` (finite and not zero), without normalizing: the
+/// build asks it of every triangle.
+#[inline]
+fn has_direction(v: Vec3) -> bool {
+    v.is_finite() && v != Vec3::ZERO
+}
+
 /// A renderable scene: shapes in BVH leaf order with their shading data, materials,
 /// lights and the BVH.
 #[derive(Clone, Debug)]
@@ -188,7 +195,7 @@ impl Scene {
                     // No normal: zero area, or an area beyond f32 (vertices near 1e38).
                     // The box is that of the stored form (v0 and edges), whose rounded
                     // corners the kernel intersects, not of the file's corners.
-                    try_unit(triangle.normal()).map(|_| triangle.bounds())
+                    has_direction(triangle.normal()).then(|| triangle.bounds())
                 }
                 None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
             },
@@ -366,6 +373,38 @@ impl Scene {
             n: face(n),
             ns: face(ns),
             material: shading.material,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn has_direction_agrees_with_try_unit() {
+        let tiny = f32::from_bits(1);
+        let values = [
+            0.0,
+            -0.0,
+            tiny,
+            -tiny,
+            1e-30,
+            1.0,
+            -3.5,
+            1e30,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for &x in &values {
+            for &y in &values {
+                for &z in &values {
+                    let v = Vec3::new(x, y, z);
+                    assert_eq!(has_direction(v), try_unit(v).is_some(), "{v:?}");
+                }
+            }
         }
     }
 }

@@ -44,3 +44,31 @@ pub(crate) fn advise_huge_pages<T>(v: &Vec<T>) {
     #[cfg(not(target_os = "linux"))]
     let _ = v;
 }
+
+/// Gives the whole pages of `v`'s unused capacity back to the system, keeping the
+/// capacity: they cost no memory until written again (and then read as zeroes).
+/// For a vector that ends up much shorter than it was reserved, where shrinking
+/// would copy it (as `realloc` does for alignments above 16).
+pub(crate) fn release_spare_capacity<T>(v: &Vec<T>) {
+    #[cfg(target_os = "linux")]
+    {
+        const PAGE: usize = 4096;
+        let start = v.as_ptr() as usize;
+        let used_end = (start + v.len() * size_of::<T>()).next_multiple_of(PAGE);
+        let end = (start + v.capacity() * size_of::<T>()) / PAGE * PAGE;
+        if end > used_end {
+            // SAFETY: the range lies inside `v`'s allocation, past its elements, and
+            // is page aligned; `MADV_DONTNEED` on private anonymous memory only
+            // replaces its (unused, uninitialized) contents with zero pages.
+            unsafe {
+                libc::madvise(
+                    used_end as *mut libc::c_void,
+                    end - used_end,
+                    libc::MADV_DONTNEED,
+                );
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}

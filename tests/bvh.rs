@@ -169,6 +169,70 @@ fn parallel_build_is_valid_and_matches_sequential_hits() {
     }
 }
 
+/// Random boxes of all sizes, for building without a scene.
+fn random_boxes(rng: &mut Rng64, count: usize) -> Vec<Aabb> {
+    (0..count)
+        .map(|_| {
+            let center = random_vec(rng, 10.0);
+            let half = random_vec(rng, 0.5).abs();
+            Aabb {
+                min: center - half,
+                max: center + half,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn the_tree_is_the_same_for_any_thread_count() {
+    // Small blocks so that binning, partitioning and dropping primitives all run
+    // in parallel pieces; every 7th primitive is dropped.
+    let boxes = random_boxes(&mut Rng64::seed_from_u64(21), 40_000);
+    let params = BvhParams {
+        parallel_threshold: 1024,
+        ..BvhParams::default()
+    };
+    let build_on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            Bvh::build_filtered(boxes.len(), |i| (i % 7 != 3).then_some(boxes[i]), &params)
+        })
+    };
+    let (one, one_order) = build_on(1);
+    for threads in [2, 3] {
+        let (bvh, order) = build_on(threads);
+        assert_eq!(bvh.nodes, one.nodes, "nodes on {threads} threads");
+        assert_eq!(order, one_order, "leaf order on {threads} threads");
+        assert_eq!(bvh.max_depth, one.max_depth);
+    }
+}
+
+#[test]
+fn filtered_builds_leave_out_exactly_the_dropped_primitives() {
+    let boxes = random_boxes(&mut Rng64::seed_from_u64(22), 50_000);
+    // Drops in the first block, a whole run across a block boundary, and the last.
+    let keep = |i: usize| !i.is_multiple_of(3) && !(16_000..17_000).contains(&i) && i != 49_999;
+    let (bvh, order) = Bvh::build_filtered(
+        boxes.len(),
+        |i| keep(i).then_some(boxes[i]),
+        &BvhParams::default(),
+    );
+    let mut sorted = order.clone();
+    sorted.sort_unstable();
+    let kept: Vec<u32> = (0..boxes.len() as u32)
+        .filter(|&i| keep(i as usize))
+        .collect();
+    assert_eq!(sorted, kept);
+    let ordered: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+    bvh.validate(&ordered).unwrap();
+    // Dropping everything leaves an empty tree.
+    let (bvh, order) = Bvh::build_filtered(1000, |_| None, &BvhParams::default());
+    assert!(bvh.nodes.is_empty() && order.is_empty());
+}
+
 #[test]
 fn degenerate_inputs_build_valid_trees() {
     // Nothing at all.

@@ -230,11 +230,10 @@ impl AxisBins {
         let (mut found, mut best_bin, mut best_cost) = (false, 0, Float::INFINITY);
         let mut acc = Bounds::EMPTY;
         let mut count = 0u32;
-        #[allow(clippy::needless_range_loop)] // `b` indexes three arrays, two of them at `b - 1`
-        for b in 1..bin_count {
+        for (b, right) in right_cost.iter().enumerate().take(bin_count).skip(1) {
             acc = acc.union(self.bounds[b - 1]);
             count += self.counts[b - 1];
-            let cost = acc.half_area() * count as Float + right_cost[b];
+            let cost = acc.half_area() * count as Float + right;
             if count != 0 && count != total && (!found || cost < best_cost) {
                 (found, best_bin, best_cost) = (true, b, cost);
             }
@@ -317,12 +316,12 @@ impl Binning {
     /// integers (truncation of `x >= 0` is below an integer `k` exactly when `x` is;
     /// negative and NaN values are bin 0).
     #[inline(always)]
+    // `!(x >= split)` rather than `x < split`: NaN goes left, as it is binned to 0.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     fn goes_left(&self, axis: usize, split_bin: u32) -> impl Fn(&PrimRef) -> bool + Sync + use<> {
         let origin = self.origin.to_array()[axis];
         let scale = self.scale.to_array()[axis];
         let split = split_bin as Float;
-        // Negated on purpose: NaN must go left, like bin 0.
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         move |r: &PrimRef| !((r.centroid2_on(axis) - origin) * scale >= split)
     }
 }
@@ -535,10 +534,10 @@ impl Bvh {
 
         // A tree over n primitives has at most 2n - 1 nodes: one slot each, the root
         // first, none written before the builder fills it. The slots a subtree leaves
-        // unused are squeezed out when the nodes are copied to their final array.
-        let mut slots: Vec<BvhNode> = Vec::with_capacity(2 * n - 1);
-        memory::advise_huge_pages(&slots);
-        let (root, rest) = slots.spare_capacity_mut()[..2 * n - 1]
+        // unused are squeezed out afterwards, in place.
+        let mut nodes: Vec<BvhNode> = Vec::with_capacity(2 * n - 1);
+        memory::advise_huge_pages(&nodes);
+        let (root, rest) = nodes.spare_capacity_mut()[..2 * n - 1]
             .split_first_mut()
             .expect("n > 0");
         let task = Task {
@@ -549,15 +548,12 @@ impl Bvh {
             depth: 0,
         };
         let (segments, max_depth) = build_subtree(task, root, rest, 1, params);
-        // The leaf order first, so that the references are freed before the final
-        // node array exists beside the slots: that is the build's peak memory.
         let mut order = Vec::with_capacity(n);
         refs.par_iter()
             .map(PrimRef::index)
             .collect_into_vec(&mut order);
         drop(refs);
-        let nodes = close_gaps(slots.spare_capacity_mut(), &segments);
-        drop(slots);
+        close_gaps(&mut nodes, &segments);
         (Bvh { nodes, max_depth }, order)
     }
 }
@@ -749,9 +745,12 @@ fn node(bounds: Bounds, first_index: u32, prim_count: usize) -> BvhNode {
     node
 }
 
-/// The final node array: slot 0 (the root), then the filled `segments` of `slots`
-/// in order, copied on all threads with child indices renumbered.
-fn close_gaps(slots: &[Slot], segments: &[Segment]) -> Vec<BvhNode> {
+/// Turns the slots written by the build into the node array: slot 0 (the root),
+/// then the filled `segments` moved together in order, child indices renumbered.
+/// In place, one pass: a copy to a fresh array would take as many page faults and
+/// hold both arrays at once (the peak memory of a whole render). The unused tail is
+/// given back to the system.
+fn close_gaps(nodes: &mut Vec<BvhNode>, segments: &[Segment]) {
     let mut new_starts = Vec::with_capacity(segments.len());
     let mut count = 1;
     for s in segments {
@@ -764,48 +763,35 @@ fn close_gaps(slots: &[Slot], segments: &[Segment]) -> Vec<BvhNode> {
         debug_assert_eq!(segments[at].start, old_start);
         new_starts[at]
     };
-    // SAFETY (for every `assume_init_read` below): the builder writes the root
-    // and every slot of every segment; segments list exactly the slots it used.
+    let slots = nodes.spare_capacity_mut();
+    // SAFETY (for every `assume_init_read` below): the builder wrote the root and
+    // every slot of every segment, and segments only move towards the front, in
+    // order, so each slot is read before anything overwrites it.
     let read = |slot: &Slot| unsafe { slot.assume_init_read() };
-
-    let mut nodes: Vec<BvhNode> = Vec::with_capacity(count);
-    memory::advise_huge_pages(&nodes);
-    let (out_root, mut rest) = nodes.spare_capacity_mut()[..count]
-        .split_first_mut()
-        .expect("count > 0");
     let mut root = read(&slots[0]);
     if !root.is_leaf() {
         root.first_index = moved(root.first_index);
     }
-    out_root.write(root);
-    let mut copies = Vec::with_capacity(segments.len());
-    for s in segments {
-        let (out, tail) = std::mem::take(&mut rest).split_at_mut(s.len as usize);
-        rest = tail;
-        copies.push((s, out));
-    }
-    copies
-        .into_par_iter()
-        .zip(new_starts.par_iter())
-        .for_each(|((s, out), &new_start)| {
-            let start = s.start as usize;
-            let shift = s.start - new_start;
-            for (slot, out) in slots[start..start + out.len()].iter().zip(out) {
-                let mut node = read(slot);
-                if !node.is_leaf() {
-                    node.first_index = if s.joined {
-                        moved(node.first_index)
-                    } else {
-                        node.first_index - shift
-                    };
-                }
-                out.write(node);
+    slots[0].write(root);
+    for (s, &new_start) in segments.iter().zip(&new_starts) {
+        let shift = s.start - new_start;
+        let (start, new_start) = (s.start as usize, new_start as usize);
+        for i in 0..s.len as usize {
+            let mut node = read(&slots[start + i]);
+            if !node.is_leaf() {
+                node.first_index = if s.joined {
+                    moved(node.first_index)
+                } else {
+                    node.first_index - shift
+                };
             }
-        });
-    // SAFETY: the root and the segments, whose lengths add up to `count`, were all
-    // written above.
+            slots[new_start + i].write(node);
+        }
+    }
+    // SAFETY: slot 0 and the segments, whose lengths add up to `count`, now fill
+    // `0..count`.
     unsafe { nodes.set_len(count) };
-    nodes
+    memory::release_spare_capacity(nodes);
 }
 
 /// Decides how to split a node and partitions `refs` accordingly, on all threads if

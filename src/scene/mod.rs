@@ -93,6 +93,13 @@ struct PrimShading {
 
 const NO_NORMALS: u32 = u32::MAX;
 
+/// Whether `try_unit(v)` is `Some` (finite and not zero), without normalizing: the
+/// build asks it of every triangle.
+#[inline]
+fn has_direction(v: Vec3) -> bool {
+    v.is_finite() && v != Vec3::ZERO
+}
+
 /// Figures about the binary BVH the scene was built with, kept after it is collapsed
 /// into the wide one that rays traverse.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -214,7 +221,7 @@ impl Scene {
                     // No normal: zero area, or an area beyond f32 (vertices near 1e38).
                     // The box is that of the stored form (v0 and edges), whose rounded
                     // corners the kernel intersects, not of the file's corners.
-                    try_unit(triangle.normal()).map(|_| triangle.bounds())
+                    has_direction(triangle.normal()).then(|| triangle.bounds())
                 }
                 None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
             },

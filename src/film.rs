@@ -208,9 +208,54 @@ pub(crate) fn write_atomically(
     encode(temp.as_file_mut()).map_err(fail)?;
     temp.as_file().sync_all().map_err(fail)?;
     set_output_permissions(temp.path(), path).map_err(fail)?;
-    temp.persist(path)
-        .map_err(|e| fail(without_path(e.error)))?;
+    test_pause("RAYTRACER_TEST_PAUSE_BEFORE_COMMIT");
+    {
+        // The rename and the record of it happen under the lock an interrupt handler
+        // takes (`lock_commits`), so the handler sees either the old file and no
+        // record, or the new file and its record: never a mix.
+        let mut commits = lock_commits();
+        temp.persist(path)
+            .map_err(|e| fail(without_path(e.error)))?;
+        commits.paths.push(path.to_path_buf());
+    }
+    test_pause("RAYTRACER_TEST_PAUSE_AFTER_COMMIT");
     Ok(())
+}
+
+/// The outputs this process has renamed into place, guarded by the lock that orders
+/// each rename against an interrupt handler.
+#[derive(Debug, Default)]
+pub struct Commits {
+    paths: Vec<PathBuf>,
+}
+
+impl Commits {
+    /// Whether `path` (as given to the writer) was replaced by a complete new file.
+    pub fn contains(&self, path: &Path) -> bool {
+        self.paths.iter().any(|p| p == path)
+    }
+}
+
+static COMMITS: std::sync::Mutex<Commits> = std::sync::Mutex::new(Commits { paths: Vec::new() });
+
+/// Takes the lock every output's final rename takes. An interrupt handler holds it
+/// until the process exits: a rename not yet started then never happens, and one that
+/// happened is in [`Commits::contains`], so what the handler reports is what is on disk.
+pub fn lock_commits() -> std::sync::MutexGuard<'static, Commits> {
+    // A panic while the lock was held cannot leave `Commits` half-updated (one push).
+    COMMITS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Test hook: when the environment variable `name` holds a number of milliseconds,
+/// says so on stderr and sleeps that long, so that a test can send a signal at an
+/// exact step of the write instead of at a lucky moment.
+fn test_pause(name: &str) {
+    if let Some(ms) = std::env::var_os(name).and_then(|v| v.to_str()?.parse::<u64>().ok()) {
+        eprintln!("{name}: pausing {ms} ms");
+        std::thread::sleep(std::time::Duration::from_millis(ms));
+    }
 }
 
 /// Checks, before any work, that an image can be written to `path`: its folder

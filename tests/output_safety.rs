@@ -158,8 +158,9 @@ fn a_read_only_folder_is_refused() {
 #[cfg(unix)]
 mod interrupt {
     use std::fs;
+    use std::io::{BufRead, BufReader};
     use std::path::Path;
-    use std::process::{Child, Command, Stdio};
+    use std::process::{Child, ChildStderr, Command, Stdio};
     use std::thread::sleep;
     use std::time::{Duration, Instant};
 
@@ -204,10 +205,71 @@ mod interrupt {
         (output.status.code(), stderr)
     }
 
+    /// Waits until the child catches SIGINT (its handler is installed), as
+    /// `/proc/PID/status` shows, instead of guessing how long a start takes.
+    fn wait_for_handler(child: &Child) {
+        let status = format!("/proc/{}/status", child.id());
+        let start = Instant::now();
+        loop {
+            let caught = fs::read_to_string(&status).ok().and_then(|s| {
+                let line = s.lines().find(|l| l.starts_with("SigCgt:"))?;
+                u64::from_str_radix(line["SigCgt:".len()..].trim(), 16).ok()
+            });
+            // Bit 1 (SIGINT is signal 2).
+            if caught.is_some_and(|mask| mask & 2 != 0) {
+                return;
+            }
+            assert!(
+                start.elapsed() < PATIENCE,
+                "the handler was never installed"
+            );
+            sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Spawns a render that pauses at `step` (`BEFORE_COMMIT` or `AFTER_COMMIT`, see
+    /// `film::write_atomically`) and returns once it says it is paused there, with the
+    /// rest of its stderr to read.
+    fn spawn_paused(
+        scene: &Path,
+        out: &Path,
+        step: &str,
+    ) -> (Child, std::io::Lines<BufReader<ChildStderr>>) {
+        let variable = format!("RAYTRACER_TEST_PAUSE_{step}");
+        let mut child = Command::new(assert_cmd::cargo::cargo_bin("raytracer"))
+            .arg("render")
+            .arg(scene)
+            .arg("-o")
+            .arg(out)
+            .args(["--width", "64", "--height", "48"])
+            // Far longer than any test waits: only the signal ends the pause.
+            .env(&variable, "600000")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+        for line in lines.by_ref() {
+            if line.unwrap().starts_with(&format!("{variable}: pausing")) {
+                return (child, lines);
+            }
+        }
+        panic!("the render never reached {variable}");
+    }
+
+    /// The child's exit code and the rest of its stderr.
+    fn finish(
+        mut child: Child,
+        lines: std::io::Lines<BufReader<ChildStderr>>,
+    ) -> (Option<i32>, String) {
+        let rest: Vec<String> = lines.map(Result::unwrap).collect();
+        (child.wait().unwrap().code(), rest.join("\n"))
+    }
+
     #[test]
     fn ctrl_c_during_a_render_keeps_the_previous_file() {
         // A million triangles on top of each other: every ray tests them all, so the
-        // render lasts far longer than the wait before the signal.
+        // render lasts seconds, far longer than the signal takes to arrive.
         let face: String = " 2 3".repeat(500_000);
         let scene = format!("v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nf 1{face}\nP 0 0 0 1 1 1\n");
         let (dir, scene, out) = setup(&scene);
@@ -216,9 +278,7 @@ mod interrupt {
             &out,
             &["--width", "64", "--height", "64", "-j", "1"],
         );
-        // Time to start and install the handler; the signal then lands while the
-        // scene is read, built or rendered, all of which must end the same way.
-        sleep(Duration::from_secs(1));
+        wait_for_handler(&child);
         send_sigint(&child);
         let (code, stderr) = exit_code(child);
         assert_eq!(code, Some(130), "stderr: {stderr}");
@@ -228,52 +288,62 @@ mod interrupt {
     }
 
     #[test]
-    fn ctrl_c_while_the_png_is_written_leaves_no_temporary_file() {
-        // A noisy image (normals of a random triangle soup) takes a while to encode;
-        // the signal is sent as soon as its temporary file appears.
-        let mut scene = String::new();
-        let mut state = 12345u64;
-        let mut random = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
-        for i in 0..300 {
-            for _ in 0..3 {
-                scene += &format!("v {} {} {}\n", random(), random(), random() - 3.0);
-            }
-            scene += &format!("f {} {} {}\n", 3 * i + 1, 3 * i + 2, 3 * i + 3);
-        }
-        // The encoding lasts ~0.1 s; should the image be complete before the signal
-        // lands (a busy machine can delay this test that long), try again.
-        for _attempt in 0..5 {
-            let (dir, scene, out) = setup(&scene);
-            let args = ["--width", "2048", "--height", "2048", "--mode", "normal"];
-            let child = spawn(&scene, &out, &args);
+    fn ctrl_c_before_the_rename_keeps_the_previous_file_and_no_temporary_file() {
+        for name in ["out.png", "out.exr"] {
+            let (dir, scene, _) = setup(super::SPHERE);
+            let out = dir.path().join(name);
+            fs::write(&out, PREVIOUS).unwrap();
+            let (child, lines) = spawn_paused(&scene, &out, "BEFORE_COMMIT");
+            // The complete temporary file waits beside the output.
             let temp_name = format!(".raytracer-{}-", child.id());
-            let start = Instant::now();
-            loop {
-                let names = entries(dir.path());
-                let writing = names
+            assert!(
+                entries(dir.path())
                     .iter()
-                    .any(|n| n.starts_with(&temp_name) && n.ends_with(".png.tmp"));
-                if writing || fs::read(&out).unwrap() != PREVIOUS {
-                    break;
-                }
-                assert!(start.elapsed() < PATIENCE, "no temporary file appeared");
-                sleep(Duration::from_millis(1));
-            }
+                    .any(|n| n.starts_with(&temp_name)),
+                "{:?}",
+                entries(dir.path())
+            );
             send_sigint(&child);
-            let (code, stderr) = exit_code(child);
-            if code == Some(0) {
-                continue;
-            }
+            let (code, stderr) = finish(child, lines);
             assert_eq!(code, Some(130), "stderr: {stderr}");
-            assert_eq!(fs::read(&out).unwrap(), PREVIOUS);
-            assert_eq!(entries(dir.path()), ["out.png", "scene.obj"]);
-            return;
+            assert!(
+                stderr.contains(&format!("interrupted; {} left as it was", out.display())),
+                "stderr: {stderr}"
+            );
+            assert_eq!(fs::read(&out).unwrap(), PREVIOUS, "{name}");
+            let mut expected = vec![name, "out.png", "scene.obj"];
+            expected.dedup();
+            expected.sort();
+            assert_eq!(entries(dir.path()), expected, "{name}");
         }
-        panic!("the image was always complete before the signal landed");
+    }
+
+    #[test]
+    fn ctrl_c_after_the_rename_says_the_new_file_is_complete_and_exits_0() {
+        for name in ["out.png", "out.exr"] {
+            let (dir, scene, _) = setup(super::SPHERE);
+            let out = dir.path().join(name);
+            fs::write(&out, PREVIOUS).unwrap();
+            let (child, lines) = spawn_paused(&scene, &out, "AFTER_COMMIT");
+            send_sigint(&child);
+            let (code, stderr) = finish(child, lines);
+            assert_eq!(code, Some(0), "stderr: {stderr}");
+            assert!(
+                stderr.contains("holds the complete new image"),
+                "stderr: {stderr}"
+            );
+            let written = fs::read(&out).unwrap();
+            if name.ends_with(".png") {
+                let (width, height, rgb) = super::support::read_png(&out);
+                assert_eq!((width, height), (64, 48));
+                assert!(rgb.iter().any(|&b| b > 0));
+            } else {
+                assert_eq!(&written[..4], &[0x76, 0x2f, 0x31, 0x01], "EXR magic number");
+            }
+            assert_eq!(
+                entries(dir.path()).len(),
+                if name == "out.png" { 2 } else { 3 }
+            );
+        }
     }
 }

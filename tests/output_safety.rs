@@ -254,7 +254,9 @@ mod interrupt {
                 return (child, lines);
             }
         }
-        panic!("the render never reached {variable}");
+        let _ = child.kill();
+        let status = child.wait();
+        panic!("the render never reached {variable} ({status:?})");
     }
 
     /// The child's exit code and the rest of its stderr.

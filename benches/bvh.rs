@@ -6,8 +6,8 @@ use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use rand::{Rng, SeedableRng};
+use raytracer::description::{SceneDescription, TriangleDesc};
 use raytracer::math::{Ray, Vec3};
-use raytracer::scene::{SceneDescription, TriangleDesc};
 use raytracer::{BvhParams, MaterialId, Scene};
 
 type Rng64 = rand::rngs::StdRng;
@@ -45,7 +45,7 @@ fn deer() -> SceneDescription {
         env!("CARGO_MANIFEST_DIR"),
         "/tests/data/reference/scenes/deer/CERF_Free.obj"
     );
-    raytracer::scene::load_obj(path.as_ref()).expect("the deer fixture")
+    raytracer::formats::load_obj(path.as_ref()).expect("the deer fixture")
 }
 
 /// Rays from outside towards random points of the scene's middle.

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use raytracer::SceneDescription;
-use raytracer::scene::{load_obj, load_ply};
+use raytracer::formats::{load_obj, load_ply};
 
 const RUNS: usize = 7;
 

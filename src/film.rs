@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use crate::integrators::Mode;
 use crate::math::{Float, Vec3};
+use crate::options::Mode;
 
 /// Linear per-pixel values, row 0 at the top: radiance in full mode, the distance in
 /// every channel in depth mode (infinity on a miss), the unit normal in normal mode

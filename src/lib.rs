@@ -1,7 +1,7 @@
 //! A Whitted-style CPU ray tracer for Wavefront OBJ/MTL, PLY and TOML scenes.
 //!
 //! Data flows one way, one module per stage:
-//! files ([`scene::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
+//! files ([`formats::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
 //! [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
 //! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an integrator per pixel)
 //! -> linear [`Film`] -> either [`Image`] (post-processing) -> PNG, or the film's
@@ -14,9 +14,9 @@
 //!
 //! ```
 //! use raytracer::math::Vec3;
-//! use raytracer::{BvhParams, ImageFormat, Mode, RenderOptions, Scene, render, scene};
+//! use raytracer::{BvhParams, ImageFormat, Mode, RenderOptions, Scene, formats, render};
 //!
-//! let description = scene::load_obj("examples/cornell-box/scene.obj".as_ref())?;
+//! let description = formats::load_obj("examples/cornell-box/scene.obj".as_ref())?;
 //! let scene = Scene::build(description, &BvhParams::default());
 //! let options = RenderOptions {
 //!     width: 64,
@@ -51,7 +51,9 @@
 pub mod benchmark;
 pub mod bvh;
 pub mod camera;
+pub mod description;
 pub mod film;
+pub mod formats;
 pub mod integrators;
 pub mod material;
 pub mod math;
@@ -66,11 +68,12 @@ pub mod stats;
 
 pub use bvh::{Bvh, BvhParams};
 pub use camera::Camera;
+pub use description::SceneDescription;
 pub use film::{Film, Image};
-pub use integrators::Mode;
+pub use formats::SceneError;
 pub use material::{Material, MaterialId, PointLight};
-pub use options::RenderOptions;
+pub use options::{Mode, RenderOptions};
 pub use output::ImageFormat;
 pub use render::{render, render_with_progress};
 pub use sampler::PixelSampler;
-pub use scene::{Hit, Scene, SceneDescription, SceneError};
+pub use scene::{Hit, Scene};

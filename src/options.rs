@@ -1,6 +1,5 @@
 //! What to render: image size, camera and mode, validated once at the boundary.
 
-use crate::integrators::Mode;
 use crate::math::{Float, Vec3, try_unit};
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
 
@@ -11,6 +10,19 @@ pub const MAX_DIMENSION: u32 = 65_536;
 pub const MAX_PIXELS: u64 = 16_384 * 16_384;
 /// Largest recursion depth accepted; the recursion uses the call stack.
 pub const MAX_RECURSION_DEPTH: u32 = 64;
+
+/// What the renderer computes per pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Distance to the nearest hit, normalized by the image's largest.
+    Depth,
+    /// The unit normal at the nearest hit, facing the ray (zero on a miss); shown as
+    /// the colour `n / 2 + 1/2`.
+    Normal,
+    /// Whitted lighting, tone mapped and gamma corrected.
+    #[default]
+    Full,
+}
 
 /// Options of one render. Build with [`Default`] and field updates, then
 /// [`RenderOptions::validate`].

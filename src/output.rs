@@ -18,7 +18,7 @@ use exr::prelude::{
 };
 
 use crate::film::{Film, WriteError, write_atomically};
-use crate::integrators::Mode;
+use crate::options::Mode;
 
 /// The kinds of image file the renderer writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -8,9 +8,9 @@ use proptest::prelude::*;
 use proptest::test_runner::Config;
 use rand::{Rng, SeedableRng};
 use raytracer::bvh::{Bvh, BvhParams};
+use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::math::{Aabb, Ray, Vec3};
-use raytracer::scene::{SceneDescription, SphereDesc, TriangleDesc};
-use raytracer::{MaterialId, Scene, scene};
+use raytracer::{MaterialId, Scene, formats};
 
 type Rng64 = rand::rngs::StdRng;
 
@@ -120,7 +120,7 @@ fn bvh_equals_linear_scan_on_random_soups() {
 #[test]
 fn bvh_equals_linear_scan_on_the_deer() {
     let path = support::reference_dir().join("scenes/deer/CERF_Free.obj");
-    let scene = Scene::build(scene::load_obj(&path).unwrap(), &BvhParams::default());
+    let scene = Scene::build(formats::load_obj(&path).unwrap(), &BvhParams::default());
     let mut rng = Rng64::seed_from_u64(11);
     let center = Vec3::new(0.0, 100.0, 0.0);
     let rays: Vec<Ray> = (0..3000)

@@ -223,3 +223,59 @@ fn images_are_identical_for_any_thread_count() {
     assert_eq!(render("1"), render("2"));
     assert_eq!(render("1"), render("3"));
 }
+
+#[test]
+fn a_file_of_no_scene_format_is_refused_naming_it_and_the_formats() {
+    let dir = tempfile::tempdir().unwrap();
+    let readme = dir.path().join("README.md");
+    std::fs::write(&readme, "# not a scene\nv 0 0 0\n").unwrap();
+    let out = dir.path().join("out.png");
+    for command in [
+        &[
+            "render",
+            readme.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ][..],
+        &["info", readme.to_str().unwrap()],
+    ] {
+        let output = raytracer(command);
+        assert_eq!(output.status.code(), Some(2), "{command:?}");
+        let message = stderr(&output);
+        assert!(message.contains(&readme.display().to_string()), "{message}");
+        assert!(message.contains(".obj, .ply, .toml"), "{message}");
+    }
+    assert!(!out.exists(), "no output is written");
+}
+
+#[test]
+fn scene_extensions_are_matched_in_any_case_and_under_gz() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let text = b"v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nf 1 2 3\nP 0 0 0 1 1 1\n";
+    let plain = dir.path().join("tri.OBJ");
+    std::fs::write(&plain, text).unwrap();
+    let packed = dir.path().join("tri.Obj.GZ");
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    encoder.write_all(text).unwrap();
+    std::fs::write(&packed, encoder.finish().unwrap()).unwrap();
+    for scene in [plain, packed] {
+        let out = dir.path().join("out.png");
+        let output = raytracer(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ]);
+        assert!(
+            output.status.success(),
+            "{}: {}",
+            scene.display(),
+            stderr(&output)
+        );
+    }
+}

@@ -7,7 +7,7 @@ use std::fs;
 use std::path::Path;
 
 use assert_cmd::Command;
-use raytracer::{BvhParams, Mode, RenderOptions, Scene, math::Vec3, render, scene};
+use raytracer::{BvhParams, Mode, RenderOptions, Scene, formats, math::Vec3, render};
 
 fn raytracer() -> Command {
     Command::new(env!("CARGO_BIN_EXE_raytracer"))
@@ -197,7 +197,7 @@ fn exr_output_holds_the_linear_film_before_tone_mapping() {
         samples_per_pixel: 4,
         ..RenderOptions::default()
     };
-    let description = scene::load_obj(&support::cornell_box()).unwrap();
+    let description = formats::load_obj(&support::cornell_box()).unwrap();
     let film = render(&Scene::build(description, &BvhParams::default()), &options);
 
     let (width, height, channels) = support::read_exr(&output);

@@ -8,8 +8,8 @@
 
 mod support;
 
+use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::math::{Ray, Vec3, reflect, refract};
-use raytracer::scene::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::{BvhParams, MaterialId, Scene};
 
 const TOLERANCE: f32 = 1e-4;

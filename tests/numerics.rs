@@ -10,12 +10,12 @@ mod support;
 use std::path::Path;
 
 use fuzz_checks::check_film;
+use raytracer::description::{SphereDesc, TriangleDesc};
 use raytracer::material::MaterialId;
 use raytracer::math::{Float, Ray, Vec3};
-use raytracer::scene::{SphereDesc, TriangleDesc};
 use raytracer::{
-    BvhParams, Film, Material, Mode, PointLight, RenderOptions, Scene, SceneDescription, render,
-    scene,
+    BvhParams, Film, Material, Mode, PointLight, RenderOptions, Scene, SceneDescription, formats,
+    render,
 };
 
 const MODES: [Mode; 3] = [Mode::Depth, Mode::Normal, Mode::Full];
@@ -25,7 +25,7 @@ fn reference_scenes_give_finite_pixels_in_every_mode() {
     let dir = support::reference_dir();
     let cases = support::reference_cases();
     for case in &cases {
-        let description = scene::load_obj(&dir.join(&case.scene)).unwrap();
+        let description = formats::load_obj(&dir.join(&case.scene)).unwrap();
         let scene = Scene::build(description, &BvhParams::default());
         for mode in MODES {
             // A quarter of the size: every kind of ray the case has, at 1/16 the cost.
@@ -184,7 +184,7 @@ fn seeded_random_scenes_give_finite_pixels_in_every_mode() {
 
 /// A one-material description from OBJ text.
 fn parse(obj: &str) -> SceneDescription {
-    scene::parse_obj(obj.as_bytes(), Path::new("test.obj")).unwrap()
+    formats::parse_obj(obj.as_bytes(), Path::new("test.obj")).unwrap()
 }
 
 fn render_small(scene: &Scene, mode: Mode, look_from: Vec3, look_to: Vec3) -> Film {

@@ -8,11 +8,11 @@ use std::fs;
 
 use raytracer::math::{Float, Vec3};
 use raytracer::{
-    BvhParams, Camera, Film, ImageFormat, Mode, RenderOptions, Scene, integrators, render, scene,
+    BvhParams, Camera, Film, ImageFormat, Mode, RenderOptions, Scene, formats, integrators, render,
 };
 
 fn cornell_scene() -> Scene {
-    let description = scene::load_obj(&support::cornell_box()).unwrap();
+    let description = formats::load_obj(&support::cornell_box()).unwrap();
     Scene::build(description, &BvhParams::default())
 }
 

@@ -3,8 +3,8 @@
 //! the surface it leaves, and rays from inside a closed mesh must always hit it.
 
 use rand::{Rng, SeedableRng};
+use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::math::{Ray, Vec3};
-use raytracer::scene::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::{BvhParams, MaterialId, Scene};
 
 type Rng64 = rand::rngs::StdRng;

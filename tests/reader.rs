@@ -5,8 +5,9 @@ mod support;
 
 use std::path::Path;
 
+use raytracer::SceneDescription;
+use raytracer::formats::{self, SceneError, parse_obj};
 use raytracer::math::Vec3;
-use raytracer::scene::{self, SceneDescription, SceneError, parse_obj};
 
 fn parse(text: &str) -> Result<SceneDescription, SceneError> {
     parse_obj(text.as_bytes(), Path::new("scene.obj"))
@@ -22,7 +23,7 @@ fn error(text: &str) -> String {
 #[test]
 fn box_scene_counts_and_values() {
     let path = support::reference_dir().join("scenes/box/cube.obj");
-    let d = scene::load_obj(&path).unwrap();
+    let d = formats::load_obj(&path).unwrap();
     assert_eq!(d.positions.len(), 24);
     assert_eq!(d.normals.len(), 9);
     // 10 quads-as-triangle-pairs: 10 `f` lines of 3 vertices each.
@@ -186,7 +187,7 @@ fn malformed_lines_name_file_line_and_problem() {
 fn missing_files_and_mtl_errors_name_their_path() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nope.obj");
-    let message = scene::load_obj(&missing).unwrap_err().to_string();
+    let message = formats::load_obj(&missing).unwrap_err().to_string();
     assert!(
         message.starts_with(&format!("{}: ", missing.display())),
         "{message}"
@@ -194,7 +195,7 @@ fn missing_files_and_mtl_errors_name_their_path() {
 
     let obj = dir.path().join("scene.obj");
     std::fs::write(&obj, "mtllib gone.mtl\n").unwrap();
-    let message = scene::load_obj(&obj).unwrap_err().to_string();
+    let message = formats::load_obj(&obj).unwrap_err().to_string();
     assert!(
         message.starts_with(&format!(
             "{}:1: cannot read material library {}: ",
@@ -206,7 +207,7 @@ fn missing_files_and_mtl_errors_name_their_path() {
 
     std::fs::write(dir.path().join("bad.mtl"), "newmtl a\nKd 1 1\n").unwrap();
     std::fs::write(&obj, "mtllib bad.mtl\n").unwrap();
-    let message = scene::load_obj(&obj).unwrap_err().to_string();
+    let message = formats::load_obj(&obj).unwrap_err().to_string();
     assert_eq!(
         message,
         format!(
@@ -215,7 +216,7 @@ fn missing_files_and_mtl_errors_name_their_path() {
         )
     );
 
-    let message = scene::load_obj(dir.path()).unwrap_err().to_string();
+    let message = formats::load_obj(dir.path()).unwrap_err().to_string();
     assert!(
         message.starts_with(&format!("{}: ", dir.path().display())),
         "{message}"

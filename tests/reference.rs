@@ -8,7 +8,7 @@ mod support;
 use std::path::Path;
 
 use raytracer::math::Vec3;
-use raytracer::{BvhParams, Image, Mode, RenderOptions, Scene, render, scene};
+use raytracer::{BvhParams, Image, Mode, RenderOptions, Scene, formats, render};
 
 const PASS_FRACTION: f64 = 0.99;
 const MAX_DISTANCE: f64 = 2.0;
@@ -32,7 +32,7 @@ fn render_case(dir: &Path, case: &support::ReferenceCase) -> Image {
         samples_per_pixel: 1,
     };
     options.validate().unwrap();
-    let description = scene::load_obj(&dir.join(&case.scene)).unwrap();
+    let description = formats::load_obj(&dir.join(&case.scene)).unwrap();
     let scene = Scene::build(description, &BvhParams::default());
     render(&scene, &options).to_image(mode)
 }

@@ -9,8 +9,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use raytracer::formats::{self, LoadedScene};
 use raytracer::math::{Ray, Vec3};
-use raytracer::scene::{self, LoadedScene};
 use raytracer::{BvhParams, Image, Mode, RenderOptions, Scene, render};
 
 fn repo(path: &str) -> PathBuf {
@@ -31,7 +31,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 }
 
 fn load(path: &Path) -> LoadedScene {
-    scene::load(path).unwrap_or_else(|e| panic!("{e}"))
+    formats::load(path).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn render_image(loaded: LoadedScene, options: &RenderOptions) -> Image {
@@ -70,10 +70,10 @@ fn compressed_obj_mtl_and_ply_read_like_plain_ones() {
 
     let corrupt = gzip(TRIANGLE_PLY.as_bytes());
     let path = write(d, "cut.ply.gz", &corrupt[..corrupt.len() / 2]);
-    let err = scene::load(&path).unwrap_err().to_string();
+    let err = formats::load(&path).unwrap_err().to_string();
     assert!(err.starts_with(&format!("{}: ", path.display())), "{err}");
     let path = write(d, "fake.ply.gz", TRIANGLE_PLY);
-    let err = scene::load(&path).unwrap_err().to_string();
+    let err = formats::load(&path).unwrap_err().to_string();
     assert_eq!(err, format!("{}: invalid gzip header", path.display()));
 }
 

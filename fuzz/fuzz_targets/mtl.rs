@@ -1,4 +1,4 @@
-//! `scene::parse_mtl` on arbitrary bytes.
+//! `formats::parse_mtl` on arbitrary bytes.
 #![no_main]
 
 #[path = "../../tests/support/fuzz_checks.rs"]

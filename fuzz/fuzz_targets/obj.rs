@@ -1,4 +1,4 @@
-//! `scene::parse_obj` on arbitrary bytes, beside a fixed small MTL file.
+//! `formats::parse_obj` on arbitrary bytes, beside a fixed small MTL file.
 #![no_main]
 
 #[path = "../../tests/support/fuzz_checks.rs"]

@@ -2,12 +2,13 @@
 
 use std::path::Path;
 
-use raytracer::scene::{self, SceneSummary};
+use raytracer::formats;
+use raytracer::scene::SceneSummary;
 
 /// Prints the summary of the scene at `path` on stdout, for the image size its file
 /// sets (or the default).
 pub fn run(path: &Path) -> anyhow::Result<()> {
-    let loaded = scene::load(path)?;
+    let loaded = formats::load(path)?;
     let summary = SceneSummary::new(&loaded.description, &loaded.options.resolve());
     print!("{summary}");
     Ok(())

@@ -13,7 +13,7 @@ pub use args::Cli;
 use args::{Command, ViewArgs};
 
 use anyhow::Context;
-use raytracer::scene::{self, SceneFormat};
+use raytracer::formats::{self, SceneFormat};
 use raytracer::{RenderOptions, SceneDescription};
 
 /// Sets up the thread pool and runs the command.
@@ -41,10 +41,10 @@ fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOption
     let flags = view.options();
     // OBJ and PLY files set no options, so the flags can be checked before a long
     // load; a TOML file's values must be merged first.
-    if SceneFormat::of(&view.scene) != SceneFormat::Toml {
+    if SceneFormat::require(&view.scene)? != SceneFormat::Toml {
         flags.resolve().validate()?;
     }
-    let loaded = scene::load(&view.scene)?;
+    let loaded = formats::load(&view.scene)?;
     let options = flags.or(loaded.options).resolve();
     options.validate()?;
     Ok((loaded.description, options))

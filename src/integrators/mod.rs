@@ -5,21 +5,9 @@ pub mod debug;
 pub mod whitted;
 
 use crate::math::{Ray, Vec3};
+use crate::options::Mode;
 use crate::scene::Scene;
 use crate::stats::RayCounts;
-
-/// What the renderer computes per pixel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Mode {
-    /// Distance to the nearest hit, normalized by the image's largest.
-    Depth,
-    /// The unit normal at the nearest hit, facing the ray (zero on a miss); shown as
-    /// the colour `n / 2 + 1/2`.
-    Normal,
-    /// Whitted lighting, tone mapped and gamma corrected.
-    #[default]
-    Full,
-}
 
 /// The linear value of one camera ray in `mode`. For depth mode this is the distance
 /// in every channel, or infinity where the ray hits nothing; for normal mode the

@@ -1,82 +1,20 @@
-//! Scenes: reading files into a [`SceneDescription`], and building the renderable
-//! [`Scene`] (primitives in BVH leaf order, materials, lights).
+//! The renderable scene: a [`SceneDescription`] turned into primitives in BVH leaf
+//! order with their shading data, materials and lights ([`Scene::build`]), the closest
+//! and any-hit queries rays make, and a summary of a description ([`info`]).
 
-mod compose;
-mod decimal;
-mod error;
-mod file;
 mod info;
-mod lex;
-mod load;
-mod mtl;
-mod obj;
-mod ply;
-mod toml_scene;
 
-pub use compose::Transform;
-pub use error::{IndexKind, ParseErrorKind, SceneError};
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
-pub use load::{LoadedScene, SceneFormat, load, load_mesh};
-pub use mtl::parse_mtl;
-pub use obj::{load_obj, parse_obj};
-pub use ply::{load_ply, parse_ply};
-pub use toml_scene::{load_toml, parse_toml};
-
-pub(crate) use file::read_file;
 
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
+use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
+use crate::math::{Aabb, Float, Ray, Vec3, try_unit};
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
-
-/// A scene as read from files: plain data, indices resolved to 0-based, nothing
-/// built yet. Shapes, lights and materials keep file order.
-#[derive(Clone, Debug, Default)]
-pub struct SceneDescription {
-    /// `v` positions.
-    pub positions: Vec<Vec3>,
-    /// `vt` texture coordinates (read and checked, not used by the renderer).
-    pub texcoords: Vec<Vec2>,
-    /// `vn` normals, as written (not normalized).
-    pub normals: Vec<Vec3>,
-    /// Triangles after splitting polygons into fans.
-    pub triangles: Vec<TriangleDesc>,
-    /// `S` spheres.
-    pub spheres: Vec<SphereDesc>,
-    /// `P` lights.
-    pub lights: Vec<PointLight>,
-    /// Materials of all `mtllib` files in order, then the fallback material if any
-    /// shape needed it.
-    pub materials: Vec<Material>,
-    /// Non-fatal problems, each naming file and line, for the caller to show.
-    pub warnings: Vec<String>,
-}
-
-/// A triangle of a description: indices into its arrays.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TriangleDesc {
-    /// Indices into [`SceneDescription::positions`].
-    pub positions: [u32; 3],
-    /// Indices into [`SceneDescription::normals`], when every corner has one.
-    pub normals: Option<[u32; 3]>,
-    /// The material.
-    pub material: MaterialId,
-}
-
-/// A sphere of a description.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SphereDesc {
-    /// Centre.
-    pub center: Vec3,
-    /// Radius, not negative.
-    pub radius: Float,
-    /// The material.
-    pub material: MaterialId,
-}
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
 /// by which secondary rays start off the surface.

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use raytracer::math::{Float, Vec3};
 use raytracer::{BvhParams, Film, Mode, RenderOptions, Scene, SceneDescription, SceneError};
-use raytracer::{Material, render, scene};
+use raytracer::{Material, formats, render};
 
 /// The MTL file that the `obj` and `pipeline` checks place beside the OBJ.
 pub const MTL_NAME: &str = "m.mtl";
@@ -30,7 +30,7 @@ const DEPTH: u32 = 3;
 /// by the caller) and checks the result.
 pub fn check_obj(data: &[u8], dir: &Path) {
     let path = dir.join("scene.obj");
-    match scene::parse_obj(data, &path) {
+    match formats::parse_obj(data, &path) {
         Ok(description) => check_description(&description),
         Err(err) => check_error(&err, data, &path),
     }
@@ -39,7 +39,7 @@ pub fn check_obj(data: &[u8], dir: &Path) {
 /// Parses `data` as an MTL file and checks the result.
 pub fn check_mtl(data: &[u8]) {
     let path = Path::new("fuzz.mtl");
-    match scene::parse_mtl(data, path) {
+    match formats::parse_mtl(data, path) {
         Ok(materials) => materials.iter().for_each(check_material),
         Err(err) => check_error(&err, data, path),
     }
@@ -55,7 +55,7 @@ pub fn check_pipeline(data: &[u8], dir: &Path) {
     };
     std::fs::write(dir.join(MTL_NAME), mtl).expect("cannot write the fuzz MTL file");
     let path = dir.join("scene.obj");
-    let description = match scene::parse_obj(obj, &path) {
+    let description = match formats::parse_obj(obj, &path) {
         Ok(d) => d,
         Err(err) => return check_error(&err, obj, &path),
     };

@@ -38,6 +38,16 @@ pub enum SceneError {
         /// What is wrong (boxed: it keeps every `Result<_, SceneError>` small).
         kind: Box<ParseErrorKind>,
     },
+    /// The file's name names no scene format the renderer reads.
+    #[error(
+        "{}: not a scene file the renderer reads (supported: {}, each optionally .gz)",
+        path.display(),
+        crate::formats::SUPPORTED_EXTENSIONS
+    )]
+    UnknownFormat {
+        /// The file, as it was named.
+        path: PathBuf,
+    },
     /// A file named by a scene file failed to load; `error` carries its own location.
     #[error("{}:{line}: {key}: {error}", path.display())]
     Included {

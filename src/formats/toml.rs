@@ -19,9 +19,9 @@ use super::error::{ParseErrorKind, SceneError};
 use super::{
     LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh, read_file,
 };
-use crate::integrators::Mode;
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
+use crate::options::Mode;
 use crate::options::PartialOptions;
 
 /// Reads a TOML scene file and the meshes it names (relative to its folder).
@@ -405,12 +405,22 @@ impl Builder<'_> {
             Some(dir) => dir.join(file),
             None => file.into(),
         };
-        if SceneFormat::of(&mesh_path) == SceneFormat::Toml {
-            return Err(self.error(
-                file_span,
-                "mesh.file",
-                format!("'{file}' is a scene file, not a mesh (OBJ or PLY)"),
-            ));
+        match SceneFormat::of(&mesh_path) {
+            Some(SceneFormat::Obj | SceneFormat::Ply) => {}
+            Some(SceneFormat::Toml) => {
+                return Err(self.error(
+                    file_span,
+                    "mesh.file",
+                    format!("'{file}' is a scene file, not a mesh (OBJ or PLY)"),
+                ));
+            }
+            None => {
+                return Err(self.error(
+                    file_span,
+                    "mesh.file",
+                    format!("'{file}' is not a mesh file the renderer reads (.obj or .ply, each optionally .gz)"),
+                ));
+            }
         }
         let material = match &mesh.material {
             Some(name) => Some(self.material(Some(name), "mesh.material")?),

@@ -156,8 +156,8 @@ fn append<T>(to: &mut Vec<T>, mut from: Vec<T>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::description::{SphereDesc, TriangleDesc};
     use crate::material::{Material, PointLight};
-    use crate::scene::{SphereDesc, TriangleDesc};
 
     fn close(a: Vec3, b: Vec3) -> bool {
         (a - b).length() < 1e-5

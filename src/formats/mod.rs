@@ -1,0 +1,118 @@
+//! File formats: each reader turns a file into a [`SceneDescription`] (and, for TOML
+//! scene files, the render settings the file gives). Nothing here knows of BVHs,
+//! integrators or images.
+//!
+//! | format | module | reads |
+//! |---|---|---|
+//! | Wavefront OBJ + MTL | [`obj`](load_obj), `mtl` | `v vt vn f`, `S` spheres, `P` lights, `mtllib`/`usemtl` |
+//! | PLY (ascii, binary) | [`ply`](load_ply) | vertices, normals, faces |
+//! | TOML scene file | [`toml`](load_toml) | camera, render settings, meshes placed by [`Transform`] |
+//!
+//! A new format gets a module here, a [`SceneFormat`] variant and an extension in
+//! [`SceneFormat::of`]; it produces a [`SceneDescription`] and nothing else.
+
+mod compose;
+mod decimal;
+mod error;
+mod file;
+mod lex;
+mod mtl;
+mod obj;
+mod ply;
+mod toml;
+
+pub use compose::Transform;
+pub use error::{IndexKind, ParseErrorKind, SceneError};
+pub use mtl::parse_mtl;
+pub use obj::{load_obj, parse_obj};
+pub use ply::{load_ply, parse_ply};
+pub use toml::{load_toml, parse_toml};
+
+pub(crate) use file::read_file;
+
+use std::path::Path;
+
+use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
+use crate::options::PartialOptions;
+
+/// A loaded scene file: the scene, and the render settings the file gives (a TOML
+/// file's `[camera]` and `[render]`; none for OBJ and PLY).
+#[derive(Clone, Debug, Default)]
+pub struct LoadedScene {
+    /// The scene.
+    pub description: SceneDescription,
+    /// Settings from the file; command-line flags override them.
+    pub options: PartialOptions,
+}
+
+/// The kinds of scene file, told apart by name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneFormat {
+    /// Wavefront OBJ, with MTL files beside it: `.obj`.
+    Obj,
+    /// PLY: `.ply`.
+    Ply,
+    /// A TOML scene description: `.toml`.
+    Toml,
+}
+
+/// The extensions [`SceneFormat::of`] knows, for messages.
+pub const SUPPORTED_EXTENSIONS: &str = ".obj, .ply, .toml";
+
+impl SceneFormat {
+    /// The format of `path` by its extension, in any letter case, after an optional
+    /// final `.gz`; `None` for any other name.
+    pub fn of(path: &Path) -> Option<SceneFormat> {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        let name = name.strip_suffix(".gz").unwrap_or(&name);
+        let (_, extension) = name.rsplit_once('.')?;
+        match extension {
+            "obj" => Some(SceneFormat::Obj),
+            "ply" => Some(SceneFormat::Ply),
+            "toml" => Some(SceneFormat::Toml),
+            _ => None,
+        }
+    }
+
+    /// [`SceneFormat::of`], or the error that names `path` and the supported formats.
+    ///
+    /// # Errors
+    /// The name has none of the supported extensions.
+    pub fn require(path: &Path) -> Result<SceneFormat, SceneError> {
+        SceneFormat::of(path).ok_or_else(|| SceneError::UnknownFormat {
+            path: path.to_path_buf(),
+        })
+    }
+}
+
+/// Reads any scene file: OBJ, PLY or TOML, each possibly gzip-compressed.
+///
+/// # Errors
+/// The name has no supported extension, or the format's reader reports an error,
+/// naming file and line.
+pub fn load(path: &Path) -> Result<LoadedScene, SceneError> {
+    match SceneFormat::require(path)? {
+        SceneFormat::Toml => load_toml(path),
+        _ => load_mesh(path).map(|description| LoadedScene {
+            description,
+            options: PartialOptions::default(),
+        }),
+    }
+}
+
+/// Reads a mesh file: OBJ or PLY. A TOML scene file is no mesh: an error.
+///
+/// # Errors
+/// As [`load_obj`] and [`load_ply`]; the name is neither `.obj` nor `.ply`.
+pub fn load_mesh(path: &Path) -> Result<SceneDescription, SceneError> {
+    match SceneFormat::require(path)? {
+        SceneFormat::Obj => load_obj(path),
+        SceneFormat::Ply => load_ply(path),
+        SceneFormat::Toml => Err(SceneError::UnknownFormat {
+            path: path.to_path_buf(),
+        }),
+    }
+}

@@ -228,7 +228,7 @@ mod interrupt {
     }
 
     /// Spawns a render that pauses at `step` (`BEFORE_COMMIT` or `AFTER_COMMIT`, see
-    /// `film::write_atomically`) and returns once it says it is paused there, with the
+    /// `output::atomic::write_atomically`) and returns once it says it is paused there, with the
     /// rest of its stderr to read.
     fn spawn_paused(
         scene: &Path,

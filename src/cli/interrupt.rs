@@ -3,7 +3,7 @@
 //!
 //! A signal ends the process without running destructors, so the temporary file of an
 //! image being encoded would stay behind. The handler takes the lock every output's
-//! final rename takes ([`raytracer::film::lock_commits`]) and keeps it until the
+//! final rename takes ([`raytracer::output::lock_commits`]) and keeps it until the
 //! process exits, so the rename either happened before (the output holds the complete
 //! new image: exit 0, saying so) or never will (the previous file stays, the temporary
 //! file is removed: exit 130, 128 + SIGINT, whichever of SIGINT, SIGTERM or SIGHUP
@@ -21,7 +21,7 @@ const EXIT_INTERRUPTED: u8 = 130;
 /// thread, never on the render's.
 pub fn install(output: PathBuf) -> anyhow::Result<()> {
     ctrlc::set_handler(move || {
-        let commits = raytracer::film::lock_commits();
+        let commits = raytracer::output::lock_commits();
         if commits.contains(&output) {
             eprintln!(
                 "interrupted after {} was written; it holds the complete new image",
@@ -29,7 +29,7 @@ pub fn install(output: PathBuf) -> anyhow::Result<()> {
             );
             std::process::exit(0);
         }
-        if let Err(e) = raytracer::film::remove_temp_files(&output) {
+        if let Err(e) = raytracer::output::remove_temp_files(&output) {
             eprintln!("error: cannot remove the temporary file: {e}");
         }
         eprintln!("interrupted; {} left as it was", output.display());

@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use raytracer::stats::{RayCounts, peak_memory_bytes};
-use raytracer::{BvhParams, ImageFormat, Scene, film, render_with_progress};
+use raytracer::{BvhParams, ImageFormat, Scene, output, render_with_progress};
 
 use super::args::RenderArgs;
 use super::interrupt;
@@ -14,7 +14,7 @@ use super::values::check_not_input;
 pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     interrupt::install(args.output.clone())?;
     // Before any work, so that a typo or a read-only folder does not cost a render.
-    film::check_output(&args.output)?;
+    output::check_output(&args.output)?;
     check_not_input(&args.view.scene, &args.output)?;
     let format = ImageFormat::from_path(&args.output)?;
     let warn = |message: &str| {

@@ -1,6 +1,6 @@
 //! The renderable scene: a [`SceneDescription`] turned into primitives in BVH leaf
 //! order with their shading data, materials and lights ([`Scene::build`]), the closest
-//! and any-hit queries rays make, and a summary of a description ([`info`]).
+//! and any-hit queries rays make, and a summary of a description ([`SceneSummary`]).
 
 mod info;
 

@@ -1,4 +1,5 @@
-//! Encoded image files: the format follows the output file's extension. PNG holds the
+//! Encoded image files, written atomically ([`check_output`], [`lock_commits`]): the
+//! format follows the output file's extension. PNG holds the
 //! post-processed 8-bit image; OpenEXR holds the film's linear values before any
 //! post-processing, as 32-bit floats.
 //!
@@ -17,8 +18,14 @@ use exr::prelude::{
     WritableImage,
 };
 
-use crate::film::{Film, WriteError, write_atomically};
+mod atomic;
+mod png;
+
+pub use atomic::{Commits, WriteError, check_output, lock_commits, remove_temp_files};
+
+use crate::film::Film;
 use crate::options::Mode;
+use atomic::write_atomically;
 
 /// The kinds of image file the renderer writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,7 +73,7 @@ impl ImageFormat {
 
 impl Film {
     /// Writes the film rendered in `mode` to `path` as `format` says, atomically
-    /// (see [`crate::Image::write_png`]): PNG after [`Film::to_image`], OpenEXR via
+    /// (see [`Image::write_png`](crate::Image::write_png)): PNG after [`Film::to_image`], OpenEXR via
     /// [`Film::write_exr`].
     ///
     /// # Errors

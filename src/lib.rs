@@ -49,12 +49,14 @@
 #![deny(missing_docs)]
 
 pub mod benchmark;
+pub mod bsdf;
 pub mod bvh;
 pub mod camera;
 pub mod description;
 pub mod film;
 pub mod formats;
 pub mod integrators;
+pub mod lights;
 pub mod material;
 pub mod math;
 mod memory;

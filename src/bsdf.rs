@@ -1,0 +1,396 @@
+//! Physically based scattering for path mode: what an MTL [`Material`] means to a
+//! path tracer, as a mixture of four lobes weighted by the spec's `al` weights.
+//!
+//! | MTL | lobe | Mitsuba 3 | Blender (Principled) |
+//! |---|---|---|---|
+//! | `al0 * Kd` | Lambertian | `diffuse` | Base Color, Roughness 1 |
+//! | `al0 * Ks`, `Ns` | energy-conserving modified Phong (Lafortune and Willems 1994) | (none; `roughplastic` is closest) | Specular |
+//! | `al1` | perfect mirror | `conductor`, `material = "none"` | Metallic 1, Roughness 0 |
+//! | `al2`, `Ni` | smooth dielectric, exact Fresnel | `dielectric`, `int_ior = Ni` | Transmission 1, IOR |
+//! | `Ke` | area light ([`crate::lights`]) | `area` emitter | Emission |
+//! | `Ka` | ignored: an ambient term has no physical meaning | | |
+//!
+//! `Kd + Ks` is scaled down to at most 1 per channel so that the Phong part conserves
+//! energy ([`ScatteringParams::new`] says when it did).
+//!
+//! Directions follow pbrt's convention: `wo` points away from the surface towards
+//! where the path came from, `wi` towards where it goes next. The shading normal
+//! faces `wo` (hits are flipped to face the ray).
+
+use std::f32::consts::{FRAC_1_PI, PI};
+
+use crate::material::Material;
+use crate::math::{Float, Vec2, Vec3, reflect};
+
+/// The scattering of one material, derived once per render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScatteringParams {
+    /// `al0 * Kd`, after the energy scaling.
+    diffuse: Vec3,
+    /// `al0 * Ks`, after the energy scaling.
+    glossy: Vec3,
+    /// `Ns`, at least 0.
+    exponent: Float,
+    /// `al1`.
+    mirror: Float,
+    /// `al2`.
+    glass: Float,
+    /// `Ni`.
+    ior: Float,
+    /// Probabilities of sampling each lobe, in the order above; sum 1 unless the
+    /// material scatters nothing.
+    lobe_probability: [Float; 4],
+}
+
+/// A direction chosen by [`ScatteringParams::sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScatterSample {
+    /// Unit direction the path continues in.
+    pub wi: Vec3,
+    /// `f * |cos| / pdf`: what the path throughput is multiplied by.
+    pub weight: Vec3,
+    /// Probability density of `wi` (solid angle) over the non-delta lobes, for
+    /// multiple importance sampling; meaningless when `delta`.
+    pub pdf: Float,
+    /// A mirror or glass lobe was chosen: no light sampling strategy could have
+    /// found `wi`.
+    pub delta: bool,
+    /// The relative index of refraction crossed (1 for reflection), for Russian
+    /// roulette (as Mitsuba's `eta`).
+    pub eta: Float,
+}
+
+impl ScatteringParams {
+    /// The scattering `material` describes, and whether `Kd + Ks` had to be scaled
+    /// down to conserve energy.
+    pub fn new(material: &Material) -> (ScatteringParams, bool) {
+        let [local, mirror, glass] = material.albedo.map(|w| w.max(0.0));
+        let mut diffuse = material.diffuse.max(Vec3::ZERO) * local;
+        let mut glossy = material.specular.max(Vec3::ZERO) * local;
+        let largest =
+            (material.diffuse.max(Vec3::ZERO) + material.specular.max(Vec3::ZERO)).max_element();
+        let scaled = largest > 1.0;
+        if scaled {
+            diffuse /= largest;
+            glossy /= largest;
+        }
+        let weights = [
+            mean(diffuse),
+            mean(glossy),
+            mirror,
+            if material.ior > 0.0 { glass } else { 0.0 },
+        ];
+        let total: Float = weights.iter().sum();
+        let lobe_probability = if total > 0.0 && total.is_finite() {
+            weights.map(|w| w / total)
+        } else {
+            [0.0; 4]
+        };
+        let params = ScatteringParams {
+            diffuse,
+            glossy,
+            exponent: material.shininess.max(0.0),
+            mirror,
+            glass,
+            ior: material.ior,
+            lobe_probability,
+        };
+        (params, scaled)
+    }
+
+    /// Whether some lobe is not a delta, so that light sampling can reach it.
+    #[inline]
+    pub fn has_smooth_lobes(&self) -> bool {
+        self.lobe_probability[0] + self.lobe_probability[1] > 0.0
+    }
+
+    /// `f(wo, wi)` of the non-delta lobes (delta lobes are zero for any given `wi`).
+    /// `ns` is the unit shading normal facing `wo`, `ng` the geometric one.
+    #[inline]
+    pub fn eval(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3) -> Vec3 {
+        let cos_i = wi.dot(ns);
+        // Both normals must agree that `wi` leaves on the side `wo` came from: a
+        // shading normal alone would let light leak through the surface.
+        if cos_i <= 0.0 || wi.dot(ng) <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let mut f = self.diffuse * FRAC_1_PI;
+        if self.glossy != Vec3::ZERO {
+            let cos_alpha = wi.dot(reflect(-wo, ns)).max(0.0);
+            f += self.glossy * ((self.exponent + 2.0) / (2.0 * PI) * cos_alpha.powf(self.exponent));
+        }
+        f
+    }
+
+    /// The density (solid angle) with which [`ScatteringParams::sample`] picks `wi`
+    /// through its non-delta lobes.
+    #[inline]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3) -> Float {
+        let cos_i = wi.dot(ns);
+        if cos_i <= 0.0 || wi.dot(ng) <= 0.0 {
+            return 0.0;
+        }
+        let [p_diffuse, p_glossy, ..] = self.lobe_probability;
+        let mut pdf = p_diffuse * cos_i * FRAC_1_PI;
+        if p_glossy > 0.0 {
+            let cos_alpha = wi.dot(reflect(-wo, ns)).max(0.0);
+            pdf += p_glossy * (self.exponent + 1.0) / (2.0 * PI) * cos_alpha.powf(self.exponent);
+        }
+        pdf
+    }
+
+    /// Picks the direction the path continues in: a lobe by `u_lobe`, a direction in
+    /// it by `u`. `front` says whether the ray hit the side the surface's geometric
+    /// normal (winding, or a sphere's outside) faces, which tells entering glass from
+    /// leaving it. `None` when the material scatters nothing that way.
+    #[inline]
+    pub fn sample(
+        &self,
+        wo: Vec3,
+        ns: Vec3,
+        ng: Vec3,
+        front: bool,
+        u_lobe: Float,
+        u: Vec2,
+    ) -> Option<ScatterSample> {
+        let [p_diffuse, p_glossy, p_mirror, _] = self.lobe_probability;
+        let smooth = |wi: Vec3| {
+            let pdf = self.pdf(wo, wi, ns, ng);
+            (pdf > 0.0).then(|| ScatterSample {
+                wi,
+                weight: self.eval(wo, wi, ns, ng) * wi.dot(ns) / pdf,
+                pdf,
+                delta: false,
+                eta: 1.0,
+            })
+        };
+        if u_lobe < p_diffuse {
+            smooth(to_world(cosine_hemisphere(u), ns))
+        } else if u_lobe < p_diffuse + p_glossy {
+            smooth(to_world(phong_lobe(u, self.exponent), reflect(-wo, ns)))
+        } else if u_lobe < p_diffuse + p_glossy + p_mirror {
+            Some(ScatterSample {
+                wi: reflect(-wo, ns),
+                weight: Vec3::splat(self.mirror / p_mirror),
+                pdf: 0.0,
+                delta: true,
+                eta: 1.0,
+            })
+        } else if self.lobe_probability[3] > 0.0 {
+            self.sample_glass(wo, ns, front, u.x)
+        } else {
+            None
+        }
+    }
+
+    /// The smooth dielectric: reflection with the Fresnel probability, refraction
+    /// otherwise, so the Fresnel factors cancel in the weight. Radiance crossing into
+    /// a denser medium is scaled by `1 / eta^2`, as Mitsuba does in radiance mode.
+    #[inline]
+    fn sample_glass(&self, wo: Vec3, ns: Vec3, front: bool, u: Float) -> Option<ScatterSample> {
+        let weight = self.glass / self.lobe_probability[3];
+        // eta = index entered / index left.
+        let eta = if front { self.ior } else { 1.0 / self.ior };
+        let cos_o = wo.dot(ns).clamp(0.0, 1.0);
+        let sin2_t = (1.0 - cos_o * cos_o) / (eta * eta);
+        let reflected = ScatterSample {
+            wi: reflect(-wo, ns),
+            weight: Vec3::splat(weight),
+            pdf: 0.0,
+            delta: true,
+            eta: 1.0,
+        };
+        if sin2_t >= 1.0 {
+            return Some(reflected);
+        }
+        let cos_t = (1.0 - sin2_t).sqrt();
+        if u < fresnel_dielectric(cos_o, cos_t, eta) {
+            return Some(reflected);
+        }
+        let wi = -wo / eta + (cos_o / eta - cos_t) * ns;
+        Some(ScatterSample {
+            wi: wi.normalize(),
+            weight: Vec3::splat(weight / (eta * eta)),
+            pdf: 0.0,
+            delta: true,
+            eta,
+        })
+    }
+}
+
+/// Unpolarized Fresnel reflectance of a smooth dielectric boundary, for cosines of
+/// the incident and transmitted angles (both positive) and `eta` = index entered /
+/// index left.
+#[inline]
+pub fn fresnel_dielectric(cos_i: Float, cos_t: Float, eta: Float) -> Float {
+    let parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (parallel * parallel + perpendicular * perpendicular)
+}
+
+#[inline]
+fn mean(v: Vec3) -> Float {
+    (v.x + v.y + v.z) / 3.0
+}
+
+/// A cosine-distributed direction about +z.
+#[inline]
+fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let r = u.x.sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u.x).max(0.0).sqrt())
+}
+
+/// A direction about +z with density proportional to `cos^exponent`.
+#[inline]
+fn phong_lobe(u: Vec2, exponent: Float) -> Vec3 {
+    let cos = u.x.powf(1.0 / (exponent + 1.0));
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(sin * phi.cos(), sin * phi.sin(), cos)
+}
+
+/// `local` (about +z) turned so that +z becomes the unit vector `axis`, with the
+/// branchless orthonormal basis of Duff et al. (2017).
+#[inline]
+fn to_world(local: Vec3, axis: Vec3) -> Vec3 {
+    let sign = 1.0_f32.copysign(axis.z);
+    let a = -1.0 / (sign + axis.z);
+    let b = axis.x * axis.y * a;
+    let tangent = Vec3::new(1.0 + sign * axis.x * axis.x * a, sign * b, -sign * axis.x);
+    let bitangent = Vec3::new(b, sign + axis.y * axis.y * a, -axis.y);
+    local.x * tangent + local.y * bitangent + local.z * axis
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn material(kd: Float, ks: Float, ns: Float, al: [Float; 3]) -> Material {
+        Material {
+            diffuse: Vec3::splat(kd),
+            specular: Vec3::splat(ks),
+            shininess: ns,
+            ior: 1.5,
+            albedo: al,
+            ..Material::named("m")
+        }
+    }
+
+    /// A deterministic stream of numbers in [0, 1).
+    fn uniforms(n: usize) -> impl Iterator<Item = Float> {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        (0..n).map(move |_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as Float / (1u64 << 24) as Float
+        })
+    }
+
+    #[test]
+    fn the_basis_is_orthonormal_for_any_axis() {
+        for axis in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.81).normalize(),
+        ] {
+            let d = to_world(Vec3::new(0.6, 0.0, 0.8), axis);
+            assert!((d.length() - 1.0).abs() < 1e-5, "{axis}");
+            assert!((d.dot(axis) - 0.8).abs() < 1e-5, "{axis}");
+        }
+    }
+
+    #[test]
+    fn sampled_weights_average_to_the_albedo() {
+        // Monte Carlo estimate of the directional albedo: the mean sampled weight.
+        let n = Vec3::new(0.2, 0.9, 0.1).normalize();
+        let wo = Vec3::new(0.5, 0.7, -0.3).normalize();
+        let wo = if wo.dot(n) < 0.0 { -wo } else { wo };
+        for (m, expected) in [
+            (material(0.7, 0.0, 1.0, [1.0, 0.0, 0.0]), 0.7),
+            (material(0.5, 0.0, 1.0, [0.5, 0.5, 0.0]), 0.25 + 0.5),
+            (material(0.0, 0.0, 1.0, [0.0, 0.0, 1.0]), 1.0),
+        ] {
+            let (params, _) = ScatteringParams::new(&m);
+            let samples = 20_000;
+            let mut u = uniforms(3 * samples);
+            let mut sum = Vec3::ZERO;
+            for _ in 0..samples {
+                let (a, b, c) = (u.next().unwrap(), u.next().unwrap(), u.next().unwrap());
+                if let Some(s) = params.sample(wo, n, n, true, a, Vec2::new(b, c)) {
+                    sum += s.weight * if s.eta != 1.0 { s.eta * s.eta } else { 1.0 };
+                }
+            }
+            let mean = sum.x / samples as Float;
+            assert!(
+                (mean - expected).abs() < 0.02,
+                "{m:?}: {mean} vs {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn phong_conserves_energy_and_kd_plus_ks_is_scaled_to_one() {
+        let (params, scaled) = ScatteringParams::new(&material(0.8, 0.6, 20.0, [1.0, 0.0, 0.0]));
+        assert!(scaled);
+        assert!((params.diffuse.x + params.glossy.x - 1.0).abs() < 1e-6);
+        // Albedo at normal incidence stays at most 1.
+        let n = Vec3::Z;
+        let samples = 40_000;
+        let mut u = uniforms(3 * samples);
+        let mut sum = 0.0;
+        for _ in 0..samples {
+            let (a, b, c) = (u.next().unwrap(), u.next().unwrap(), u.next().unwrap());
+            if let Some(s) = params.sample(n, n, n, true, a, Vec2::new(b, c)) {
+                sum += s.weight.x;
+            }
+        }
+        assert!(
+            sum / (samples as Float) <= 1.01,
+            "{}",
+            sum / samples as Float
+        );
+        let (_, scaled) = ScatteringParams::new(&material(0.5, 0.5, 20.0, [1.0, 0.0, 0.0]));
+        assert!(!scaled);
+    }
+
+    #[test]
+    fn pdf_matches_the_sampled_density() {
+        // The pdf integrates to the smooth lobes' probability over the hemisphere.
+        let (params, _) = ScatteringParams::new(&material(0.4, 0.4, 10.0, [0.8, 0.2, 0.0]));
+        let n = Vec3::Z;
+        let wo = Vec3::new(0.3, 0.0, 0.95).normalize();
+        let samples = 200_000;
+        let mut u = uniforms(2 * samples);
+        let mut integral = 0.0;
+        for _ in 0..samples {
+            // Uniform directions on the hemisphere: density 1 / (2 pi).
+            let (a, b) = (u.next().unwrap(), u.next().unwrap());
+            let z = a;
+            let r = (1.0 - z * z).sqrt();
+            let wi = Vec3::new(r * (2.0 * PI * b).cos(), r * (2.0 * PI * b).sin(), z);
+            integral += params.pdf(wo, wi, n, n) * 2.0 * PI;
+        }
+        let smooth = params.lobe_probability[0] + params.lobe_probability[1];
+        let integral = integral / samples as Float;
+        assert!(
+            (integral - smooth).abs() < 0.02 * smooth,
+            "{integral} vs {smooth}"
+        );
+    }
+
+    #[test]
+    fn fresnel_is_four_percent_head_on_for_glass_and_total_past_the_critical_angle() {
+        let head_on = fresnel_dielectric(1.0, 1.0, 1.5);
+        assert!((head_on - 0.04).abs() < 1e-4, "{head_on}");
+        // Leaving glass at a grazing angle: total internal reflection, the mirror way.
+        let (params, _) = ScatteringParams::new(&material(0.0, 0.0, 1.0, [0.0, 0.0, 1.0]));
+        let wo = Vec3::new(0.9, 0.0, 0.1).normalize();
+        let s = params
+            .sample(wo, Vec3::Z, Vec3::Z, false, 0.5, Vec2::new(0.99, 0.5))
+            .unwrap();
+        assert!(s.wi.z > 0.0 && s.delta, "{s:?}");
+    }
+}

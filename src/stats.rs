@@ -13,12 +13,14 @@ pub struct RayCounts {
     pub reflected: u64,
     /// Refraction rays.
     pub refracted: u64,
+    /// Rays a path tracer sent on after scattering at a surface (path mode).
+    pub scattered: u64,
 }
 
 impl RayCounts {
     /// All rays of every kind.
     pub fn total(&self) -> u64 {
-        self.primary + self.shadow + self.reflected + self.refracted
+        self.primary + self.shadow + self.reflected + self.refracted + self.scattered
     }
 }
 
@@ -28,6 +30,7 @@ impl AddAssign for RayCounts {
         self.shadow += other.shadow;
         self.reflected += other.reflected;
         self.refracted += other.refracted;
+        self.scattered += other.scattered;
     }
 }
 

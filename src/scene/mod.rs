@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
+use crate::lights::{AreaLights, AreaLightsBuilder};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec3, try_unit};
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
@@ -73,6 +74,8 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// The point lights.
     pub lights: Vec<PointLight>,
+    /// The triangles and spheres whose material emits (`Ke`), for path mode.
+    pub area_lights: AreaLights,
     summary: BvhSummary,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
@@ -91,6 +94,10 @@ pub struct Hit {
     pub ns: Vec3,
     /// The material.
     pub material: MaterialId,
+    /// Whether the ray hit the front: the side a triangle's winding faces
+    /// (counter-clockwise seen from the front) or a sphere's outside. Area lights emit
+    /// from the front only, and glass is entered through it.
+    pub front: bool,
 }
 
 impl Hit {
@@ -183,6 +190,8 @@ impl Scene {
             );
         }
 
+        let area_lights = collect_area_lights(&positions, &triangles, &spheres, &materials);
+
         // Step 2: the wide BVH and its packets; then the binary BVH can go.
         let shape_of = |prim: u32| {
             let i = order[prim as usize] as usize;
@@ -236,6 +245,7 @@ impl Scene {
             vertex_normals,
             materials,
             lights,
+            area_lights,
             summary,
             warnings,
         }
@@ -390,6 +400,7 @@ impl Scene {
                 (s.center + n * s.radius, n, n)
             }
         };
+        let front = n.dot(ray.dir) <= 0.0;
         let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
         Hit {
             t: hit.t,
@@ -397,8 +408,38 @@ impl Scene {
             n: face(n),
             ns: face(ns),
             material: shading.material,
+            front,
         }
     }
+}
+
+/// The emitting triangles and spheres of a description: those whose material has a
+/// `Ke` with a positive mean. Scenes without one (most) cost one pass over the
+/// materials.
+fn collect_area_lights(
+    positions: &[Vec3],
+    triangles: &[TriangleDesc],
+    spheres: &[SphereDesc],
+    materials: &[Material],
+) -> AreaLights {
+    let emission = |id: MaterialId| materials.get(id.0 as usize).map_or(Vec3::ZERO, |m| m.emission);
+    let mut lights = AreaLightsBuilder::default();
+    if materials.iter().all(|m| m.emission.max_element() <= 0.0) {
+        return lights.build();
+    }
+    for t in triangles {
+        let radiance = emission(t.material);
+        if radiance != Vec3::ZERO {
+            lights.triangle(t.positions.map(|i| positions[i as usize]), radiance);
+        }
+    }
+    for s in spheres {
+        let radiance = emission(s.material);
+        if radiance != Vec3::ZERO {
+            lights.sphere(s.center, s.radius, radiance);
+        }
+    }
+    lights.build()
 }
 
 /// Collapses `bvh` (dropped as soon as it is collapsed) into the wide BVH whose

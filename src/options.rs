@@ -1,4 +1,14 @@
-//! What to render: image size, camera and mode, validated once at the boundary.
+//! What to render: image size, camera and mode.
+//!
+//! Values come from three places, built-in defaults < scene file < command-line flags.
+//! Each place gives a [`PartialOptions`] whose values keep their [`Origin`] and are
+//! not range-checked where they are read; [`PartialOptions::or`] merges them and
+//! [`PartialOptions::resolve`] checks the result once. So a valid flag replaces a bad
+//! value of a scene file, and every error names where its value came from: the flag,
+//! or the file, line and key.
+
+use std::fmt;
+use std::path::PathBuf;
 
 use crate::math::{Float, Vec3, try_unit};
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
@@ -25,7 +35,7 @@ pub enum Mode {
 }
 
 /// Options of one render. Build with [`Default`] and field updates, then
-/// [`RenderOptions::validate`].
+/// [`RenderOptions::validate`]; or from scene files and flags with [`PartialOptions`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
     /// Image width in pixels.
@@ -67,78 +77,17 @@ impl Default for RenderOptions {
     }
 }
 
-/// An option value outside its allowed range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("invalid {option}: {message}")]
-pub struct OptionsError {
-    /// The option's name, as the command line spells it.
-    pub option: &'static str,
-    /// What is allowed.
-    pub message: String,
-}
-
 impl RenderOptions {
-    /// Checks every value, so that rendering can trust them.
+    /// Checks every value, so that rendering can trust them. The same checks as
+    /// [`PartialOptions::resolve`], which also knows where each value came from; here
+    /// errors name the flag that sets the value.
     ///
     /// # Errors
     /// The first option out of range, with the allowed range.
     pub fn validate(&self) -> Result<(), OptionsError> {
-        let fail = |option, message: String| Err(OptionsError { option, message });
-        for (option, value) in [("--width", self.width), ("--height", self.height)] {
-            if value == 0 || value > MAX_DIMENSION {
-                return fail(option, format!("{value} is not in 1..={MAX_DIMENSION}"));
-            }
-        }
-        let pixels = self.width as u64 * self.height as u64;
-        if pixels > MAX_PIXELS {
-            return fail(
-                "--width/--height",
-                format!(
-                    "{}x{} has more than {MAX_PIXELS} pixels",
-                    self.width, self.height
-                ),
-            );
-        }
-        if !(self.fov_degrees > 0.0 && self.fov_degrees < 180.0) {
-            return fail(
-                "--fov",
-                format!("{} is not strictly between 0 and 180", self.fov_degrees),
-            );
-        }
-        if !self.look_from.is_finite() || !self.look_to.is_finite() {
-            return fail("--look-from/--look-to", "components must be finite".into());
-        }
-        if self.look_from == self.look_to {
-            return fail(
-                "--look-from/--look-to",
-                "the camera cannot look at its own position".into(),
-            );
-        }
-        if try_unit(self.look_from - self.look_to).is_none() {
-            return fail(
-                "--look-from/--look-to",
-                "the points are too far apart (their distance overflows)".into(),
-            );
-        }
-        if try_unit(self.up).is_none() {
-            return fail("--up", "components must be finite and not all zero".into());
-        }
-        if self.depth == 0 || self.depth > MAX_RECURSION_DEPTH {
-            return fail(
-                "--depth",
-                format!("{} is not in 1..={MAX_RECURSION_DEPTH}", self.depth),
-            );
-        }
-        if self.samples_per_pixel == 0 || self.samples_per_pixel > MAX_SAMPLES_PER_PIXEL {
-            return fail(
-                "--spp",
-                format!(
-                    "{} is not in 1..={MAX_SAMPLES_PER_PIXEL}",
-                    self.samples_per_pixel
-                ),
-            );
-        }
-        Ok(())
+        Values::from(self)
+            .check(&|field| Origin::Flag(field.flag()))
+            .map(drop)
     }
 
     /// The samples per pixel the renderer takes: [`RenderOptions::samples_per_pixel`]
@@ -153,38 +102,380 @@ impl RenderOptions {
     }
 }
 
-/// [`RenderOptions`] with every value optional: what one source (the command line or a
-/// scene file) says, before sources are merged. Precedence is explicit:
-/// `flags.or(file).resolve()` takes each value from the flags, else from the file, else
-/// from [`RenderOptions::default`].
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// Where an option's value came from: what an error names, so that the user knows
+/// what to change.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Origin {
+    /// The built-in default of [`RenderOptions::default`].
+    Default,
+    /// A command-line flag, as spelt there: `--width`.
+    Flag(&'static str),
+    /// A key of a scene file.
+    File {
+        /// The file, as it was named.
+        path: PathBuf,
+        /// 1-based line of the value.
+        line: usize,
+        /// The dotted key, such as `camera.width`.
+        key: &'static str,
+    },
+    /// A width or height nobody gave, computed from the other dimension (which came
+    /// from the boxed origin) to keep an aspect ratio: see [`PartialOptions::or`].
+    Aspect(Box<Origin>),
+}
+
+impl fmt::Display for Origin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Origin::Default => f.write_str("the default"),
+            Origin::Flag(flag) => f.write_str(flag),
+            Origin::File { path, line, key } => write!(f, "{}:{line}: {key}", path.display()),
+            Origin::Aspect(of) => write!(f, "{of} (keeping the aspect ratio)"),
+        }
+    }
+}
+
+/// A value as written, not yet checked, and where it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sourced<T> {
+    /// The value.
+    pub value: T,
+    /// Where it came from.
+    pub origin: Origin,
+}
+
+impl<T> Sourced<T> {
+    /// `value` from `origin`.
+    pub fn new(value: T, origin: Origin) -> Sourced<T> {
+        Sourced { value, origin }
+    }
+}
+
+/// An option value outside its allowed range, or two values that do not go together.
+///
+/// Displayed as `FILE:LINE: KEY: MESSAGE` when the value came from a scene file, else
+/// as `invalid OPTION: MESSAGE`; a second value from elsewhere is named after it:
+/// `invalid --look-from: the camera cannot look at its own position (with
+/// scene.toml:4: camera.look_to)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OptionsError {
+    /// The flag that sets (or overrides) the value, as the command line spells it:
+    /// `--width`, or `--width/--height` for a limit on two flags.
+    pub option: &'static str,
+    /// Where the value to change came from.
+    pub origin: Origin,
+    /// For a check of two values from different places, where the other one came
+    /// from (boxed: it keeps every `Result<_, OptionsError>` small).
+    pub other: Option<Box<Origin>>,
+    /// What is wrong, with what is allowed.
+    pub message: String,
+}
+
+impl fmt::Display for OptionsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.origin {
+            Origin::File { .. } => write!(f, "{}: {}", self.origin, self.message)?,
+            _ => write!(f, "invalid {}: {}", self.option, self.message)?,
+        }
+        match &self.other {
+            Some(other) => write!(f, " (with {other})"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl std::error::Error for OptionsError {}
+
+/// The options that are checked, by the flag that sets them.
+#[derive(Clone, Copy)]
+enum Field {
+    Width,
+    Height,
+    Fov,
+    LookFrom,
+    LookTo,
+    Up,
+    Depth,
+    Spp,
+}
+
+impl Field {
+    fn flag(self) -> &'static str {
+        match self {
+            Field::Width => "--width",
+            Field::Height => "--height",
+            Field::Fov => "--fov",
+            Field::LookFrom => "--look-from",
+            Field::LookTo => "--look-to",
+            Field::Up => "--up",
+            Field::Depth => "--depth",
+            Field::Spp => "--spp",
+        }
+    }
+
+    /// The option's name in prose: `width`.
+    fn noun(self) -> &'static str {
+        self.flag().trim_start_matches('-')
+    }
+}
+
+/// Every option before its checks, whole numbers as wide as anyone can write them,
+/// so that `-4` is reported as -4.
+struct Values {
+    width: i64,
+    height: i64,
+    fov_degrees: Float,
+    look_from: Vec3,
+    look_to: Vec3,
+    up: Vec3,
+    depth: i64,
+    mode: Mode,
+    samples_per_pixel: i64,
+}
+
+impl From<&RenderOptions> for Values {
+    fn from(o: &RenderOptions) -> Values {
+        Values {
+            width: o.width.into(),
+            height: o.height.into(),
+            fov_degrees: o.fov_degrees,
+            look_from: o.look_from,
+            look_to: o.look_to,
+            up: o.up,
+            depth: o.depth.into(),
+            mode: o.mode,
+            samples_per_pixel: o.samples_per_pixel.into(),
+        }
+    }
+}
+
+/// Where each checked value came from.
+type Origins<'a> = dyn Fn(Field) -> Origin + 'a;
+
+impl Values {
+    /// The one check of every option, in a fixed order, stopping at the first error;
+    /// `origin` tells where each value came from, for the message.
+    fn check(&self, origin: &Origins) -> Result<RenderOptions, OptionsError> {
+        let width = dimension(self.width, [Field::Width, Field::Height], origin)?;
+        let height = dimension(self.height, [Field::Height, Field::Width], origin)?;
+        if u64::from(width) * u64::from(height) > MAX_PIXELS {
+            return Err(pair_error(
+                [Field::Width, Field::Height],
+                "--width/--height",
+                origin,
+                format!("{width}x{height} has more than {MAX_PIXELS} pixels"),
+            ));
+        }
+        let fov_degrees = self.fov_degrees;
+        if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
+            return Err(single_error(
+                Field::Fov,
+                origin(Field::Fov),
+                format!("{fov_degrees} is not strictly between 0 and 180"),
+            ));
+        }
+        for (field, point) in [
+            (Field::LookFrom, self.look_from),
+            (Field::LookTo, self.look_to),
+        ] {
+            if !point.is_finite() {
+                return Err(single_error(
+                    field,
+                    origin(field),
+                    "components must be finite".into(),
+                ));
+            }
+        }
+        let camera = |message: &str| {
+            pair_error(
+                [Field::LookFrom, Field::LookTo],
+                "--look-from/--look-to",
+                origin,
+                message.into(),
+            )
+        };
+        if self.look_from == self.look_to {
+            return Err(camera("the camera cannot look at its own position"));
+        }
+        if try_unit(self.look_from - self.look_to).is_none() {
+            return Err(camera(
+                "the points are too far apart (their distance overflows)",
+            ));
+        }
+        if try_unit(self.up).is_none() {
+            return Err(single_error(
+                Field::Up,
+                origin(Field::Up),
+                "components must be finite and not all zero".into(),
+            ));
+        }
+        Ok(RenderOptions {
+            width,
+            height,
+            fov_degrees,
+            look_from: self.look_from,
+            look_to: self.look_to,
+            up: self.up,
+            depth: whole_number(self.depth, MAX_RECURSION_DEPTH, Field::Depth, origin)?,
+            mode: self.mode,
+            samples_per_pixel: whole_number(
+                self.samples_per_pixel,
+                MAX_SAMPLES_PER_PIXEL,
+                Field::Spp,
+                origin,
+            )?,
+        })
+    }
+}
+
+/// `value` if in `1..=max`.
+fn whole_number(value: i64, max: u32, field: Field, origin: &Origins) -> Result<u32, OptionsError> {
+    match u32::try_from(value) {
+        Ok(v) if (1..=max).contains(&v) => Ok(v),
+        _ => Err(single_error(
+            field,
+            origin(field),
+            format!("{value} is not in 1..={max}"),
+        )),
+    }
+}
+
+/// The width or height `field` if in `1..=MAX_DIMENSION`. One computed to keep the
+/// aspect ratio is nobody's number: the error names `other`, the dimension it was
+/// computed from.
+fn dimension(
+    value: i64,
+    [field, other]: [Field; 2],
+    origin: &Origins,
+) -> Result<u32, OptionsError> {
+    whole_number(value, MAX_DIMENSION, field, origin).map_err(|error| match error.origin {
+        Origin::Aspect(of) => {
+            single_error(
+                other,
+                *of,
+                format!(
+                    "keeping the aspect ratio makes the {} {value}, which is not in 1..={MAX_DIMENSION}; set the {} too",
+                    field.noun(),
+                    field.noun()
+                ),
+            )
+        }
+        _ => error,
+    })
+}
+
+fn single_error(field: Field, origin: Origin, message: String) -> OptionsError {
+    OptionsError {
+        option: field.flag(),
+        origin,
+        other: None,
+        message,
+    }
+}
+
+/// The error of a check on two values. A value computed to keep the aspect ratio is
+/// nobody's: the one it follows is named. Otherwise a flag is named before a file's
+/// key (the user just typed it, and it overrides the file), and the other value is
+/// named too unless it is a default.
+fn pair_error(
+    [a, b]: [Field; 2],
+    option: &'static str,
+    origin: &Origins,
+    message: String,
+) -> OptionsError {
+    let (from_a, from_b) = (origin(a), origin(b));
+    let aspect_hint = |derived: Field| {
+        format!(
+            "{message} (the {} keeps the aspect ratio; set it too)",
+            derived.noun()
+        )
+    };
+    match (from_a, from_b) {
+        (Origin::Aspect(of), _) => single_error(b, *of, aspect_hint(a)),
+        (_, Origin::Aspect(of)) => single_error(a, *of, aspect_hint(b)),
+        (from_a, from_b)
+            if !matches!(from_a, Origin::File { .. }) && !matches!(from_b, Origin::File { .. }) =>
+        {
+            // Flags or defaults: the pair of flags names both.
+            let origin = if from_a == Origin::Default {
+                from_b
+            } else {
+                from_a
+            };
+            OptionsError {
+                option,
+                origin,
+                other: None,
+                message,
+            }
+        }
+        (from_a, from_b) => {
+            let (field, blamed, other) =
+                if matches!(from_b, Origin::Flag(_)) || from_a == Origin::Default {
+                    (b, from_b, from_a)
+                } else {
+                    (a, from_a, from_b)
+                };
+            OptionsError {
+                option: field.flag(),
+                origin: blamed,
+                other: (other != Origin::Default).then(|| Box::new(other)),
+                message,
+            }
+        }
+    }
+}
+
+/// [`RenderOptions`] as one place (the command line, a scene file) gives them: each
+/// value optional, not yet checked, and kept with its [`Origin`]. Whole numbers are
+/// `i64`, so that a negative or huge value is reported as written. Precedence is
+/// explicit: `flags.or(file).resolve()` takes each value from the flags, else from the
+/// file, else from [`RenderOptions::default`], then checks them.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PartialOptions {
     /// Image width in pixels.
-    pub width: Option<u32>,
+    pub width: Option<Sourced<i64>>,
     /// Image height in pixels.
-    pub height: Option<u32>,
+    pub height: Option<Sourced<i64>>,
     /// Vertical field of view in degrees.
-    pub fov_degrees: Option<Float>,
+    pub fov_degrees: Option<Sourced<Float>>,
     /// Camera position.
-    pub look_from: Option<Vec3>,
+    pub look_from: Option<Sourced<Vec3>>,
     /// Point the camera looks at.
-    pub look_to: Option<Vec3>,
+    pub look_to: Option<Sourced<Vec3>>,
     /// World up direction.
-    pub up: Option<Vec3>,
+    pub up: Option<Sourced<Vec3>>,
     /// Recursion depth of full mode.
-    pub depth: Option<u32>,
+    pub depth: Option<Sourced<i64>>,
     /// What to compute.
-    pub mode: Option<Mode>,
+    pub mode: Option<Sourced<Mode>>,
     /// Camera rays per pixel in full mode.
-    pub samples_per_pixel: Option<u32>,
+    pub samples_per_pixel: Option<Sourced<i64>>,
 }
 
 impl PartialOptions {
-    /// Each value from `self` if set, else from `fallback`.
+    /// Each value from `self` if set, else from `fallback`. When `self` sets only one
+    /// of width and height, the other keeps the aspect ratio of the image size
+    /// `fallback` gives (its own width and height; one of them alone with the other
+    /// at the default 640:480; neither, 640x480), rounded to the nearest whole number
+    /// and at least 1: `--width 320` on a 640x480 scene file renders 320x240.
     pub fn or(self, fallback: PartialOptions) -> PartialOptions {
+        let (width, height) = match (self.width, self.height) {
+            (Some(width), None) => {
+                let (from_width, from_height) = fallback.image_size();
+                let height = keep_aspect(&width, from_width.value, from_height);
+                (Some(width), Some(height))
+            }
+            (None, Some(height)) => {
+                let (from_width, from_height) = fallback.image_size();
+                let width = keep_aspect(&height, from_height.value, from_width);
+                (Some(width), Some(height))
+            }
+            (width, height) => (width.or(fallback.width), height.or(fallback.height)),
+        };
         PartialOptions {
-            width: self.width.or(fallback.width),
-            height: self.height.or(fallback.height),
+            width,
+            height,
             fov_degrees: self.fov_degrees.or(fallback.fov_degrees),
             look_from: self.look_from.or(fallback.look_from),
             look_to: self.look_to.or(fallback.look_to),
@@ -195,54 +486,311 @@ impl PartialOptions {
         }
     }
 
-    /// The complete options, unset values taken from [`RenderOptions::default`]. Not
-    /// validated: call [`RenderOptions::validate`].
-    pub fn resolve(self) -> RenderOptions {
+    /// The options to render with: each value as set, else from
+    /// [`RenderOptions::default`] (a width or height alone keeps the default aspect
+    /// ratio, as in [`PartialOptions::or`]), checked once.
+    ///
+    /// # Errors
+    /// The first value out of range, or the first two values that do not go
+    /// together, named by where they came from.
+    pub fn resolve(&self) -> Result<RenderOptions, OptionsError> {
         let d = RenderOptions::default();
-        // A full struct literal, so that a new option cannot be forgotten here.
-        RenderOptions {
-            width: self.width.unwrap_or(d.width),
-            height: self.height.unwrap_or(d.height),
-            fov_degrees: self.fov_degrees.unwrap_or(d.fov_degrees),
-            look_from: self.look_from.unwrap_or(d.look_from),
-            look_to: self.look_to.unwrap_or(d.look_to),
-            up: self.up.unwrap_or(d.up),
-            depth: self.depth.unwrap_or(d.depth),
-            mode: self.mode.unwrap_or(d.mode),
-            samples_per_pixel: self.samples_per_pixel.unwrap_or(d.samples_per_pixel),
+        let (width, height) = self.image_size();
+        let values = Values {
+            width: width.value,
+            height: height.value,
+            fov_degrees: value_or(&self.fov_degrees, d.fov_degrees),
+            look_from: value_or(&self.look_from, d.look_from),
+            look_to: value_or(&self.look_to, d.look_to),
+            up: value_or(&self.up, d.up),
+            depth: value_or(&self.depth, d.depth.into()),
+            mode: value_or(&self.mode, d.mode),
+            samples_per_pixel: value_or(&self.samples_per_pixel, d.samples_per_pixel.into()),
+        };
+        values.check(&|field| match field {
+            Field::Width => width.origin.clone(),
+            Field::Height => height.origin.clone(),
+            Field::Fov => origin_of(&self.fov_degrees),
+            Field::LookFrom => origin_of(&self.look_from),
+            Field::LookTo => origin_of(&self.look_to),
+            Field::Up => origin_of(&self.up),
+            Field::Depth => origin_of(&self.depth),
+            Field::Spp => origin_of(&self.samples_per_pixel),
+        })
+    }
+
+    /// The width and height these options give over the defaults: as set; one alone
+    /// with the other at the default aspect ratio; neither, the defaults.
+    fn image_size(&self) -> (Sourced<i64>, Sourced<i64>) {
+        let d = RenderOptions::default();
+        let default = |value: u32| Sourced::new(i64::from(value), Origin::Default);
+        let (width, height) = (default(d.width), default(d.height));
+        match (&self.width, &self.height) {
+            (Some(w), Some(h)) => (w.clone(), h.clone()),
+            (Some(w), None) => (w.clone(), keep_aspect(w, width.value, height)),
+            (None, Some(h)) => (keep_aspect(h, height.value, width), h.clone()),
+            (None, None) => (width, height),
         }
     }
 }
 
+/// The dimension that keeps the aspect ratio `before : other` now that the first
+/// dimension is `given` instead of `before`: `other * given / before`, rounded to
+/// the nearest, at least 1. Without a positive ratio, or with `given` out of range,
+/// `other` stays: the checks then report the value that is wrong, not one computed
+/// from it.
+fn keep_aspect(given: &Sourced<i64>, before: i64, other: Sourced<i64>) -> Sourced<i64> {
+    if !(1..=i64::from(MAX_DIMENSION)).contains(&given.value) || before < 1 || other.value < 1 {
+        return other;
+    }
+    // In i128, as `other` may be any i64; half up by integer division.
+    let twice = 2 * i128::from(given.value) * i128::from(other.value);
+    let rounded = (twice + i128::from(before)) / (2 * i128::from(before));
+    Sourced::new(
+        i64::try_from(rounded).unwrap_or(i64::MAX).max(1),
+        Origin::Aspect(Box::new(given.origin.clone())),
+    )
+}
+
+fn value_or<T: Copy>(value: &Option<Sourced<T>>, default: T) -> T {
+    value.as_ref().map_or(default, |v| v.value)
+}
+
+fn origin_of<T>(value: &Option<Sourced<T>>) -> Origin {
+    value.as_ref().map_or(Origin::Default, |v| v.origin.clone())
+}
+
 #[cfg(test)]
-mod partial_tests {
+mod tests {
     use super::*;
+
+    fn from_flag<T>(value: T, name: &'static str) -> Option<Sourced<T>> {
+        Some(Sourced::new(value, Origin::Flag(name)))
+    }
+
+    fn from_file<T>(value: T, line: usize, key: &'static str) -> Option<Sourced<T>> {
+        let path = PathBuf::from("scene.toml");
+        Some(Sourced::new(value, Origin::File { path, line, key }))
+    }
+
+    fn size(o: &PartialOptions) -> (u32, u32) {
+        let o = o.resolve().unwrap_or_else(|e| panic!("{e}"));
+        (o.width, o.height)
+    }
+
+    fn error(o: &PartialOptions) -> String {
+        o.resolve().unwrap_err().to_string()
+    }
 
     #[test]
     fn set_values_win_then_fallback_then_defaults() {
         let flags = PartialOptions {
-            width: Some(10),
-            mode: Some(Mode::Depth),
+            width: from_flag(10, "--width"),
+            height: from_flag(20, "--height"),
+            mode: from_flag(Mode::Depth, "--mode"),
             ..PartialOptions::default()
         };
         let file = PartialOptions {
-            width: Some(20),
-            height: Some(30),
-            up: Some(Vec3::Z),
+            width: from_file(20, 2, "camera.width"),
+            height: from_file(30, 3, "camera.height"),
+            up: from_file(Vec3::Z, 4, "camera.up"),
+            depth: from_file(7, 6, "render.depth"),
             ..PartialOptions::default()
         };
-        let options = flags.or(file).resolve();
-        assert_eq!((options.width, options.height), (10, 30));
+        let options = flags.or(file).resolve().unwrap();
+        assert_eq!((options.width, options.height), (10, 20));
         assert_eq!((options.mode, options.up), (Mode::Depth, Vec3::Z));
+        assert_eq!(options.depth, 7);
         assert_eq!(options.fov_degrees, RenderOptions::default().fov_degrees);
         assert_eq!(
             PartialOptions::default().resolve(),
-            RenderOptions::default()
+            Ok(RenderOptions::default())
         );
     }
 
     #[test]
-    fn up_must_be_finite_and_non_zero() {
+    fn a_valid_flag_replaces_a_bad_file_value() {
+        let file = PartialOptions {
+            width: from_file(65_536, 2, "camera.width"),
+            height: from_file(65_536, 3, "camera.height"),
+            fov_degrees: from_file(180.0, 4, "camera.fov"),
+            depth: from_file(-1, 6, "render.depth"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(
+            error(&file),
+            "scene.toml:2: camera.width: 65536x65536 has more than 268435456 pixels \
+             (with scene.toml:3: camera.height)"
+        );
+        let flags = PartialOptions {
+            width: from_flag(64, "--width"),
+            height: from_flag(48, "--height"),
+            fov_degrees: from_flag(60.0, "--fov"),
+            depth: from_flag(2, "--depth"),
+            ..PartialOptions::default()
+        };
+        let options = flags.or(file).resolve().unwrap();
+        assert_eq!((options.width, options.height), (64, 48));
+        assert_eq!((options.fov_degrees, options.depth), (60.0, 2));
+    }
+
+    #[test]
+    fn errors_name_the_flag_or_the_file_line_and_key() {
+        let file_value = PartialOptions {
+            depth: from_file(65, 7, "render.depth"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(
+            error(&file_value),
+            "scene.toml:7: render.depth: 65 is not in 1..=64"
+        );
+        let err = file_value.resolve().unwrap_err();
+        assert_eq!(err.option, "--depth");
+        assert!(matches!(err.origin, Origin::File { line: 7, .. }));
+
+        let flag_value = PartialOptions {
+            width: from_flag(-5, "--width"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(
+            error(&flag_value),
+            "invalid --width: -5 is not in 1..=65536"
+        );
+        for (options, expected) in [
+            (
+                PartialOptions {
+                    fov_degrees: from_file(Float::NAN, 4, "camera.fov"),
+                    ..PartialOptions::default()
+                },
+                "scene.toml:4: camera.fov: NaN is not strictly between 0 and 180",
+            ),
+            (
+                PartialOptions {
+                    samples_per_pixel: from_flag(0, "--spp"),
+                    ..PartialOptions::default()
+                },
+                "invalid --spp: 0 is not in 1..=65536",
+            ),
+            (
+                PartialOptions {
+                    look_from: from_file(Vec3::NEG_Z, 2, "camera.look_from"),
+                    ..PartialOptions::default()
+                },
+                "scene.toml:2: camera.look_from: the camera cannot look at its own position",
+            ),
+            (
+                PartialOptions {
+                    look_from: from_flag(Vec3::ONE, "--look-from"),
+                    look_to: from_file(Vec3::ONE, 3, "camera.look_to"),
+                    ..PartialOptions::default()
+                },
+                "invalid --look-from: the camera cannot look at its own position \
+                 (with scene.toml:3: camera.look_to)",
+            ),
+            (
+                PartialOptions {
+                    look_from: from_file(Vec3::ONE, 2, "camera.look_from"),
+                    look_to: from_flag(Vec3::ONE, "--look-to"),
+                    ..PartialOptions::default()
+                },
+                "invalid --look-to: the camera cannot look at its own position \
+                 (with scene.toml:2: camera.look_from)",
+            ),
+            (
+                PartialOptions {
+                    look_from: from_flag(Vec3::NEG_Z, "--look-from"),
+                    ..PartialOptions::default()
+                },
+                "invalid --look-from/--look-to: the camera cannot look at its own position",
+            ),
+        ] {
+            assert_eq!(error(&options), expected);
+        }
+    }
+
+    #[test]
+    fn one_dimension_keeps_the_aspect_ratio_of_the_size_it_replaces() {
+        let file = PartialOptions {
+            width: from_file(640, 2, "camera.width"),
+            height: from_file(480, 3, "camera.height"),
+            ..PartialOptions::default()
+        };
+        let width = |w| PartialOptions {
+            width: from_flag(w, "--width"),
+            ..PartialOptions::default()
+        };
+        let height = |h| PartialOptions {
+            height: from_flag(h, "--height"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(size(&width(320).or(file.clone())), (320, 240));
+        assert_eq!(size(&height(240).or(PartialOptions::default())), (320, 240));
+        // Alone, over the defaults, the same rule.
+        assert_eq!(size(&height(240)), (320, 240));
+        // Rounded to the nearest, at least 1.
+        assert_eq!(size(&width(101).or(file.clone())), (101, 76));
+        assert_eq!(size(&width(1).or(file.clone())), (1, 1));
+        // A file that sets one dimension has the other at the default ratio.
+        let wide = PartialOptions {
+            width: from_file(1000, 2, "camera.width"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(size(&wide), (1000, 750));
+        assert_eq!(size(&height(300).or(wide)), (400, 300));
+        // Replacing a bad size: no ratio to keep, so the file's other value is checked.
+        let bad = PartialOptions {
+            width: from_file(0, 2, "camera.width"),
+            height: from_file(480, 3, "camera.height"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(size(&width(64).or(bad.clone())), (64, 480));
+        assert_eq!(
+            error(&height(48).or(bad)),
+            "scene.toml:2: camera.width: 0 is not in 1..=65536"
+        );
+    }
+
+    #[test]
+    fn a_computed_dimension_out_of_range_names_the_given_one() {
+        assert_eq!(
+            error(&PartialOptions {
+                height: from_flag(65_536, "--height"),
+                ..PartialOptions::default()
+            }),
+            "invalid --height: keeping the aspect ratio makes the width 87381, \
+             which is not in 1..=65536; set the width too"
+        );
+        assert_eq!(
+            error(&PartialOptions {
+                width: from_flag(65_536, "--width"),
+                ..PartialOptions::default()
+            }),
+            "invalid --width: 65536x49152 has more than 268435456 pixels \
+             (the height keeps the aspect ratio; set it too)"
+        );
+        let huge = PartialOptions {
+            width: from_flag(i64::MAX, "--width"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(
+            error(&huge),
+            format!("invalid --width: {} is not in 1..=65536", i64::MAX)
+        );
+    }
+
+    #[test]
+    fn render_options_name_the_flags() {
+        let err = RenderOptions {
+            width: 65_536,
+            height: 65_536,
+            ..RenderOptions::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "invalid --width/--height: 65536x65536 has more than 268435456 pixels"
+        );
         for up in [Vec3::ZERO, Vec3::new(0.0, Float::NAN, 0.0)] {
             let err = RenderOptions {
                 up,
@@ -252,5 +800,15 @@ mod partial_tests {
             .unwrap_err();
             assert_eq!(err.option, "--up");
         }
+        let err = RenderOptions {
+            look_to: Vec3::new(0.0, Float::INFINITY, 0.0),
+            ..RenderOptions::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "invalid --look-to: components must be finite"
+        );
     }
 }

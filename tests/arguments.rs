@@ -1,5 +1,6 @@
 //! Every invalid option value is refused before any work, with exit code 2 and a
-//! message naming the option and what it allows; `--help` states the limits.
+//! message naming the option and what it allows; `--help` states the limits. (Values
+//! of scene files, and flags replacing them: `tests/scene_files.rs`.)
 
 use assert_cmd::Command;
 use predicates::prelude::*;
@@ -25,28 +26,24 @@ fn assert_refused(args: &[&str], message: &str) {
 }
 
 #[test]
-fn sizes_outside_their_range_are_refused() {
+fn sizes_outside_their_range_are_refused_naming_the_flag() {
     let range = format!("1..={MAX_DIMENSION}");
+    for (option, value) in [
+        ("--width", "0"),
+        ("--width", "65537"),
+        ("--width", "-5"),
+        ("--height", "0"),
+    ] {
+        assert_refused(
+            &[option, value],
+            &format!("invalid {option}: {value} is not in {range}"),
+        );
+    }
     for (option, value, problem) in [
-        ("--width", "0", format!("not in {range}")),
-        ("--width", "65537", format!("not in {range}")),
-        ("--width", "-5", format!("not in {range}")),
-        (
-            "--width",
-            "wide",
-            format!("not a whole number (allowed: {range})"),
-        ),
-        (
-            "--width",
-            "1.5",
-            format!("not a whole number (allowed: {range})"),
-        ),
-        ("--height", "0", format!("not in {range}")),
-        (
-            "--height",
-            "",
-            format!("not a whole number (allowed: {range})"),
-        ),
+        ("--width", "wide", "not a whole number"),
+        ("--width", "1.5", "not a whole number"),
+        ("--height", "", "not a whole number"),
+        ("--width", "99999999999999999999", "too many digits"),
     ] {
         assert_refused(
             &[option, value],
@@ -60,29 +57,33 @@ fn sizes_outside_their_range_are_refused() {
 }
 
 #[test]
-fn field_of_view_depth_and_threads_outside_their_range_are_refused() {
-    let fov = "allowed: strictly between 0 and 180 degrees";
+fn field_of_view_depth_samples_and_threads_outside_their_range_are_refused() {
     for value in ["0", "180", "-10", "NaN", "inf"] {
         assert_refused(
             &["--fov", value],
-            &format!("invalid value '{value}' for '--fov <DEGREES>': out of range ({fov})"),
+            &format!("invalid --fov: {value} is not strictly between 0 and 180"),
         );
     }
     assert_refused(
         &["--fov", "wide"],
-        &format!("invalid value 'wide' for '--fov <DEGREES>': not a number ({fov})"),
+        "invalid value 'wide' for '--fov <DEGREES>': not a number",
     );
-    let depth = format!("1..={MAX_RECURSION_DEPTH}");
     for value in ["0", "65", "-1"] {
         assert_refused(
             &["--depth", value],
-            &format!("invalid value '{value}' for '--depth <N>': not in {depth}"),
+            &format!("invalid --depth: {value} is not in 1..={MAX_RECURSION_DEPTH}"),
         );
     }
     assert_refused(
         &["--depth", "deep"],
-        &format!("invalid value 'deep' for '--depth <N>': not a whole number (allowed: {depth})"),
+        "invalid value 'deep' for '--depth <N>': not a whole number",
     );
+    for value in ["0", "65537", "-2"] {
+        assert_refused(
+            &["--spp", value],
+            &format!("invalid --spp: {value} is not in 1..=65536"),
+        );
+    }
     for value in ["1025", "-1"] {
         assert_refused(
             &["-j", value],
@@ -95,7 +96,11 @@ fn field_of_view_depth_and_threads_outside_their_range_are_refused() {
 fn bad_camera_vectors_and_modes_are_refused() {
     assert_refused(
         &["--look-from", "1,2"],
-        "invalid value '1,2' for '--look-from <X,Y,Z>': expected X,Y,Z (three numbers), got '1,2'",
+        "invalid value '1,2' for '--look-from <X,Y,Z>': a vector is written X,Y,Z, three numbers with commas and no spaces, as in --look-from 0,0.7,1.75",
+    );
+    assert_refused(
+        &["--up", "0 1 0"],
+        "invalid value '0 1 0' for '--up <X,Y,Z>': a vector is written X,Y,Z, three numbers with commas and no spaces, as in --up 0,1,0",
     );
     assert_refused(
         &["--look-to", "1,inf,2"],
@@ -118,6 +123,51 @@ fn bad_camera_vectors_and_modes_are_refused() {
         .stderr(predicate::str::contains(
             "[possible values: full, depth, normal]",
         ));
+}
+
+#[test]
+fn a_vector_written_with_spaces_is_shown_with_commas() {
+    // clap alone says "unexpected argument '0.7' found", which does not say why.
+    let form = "takes a vector as one argument, X,Y,Z with commas and no spaces";
+    for (args, message) in [
+        (
+            &["--look-from", "0", "0.7", "1.75"][..],
+            format!("--look-from {form}: write --look-from 0,0.7,1.75, not --look-from 0 0.7 1.75"),
+        ),
+        (
+            &["--look-to", "0,", "0.7,", "0"],
+            format!("--look-to {form}: write --look-to 0,0.7,0, not --look-to 0, 0.7, 0"),
+        ),
+        (
+            &["--up=0", "1", "0", "--width", "8"],
+            format!("--up {form}: write --up 0,1,0, not --up 0 1 0"),
+        ),
+        (
+            &["--look-from", "1", "2"],
+            format!("--look-from {form}, as in --look-from 0,0.7,1.75 (not --look-from 1 2)"),
+        ),
+    ] {
+        render(args)
+            .assert()
+            .code(2)
+            .stdout("")
+            .stderr(format!("error: {message}\n"));
+    }
+    // Before the scene, the numbers would be taken for it.
+    Command::cargo_bin("raytracer")
+        .unwrap()
+        .args(["render", "--look-from", "0", "0.7", "1.75", "scene.obj"])
+        .args(["-o", "x.png"])
+        .assert()
+        .code(2)
+        .stderr(predicate::str::starts_with(
+            "error: --look-from takes a vector as one argument",
+        ));
+    // A lone number is refused by the vector's parser, with the same advice.
+    assert_refused(
+        &["--look-from", "0"],
+        "invalid value '0' for '--look-from <X,Y,Z>': a vector is written X,Y,Z, three numbers with commas and no spaces, as in --look-from 0,0.7,1.75",
+    );
 }
 
 #[test]
@@ -146,6 +196,8 @@ fn help_states_every_limit() {
         "strictly between 0 and 180".to_string(),
         format!("(1..={MAX_RECURSION_DEPTH})"),
         "(0..=1024)".to_string(),
+        "the height keeps the aspect ratio of the scene file's image size".to_string(),
+        "the width keeps the aspect ratio of the scene file's image size".to_string(),
     ] {
         assert!(help.contains(&limit), "--help lacks '{limit}':\n{help}");
     }

@@ -59,10 +59,10 @@ fn invalid_values_are_refused_before_any_work_with_exit_2() {
     let out = dir.path().join("out.png");
     let scene = box_scene();
     let cases: &[(&[&str], &str)] = &[
-        (&["--width", "0"], "'--width <PIXELS>': not in 1..=65536"),
+        (&["--width", "0"], "invalid --width: 0 is not in 1..=65536"),
         (
             &["--height", "70000"],
-            "'--height <PIXELS>': not in 1..=65536",
+            "invalid --height: 70000 is not in 1..=65536",
         ),
         (
             &["--width", "65536", "--height", "65536"],
@@ -71,16 +71,20 @@ fn invalid_values_are_refused_before_any_work_with_exit_2() {
         (&["--width", "-3"], "--width"),
         (
             &["--fov", "180"],
-            "'--fov <DEGREES>': out of range (allowed: strictly between 0 and 180 degrees)",
+            "invalid --fov: 180 is not strictly between 0 and 180",
         ),
         (&["--fov", "0"], "--fov"),
         (&["--fov", "nan"], "--fov"),
-        (&["--depth", "0"], "'--depth <N>': not in 1..=64"),
+        (&["--depth", "0"], "invalid --depth: 0 is not in 1..=64"),
         (
             &["--look-from", "1,2,3", "--look-to", "1,2,3"],
             "cannot look at its own position",
         ),
-        (&["--look-from", "1,2"], "expected X,Y,Z"),
+        (&["--look-from", "1,2"], "a vector is written X,Y,Z"),
+        (
+            &["--look-from", "0", "0.7", "1.75"],
+            "write --look-from 0,0.7,1.75, not --look-from 0 0.7 1.75",
+        ),
         (&["--look-to", "1,x,3"], "'x' is not a finite number"),
         (&["--mode", "fancy"], "invalid value 'fancy' for '--mode"),
     ];

@@ -1,6 +1,7 @@
 //! Scene files end to end: compressed inputs, TOML transforms against pre-transformed
-//! OBJ files, flag-over-file precedence through the binary, `raytracer info`, and the
-//! bundled TOML scenes.
+//! OBJ files, flag-over-file precedence through the binary (a flag replaces a bad
+//! value, one dimension keeps the aspect ratio), `raytracer info`, and the bundled
+//! TOML scenes.
 
 mod support;
 
@@ -241,12 +242,8 @@ fn flags_override_the_file_and_the_file_overrides_defaults() {
         library(Mode::Normal),
         "--mode wins over the file"
     );
-    let narrow = run(&["--width", "12"]);
-    assert_eq!(
-        (narrow.0, narrow.1),
-        (12, 16),
-        "--width wins, the file's height stays"
-    );
+    let narrow = run(&["--width", "12", "--height", "16"]);
+    assert_eq!((narrow.0, narrow.1), (12, 16), "--width and --height win");
 
     // Values neither the file nor the flags set keep their defaults: a bare OBJ
     // renders at 640x480.
@@ -254,6 +251,130 @@ fn flags_override_the_file_and_the_file_overrides_defaults() {
     let output = raytracer(&["render", obj.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(output.status.success());
     assert_eq!(support::read_png(&out).0, 640);
+}
+
+/// `raytracer render SCENE -o DIR/out.png EXTRA...`: the exit code, stderr and, on
+/// success, the image's size.
+fn render_size(scene: &Path, extra: &[&str]) -> (Option<i32>, String, Option<(u32, u32)>) {
+    let out = scene.with_file_name("out.png");
+    let _ = fs::remove_file(&out);
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    let output = raytracer(&args);
+    let size = output.status.success().then(|| {
+        let (w, h, _) = support::read_png(&out);
+        (w, h)
+    });
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    (output.status.code(), stderr, size)
+}
+
+#[test]
+fn a_valid_flag_replaces_a_bad_value_of_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write(d, "tri.obj", TRIANGLE_OBJ);
+    write(d, "tri.mtl", TRIANGLE_MTL);
+    let toml = "[camera]\nwidth = 65536\nheight = 65536\nfov = 180\n[render]\ndepth = 0\n[[mesh]]\nfile = \"tri.obj\"\n";
+    let scene = write(d, "huge.toml", toml);
+    let s = scene.display();
+    // Alone, the file is refused at its first bad value, by file, line and key.
+    assert_eq!(
+        render_size(&scene, &[]),
+        (
+            Some(2),
+            format!(
+                "error: {s}:2: camera.width: 65536x65536 has more than 268435456 pixels (with {s}:3: camera.height)\n"
+            ),
+            None
+        )
+    );
+    assert_eq!(
+        render_size(&scene, &["--width", "64", "--height", "48"]).1,
+        format!("error: {s}:4: camera.fov: 180 is not strictly between 0 and 180\n")
+    );
+    assert_eq!(
+        render_size(&scene, &["--width", "64", "--height", "48", "--fov", "60"]).1,
+        format!("error: {s}:6: render.depth: 0 is not in 1..=64\n")
+    );
+    let flags = [
+        "--width", "64", "--height", "48", "--fov", "60", "--depth", "2",
+    ];
+    let (code, stderr, size) = render_size(&scene, &flags);
+    assert_eq!((code, size), (Some(0), Some((64, 48))), "{stderr}");
+    // A bad flag is named as a flag, whatever the file says.
+    assert_eq!(
+        render_size(&scene, &["--width", "64", "--height", "0"]).1,
+        "error: invalid --height: 0 is not in 1..=65536\n"
+    );
+    // The same value from a flag and from the file: the flag is named, then the file.
+    let camera = write(d, "camera.toml", "[camera]\n\nlook_to = [1, 2, 3]\n");
+    assert_eq!(
+        render_size(&camera, &["--look-from", "1,2,3"]).1,
+        format!(
+            "error: invalid --look-from: the camera cannot look at its own position (with {}:3: camera.look_to)\n",
+            camera.display()
+        )
+    );
+    // `info` has no flags to replace the file's values.
+    let output = raytracer(&["info", scene.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&output.stderr)
+            .starts_with(&format!("error: {s}:2: camera.width:")),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+#[test]
+fn a_width_or_height_alone_keeps_the_aspect_ratio() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let obj = write(d, "tri.obj", TRIANGLE_OBJ);
+    write(d, "tri.mtl", TRIANGLE_MTL);
+    let mesh = "[[mesh]]\nfile = \"tri.obj\"\n";
+    let vga = write(
+        d,
+        "vga.toml",
+        format!("[camera]\nwidth = 640\nheight = 480\n{mesh}"),
+    );
+    let size = |scene: &Path, extra: &[&str]| {
+        let (code, stderr, size) = render_size(scene, extra);
+        assert_eq!(code, Some(0), "{extra:?}: {stderr}");
+        size.unwrap()
+    };
+    assert_eq!(size(&vga, &["--width", "320"]), (320, 240));
+    assert_eq!(size(&vga, &["--height", "100"]), (133, 100));
+    assert_eq!(size(&obj, &["--height", "240"]), (320, 240));
+    assert_eq!(size(&obj, &["--width", "320"]), (320, 240));
+    let tall = write(
+        d,
+        "tall.toml",
+        format!("[camera]\nwidth = 30\nheight = 90\n{mesh}"),
+    );
+    assert_eq!(size(&tall, &["--width", "20"]), (20, 60));
+    // The file's size need not be valid: it gives only the ratio.
+    let huge = write(
+        d,
+        "huge.toml",
+        format!("[camera]\nwidth = 65536\nheight = 65536\n{mesh}"),
+    );
+    assert_eq!(size(&huge, &["--width", "64"]), (64, 64));
+    // A file that sets only one dimension has the other at the default ratio.
+    let wide = write(d, "wide.toml", format!("[camera]\nwidth = 400\n{mesh}"));
+    assert_eq!(size(&wide, &[]), (400, 300));
+    assert_eq!(size(&wide, &["--height", "30"]), (40, 30));
+    // A computed dimension out of range names the flag that was given.
+    assert_eq!(
+        render_size(&obj, &["--height", "65536"]).1,
+        "error: invalid --height: keeping the aspect ratio makes the width 87381, which is not in 1..=65536; set the width too\n"
+    );
 }
 
 #[test]
@@ -352,7 +473,7 @@ fn the_bundled_toml_example_is_the_readme_command() {
         look_to: Vec3::new(0.0, 0.7, 0.0),
         ..RenderOptions::default()
     };
-    assert_eq!(toml.options.resolve(), readme);
+    assert_eq!(toml.options.resolve(), Ok(readme));
     let small = |o: RenderOptions| RenderOptions {
         width: 160,
         height: 120,
@@ -382,7 +503,7 @@ fn the_dragon_bench_scene_matches_the_bench_readme() {
         gzip(TRIANGLE_PLY.as_bytes()),
     );
     let loaded = load(&toml);
-    let o = loaded.options.resolve();
+    let o = loaded.options.resolve().unwrap();
     assert_eq!(
         (o.width, o.height, o.fov_degrees, o.depth, o.mode),
         (1024, 768, 45.0, 8, Mode::Full)
@@ -455,7 +576,7 @@ fn the_documented_complete_example_loads() {
     );
     write(d, "floor.obj", fs::read(repo("bench/floor.obj")).unwrap());
     let loaded = load(&write(d, "dragon.toml", toml));
-    assert_eq!(loaded.options.up, Some(Vec3::Y));
+    assert_eq!(loaded.options.up.map(|up| up.value), Some(Vec3::Y));
     let d = loaded.description;
     let names: Vec<&str> = d.materials.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names, ["dragon", "floor", "mirror"]);

@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::Mode;
-use raytracer::math::Vec3;
-use raytracer::options::{MAX_DIMENSION, MAX_RECURSION_DEPTH, PartialOptions};
+use raytracer::math::{Float, Vec3};
+use raytracer::options::{Origin, PartialOptions, Sourced};
 
-use super::values::{MAX_THREADS, fov_degrees, whole_number};
+use super::values::{LOOK_FROM, LOOK_TO, UP, number, thread_count, vector, whole_number};
 
 /// A Whitted-style ray tracer for OBJ/MTL, PLY and TOML scenes.
 #[derive(Parser, Debug)]
@@ -60,7 +60,8 @@ pub struct RenderArgs {
 
 /// The scene and how to look at it: shared by `render` and `bench`. Camera and render
 /// flags are optional so that a TOML scene's values show through: a flag overrides
-/// the file, the file overrides the default shown.
+/// the file, the file overrides the default shown. Their parsers check the syntax
+/// only; ranges are checked once the flags are merged over the file.
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
     /// The scene: OBJ (MTL files beside it), PLY, or a TOML scene file
@@ -68,56 +69,44 @@ pub struct ViewArgs {
     #[arg(value_name = "SCENE")]
     pub scene: PathBuf,
     /// Image width in pixels (1..=65536) [default: 640].
-    #[arg(
-        long,
-        value_name = "PIXELS",
-        allow_hyphen_values = true,
-        value_parser = whole_number(1, MAX_DIMENSION),
-    )]
-    pub width: Option<u32>,
+    ///
+    /// Given without --height, the height keeps the aspect ratio of the scene file's
+    /// image size (640x480 if it sets none), rounded to the nearest pixel: --width 320
+    /// renders 320x240.
+    #[arg(long, value_name = "PIXELS", allow_hyphen_values = true, value_parser = whole_number)]
+    pub width: Option<i64>,
     /// Image height in pixels (1..=65536; at most 16384x16384 pixels in all)
     /// [default: 480].
-    #[arg(
-        long,
-        value_name = "PIXELS",
-        allow_hyphen_values = true,
-        value_parser = whole_number(1, MAX_DIMENSION),
-    )]
-    pub height: Option<u32>,
+    ///
+    /// Given without --width, the width keeps the aspect ratio of the scene file's
+    /// image size (640x480 if it sets none), rounded to the nearest pixel: --height 240
+    /// renders 320x240.
+    #[arg(long, value_name = "PIXELS", allow_hyphen_values = true, value_parser = whole_number)]
+    pub height: Option<i64>,
     /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90].
-    #[arg(
-        long,
-        value_name = "DEGREES",
-        allow_hyphen_values = true,
-        value_parser = fov_degrees,
-    )]
-    pub fov: Option<f32>,
-    /// Camera position [default: 0,0,0].
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true, value_parser = number)]
+    pub fov: Option<Float>,
+    /// Camera position, three numbers with commas and no spaces [default: 0,0,0].
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_FROM))]
     pub look_from: Option<Vec3>,
     /// Point the camera looks at [default: 0,0,-1].
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_TO))]
     pub look_to: Option<Vec3>,
     /// World up direction of the camera [default: 0,1,0].
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(UP))]
     pub up: Option<Vec3>,
     /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
     /// With glass, each level can double the rays per pixel [default: 4].
-    #[arg(
-        long,
-        value_name = "N",
-        allow_hyphen_values = true,
-        value_parser = whole_number(1, MAX_RECURSION_DEPTH),
-    )]
-    pub depth: Option<u32>,
+    #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
+    pub depth: Option<i64>,
     /// What to render [default: full].
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Samples per pixel in full mode (1..=65536): 1 traces pixel centres, more take
     /// stratified jittered positions with a fixed seed (same image every run)
     /// [default: 1].
-    #[arg(long, value_name = "N", allow_hyphen_values = true)]
-    pub spp: Option<u32>,
+    #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
+    pub spp: Option<i64>,
     /// Worker threads (0..=1024); 0 uses every core.
     #[arg(
         short = 'j',
@@ -125,7 +114,7 @@ pub struct ViewArgs {
         default_value_t = 0,
         value_name = "N",
         allow_hyphen_values = true,
-        value_parser = whole_number(0, MAX_THREADS),
+        value_parser = thread_count,
     )]
     pub threads: u32,
 }
@@ -150,33 +139,23 @@ impl From<ModeArg> for Mode {
     }
 }
 
-/// Parses `X,Y,Z` into a vector of three finite numbers.
-fn parse_vec3(s: &str) -> Result<Vec3, String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let [x, y, z] = parts[..] else {
-        return Err(format!("expected X,Y,Z (three numbers), got '{s}'"));
-    };
-    let number = |t: &str| match t.parse::<f32>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("'{t}' is not a finite number in '{s}'")),
-    };
-    Ok(Vec3::new(number(x)?, number(y)?, number(z)?))
-}
-
 impl ViewArgs {
     /// The options these flags set; unset ones stay unset, for a scene file's values
     /// or the defaults to fill in.
     pub fn options(&self) -> PartialOptions {
+        fn flag<T>(value: Option<T>, name: &'static str) -> Option<Sourced<T>> {
+            value.map(|value| Sourced::new(value, Origin::Flag(name)))
+        }
         PartialOptions {
-            width: self.width,
-            height: self.height,
-            fov_degrees: self.fov,
-            look_from: self.look_from,
-            look_to: self.look_to,
-            up: self.up,
-            depth: self.depth,
-            mode: self.mode.map(Mode::from),
-            samples_per_pixel: self.spp,
+            width: flag(self.width, "--width"),
+            height: flag(self.height, "--height"),
+            fov_degrees: flag(self.fov, "--fov"),
+            look_from: flag(self.look_from, LOOK_FROM.name),
+            look_to: flag(self.look_to, LOOK_TO.name),
+            up: flag(self.up, UP.name),
+            depth: flag(self.depth, "--depth"),
+            mode: flag(self.mode.map(Mode::from), "--mode"),
+            samples_per_pixel: flag(self.spp, "--spp"),
         }
     }
 }
@@ -184,14 +163,6 @@ impl ViewArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn vectors_take_negative_components_and_reject_garbage() {
-        assert_eq!(parse_vec3("-0.5,1.5,0.98"), Ok(Vec3::new(-0.5, 1.5, 0.98)));
-        assert!(parse_vec3("1,2").is_err());
-        assert!(parse_vec3("1,2,x").is_err());
-        assert!(parse_vec3("1,2,inf").is_err());
-    }
 
     #[test]
     fn negative_vectors_parse_in_both_spellings() {
@@ -220,6 +191,58 @@ mod tests {
             };
             assert_eq!(args.view.look_from, Some(Vec3::new(-1.0, 2.0, -3.0)));
             assert_eq!(args.view.width, None);
+        }
+    }
+
+    #[test]
+    fn each_value_names_the_flag_that_set_it() {
+        let argv = [
+            "raytracer",
+            "render",
+            "s.obj",
+            "-o",
+            "o.png",
+            "--width",
+            "-1",
+            "--height",
+            "2",
+            "--fov",
+            "300",
+            "--look-from",
+            "1,2,3",
+            "--look-to",
+            "4,5,6",
+            "--up",
+            "0,0,1",
+            "--depth",
+            "0",
+            "--mode",
+            "depth",
+            "--spp",
+            "6",
+        ];
+        let Command::Render(args) = Cli::try_parse_from(argv).unwrap().command else {
+            panic!("not render");
+        };
+        let o = args.view.options();
+        assert_eq!(o.width.as_ref().map(|w| w.value), Some(-1));
+        assert_eq!(o.fov_degrees.as_ref().map(|f| f.value), Some(300.0));
+        let origins = [
+            o.width.map(|v| v.origin),
+            o.height.map(|v| v.origin),
+            o.fov_degrees.map(|v| v.origin),
+            o.look_from.map(|v| v.origin),
+            o.look_to.map(|v| v.origin),
+            o.up.map(|v| v.origin),
+            o.depth.map(|v| v.origin),
+            o.mode.map(|v| v.origin),
+            o.samples_per_pixel.map(|v| v.origin),
+        ];
+        for origin in origins {
+            let Some(Origin::Flag(name)) = origin else {
+                panic!("{origin:?}");
+            };
+            assert!(argv.contains(&name), "{name}");
         }
     }
 }

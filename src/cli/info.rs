@@ -6,10 +6,11 @@ use raytracer::formats;
 use raytracer::scene::SceneSummary;
 
 /// Prints the summary of the scene at `path` on stdout, for the image size its file
-/// sets (or the default).
+/// sets (or the default). The file's camera and render values must be valid: there
+/// are no flags to replace them.
 pub fn run(path: &Path) -> anyhow::Result<()> {
     let loaded = formats::load(path)?;
-    let summary = SceneSummary::new(&loaded.description, &loaded.options.resolve());
+    let summary = SceneSummary::new(&loaded.description, &loaded.options.resolve()?);
     print!("{summary}");
     Ok(())
 }

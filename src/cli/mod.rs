@@ -9,12 +9,29 @@ pub mod progress;
 mod render;
 mod values;
 
-pub use args::Cli;
-use args::{Command, ViewArgs};
+use args::{Cli, Command, ViewArgs};
 
 use anyhow::Context;
+use clap::{Parser, error::ErrorKind};
 use raytracer::formats::{self, SceneFormat};
 use raytracer::{RenderOptions, SceneDescription};
+
+/// The command line, parsed; on an error, prints it and exits with status 2 (help and
+/// version print and exit 0), as clap does. A vector flag given as separate numbers
+/// gets a message that shows how to write it.
+pub fn parse() -> Cli {
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    Cli::try_parse_from(&args).unwrap_or_else(|error| {
+        let shown = matches!(
+            error.kind(),
+            ErrorKind::DisplayHelp | ErrorKind::DisplayVersion
+        );
+        match values::split_vector(&args).filter(|_| !shown) {
+            Some(message) => clap::Error::raw(ErrorKind::ValueValidation, message + "\n").exit(),
+            None => error.exit(),
+        }
+    })
+}
 
 /// Sets up the thread pool and runs the command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -35,17 +52,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// Loads the scene and the validated options: each from the flag if given, else
-/// from the scene file (TOML), else the default.
+/// Loads the scene and the options: each value from the flag if given, else from the
+/// scene file (TOML), else the default; checked once, after merging, so that a flag
+/// can replace a bad value of the file.
 fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
     let flags = view.options();
     // OBJ and PLY files set no options, so the flags can be checked before a long
     // load; a TOML file's values must be merged first.
     if SceneFormat::require(&view.scene)? != SceneFormat::Toml {
-        flags.resolve().validate()?;
+        flags.resolve()?;
     }
     let loaded = formats::load(&view.scene)?;
-    let options = flags.or(loaded.options).resolve();
-    options.validate()?;
+    let options = flags.or(loaded.options).resolve()?;
     Ok((loaded.description, options))
 }

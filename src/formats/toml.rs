@@ -4,7 +4,10 @@
 //!
 //! Reading goes in two steps: serde checks the document's shape and types (unknown
 //! keys are errors), then the values are checked and the meshes loaded. Both steps
-//! report `file:line: key: message`.
+//! report `file:line: key: message`. The camera and render values are the exception:
+//! they are only read here, with their lines, and checked once the command line's
+//! flags are merged over them ([`crate::options`]), so that a flag can replace a bad
+//! value.
 
 use std::collections::HashMap;
 use std::ops::Range;
@@ -21,15 +24,15 @@ use super::{
 };
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
-use crate::options::Mode;
-use crate::options::PartialOptions;
+use crate::options::{Mode, Origin, PartialOptions, Sourced};
 
 /// Reads a TOML scene file and the meshes it names (relative to its folder).
 ///
 /// # Errors
 /// Invalid TOML, an unknown key, a value of the wrong type or out of range, an
 /// unknown material name, or a mesh that fails to load: each names the TOML file,
-/// line and key (a failing mesh adds its own error).
+/// line and key (a failing mesh adds its own error). The ranges of the camera and
+/// render values are checked by [`PartialOptions::resolve`], not here.
 pub fn load_toml(path: &Path) -> Result<LoadedScene, SceneError> {
     let bytes = read_file(path)?;
     parse_toml(&bytes, path)
@@ -145,16 +148,16 @@ struct CameraTable {
     look_to: Option<Spanned<Point>>,
     up: Option<Spanned<Point>>,
     fov: Option<Spanned<Float>>,
-    width: Option<Spanned<u32>>,
-    height: Option<Spanned<u32>>,
+    width: Option<Spanned<i64>>,
+    height: Option<Spanned<i64>>,
 }
 
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct RenderTable {
-    mode: Option<ModeName>,
-    depth: Option<Spanned<u32>>,
-    spp: Option<Spanned<u32>>,
+    mode: Option<Spanned<ModeName>>,
+    depth: Option<Spanned<i64>>,
+    spp: Option<Spanned<i64>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -277,6 +280,12 @@ fn finite(value: f64) -> Result<Float, String> {
 #[derive(Clone, Copy)]
 struct Point(Vec3);
 
+impl From<Point> for Vec3 {
+    fn from(p: Point) -> Vec3 {
+        p.0
+    }
+}
+
 impl<'de> Deserialize<'de> for Point {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let [x, y, z] = <[f64; 3]>::deserialize(deserializer)?;
@@ -320,7 +329,7 @@ struct Builder<'a> {
 
 impl Builder<'_> {
     fn build(mut self, file: SceneFile) -> Result<LoadedScene, SceneError> {
-        let options = self.options(&file.camera, &file.render)?;
+        let options = self.options(&file.camera, &file.render);
         for (name, table) in file.materials.0 {
             let id = MaterialId(self.scene.materials.len() as u32);
             self.scene.materials.push(material(&name, &table));
@@ -357,44 +366,36 @@ impl Builder<'_> {
         })
     }
 
-    /// The file's render settings, checked as if rendered with no flags: a scene
-    /// file must be renderable on its own.
-    fn options(
-        &self,
-        camera: &CameraTable,
-        render: &RenderTable,
-    ) -> Result<PartialOptions, SceneError> {
-        let value = |v: &Option<Spanned<Point>>| v.as_ref().map(|s| s.get_ref().0);
-        let options = PartialOptions {
-            width: camera.width.as_ref().map(|s| *s.get_ref()),
-            height: camera.height.as_ref().map(|s| *s.get_ref()),
-            fov_degrees: camera.fov.as_ref().map(|s| *s.get_ref()),
-            look_from: value(&camera.look_from),
-            look_to: value(&camera.look_to),
-            up: value(&camera.up),
-            depth: render.depth.as_ref().map(|s| *s.get_ref()),
-            mode: render.mode.map(Mode::from),
-            samples_per_pixel: render.spp.as_ref().map(|s| *s.get_ref()),
-        };
-        if let Err(e) = options.resolve().validate() {
-            // Name the key behind the flag the library's message speaks of.
-            let (key, span) = match e.option {
-                "--width" => ("camera.width", span_of(&camera.width)),
-                "--height" => ("camera.height", span_of(&camera.height)),
-                "--width/--height" => (
-                    "camera.width",
-                    span_of(&camera.width).or(span_of(&camera.height)),
-                ),
-                "--fov" => ("camera.fov", span_of(&camera.fov)),
-                "--up" => ("camera.up", span_of(&camera.up)),
-                "--depth" => ("render.depth", span_of(&render.depth)),
-                "--spp" => ("render.spp", span_of(&render.spp)),
-                _ if camera.look_from.is_some() => ("camera.look_from", span_of(&camera.look_from)),
-                _ => ("camera.look_to", span_of(&camera.look_to)),
-            };
-            return Err(self.error(span.unwrap_or(0..0), key, e.message));
+    /// The file's render settings, each with its line. Not checked here: a flag
+    /// may replace a bad value.
+    fn options(&self, camera: &CameraTable, render: &RenderTable) -> PartialOptions {
+        PartialOptions {
+            width: self.sourced(&camera.width, "camera.width"),
+            height: self.sourced(&camera.height, "camera.height"),
+            fov_degrees: self.sourced(&camera.fov, "camera.fov"),
+            look_from: self.sourced(&camera.look_from, "camera.look_from"),
+            look_to: self.sourced(&camera.look_to, "camera.look_to"),
+            up: self.sourced(&camera.up, "camera.up"),
+            depth: self.sourced(&render.depth, "render.depth"),
+            mode: self.sourced(&render.mode, "render.mode"),
+            samples_per_pixel: self.sourced(&render.spp, "render.spp"),
         }
-        Ok(options)
+    }
+
+    /// The value of `key`, if given, with its line.
+    fn sourced<T: Copy + Into<U>, U>(
+        &self,
+        value: &Option<Spanned<T>>,
+        key: &'static str,
+    ) -> Option<Sourced<U>> {
+        value.as_ref().map(|v| {
+            let origin = Origin::File {
+                path: self.path.to_path_buf(),
+                line: line_of(self.text.as_bytes(), v.span().start),
+                key,
+            };
+            Sourced::new((*v.get_ref()).into(), origin)
+        })
     }
 
     fn add_mesh(&mut self, mesh: &MeshTable) -> Result<(), SceneError> {
@@ -497,10 +498,6 @@ impl Builder<'_> {
             },
         }
     }
-}
-
-fn span_of<T>(value: &Option<Spanned<T>>) -> Option<Range<usize>> {
-    value.as_ref().map(Spanned::span)
 }
 
 /// A material from its table: MTL defaults for what is not given.
@@ -618,14 +615,23 @@ al = [0.1, 0.2, 0.7]
 "#,
             )
             .unwrap();
-        let o = loaded.options;
-        assert_eq!(o.look_from, Some(Vec3::new(1.0, 2.0, 3.0)));
-        assert_eq!(o.look_to, Some(Vec3::new(0.0, 0.5, 0.0)));
-        assert_eq!(o.up, Some(Vec3::Z));
-        assert_eq!(o.fov_degrees, Some(35.5));
-        assert_eq!((o.width, o.height), (Some(32), Some(24)));
-        assert_eq!((o.mode, o.depth), (Some(Mode::Normal), Some(7)));
-        assert_eq!(o.samples_per_pixel, Some(9));
+        let origin = &loaded.options.height.as_ref().unwrap().origin;
+        assert_eq!(
+            origin,
+            &Origin::File {
+                path: folder.path(),
+                line: 8,
+                key: "camera.height"
+            }
+        );
+        let o = loaded.options.resolve().unwrap();
+        assert_eq!(o.look_from, Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(o.look_to, Vec3::new(0.0, 0.5, 0.0));
+        assert_eq!(o.up, Vec3::Z);
+        assert_eq!(o.fov_degrees, 35.5);
+        assert_eq!((o.width, o.height), (32, 24));
+        assert_eq!((o.mode, o.depth), (Mode::Normal, 7));
+        assert_eq!(o.samples_per_pixel, 9);
 
         let d = loaded.description;
         let names: Vec<&str> = d.materials.iter().map(|m| m.name.as_str()).collect();
@@ -712,40 +718,8 @@ al = [0.1, 0.2, 0.7]
                 "DIR/s.toml:2: camera.look_to: NaN is not a finite number",
             ),
             (
-                "[camera]\nwidth = -4\n",
-                "DIR/s.toml:2: camera.width: invalid value: integer `-4`, expected u32",
-            ),
-            (
-                "[camera]\nwidth = 0\n",
-                "DIR/s.toml:2: camera.width: 0 is not in 1..=65536",
-            ),
-            (
-                "[camera]\nheight = 70000\n",
-                "DIR/s.toml:2: camera.height: 70000 is not in 1..=65536",
-            ),
-            (
-                "[camera]\nwidth = 60000\nheight = 60000\n",
-                "DIR/s.toml:2: camera.width: 60000x60000 has more than 268435456 pixels",
-            ),
-            (
-                "[camera]\nfov = 180\n",
-                "DIR/s.toml:2: camera.fov: 180 is not strictly between 0 and 180",
-            ),
-            (
-                "[camera]\n\nlook_from = [0, 0, -1]\n",
-                "DIR/s.toml:3: camera.look_from: the camera cannot look at its own position",
-            ),
-            (
-                "[camera]\nup = [0, 0, 0]\n",
-                "DIR/s.toml:2: camera.up: components must be finite and not all zero",
-            ),
-            (
-                "[render]\ndepth = 65\n",
-                "DIR/s.toml:2: render.depth: 65 is not in 1..=64",
-            ),
-            (
-                "[render]\nspp = 0\n",
-                "DIR/s.toml:2: render.spp: 0 is not in 1..=65536",
+                "[camera]\nwidth = 1.5\n",
+                "DIR/s.toml:2: camera.width: invalid type: floating point `1.5`, expected i64",
             ),
             (
                 "[render]\nmode = \"fast\"\n",
@@ -820,6 +794,52 @@ al = [0.1, 0.2, 0.7]
                 .replace(&folder.0.path().display().to_string(), "DIR"),
             "DIR/s.toml:2: invalid UTF-8"
         );
+    }
+
+    #[test]
+    fn camera_and_render_values_are_checked_when_resolved_naming_file_line_and_key() {
+        let folder = Folder::new();
+        let cases = [
+            (
+                "[camera]\nwidth = -4\n",
+                "DIR/s.toml:2: camera.width: -4 is not in 1..=65536",
+            ),
+            (
+                "[camera]\nheight = 70000\n",
+                "DIR/s.toml:2: camera.height: 70000 is not in 1..=65536",
+            ),
+            (
+                "[camera]\nwidth = 60000\nheight = 60000\n",
+                "DIR/s.toml:2: camera.width: 60000x60000 has more than 268435456 pixels (with DIR/s.toml:3: camera.height)",
+            ),
+            (
+                "[camera]\nfov = 180\n",
+                "DIR/s.toml:2: camera.fov: 180 is not strictly between 0 and 180",
+            ),
+            (
+                "[camera]\n\nlook_from = [0, 0, -1]\n",
+                "DIR/s.toml:3: camera.look_from: the camera cannot look at its own position",
+            ),
+            (
+                "[camera]\nup = [0, 0, 0]\n",
+                "DIR/s.toml:2: camera.up: components must be finite and not all zero",
+            ),
+            (
+                "[render]\ndepth = 65\n",
+                "DIR/s.toml:2: render.depth: 65 is not in 1..=64",
+            ),
+            (
+                "[render]\nmode = \"depth\"\nspp = 0\n",
+                "DIR/s.toml:3: render.spp: 0 is not in 1..=65536",
+            ),
+        ];
+        for (text, expected) in cases {
+            // The file reads: a flag could still replace the value.
+            let loaded = folder.parse(text).unwrap();
+            let message = loaded.options.resolve().unwrap_err().to_string();
+            let message = message.replace(&folder.0.path().display().to_string(), "DIR");
+            assert_eq!(message, expected, "for {text:?}");
+        }
     }
 
     #[test]

@@ -16,6 +16,10 @@ pub fn radiance(scene: &Scene, ray: &Ray, max_depth: u32, rays: &mut RayCounts) 
 /// one, cleared by refracting out. Inside, reflection is skipped, indices swap and
 /// refraction is weighted 1 instead of `al2`.
 ///
+/// Only surfaces with `al2 != 0` refract, inside or not: a ray that crossed a thin
+/// refractive sheet (one surface, no back) and meets an opaque object is shaded there
+/// and stops, as SPEC says, rather than refracting on through the object.
+///
 /// The result is always finite ([`saturate_finite`]), so that no sum or product of
 /// huge scene values can reach the film as infinity or NaN.
 fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCounts) -> Vec3 {
@@ -62,7 +66,7 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
             rays.reflected += 1;
             value += reflect_weight * trace(scene, &reflected, depth - 1, false, rays);
         }
-        if inside || refract_weight != 0.0 {
+        if refract_weight != 0.0 {
             let (eta, weight) = if inside {
                 (material.ior, 1.0)
             } else {

@@ -6,9 +6,11 @@ mod support;
 
 use std::fs;
 
+use raytracer::integrators::{DepthIntegrator, NormalIntegrator, WhittedIntegrator};
 use raytracer::math::{Float, Vec3};
 use raytracer::{
-    BvhParams, Camera, Film, ImageFormat, Mode, RenderOptions, Scene, formats, integrators, render,
+    BvhParams, Camera, Film, ImageFormat, Integrator, Mode, PixelSampler, RenderOptions, Scene,
+    formats, render,
 };
 
 fn cornell_scene() -> Scene {
@@ -40,18 +42,22 @@ fn render_pixel_centres(scene: &Scene, options: &RenderOptions) -> Vec<Vec3> {
         options.width,
         options.height,
     );
+    let whitted = WhittedIntegrator {
+        max_depth: options.depth,
+    };
+    let integrator: &dyn Integrator = match options.mode {
+        Mode::Depth => &DepthIntegrator,
+        Mode::Normal => &NormalIntegrator,
+        Mode::Full => &whitted,
+    };
+    let sampler = PixelSampler::new(1, 0);
     let mut pixels = Vec::new();
     let mut rays = raytracer::stats::RayCounts::default();
     for row in 0..options.height {
         for column in 0..options.width {
             let ray = camera.pixel_ray(column, row);
-            pixels.push(integrators::sample(
-                scene,
-                &ray,
-                options.mode,
-                options.depth,
-                &mut rays,
-            ));
+            let mut sample = sampler.sample(0, 0);
+            pixels.push(integrator.radiance(scene, &ray, &mut sample, &mut rays));
         }
     }
     pixels

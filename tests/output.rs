@@ -9,28 +9,13 @@ use std::fs;
 use raytracer::integrators::{DepthIntegrator, NormalIntegrator, WhittedIntegrator};
 use raytracer::math::{Float, Vec3};
 use raytracer::{
-    BvhParams, Camera, Film, ImageFormat, Integrator, Mode, PixelSampler, RenderOptions, Scene,
-    formats, render,
+    Camera, Film, ImageFormat, Integrator, Mode, PixelSampler, RenderOptions, Scene, render,
 };
 
-fn cornell_scene() -> Scene {
-    let description = formats::load_obj(&support::cornell_box()).unwrap();
-    Scene::build(description, &BvhParams::default())
-}
+use support::cornell_scene;
 
 fn cornell_options(mode: Mode, samples_per_pixel: u32) -> RenderOptions {
-    let options = RenderOptions {
-        width: 96,
-        height: 72,
-        fov_degrees: 60.0,
-        look_from: Vec3::new(0.0, 0.7, 1.75),
-        look_to: Vec3::new(0.0, 0.7, 0.0),
-        mode,
-        samples_per_pixel,
-        ..RenderOptions::default()
-    };
-    options.validate().unwrap();
-    options
+    support::cornell_options(96, 72, mode, samples_per_pixel)
 }
 
 /// The renderer as it was before anti-aliasing: one ray through each pixel centre.

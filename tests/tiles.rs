@@ -4,29 +4,13 @@
 mod support;
 
 use raytracer::math::Vec3;
-use raytracer::{
-    BvhParams, Film, Mode, RenderOptions, Scene, Tile, TileError, formats, render, render_tile,
-};
+use raytracer::{Film, Mode, RenderOptions, Tile, TileError, render, render_tile};
 
-fn cornell_scene() -> Scene {
-    let description = formats::load_obj(&support::cornell_box()).unwrap();
-    Scene::build(description, &BvhParams::default())
-}
+use support::cornell_scene;
 
 /// 37x23: odd sizes, so that edge tiles of a regular grid come out narrower.
 fn cornell_options(mode: Mode, samples_per_pixel: u32) -> RenderOptions {
-    let options = RenderOptions {
-        width: 37,
-        height: 23,
-        fov_degrees: 60.0,
-        look_from: Vec3::new(0.0, 0.7, 1.75),
-        look_to: Vec3::new(0.0, 0.7, 0.0),
-        mode,
-        samples_per_pixel,
-        ..RenderOptions::default()
-    };
-    options.validate().unwrap();
-    options
+    support::cornell_options(37, 23, mode, samples_per_pixel)
 }
 
 /// The pixels of `tile` cut out of a whole film.

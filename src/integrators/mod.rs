@@ -2,9 +2,8 @@
 //! normals, [`whitted`] SPEC's recursive Phong lighting.
 //!
 //! The integrator is chosen once per render: `render` matches on the mode and runs a
-//! pixel loop compiled for that integrator, so the per-ray calls are static and inlined
-//! (pbrt puts its integrators behind one virtual `Render` call per image for the same
-//! reason). A new mode adds a struct here and one arm to that match.
+//! pixel loop compiled for that integrator, so the per-ray calls are static and can be
+//! inlined. A new mode adds a struct here and one arm to that match.
 
 pub mod debug;
 pub mod whitted;

@@ -3,7 +3,8 @@
 //! Data flows one way, one module per stage:
 //! files ([`formats::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
 //! [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
-//! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an integrator per pixel)
+//! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an [`Integrator`] chosen once per
+//! render; [`render_tile`] renders part of the image, bit-identical to the whole)
 //! -> linear [`Film`] -> either [`Image`] (post-processing) -> PNG, or the film's
 //! linear values -> OpenEXR ([`output`]).
 //!
@@ -74,10 +75,11 @@ pub use camera::Camera;
 pub use description::SceneDescription;
 pub use film::Film;
 pub use formats::SceneError;
+pub use integrators::Integrator;
 pub use material::{Material, MaterialId, PointLight};
 pub use options::{Mode, RenderOptions};
 pub use output::ImageFormat;
 pub use postprocess::Image;
-pub use render::{render, render_with_progress};
-pub use sampler::PixelSampler;
+pub use render::{Tile, TileError, render, render_tile, render_with_progress};
+pub use sampler::{PixelSample, PixelSampler};
 pub use scene::{Hit, Scene};

@@ -1,19 +1,79 @@
 //! The parallel pixel loop: the one place the renderer uses threads.
 
+use std::fmt;
+
 use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::film::Film;
-use crate::integrators;
+use crate::integrators::{DepthIntegrator, Integrator, NormalIntegrator, WhittedIntegrator};
 use crate::math::Vec3;
-use crate::options::RenderOptions;
+use crate::options::{Mode, RenderOptions};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
 use crate::stats::RayCounts;
 
+/// A rectangle of the image in pixels: columns `x..x + width`, rows `y..y + height`,
+/// row 0 at the top.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Tile {
+    /// The leftmost column.
+    pub x: u32,
+    /// The top row.
+    pub y: u32,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl Tile {
+    /// The whole image of `options`.
+    pub fn whole(options: &RenderOptions) -> Tile {
+        Tile {
+            x: 0,
+            y: 0,
+            width: options.width,
+            height: options.height,
+        }
+    }
+}
+
+impl fmt::Display for Tile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}x{} at ({}, {})",
+            self.width, self.height, self.x, self.y
+        )
+    }
+}
+
+/// A tile that [`render_tile`] cannot render.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TileError {
+    /// The tile is 0 pixels wide or high.
+    #[error("tile {tile} has no pixels")]
+    Empty {
+        /// The tile asked for.
+        tile: Tile,
+    },
+    /// Part of the tile lies outside the image.
+    #[error("tile {tile} does not lie inside the {width}x{height} image")]
+    Outside {
+        /// The tile asked for.
+        tile: Tile,
+        /// The image's width.
+        width: u32,
+        /// The image's height.
+        height: u32,
+    },
+}
+
 /// Renders `scene` as `options` say into a linear film.
 ///
-/// See also [`render_with_progress`], which reports finished rows and rays traced.
+/// See also [`render_with_progress`], which reports finished rows and rays traced, and
+/// [`render_tile`], which renders part of the image.
 pub fn render(scene: &Scene, options: &RenderOptions) -> Film {
     render_with_progress(scene, options, &|_| {}).0
 }
@@ -31,22 +91,78 @@ pub fn render_with_progress(
     options: &RenderOptions,
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts) {
+    render_region(scene, options, Tile::whole(options), row_done)
+}
+
+/// The pixels of `tile` of the image `options` describe, as a film of the tile's size:
+/// bit-identical to the same pixels of [`render`]'s film (the same camera rays and
+/// sample values), on any number of threads. So tiles rendered apart, on other threads
+/// or machines, put together make exactly the whole image; post-processing
+/// ([`Film::to_image`]) needs the whole film, as it divides by image-wide maxima.
+///
+/// # Errors
+/// [`TileError`] when the tile has no pixels or does not lie inside the image.
+pub fn render_tile(scene: &Scene, options: &RenderOptions, tile: Tile) -> Result<Film, TileError> {
+    if tile.width == 0 || tile.height == 0 {
+        return Err(TileError::Empty { tile });
+    }
+    // In u64: `x + width` may not fit in a u32.
+    let fits = |start: u32, length: u32, size: u32| start as u64 + length as u64 <= size as u64;
+    if !fits(tile.x, tile.width, options.width) || !fits(tile.y, tile.height, options.height) {
+        return Err(TileError::Outside {
+            tile,
+            width: options.width,
+            height: options.height,
+        });
+    }
+    Ok(render_region(scene, options, tile, &|_| {}).0)
+}
+
+/// Chooses the integrator of `options.mode`, once for the whole region.
+fn render_region(
+    scene: &Scene,
+    options: &RenderOptions,
+    tile: Tile,
+    row_done: &(dyn Fn(u32) + Sync),
+) -> (Film, RayCounts) {
+    match options.mode {
+        Mode::Depth => render_with(scene, options, &DepthIntegrator, tile, row_done),
+        Mode::Normal => render_with(scene, options, &NormalIntegrator, tile, row_done),
+        Mode::Full => {
+            let whitted = WhittedIntegrator {
+                max_depth: options.depth,
+            };
+            render_with(scene, options, &whitted, tile, row_done)
+        }
+    }
+}
+
+/// The pixel loop over `tile` (which lies inside the image), compiled once per
+/// integrator so that no call per ray is dynamic. Pixels are indexed in the whole
+/// image, so the sampler gives a pixel the same values whatever tile holds it.
+fn render_with<I: Integrator>(
+    scene: &Scene,
+    options: &RenderOptions,
+    integrator: &I,
+    tile: Tile,
+    row_done: &(dyn Fn(u32) + Sync),
+) -> (Film, RayCounts) {
     let camera = Camera::for_options(options);
-    let sampler = PixelSampler::new(options.samples_per_pixel_in_mode());
-    let width = options.width as usize;
-    let mut pixels = vec![Vec3::ZERO; width * options.height as usize];
+    let sampler = PixelSampler::new(options.samples_per_pixel_in_mode(), integrator.dimensions());
+    let width = tile.width as usize;
+    let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
     let rays = pixels
         .par_chunks_mut(width)
-        .enumerate()
-        .map(|(row, line)| {
+        .zip(tile.y..tile.y + tile.height)
+        .map(|(line, row)| {
             let mut rays = RayCounts::default();
-            for (column, pixel) in line.iter_mut().enumerate() {
-                *pixel = sampler.average(column as u32, row as u32, options.width, |x, y| {
-                    let ray = camera.ray(x, y);
-                    integrators::sample(scene, &ray, options.mode, options.depth, &mut rays)
+            for (pixel, column) in line.iter_mut().zip(tile.x..) {
+                *pixel = sampler.average(column, row, options.width, |x, y, sample| {
+                    rays.primary += 1;
+                    integrator.radiance(scene, &camera.ray(x, y), sample, &mut rays)
                 });
             }
-            row_done(row as u32);
+            row_done(row);
             rays
         })
         .reduce(RayCounts::default, |mut a, b| {
@@ -54,9 +170,100 @@ pub fn render_with_progress(
             a
         });
     let film = Film {
-        width: options.width,
-        height: options.height,
+        width: tile.width,
+        height: tile.height,
         pixels,
     };
     (film, rays)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Ray;
+    use crate::sampler::PixelSample;
+    use crate::scene::Scene;
+
+    /// An integrator as a path tracer uses the sampler: three dimensions per camera
+    /// ray, mixed with where the ray goes.
+    struct Probe;
+
+    impl Integrator for Probe {
+        fn dimensions(&self) -> u32 {
+            3
+        }
+
+        fn radiance(
+            &self,
+            _: &Scene,
+            ray: &Ray,
+            sample: &mut PixelSample,
+            _: &mut RayCounts,
+        ) -> Vec3 {
+            let a = sample.next_1d();
+            let b = sample.next_2d();
+            Vec3::new(a, b.x, b.y) + ray.dir
+        }
+    }
+
+    fn empty_scene() -> Scene {
+        Scene::build(Default::default(), &Default::default())
+    }
+
+    fn probe(options: &RenderOptions, tile: Tile) -> Film {
+        render_with(&empty_scene(), options, &Probe, tile, &|_| {}).0
+    }
+
+    #[test]
+    fn sample_dimensions_of_a_tile_are_those_of_the_whole_image() {
+        let options = RenderOptions {
+            width: 23,
+            height: 17,
+            samples_per_pixel: 5,
+            ..RenderOptions::default()
+        };
+        let whole = probe(&options, Tile::whole(&options));
+        let pixels: std::collections::HashSet<_> = whole
+            .pixels
+            .iter()
+            .map(|v| v.to_array().map(f32::to_bits))
+            .collect();
+        assert_eq!(pixels.len(), whole.pixels.len(), "pixels repeat");
+        for (x, y, width, height) in [(0, 0, 1, 1), (22, 16, 1, 1), (5, 3, 7, 9), (16, 10, 7, 7)] {
+            let tile = Tile {
+                x,
+                y,
+                width,
+                height,
+            };
+            let part = probe(&options, tile);
+            for row in 0..height {
+                let got = &part.pixels[(row * width) as usize..][..width as usize];
+                let start = ((y + row) * options.width + x) as usize;
+                assert_eq!(
+                    got,
+                    &whole.pixels[start..][..width as usize],
+                    "{tile}, row {row}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn sample_dimensions_do_not_depend_on_the_thread_count() {
+        let options = RenderOptions {
+            width: 31,
+            height: 9,
+            samples_per_pixel: 3,
+            ..RenderOptions::default()
+        };
+        let on = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| probe(&options, Tile::whole(&options)))
+        };
+        assert_eq!(on(1), on(3));
+    }
 }

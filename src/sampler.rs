@@ -1,42 +1,66 @@
-//! Where in a pixel the camera rays go: the pixel centre for one sample, stratified
-//! jittered positions for more.
+//! Deterministic sample values: where in a pixel the camera rays go, and as many
+//! further dimensions per camera ray as an integrator asks for.
 //!
-//! With `n` samples the pixel is cut into `n` cells of equal area and one sample is
-//! placed uniformly at random in each (stratified, or "jittered", sampling; see
-//! *Physically Based Rendering*, 4th ed., section 8.5). For a square `n = k * k` the
-//! cells are the usual `k x k` grid. For other `n` the pixel is cut into
-//! `m = round(sqrt(n))` columns holding `n / m` or `n / m + 1` cells each, every column
-//! as wide as its share of the cells, so each cell still covers exactly `1 / n` of the
-//! pixel and is close to square: every sample keeps the weight `1 / n`.
+//! **Camera positions.** One sample goes through the pixel centre. With `n` samples the
+//! pixel is cut into `n` cells of equal area and one sample is placed uniformly at
+//! random in each (stratified, or "jittered", sampling; see *Physically Based
+//! Rendering*, 4th ed., section 8.5). For a square `n = k * k` the cells are the usual
+//! `k x k` grid. For other `n` the pixel is cut into `m = round(sqrt(n))` columns
+//! holding `n / m` or `n / m + 1` cells each, every column as wide as its share of the
+//! cells, so each cell still covers exactly `1 / n` of the pixel and is close to
+//! square: every sample keeps the weight `1 / n`.
 //!
-//! The random offsets come from a hash of the pixel index and the sample index, not
-//! from a generator with state: every pixel is a pure function of its position, so an
-//! image is identical from run to run and for any number of threads.
+//! **Further dimensions** ([`PixelSample`]): uniform values in `[0, 1)`, drawn one
+//! dimension at a time (a 2D value is two consecutive dimensions), independent of each
+//! other and of the camera position. A path tracer takes, say, two per bounce for the
+//! BSDF, two for the light and one for Russian roulette.
+//!
+//! Every value comes from a hash of the pixel index, the sample index and (for the
+//! further dimensions) the dimension, not from a generator with state, as pbrt's
+//! `IndependentSampler` seeds from a hash of the pixel: every pixel is a pure function
+//! of its position, so an image is identical from run to run and for any number of
+//! threads, and a tile rendered alone equals the same pixels of the whole image.
 
 use crate::math::{Float, Vec2, Vec3};
 
 /// Largest number of samples per pixel accepted.
 pub const MAX_SAMPLES_PER_PIXEL: u32 = 65_536;
 
-/// Mixed into every hash so the sample pattern is not the plain hash of small integers.
+/// Mixed into the hash of the camera positions so the pattern is not the plain hash of
+/// small integers. Changing it, or the key it is mixed with, changes every
+/// anti-aliased image.
 const SEED: u64 = 0x5EED_A11A_5ED0_0001;
 
-/// The sample positions of every pixel of an image.
+/// Mixed into the hash of the further dimensions, so that they are unrelated to the
+/// camera positions.
+const DIMENSION_SEED: u64 = 0xD1CE_5EED_0F0D_1235;
+
+/// SplitMix64's increment, the golden ratio in 64 bits.
+const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
+/// The sample values of every pixel of an image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PixelSampler {
     /// Samples per pixel, at least 1.
     count: u32,
     /// Columns of strata: `round(sqrt(count))`, at least 1.
     columns: u32,
+    /// Further dimensions each sample may draw (see [`PixelSample`]).
+    dimensions: u32,
 }
 
 impl PixelSampler {
     /// A sampler taking `samples_per_pixel` samples in each pixel (at least one:
-    /// 0 is taken as 1).
-    pub fn new(samples_per_pixel: u32) -> PixelSampler {
+    /// 0 is taken as 1), each of which draws at most `dimensions` further dimensions
+    /// (an integrator's [`crate::integrators::Integrator::dimensions`]).
+    pub fn new(samples_per_pixel: u32, dimensions: u32) -> PixelSampler {
         let count = samples_per_pixel.max(1);
         let columns = ((count as f64).sqrt().round() as u32).clamp(1, count);
-        PixelSampler { count, columns }
+        PixelSampler {
+            count,
+            columns,
+            dimensions,
+        }
     }
 
     /// Samples taken in each pixel.
@@ -65,26 +89,40 @@ impl PixelSampler {
         Vec2::new(x.min(ONE_BELOW_ONE), y.min(ONE_BELOW_ONE))
     }
 
-    /// The mean of `radiance(x, y)` over the samples of pixel (`column`, `row`) of an
-    /// image `width` pixels wide, with `x`, `y` image positions in pixels from the
-    /// top-left corner. With one sample this is exactly `radiance(column + 0.5, row + 0.5)`.
+    /// The further dimensions of sample `sample` (`0..count`) of the pixel with index
+    /// `pixel_index` (`row * width + column`), starting at dimension 0.
+    #[inline]
+    pub fn sample(&self, pixel_index: u64, sample: u32) -> PixelSample {
+        debug_assert!(sample < self.count);
+        PixelSample {
+            stream: mix64(mix64(pixel_index ^ DIMENSION_SEED).wrapping_add(sample as u64)),
+            dimension: 0,
+            declared: self.dimensions,
+        }
+    }
+
+    /// The mean of `radiance(x, y, sample)` over the samples of pixel (`column`, `row`)
+    /// of an image `width` pixels wide, with `x`, `y` image positions in pixels from
+    /// the top-left corner and `sample` the sample's further dimensions. With one
+    /// sample this is exactly `radiance(column + 0.5, row + 0.5, sample)`.
     #[inline]
     pub fn average(
         &self,
         column: u32,
         row: u32,
         width: u32,
-        mut radiance: impl FnMut(Float, Float) -> Vec3,
+        mut radiance: impl FnMut(Float, Float, &mut PixelSample) -> Vec3,
     ) -> Vec3 {
         let (x0, y0) = (column as Float, row as Float);
-        if self.count == 1 {
-            return radiance(x0 + 0.5, y0 + 0.5);
-        }
         let pixel_index = row as u64 * width as u64 + column as u64;
+        if self.count == 1 {
+            return radiance(x0 + 0.5, y0 + 0.5, &mut self.sample(pixel_index, 0));
+        }
         let mut sum = Vec3::ZERO;
         for sample in 0..self.count {
             let offset = self.offset(pixel_index, sample);
-            sum += radiance(x0 + offset.x, y0 + offset.y);
+            let mut values = self.sample(pixel_index, sample);
+            sum += radiance(x0 + offset.x, y0 + offset.y, &mut values);
         }
         sum / self.count as Float
     }
@@ -110,16 +148,63 @@ impl PixelSampler {
     }
 }
 
+/// The further dimensions of one camera sample, drawn in order by an integrator.
+///
+/// Dimension `d` (from 0) is output `d` of a SplitMix64 generator seeded with a hash of
+/// the pixel and sample indices, computed directly from `d` rather than by stepping:
+/// a pure function of (pixel, sample, dimension), however the integrator interleaves
+/// its 1D and 2D draws. Nothing is shared between samples or pixels.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PixelSample {
+    /// The generator's seed: a hash of the pixel index and the sample index.
+    stream: u64,
+    /// The next dimension to draw.
+    dimension: u32,
+    /// How many dimensions the integrator said it draws; drawing more is a bug in
+    /// the integrator (debug-asserted), though the values stay well defined.
+    declared: u32,
+}
+
+impl PixelSample {
+    /// The next dimension: a uniform value in `[0, 1)`.
+    #[inline]
+    pub fn next_1d(&mut self) -> Float {
+        debug_assert!(
+            self.dimension < self.declared,
+            "drew more than the {} dimensions the integrator declared",
+            self.declared
+        );
+        let key = self
+            .stream
+            .wrapping_add((self.dimension as u64).wrapping_mul(GOLDEN_GAMMA));
+        self.dimension += 1;
+        unit(mix64(key) >> 40)
+    }
+
+    /// The next two dimensions: a uniform point in `[0, 1)^2`, exactly the values of
+    /// two calls to [`PixelSample::next_1d`].
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        let x = self.next_1d();
+        Vec2::new(x, self.next_1d())
+    }
+}
+
 /// The largest `f32` below 1.
 const ONE_BELOW_ONE: Float = 1.0 - Float::EPSILON / 2.0;
+
+/// The low 24 bits of `bits` as a number in `[0, 1)`: exactly what an `f32` in
+/// `[0, 1)` can hold.
+#[inline]
+fn unit(bits: u64) -> Float {
+    (bits & 0xFF_FFFF) as Float / (1u32 << 24) as Float
+}
 
 /// Two uniform numbers in `[0, 1)` from one 64-bit hash of `key`.
 #[inline]
 fn jitter(key: u64) -> Vec2 {
     let h = mix64(key ^ SEED);
-    // 24 bits each: exactly what an f32 in [0, 1) can hold.
-    let to_unit = |bits: u64| (bits & 0xFF_FFFF) as Float / (1u32 << 24) as Float;
-    Vec2::new(to_unit(h >> 40), to_unit(h >> 8))
+    Vec2::new(unit(h >> 40), unit(h >> 8))
 }
 
 /// The SplitMix64 finalizer (Steele, Lea and Flood, "Fast splittable pseudorandom
@@ -127,7 +212,7 @@ fn jitter(key: u64) -> Vec2 {
 /// depend on every input bit, so consecutive keys give unrelated numbers.
 #[inline]
 fn mix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = z.wrapping_add(GOLDEN_GAMMA);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -154,16 +239,16 @@ mod tests {
 
     #[test]
     fn one_sample_is_the_pixel_centre() {
-        let sampler = PixelSampler::new(1);
+        let sampler = PixelSampler::new(1, 0);
         assert_eq!(sampler.offset(12345, 0), Vec2::splat(0.5));
-        let got = sampler.average(3, 7, 10, |x, y| Vec3::new(x, y, 1.0));
+        let got = sampler.average(3, 7, 10, |x, y, _| Vec3::new(x, y, 1.0));
         assert_eq!(got, Vec3::new(3.5, 7.5, 1.0));
     }
 
     #[test]
     fn every_cell_holds_exactly_one_sample_for_any_count() {
         for count in [2, 3, 4, 5, 7, 8, 9, 10, 16, 17, 24, 64, 100] {
-            let sampler = PixelSampler::new(count);
+            let sampler = PixelSampler::new(count, 0);
             for pixel in [0u64, 1, 999, 1 << 27] {
                 let mut cells: Vec<(u32, u32)> = (0..count)
                     .map(|s| {
@@ -182,7 +267,7 @@ mod tests {
     #[test]
     fn cells_tile_the_pixel_with_equal_areas() {
         for count in [2, 3, 5, 6, 7, 11, 16, 23] {
-            let sampler = PixelSampler::new(count);
+            let sampler = PixelSampler::new(count, 0);
             let mut area = 0.0;
             for sample in 0..count {
                 let (_, w, _, rows) = sampler.stratum(sample);
@@ -196,7 +281,7 @@ mod tests {
 
     #[test]
     fn offsets_are_fixed_but_differ_between_pixels() {
-        let sampler = PixelSampler::new(16);
+        let sampler = PixelSampler::new(16, 0);
         let a: Vec<Vec2> = (0..16).map(|s| sampler.offset(42, s)).collect();
         let b: Vec<Vec2> = (0..16).map(|s| sampler.offset(42, s)).collect();
         let c: Vec<Vec2> = (0..16).map(|s| sampler.offset(43, s)).collect();
@@ -207,8 +292,118 @@ mod tests {
     #[test]
     fn the_average_of_a_linear_function_is_near_its_value_at_the_centre() {
         // Stratified samples of f(x, y) = x + 2y average close to f at the centre.
-        let sampler = PixelSampler::new(64);
-        let got = sampler.average(0, 0, 1, |x, y| Vec3::splat(x + 2.0 * y));
+        let sampler = PixelSampler::new(64, 0);
+        let got = sampler.average(0, 0, 1, |x, y, _| Vec3::splat(x + 2.0 * y));
         assert!((got.x - 1.5).abs() < 0.05, "got {}", got.x);
+    }
+
+    /// FNV-1a over the bits of every camera offset of a few pixels.
+    fn offsets_checksum(count: u32) -> u64 {
+        let sampler = PixelSampler::new(count, 0);
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for pixel in [0u64, 1, 2, 479, 480, 172_799, 1 << 20, u32::MAX as u64] {
+            for sample in 0..count {
+                let p = sampler.offset(pixel, sample);
+                for bits in [p.x.to_bits(), p.y.to_bits()] {
+                    h = (h ^ bits as u64).wrapping_mul(0x0100_0000_01b3);
+                }
+            }
+        }
+        h
+    }
+
+    #[test]
+    fn camera_offsets_are_those_the_images_were_made_with() {
+        // Bit for bit the positions of every anti-aliased image rendered so far (the
+        // README's gallery uses 16 samples): adding dimensions must not move them.
+        let sampler = PixelSampler::new(16, 5);
+        assert_eq!(
+            sampler.offset(12345, 7),
+            Vec2::new(0.382_573_7, 0.780_575_34)
+        );
+        assert_eq!(offsets_checksum(2), 0xbc29_0e4c_95cf_0bf2);
+        assert_eq!(offsets_checksum(5), 0x4909_a33a_14a3_f266);
+        assert_eq!(offsets_checksum(16), 0x6953_b902_ee12_82e7);
+    }
+
+    /// The first `n` dimensions of sample `sample` of pixel `pixel`.
+    fn draw(sampler: &PixelSampler, pixel: u64, sample: u32, n: u32) -> Vec<Float> {
+        let mut dimensions = sampler.sample(pixel, sample);
+        (0..n).map(|_| dimensions.next_1d()).collect()
+    }
+
+    #[test]
+    fn dimensions_are_a_pure_function_of_pixel_sample_and_dimension() {
+        let sampler = PixelSampler::new(4, 6);
+        let a = draw(&sampler, 1000, 2, 6);
+        // Another sampler, after other pixels drew theirs: nothing carries over.
+        let other = PixelSampler::new(4, 6);
+        for pixel in 0..100 {
+            draw(&other, pixel, 1, 6);
+        }
+        assert_eq!(draw(&other, 1000, 2, 6), a);
+        // 2D draws are pairs of 1D draws, whatever the mix.
+        let mut mixed = sampler.sample(1000, 2);
+        let (x, p, y) = (mixed.next_1d(), mixed.next_2d(), mixed.next_1d());
+        assert_eq!([x, p.x, p.y, y], a[..4]);
+        // Pixels, samples and dimensions all give different values.
+        assert_ne!(draw(&sampler, 1001, 2, 6), a);
+        assert_ne!(draw(&sampler, 1000, 3, 6), a);
+        let mut sorted = a.clone();
+        sorted.sort_by(Float::total_cmp);
+        sorted.dedup();
+        assert_eq!(sorted.len(), a.len(), "{a:?}");
+    }
+
+    #[test]
+    fn dimensions_are_uniform_and_uncorrelated() {
+        // 64 pixels x 16 samples x 8 dimensions = 8192 values per dimension pair.
+        let sampler = PixelSampler::new(16, 8);
+        let mut bins = [0u32; 16];
+        let (mut n, mut sum, mut sum_sq) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut products, mut camera_products) = (0.0f64, 0.0f64);
+        for pixel in 0..64 {
+            for sample in 0..16 {
+                let values = draw(&sampler, pixel, sample, 8);
+                let camera = sampler.offset(pixel, sample);
+                for (d, &v) in values.iter().enumerate() {
+                    assert!((0.0..1.0).contains(&v), "{v}");
+                    bins[(v * 16.0) as usize] += 1;
+                    let v = v as f64;
+                    (n, sum, sum_sq) = (n + 1.0, sum + v, sum_sq + v * v);
+                    if d > 0 {
+                        products += (v - 0.5) * (values[d - 1] as f64 - 0.5);
+                    }
+                }
+                camera_products += (values[0] as f64 - 0.5) * (camera.x as f64 - 0.5);
+            }
+        }
+        let mean = sum / n;
+        let variance = sum_sq / n - mean * mean;
+        assert!((mean - 0.5).abs() < 0.01, "mean {mean}");
+        assert!((variance - 1.0 / 12.0).abs() < 0.003, "variance {variance}");
+        let expected = n / 16.0;
+        for (i, &count) in bins.iter().enumerate() {
+            let off = (count as f64 - expected).abs() / expected;
+            assert!(off < 0.1, "bin {i}: {count} of {expected}");
+        }
+        // Correlation coefficients (covariance over variance 1/12), 1/sqrt(7168) and
+        // 1/sqrt(1024) standard deviation: about 0.012 and 0.031.
+        let next = products / (n * 7.0 / 8.0) * 12.0;
+        let with_camera = camera_products / 1024.0 * 12.0;
+        assert!(next.abs() < 0.05, "consecutive dimensions: {next}");
+        assert!(
+            with_camera.abs() < 0.12,
+            "camera and dimension 0: {with_camera}"
+        );
+    }
+
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "drew more than the 2 dimensions")]
+    fn drawing_more_dimensions_than_declared_is_caught_in_debug_builds() {
+        let mut dimensions = PixelSampler::new(1, 2).sample(0, 0);
+        dimensions.next_2d();
+        dimensions.next_1d();
     }
 }

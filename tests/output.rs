@@ -6,29 +6,16 @@ mod support;
 
 use std::fs;
 
+use raytracer::integrators::{DepthIntegrator, NormalIntegrator, WhittedIntegrator};
 use raytracer::math::{Float, Vec3};
 use raytracer::{
-    BvhParams, Camera, Film, ImageFormat, Mode, RenderOptions, Scene, formats, integrators, render,
+    Camera, Film, ImageFormat, Integrator, Mode, PixelSampler, RenderOptions, Scene, render,
 };
 
-fn cornell_scene() -> Scene {
-    let description = formats::load_obj(&support::cornell_box()).unwrap();
-    Scene::build(description, &BvhParams::default())
-}
+use support::cornell_scene;
 
 fn cornell_options(mode: Mode, samples_per_pixel: u32) -> RenderOptions {
-    let options = RenderOptions {
-        width: 96,
-        height: 72,
-        fov_degrees: 60.0,
-        look_from: Vec3::new(0.0, 0.7, 1.75),
-        look_to: Vec3::new(0.0, 0.7, 0.0),
-        mode,
-        samples_per_pixel,
-        ..RenderOptions::default()
-    };
-    options.validate().unwrap();
-    options
+    support::cornell_options(96, 72, mode, samples_per_pixel)
 }
 
 /// The renderer as it was before anti-aliasing: one ray through each pixel centre.
@@ -40,18 +27,22 @@ fn render_pixel_centres(scene: &Scene, options: &RenderOptions) -> Vec<Vec3> {
         options.width,
         options.height,
     );
+    let whitted = WhittedIntegrator {
+        max_depth: options.depth,
+    };
+    let integrator: &dyn Integrator = match options.mode {
+        Mode::Depth => &DepthIntegrator,
+        Mode::Normal => &NormalIntegrator,
+        Mode::Full => &whitted,
+    };
+    let sampler = PixelSampler::new(1, 0);
     let mut pixels = Vec::new();
     let mut rays = raytracer::stats::RayCounts::default();
     for row in 0..options.height {
         for column in 0..options.width {
             let ray = camera.pixel_ray(column, row);
-            pixels.push(integrators::sample(
-                scene,
-                &ray,
-                options.mode,
-                options.depth,
-                &mut rays,
-            ));
+            let mut sample = sampler.sample(0, 0);
+            pixels.push(integrator.radiance(scene, &ray, &mut sample, &mut rays));
         }
     }
     pixels

@@ -1,23 +1,37 @@
-//! Integrators: what a camera ray is worth. [`debug`] gives depth and normals,
-//! [`whitted`] SPEC's recursive Phong lighting.
+//! Integrators: what a camera ray is worth, one per mode. [`debug`] gives depth and
+//! normals, [`whitted`] SPEC's recursive Phong lighting.
+//!
+//! The integrator is chosen once per render: `render` matches on the mode and runs a
+//! pixel loop compiled for that integrator, so the per-ray calls are static and can be
+//! inlined. A new mode adds a struct here and one arm to that match.
 
 pub mod debug;
 pub mod whitted;
 
+pub use debug::{DepthIntegrator, NormalIntegrator};
+pub use whitted::WhittedIntegrator;
+
 use crate::math::{Ray, Vec3};
-use crate::options::Mode;
+use crate::sampler::PixelSample;
 use crate::scene::Scene;
 use crate::stats::RayCounts;
 
-/// The linear value of one camera ray in `mode`. For depth mode this is the distance
-/// in every channel, or infinity where the ray hits nothing; for normal mode the
-/// unit normal, or zero where the ray hits nothing. Rays traced are added to `rays`.
-#[inline]
-pub fn sample(scene: &Scene, ray: &Ray, mode: Mode, max_depth: u32, rays: &mut RayCounts) -> Vec3 {
-    rays.primary += 1;
-    match mode {
-        Mode::Depth => debug::depth(scene, ray),
-        Mode::Normal => debug::normal(scene, ray),
-        Mode::Full => whitted::radiance(scene, ray, max_depth, rays),
-    }
+/// Computes the linear value of camera rays. Shared by every rendering thread, so it
+/// holds settings only: everything that changes per ray lives on the stack.
+pub trait Integrator: Sync {
+    /// How many dimensions [`Integrator::radiance`] draws from its `sample` per camera
+    /// ray, at most (see [`PixelSample`]); 0 for a deterministic integrator. The
+    /// renderer's sampler is built for this many.
+    fn dimensions(&self) -> u32;
+
+    /// The linear value of the camera ray `ray`, drawing from `sample` the random
+    /// values it needs; the secondary rays it traces are added to `rays` (the camera
+    /// ray is counted by the caller).
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sample: &mut PixelSample,
+        rays: &mut RayCounts,
+    ) -> Vec3;
 }

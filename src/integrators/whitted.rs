@@ -1,20 +1,44 @@
 //! SPEC's Whitted-style integrator: Phong lighting with hard shadows, mirror
 //! reflection and refraction, recursion limited by depth.
 
+use super::Integrator;
 use crate::math::{Ray, Vec3, reflect, refract, saturate_finite, try_unit};
+use crate::sampler::PixelSample;
 use crate::scene::Scene;
 use crate::stats::RayCounts;
 
-/// Radiance along a camera ray, shading its hit with remaining depth `max_depth`;
-/// the secondary rays it traces are added to `rays`.
-#[inline]
-pub fn radiance(scene: &Scene, ray: &Ray, max_depth: u32, rays: &mut RayCounts) -> Vec3 {
-    trace(scene, ray, max_depth, false, rays)
+/// SPEC's lighting: deterministic, so it draws no sample dimensions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WhittedIntegrator {
+    /// The remaining depth a camera ray's hit is shaded with
+    /// ([`crate::RenderOptions::depth`]): 1 traces primary and shadow rays only.
+    pub max_depth: u32,
+}
+
+impl Integrator for WhittedIntegrator {
+    fn dimensions(&self) -> u32 {
+        0
+    }
+
+    #[inline]
+    fn radiance(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        _: &mut PixelSample,
+        rays: &mut RayCounts,
+    ) -> Vec3 {
+        trace(scene, ray, self.max_depth, false, rays)
+    }
 }
 
 /// `inside` tells whether the ray travels inside an object: set by refracting into
 /// one, cleared by refracting out. Inside, reflection is skipped, indices swap and
 /// refraction is weighted 1 instead of `al2`.
+///
+/// Only surfaces with `al2 != 0` refract, inside or not: a ray that crossed a thin
+/// refractive sheet (one surface, no back) and meets an opaque object is shaded there
+/// and stops, as SPEC says, rather than refracting on through the object.
 ///
 /// The result is always finite ([`saturate_finite`]), so that no sum or product of
 /// huge scene values can reach the film as infinity or NaN.
@@ -62,7 +86,7 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
             rays.reflected += 1;
             value += reflect_weight * trace(scene, &reflected, depth - 1, false, rays);
         }
-        if inside || refract_weight != 0.0 {
+        if refract_weight != 0.0 {
             let (eta, weight) = if inside {
                 (material.ior, 1.0)
             } else {

@@ -54,6 +54,33 @@ pub fn cornell_box() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/cornell-box/scene.obj")
 }
 
+/// [`cornell_box`], built.
+pub fn cornell_scene() -> raytracer::Scene {
+    let description = raytracer::formats::load_obj(&cornell_box()).unwrap();
+    raytracer::Scene::build(description, &raytracer::BvhParams::default())
+}
+
+/// Options of the README's camera on [`cornell_box`], validated.
+pub fn cornell_options(
+    width: u32,
+    height: u32,
+    mode: raytracer::Mode,
+    samples_per_pixel: u32,
+) -> raytracer::RenderOptions {
+    let options = raytracer::RenderOptions {
+        width,
+        height,
+        fov_degrees: 60.0,
+        look_from: raytracer::math::Vec3::new(0.0, 0.7, 1.75),
+        look_to: raytracer::math::Vec3::new(0.0, 0.7, 0.0),
+        mode,
+        samples_per_pixel,
+        ..raytracer::RenderOptions::default()
+    };
+    options.validate().unwrap();
+    options
+}
+
 /// The README's camera for [`cornell_box`], as command-line flags.
 pub const CORNELL_CAMERA: [&str; 6] = [
     "--fov",

@@ -18,8 +18,15 @@ pub const MAX_DIMENSION: u32 = 65_536;
 /// Largest pixel count accepted (a 16k x 16k image); the linear film alone takes
 /// 12 bytes per pixel.
 pub const MAX_PIXELS: u64 = 16_384 * 16_384;
-/// Largest recursion depth accepted; the recursion uses the call stack.
+/// Largest recursion depth accepted in full mode; the recursion uses the call stack.
 pub const MAX_RECURSION_DEPTH: u32 = 64;
+/// Largest path length accepted in path mode (a loop, not a recursion).
+pub const MAX_PATH_DEPTH: u32 = 1024;
+/// Path mode's default path length and samples per pixel (Mitsuba's `max_depth` is
+/// unlimited by default; 64 segments end nearly every path by Russian roulette).
+pub const PATH_DEFAULTS: (u32, u32) = (64, 64);
+/// Largest exposure accepted, in stops either way.
+pub const MAX_EXPOSURE_STOPS: Float = 64.0;
 
 /// What the renderer computes per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -32,6 +39,43 @@ pub enum Mode {
     /// Whitted lighting, tone mapped and gamma corrected.
     #[default]
     Full,
+    /// Physically based path tracing with area lights ([`crate::integrators::path`]);
+    /// shown with an exposure and the sRGB curve.
+    Path,
+}
+
+impl Mode {
+    /// Every mode by its name on the command line and in scene files.
+    pub const NAMES: [(&'static str, Mode); 4] = [
+        ("full", Mode::Full),
+        ("depth", Mode::Depth),
+        ("normal", Mode::Normal),
+        ("path", Mode::Path),
+    ];
+
+    /// The mode's name, as [`Mode::NAMES`] spells it.
+    pub fn name(self) -> &'static str {
+        Mode::NAMES
+            .iter()
+            .find(|(_, mode)| *mode == self)
+            .map_or("full", |(name, _)| name)
+    }
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+
+    /// A mode by its name in [`Mode::NAMES`], in any letter case.
+    fn from_str(name: &str) -> Result<Mode, String> {
+        Mode::NAMES
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name.trim()))
+            .map(|&(_, mode)| mode)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Mode::NAMES.iter().map(|(n, _)| *n).collect();
+                format!("unknown mode '{name}' (one of {})", names.join(", "))
+            })
+    }
 }
 
 /// Options of one render. Build with [`Default`] and field updates, then
@@ -50,7 +94,8 @@ pub struct RenderOptions {
     pub look_to: Vec3,
     /// World up direction (need not be unit length); +y by default.
     pub up: Vec3,
-    /// Recursion depth of full mode: 1 means primary and shadow rays only.
+    /// Recursion depth of full mode (1 means primary and shadow rays only); in path
+    /// mode the most path segments (Mitsuba's `max_depth`: 1 shows emitters only).
     pub depth: u32,
     /// What to compute.
     pub mode: Mode,
@@ -59,6 +104,13 @@ pub struct RenderOptions {
     /// [`crate::sampler`]). Depth and normal modes always take one sample per pixel:
     /// see [`RenderOptions::samples_per_pixel_in_mode`].
     pub samples_per_pixel: u32,
+    /// Path mode's exposure in stops: PNG pixels are the radiance times
+    /// `2^exposure`, then the sRGB curve. Other modes ignore it.
+    pub exposure: Float,
+    /// Picks one of many equally valid sets of random numbers; the same seed gives
+    /// the same image on any number of threads. 0 gives the images of earlier
+    /// versions.
+    pub seed: u32,
 }
 
 impl Default for RenderOptions {
@@ -73,6 +125,8 @@ impl Default for RenderOptions {
             depth: 4,
             mode: Mode::Full,
             samples_per_pixel: 1,
+            exposure: 0.0,
+            seed: 0,
         }
     }
 }
@@ -96,7 +150,7 @@ impl RenderOptions {
     /// normal, so those modes keep exact values (as Blender's depth pass does).
     pub fn samples_per_pixel_in_mode(&self) -> u32 {
         match self.mode {
-            Mode::Full => self.samples_per_pixel,
+            Mode::Full | Mode::Path => self.samples_per_pixel,
             Mode::Depth | Mode::Normal => 1,
         }
     }
@@ -197,6 +251,8 @@ enum Field {
     Up,
     Depth,
     Spp,
+    Exposure,
+    Seed,
 }
 
 impl Field {
@@ -210,6 +266,8 @@ impl Field {
             Field::Up => "--up",
             Field::Depth => "--depth",
             Field::Spp => "--spp",
+            Field::Exposure => "--exposure",
+            Field::Seed => "--seed",
         }
     }
 
@@ -231,6 +289,8 @@ struct Values {
     depth: i64,
     mode: Mode,
     samples_per_pixel: i64,
+    exposure: Float,
+    seed: i64,
 }
 
 impl From<&RenderOptions> for Values {
@@ -245,6 +305,8 @@ impl From<&RenderOptions> for Values {
             depth: o.depth.into(),
             mode: o.mode,
             samples_per_pixel: o.samples_per_pixel.into(),
+            exposure: o.exposure,
+            seed: o.seed.into(),
         }
     }
 }
@@ -309,6 +371,27 @@ impl Values {
                 "components must be finite and not all zero".into(),
             ));
         }
+        if !(self.exposure.abs() <= MAX_EXPOSURE_STOPS) {
+            return Err(single_error(
+                Field::Exposure,
+                origin(Field::Exposure),
+                format!(
+                    "{} is not between -{MAX_EXPOSURE_STOPS} and {MAX_EXPOSURE_STOPS} stops",
+                    self.exposure
+                ),
+            ));
+        }
+        let seed = u32::try_from(self.seed).map_err(|_| {
+            single_error(
+                Field::Seed,
+                origin(Field::Seed),
+                format!("{} is not in 0..={}", self.seed, u32::MAX),
+            )
+        })?;
+        let max_depth = match self.mode {
+            Mode::Path => MAX_PATH_DEPTH,
+            _ => MAX_RECURSION_DEPTH,
+        };
         Ok(RenderOptions {
             width,
             height,
@@ -316,7 +399,7 @@ impl Values {
             look_from: self.look_from,
             look_to: self.look_to,
             up: self.up,
-            depth: whole_number(self.depth, MAX_RECURSION_DEPTH, Field::Depth, origin)?,
+            depth: whole_number(self.depth, max_depth, Field::Depth, origin)?,
             mode: self.mode,
             samples_per_pixel: whole_number(
                 self.samples_per_pixel,
@@ -324,6 +407,8 @@ impl Values {
                 Field::Spp,
                 origin,
             )?,
+            exposure: self.exposure,
+            seed,
         })
     }
 }
@@ -449,8 +534,12 @@ pub struct PartialOptions {
     pub depth: Option<Sourced<i64>>,
     /// What to compute.
     pub mode: Option<Sourced<Mode>>,
-    /// Camera rays per pixel in full mode.
+    /// Camera rays per pixel in full and path modes.
     pub samples_per_pixel: Option<Sourced<i64>>,
+    /// Path mode's exposure in stops.
+    pub exposure: Option<Sourced<Float>>,
+    /// The seed of the random numbers.
+    pub seed: Option<Sourced<i64>>,
 }
 
 impl PartialOptions {
@@ -483,12 +572,15 @@ impl PartialOptions {
             depth: self.depth.or(fallback.depth),
             mode: self.mode.or(fallback.mode),
             samples_per_pixel: self.samples_per_pixel.or(fallback.samples_per_pixel),
+            exposure: self.exposure.or(fallback.exposure),
+            seed: self.seed.or(fallback.seed),
         }
     }
 
     /// The options to render with: each value as set, else from
     /// [`RenderOptions::default`] (a width or height alone keeps the default aspect
-    /// ratio, as in [`PartialOptions::or`]), checked once.
+    /// ratio, as in [`PartialOptions::or`]; path mode's depth and samples per pixel
+    /// default to [`PATH_DEFAULTS`]), checked once.
     ///
     /// # Errors
     /// The first value out of range, or the first two values that do not go
@@ -496,6 +588,11 @@ impl PartialOptions {
     pub fn resolve(&self) -> Result<RenderOptions, OptionsError> {
         let d = RenderOptions::default();
         let (width, height) = self.image_size();
+        let mode = value_or(&self.mode, d.mode);
+        let (default_depth, default_spp) = match mode {
+            Mode::Path => PATH_DEFAULTS,
+            _ => (d.depth, d.samples_per_pixel),
+        };
         let values = Values {
             width: width.value,
             height: height.value,
@@ -503,9 +600,11 @@ impl PartialOptions {
             look_from: value_or(&self.look_from, d.look_from),
             look_to: value_or(&self.look_to, d.look_to),
             up: value_or(&self.up, d.up),
-            depth: value_or(&self.depth, d.depth.into()),
-            mode: value_or(&self.mode, d.mode),
-            samples_per_pixel: value_or(&self.samples_per_pixel, d.samples_per_pixel.into()),
+            depth: value_or(&self.depth, default_depth.into()),
+            mode,
+            samples_per_pixel: value_or(&self.samples_per_pixel, default_spp.into()),
+            exposure: value_or(&self.exposure, d.exposure),
+            seed: value_or(&self.seed, d.seed.into()),
         };
         values.check(&|field| match field {
             Field::Width => width.origin.clone(),
@@ -516,6 +615,8 @@ impl PartialOptions {
             Field::Up => origin_of(&self.up),
             Field::Depth => origin_of(&self.depth),
             Field::Spp => origin_of(&self.samples_per_pixel),
+            Field::Exposure => origin_of(&self.exposure),
+            Field::Seed => origin_of(&self.seed),
         })
     }
 

@@ -1,12 +1,41 @@
 //! Post-processing: a linear [`Film`] to an 8-bit [`Image`] as each mode displays it
 //! (SPEC's tone map and gamma in full mode, distance over the farthest in depth mode,
-//! `n / 2 + 1/2` in normal mode). Encoding to a file is [`crate::output`]'s job.
+//! `n / 2 + 1/2` in normal mode, an exposure and the sRGB curve in path mode).
+//! Encoding to a file is [`crate::output`]'s job.
 
 use rayon::prelude::*;
 
 use crate::film::Film;
 use crate::math::{Float, Vec3};
-use crate::options::Mode;
+use crate::options::{Mode, RenderOptions};
+
+/// How a film is shown: its mode and, in path mode, the exposure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PostProcessing {
+    /// The mode the film was rendered in.
+    pub mode: Mode,
+    /// Path mode's exposure in stops ([`RenderOptions::exposure`]).
+    pub exposure: Float,
+}
+
+impl From<Mode> for PostProcessing {
+    /// `mode` with no exposure change.
+    fn from(mode: Mode) -> PostProcessing {
+        PostProcessing {
+            mode,
+            exposure: 0.0,
+        }
+    }
+}
+
+impl From<&RenderOptions> for PostProcessing {
+    fn from(options: &RenderOptions) -> PostProcessing {
+        PostProcessing {
+            mode: options.mode,
+            exposure: options.exposure,
+        }
+    }
+}
 
 /// An 8-bit RGB image, row 0 at the top.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -20,16 +49,18 @@ pub struct Image {
 }
 
 impl Film {
-    /// Post-processes the film for `mode` into 8 bits per channel:
-    /// depth divides by the largest distance (misses white), normal maps `n` to
-    /// `n / 2 + 1/2` (misses black), full applies SPEC's tone mapping and gamma.
+    /// Post-processes the film for its mode (a [`Mode`], or [`PostProcessing`] with
+    /// an exposure) into 8 bits per channel: depth divides by the largest distance
+    /// (misses white), normal maps `n` to `n / 2 + 1/2` (misses black), full applies
+    /// SPEC's tone mapping and gamma, path multiplies by `2^exposure` and applies the
+    /// sRGB curve, clamped.
     ///
     /// See also [`Film::write`], which also writes linear OpenEXR files.
-    pub fn to_image(&self, mode: Mode) -> Image {
+    pub fn to_image(&self, post: impl Into<PostProcessing>) -> Image {
         // In parallel: the gamma curve's `powf` on every channel of a megapixel film
         // took 30-40 ms on one thread.
         const CHUNK: usize = 4096;
-        let encoding = self.encoding(mode);
+        let encoding = self.encoding(post.into());
         let mut rgb = vec![0u8; self.pixels.len() * 3];
         rgb.par_chunks_mut(3 * CHUNK)
             .zip(self.pixels.par_chunks(CHUNK))
@@ -47,21 +78,27 @@ impl Film {
 
     /// The post-processed value of every pixel, row by row, before quantization to
     /// 8 bits: what [`Film::to_image`] encodes.
-    pub fn display_values(&self, mode: Mode) -> impl Iterator<Item = Vec3> + '_ {
-        let encoding = self.encoding(mode);
+    pub fn display_values(
+        &self,
+        post: impl Into<PostProcessing>,
+    ) -> impl Iterator<Item = Vec3> + '_ {
+        let encoding = self.encoding(post.into());
         self.pixels.iter().map(move |&v| encoding.apply(v))
     }
 
     /// How `mode` maps this film's values for display (which needs the film's
     /// largest value).
-    fn encoding(&self, mode: Mode) -> Encoding {
-        match mode {
+    fn encoding(&self, post: PostProcessing) -> Encoding {
+        match post.mode {
             Mode::Depth => Encoding::Depth {
                 farthest: self.max_channel(|v| v.x.is_finite()),
             },
             Mode::Normal => Encoding::Normal,
             Mode::Full => Encoding::Full {
                 brightest: self.max_channel(|_| true),
+            },
+            Mode::Path => Encoding::Exposed {
+                scale: post.exposure.exp2(),
             },
         }
     }
@@ -85,6 +122,9 @@ enum Encoding {
     Normal,
     /// Tone mapping by the brightest channel, then gamma 2.2.
     Full { brightest: Float },
+    /// Radiance times `scale`, clamped to 1, through the sRGB curve: one bright
+    /// sample cannot darken the rest of the image, as a maximum-based map would.
+    Exposed { scale: Float },
 }
 
 impl Encoding {
@@ -108,6 +148,7 @@ impl Encoding {
                 }
             }
             Encoding::Full { brightest } => tone_map(v, brightest).powf(1.0 / 2.2),
+            Encoding::Exposed { scale } => (v * scale).clamp(Vec3::ZERO, Vec3::ONE).map(srgb),
         }
     }
 }
@@ -126,6 +167,18 @@ fn tone_map(v: Vec3, c: Float) -> Vec3 {
     let v = v.max(Vec3::ZERO);
     let r = v / c;
     (v + r * r) / (Vec3::ONE + v)
+}
+
+/// The sRGB transfer curve (IEC 61966-2-1) of a linear value in `[0, 1]`; NaN is 0.
+#[inline]
+fn srgb(v: Float) -> Float {
+    if v.is_nan() {
+        0.0
+    } else if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 /// Scales 0..1 to 0..255, rounding to nearest; out-of-range values clamp.

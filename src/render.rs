@@ -6,7 +6,9 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::film::Film;
-use crate::integrators::{DepthIntegrator, Integrator, NormalIntegrator, WhittedIntegrator};
+use crate::integrators::{
+    DepthIntegrator, Integrator, NormalIntegrator, PathIntegrator, WhittedIntegrator,
+};
 use crate::math::Vec3;
 use crate::options::{Mode, RenderOptions};
 use crate::sampler::PixelSampler;
@@ -134,6 +136,10 @@ fn render_region(
             };
             render_with(scene, options, &whitted, tile, row_done)
         }
+        Mode::Path => {
+            let path = PathIntegrator::new(scene, options.depth);
+            render_with(scene, options, &path, tile, row_done)
+        }
     }
 }
 
@@ -148,7 +154,8 @@ fn render_with<I: Integrator>(
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts) {
     let camera = Camera::for_options(options);
-    let sampler = PixelSampler::new(options.samples_per_pixel_in_mode(), integrator.dimensions());
+    let sampler = PixelSampler::new(options.samples_per_pixel_in_mode(), integrator.dimensions())
+        .with_seed(options.seed);
     let width = tile.width as usize;
     let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
     let rays = pixels

@@ -47,6 +47,9 @@ pub struct PixelSampler {
     columns: u32,
     /// Further dimensions each sample may draw (see [`PixelSample`]).
     dimensions: u32,
+    /// Added to every hash key: [`crate::RenderOptions::seed`] times an odd
+    /// constant, so seed 0 keeps the patterns of earlier versions.
+    seed_offset: u64,
 }
 
 impl PixelSampler {
@@ -60,6 +63,16 @@ impl PixelSampler {
             count,
             columns,
             dimensions,
+            seed_offset: 0,
+        }
+    }
+
+    /// The same sampler drawing another, equally valid, set of values for each
+    /// `seed`; seed 0 changes nothing.
+    pub fn with_seed(self, seed: u32) -> PixelSampler {
+        PixelSampler {
+            seed_offset: u64::from(seed).wrapping_mul(GOLDEN_GAMMA),
+            ..self
         }
     }
 
@@ -81,7 +94,8 @@ impl PixelSampler {
         let jitter = jitter(
             pixel_index
                 .wrapping_mul(self.count as u64)
-                .wrapping_add(sample as u64),
+                .wrapping_add(sample as u64)
+                .wrapping_add(self.seed_offset),
         );
         let x = column_start + jitter.x * column_width;
         let y = (row as Float + jitter.y) / rows as Float;
@@ -95,7 +109,11 @@ impl PixelSampler {
     pub fn sample(&self, pixel_index: u64, sample: u32) -> PixelSample {
         debug_assert!(sample < self.count);
         PixelSample {
-            stream: mix64(mix64(pixel_index ^ DIMENSION_SEED).wrapping_add(sample as u64)),
+            stream: mix64(
+                mix64(pixel_index ^ DIMENSION_SEED)
+                    .wrapping_add(sample as u64)
+                    .wrapping_add(self.seed_offset),
+            ),
             dimension: 0,
             declared: self.dimensions,
         }

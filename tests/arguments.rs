@@ -121,7 +121,7 @@ fn bad_camera_vectors_and_modes_are_refused() {
             "error: invalid value 'fancy' for '--mode <MODE>'",
         ))
         .stderr(predicate::str::contains(
-            "[possible values: full, depth, normal]",
+            "[possible values: full, depth, normal, path]",
         ));
 }
 

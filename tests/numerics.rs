@@ -39,6 +39,7 @@ fn reference_scenes_give_finite_pixels_in_every_mode() {
                 depth: case.depth.max(4),
                 mode,
                 samples_per_pixel: 1,
+                ..RenderOptions::default()
             };
             options.validate().unwrap();
             let film = render(&scene, &options);

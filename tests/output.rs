@@ -34,6 +34,7 @@ fn render_pixel_centres(scene: &Scene, options: &RenderOptions) -> Vec<Vec3> {
         Mode::Depth => &DepthIntegrator,
         Mode::Normal => &NormalIntegrator,
         Mode::Full => &whitted,
+        Mode::Path => unreachable!("path mode has no single ray through the centre"),
     };
     let sampler = PixelSampler::new(1, 0);
     let mut pixels = Vec::new();
@@ -122,7 +123,12 @@ fn anti_aliasing_changes_edges_and_leaves_flat_areas_alone() {
 fn exr_round_trips_every_mode_exactly() {
     let scene = cornell_scene();
     let dir = tempfile::tempdir().unwrap();
-    for (mode, spp) in [(Mode::Full, 4), (Mode::Depth, 1), (Mode::Normal, 1)] {
+    for (mode, spp) in [
+        (Mode::Full, 4),
+        (Mode::Depth, 1),
+        (Mode::Normal, 1),
+        (Mode::Path, 2),
+    ] {
         let film = render(&scene, &cornell_options(mode, spp));
         let path = dir.path().join(format!("{mode:?}.exr"));
         film.write(mode, ImageFormat::Exr, &path).unwrap();
@@ -133,7 +139,7 @@ fn exr_round_trips_every_mode_exactly() {
                 assert_eq!(channels.keys().collect::<Vec<_>>(), ["Z"]);
                 channels["Z"].iter().map(|&z| Vec3::splat(z)).collect()
             }
-            Mode::Full | Mode::Normal => {
+            Mode::Full | Mode::Normal | Mode::Path => {
                 assert_eq!(channels.keys().collect::<Vec<_>>(), ["B", "G", "R"]);
                 (0..width * height)
                     .map(|i| Vec3::new(channels["R"][i], channels["G"][i], channels["B"][i]))

@@ -30,6 +30,7 @@ fn render_case(dir: &Path, case: &support::ReferenceCase) -> Image {
         depth: case.depth,
         mode,
         samples_per_pixel: 1,
+        ..RenderOptions::default()
     };
     options.validate().unwrap();
     let description = formats::load_obj(&dir.join(&case.scene)).unwrap();

@@ -96,17 +96,26 @@ pub struct ViewArgs {
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(UP))]
     pub up: Option<Vec3>,
     /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
-    /// With glass, each level can double the rays per pixel [default: 4].
+    /// With glass, each level can double the rays per pixel [default: 4]. In path mode
+    /// the most path segments (1..=1024; Mitsuba's max_depth) [default: 64].
     #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
     pub depth: Option<i64>,
     /// What to render [default: full].
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
-    /// Samples per pixel in full mode (1..=65536): 1 traces pixel centres, more take
-    /// stratified jittered positions with a fixed seed (same image every run)
-    /// [default: 1].
+    /// Samples per pixel in full and path modes (1..=65536): 1 traces pixel centres,
+    /// more take stratified jittered positions with a fixed seed (same image every
+    /// run) [default: 1; 64 in path mode].
     #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
     pub spp: Option<i64>,
+    /// Path mode's exposure in stops: PNG values are the radiance times 2^STOPS, then
+    /// the sRGB curve (-64..=64) [default: 0].
+    #[arg(long, value_name = "STOPS", allow_hyphen_values = true, value_parser = number)]
+    pub exposure: Option<Float>,
+    /// Seed of the random numbers (0..=4294967295): another seed, another equally
+    /// valid image; the same seed, the same image on any number of threads [default: 0].
+    #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
+    pub seed: Option<i64>,
     /// Worker threads (0..=1024); 0 uses every core.
     #[arg(
         short = 'j',
@@ -127,6 +136,8 @@ pub enum ModeArg {
     Depth,
     /// Surface normal facing the camera as colour, n/2 + 1/2 (misses black).
     Normal,
+    /// Physically based path tracing: area lights from Ke, global illumination.
+    Path,
 }
 
 impl From<ModeArg> for Mode {
@@ -135,6 +146,7 @@ impl From<ModeArg> for Mode {
             ModeArg::Full => Mode::Full,
             ModeArg::Depth => Mode::Depth,
             ModeArg::Normal => Mode::Normal,
+            ModeArg::Path => Mode::Path,
         }
     }
 }
@@ -156,6 +168,8 @@ impl ViewArgs {
             depth: flag(self.depth, "--depth"),
             mode: flag(self.mode.map(Mode::from), "--mode"),
             samples_per_pixel: flag(self.spp, "--spp"),
+            exposure: flag(self.exposure, "--exposure"),
+            seed: flag(self.seed, "--seed"),
         }
     }
 }

@@ -36,7 +36,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         warn(&format!(
             "--spp {} applies to full mode only; {} mode takes one sample per pixel",
             options.samples_per_pixel,
-            format!("{:?}", options.mode).to_lowercase()
+            options.mode.name()
         ));
     }
     for warning in &scene.warnings {
@@ -47,7 +47,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let (film, rays) = render_with_progress(&scene, options, &|_row| rendering.inc());
     drop(rendering);
     let rendered = Instant::now();
-    film.write(options.mode, format, &args.output)?;
+    film.write(options, format, &args.output)?;
     let written = Instant::now();
 
     if args.stats {

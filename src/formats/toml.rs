@@ -158,6 +158,8 @@ struct RenderTable {
     mode: Option<Spanned<ModeName>>,
     depth: Option<Spanned<i64>>,
     spp: Option<Spanned<i64>>,
+    exposure: Option<Spanned<Float>>,
+    seed: Option<Spanned<i64>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -166,6 +168,7 @@ enum ModeName {
     Full,
     Depth,
     Normal,
+    Path,
 }
 
 impl From<ModeName> for Mode {
@@ -174,6 +177,7 @@ impl From<ModeName> for Mode {
             ModeName::Full => Mode::Full,
             ModeName::Depth => Mode::Depth,
             ModeName::Normal => Mode::Normal,
+            ModeName::Path => Mode::Path,
         }
     }
 }
@@ -379,6 +383,8 @@ impl Builder<'_> {
             depth: self.sourced(&render.depth, "render.depth"),
             mode: self.sourced(&render.mode, "render.mode"),
             samples_per_pixel: self.sourced(&render.spp, "render.spp"),
+            exposure: self.sourced(&render.exposure, "render.exposure"),
+            seed: self.sourced(&render.seed, "render.seed"),
         }
     }
 
@@ -723,7 +729,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[render]\nmode = \"fast\"\n",
-                "DIR/s.toml:2: render.mode: unknown variant `fast`, expected one of `full`, `depth`, `normal`",
+                "DIR/s.toml:2: render.mode: unknown variant `fast`, expected one of `full`, `depth`, `normal`, `path`",
             ),
             (
                 "[[sphere]]\ncenter = [0, 0, 0]\n",

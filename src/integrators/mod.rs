@@ -1,14 +1,17 @@
 //! Integrators: what a camera ray is worth, one per mode. [`debug`] gives depth and
-//! normals, [`whitted`] SPEC's recursive Phong lighting.
+//! normals, [`whitted`] SPEC's recursive Phong lighting, [`path`] physically based
+//! global illumination.
 //!
 //! The integrator is chosen once per render: `render` matches on the mode and runs a
 //! pixel loop compiled for that integrator, so the per-ray calls are static and can be
 //! inlined. A new mode adds a struct here and one arm to that match.
 
 pub mod debug;
+pub mod path;
 pub mod whitted;
 
 pub use debug::{DepthIntegrator, NormalIntegrator};
+pub use path::PathIntegrator;
 pub use whitted::WhittedIntegrator;
 
 use crate::math::{Ray, Vec3};

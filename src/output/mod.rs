@@ -25,6 +25,7 @@ pub use atomic::{Commits, WriteError, check_output, lock_commits, remove_temp_fi
 
 use crate::film::Film;
 use crate::options::Mode;
+use crate::postprocess::PostProcessing;
 use atomic::write_atomically;
 
 /// The kinds of image file the renderer writes.
@@ -78,10 +79,16 @@ impl Film {
     ///
     /// # Errors
     /// The file cannot be created or written.
-    pub fn write(&self, mode: Mode, format: ImageFormat, path: &Path) -> Result<(), WriteError> {
+    pub fn write(
+        &self,
+        post: impl Into<PostProcessing>,
+        format: ImageFormat,
+        path: &Path,
+    ) -> Result<(), WriteError> {
+        let post = post.into();
         match format {
-            ImageFormat::Png => self.to_image(mode).write_png(path),
-            ImageFormat::Exr => self.write_exr(mode, path),
+            ImageFormat::Png => self.to_image(post).write_png(path),
+            ImageFormat::Exr => self.write_exr(post.mode, path),
         }
     }
 
@@ -102,7 +109,7 @@ impl Film {
         let encoding = Encoding::SMALL_LOSSLESS;
         write_atomically(path, "exr", |file| {
             let written = match mode {
-                Mode::Full | Mode::Normal => {
+                Mode::Full | Mode::Normal | Mode::Path => {
                     let channels = SpecificChannels::rgb(|p| {
                         let v = at(p);
                         (v.x, v.y, v.z)

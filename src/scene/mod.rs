@@ -422,7 +422,11 @@ fn collect_area_lights(
     spheres: &[SphereDesc],
     materials: &[Material],
 ) -> AreaLights {
-    let emission = |id: MaterialId| materials.get(id.0 as usize).map_or(Vec3::ZERO, |m| m.emission);
+    let emission = |id: MaterialId| {
+        materials
+            .get(id.0 as usize)
+            .map_or(Vec3::ZERO, |m| m.emission)
+    };
     let mut lights = AreaLightsBuilder::default();
     if materials.iter().all(|m| m.emission.max_element() <= 0.0) {
         return lights.build();

@@ -1,19 +1,18 @@
-//! A binary bounding volume hierarchy over boxes and indices.
+//! Bounding volume hierarchies over boxes and indices.
 //!
-//! The BVH knows nothing of triangles, spheres or materials: it is built from one
-//! [`Aabb`] per primitive and traversed with a closure that intersects primitive `i`
-//! (as obvhs and the `bvh` crate do). [`Bvh::build`] returns the order in which the
-//! caller must store its primitives, so leaves index primitive arrays directly.
+//! The BVHs know nothing of triangles, spheres or materials. The binary [`Bvh`] is
+//! built from one [`Aabb`] per primitive; [`Bvh::build`] returns the order in which
+//! the caller must store its primitives, so leaves index primitive arrays directly.
+//! It is then collapsed into the 8-wide [`WideBvh`], which rays traverse with a
+//! closure that intersects a leaf's items (as obvhs and the `bvh` crate do).
 
 mod build;
 mod node;
-mod traverse;
 mod wide;
 
 pub use build::BvhParams;
 pub use node::BvhNode;
-pub use traverse::RayQuery;
-pub use wide::{WideBvh, WideNode};
+pub use wide::{RayQuery, WideBvh, WideNode};
 
 use crate::math::Aabb;
 

@@ -1,5 +1,3 @@
-use glam::Vec4;
-
 use crate::math::{Aabb, Vec3};
 
 /// One BVH node in 32 bytes, the layout of tinybvh's `BVHNode` and pbrt's
@@ -34,23 +32,6 @@ impl BvhNode {
             min: Vec3::from(self.min),
             max: Vec3::from(self.max),
         }
-    }
-
-    /// `min` and `first_index` as one 16-byte load (the index bits in `w`).
-    #[inline(always)]
-    pub(crate) fn min_lane(&self) -> Vec4 {
-        let halves = self as *const BvhNode as *const [Vec4; 2];
-        // SAFETY: `BvhNode` is `repr(C, align(32))` and exactly 32 bytes, so it holds
-        // two 16-byte aligned halves, and every bit pattern is a valid `Vec4`.
-        unsafe { (*halves)[0] }
-    }
-
-    /// `max` and `prim_count` as one 16-byte load (the count bits in `w`).
-    #[inline(always)]
-    pub(crate) fn max_lane(&self) -> Vec4 {
-        let halves = self as *const BvhNode as *const [Vec4; 2];
-        // SAFETY: as in `min_lane`.
-        unsafe { (*halves)[1] }
     }
 
     pub(crate) fn set_bounds(&mut self, b: Aabb) {

@@ -10,15 +10,17 @@
 
 use std::mem::MaybeUninit;
 
+use glam::Vec4;
 use wide::f32x8;
 
-use super::{Bvh, BvhInvariantError, MAX_DEPTH, RayQuery};
-use crate::math::{Aabb, Float, Vec3};
+use super::{Bvh, BvhInvariantError, MAX_DEPTH};
+use crate::math::{Aabb, Float, Ray, Vec3};
 
 /// Children per node: one 256-bit AVX register of `f32`.
 pub const WIDTH: usize = 8;
 
-/// Slack on the exit distance of the slab test, as in the binary traversal.
+/// Slack on the exit distance of the slab test so that rounding in `(min - o) / d`
+/// never culls a box the ray grazes: pbrt's `1 + 2 * gamma(3)`.
 const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.5);
 
 /// One node: eight child boxes as planes `[min x, max x, min y, max y, min z, max z]`
@@ -403,6 +405,42 @@ fn sort_far_to_near(run: &mut [(ChildRef, Float)]) {
             j -= 1;
         }
         run[j] = entry;
+    }
+}
+
+/// Smallest direction component the slab test divides by. A zero component would
+/// give an infinite reciprocal and `0 * inf = NaN` for a ray lying in a slab's plane;
+/// with this floor the product is 0 and such a ray counts as inside the (closed) box,
+/// as it should (obvhs's `safe_inverse` does the same).
+const MIN_DIR_COMPONENT: Float = 1e-30;
+
+/// A ray prepared for box tests: origin and the reciprocal of its direction,
+/// computed once per ray.
+#[derive(Clone, Copy, Debug)]
+pub struct RayQuery {
+    /// Ray origin; the fourth lane is 0.
+    pub origin: Vec4,
+    /// `1 / dir` per component, finite; the fourth lane is 0.
+    pub inv_dir: Vec4,
+}
+
+impl RayQuery {
+    /// Prepares `ray` for traversal.
+    #[inline]
+    pub fn new(ray: &Ray) -> RayQuery {
+        let safe = |d: Float| {
+            if d.abs() < MIN_DIR_COMPONENT {
+                MIN_DIR_COMPONENT.copysign(d)
+            } else {
+                d
+            }
+        };
+        let inv_dir = Vec3::new(safe(ray.dir.x), safe(ray.dir.y), safe(ray.dir.z)).recip();
+        debug_assert!(inv_dir.is_finite());
+        RayQuery {
+            origin: ray.origin.extend(0.0),
+            inv_dir: inv_dir.extend(0.0),
+        }
     }
 }
 

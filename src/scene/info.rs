@@ -25,7 +25,8 @@ pub struct SceneSummary {
     pub vertices: usize,
     /// Triangles, degenerate ones included.
     pub triangles: usize,
-    /// Triangles of zero area (or non-finite normal), which the renderer drops.
+    /// Triangles the renderer drops, by [`Triangle::is_degenerate`]: zero area, or
+    /// a normal beyond `f32`.
     pub degenerate_triangles: usize,
     /// Spheres.
     pub spheres: usize,
@@ -88,8 +89,7 @@ impl SceneSummary {
         let mut bounds = Aabb::EMPTY;
         for tri in &scene.triangles {
             let [a, b, c] = tri.positions.map(|i| scene.positions[i as usize]);
-            let normal = Triangle::new(a, b, c).normal();
-            if normal.length_squared() == 0.0 || !normal.is_finite() {
+            if Triangle::new(a, b, c).is_degenerate() {
                 degenerate += 1;
                 continue;
             }

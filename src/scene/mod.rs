@@ -32,13 +32,6 @@ struct PrimShading {
 
 const NO_NORMALS: u32 = u32::MAX;
 
-/// Whether `try_unit(v)` is `Some` (finite and not zero), without normalizing: the
-/// build asks it of every triangle.
-#[inline]
-fn has_direction(v: Vec3) -> bool {
-    v.is_finite() && v != Vec3::ZERO
-}
-
 /// Figures about the binary BVH the scene was built with, kept after it is collapsed
 /// into the wide one that rays traverse.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -133,8 +126,9 @@ impl Hit {
 }
 
 impl Scene {
-    /// Builds the scene: drops degenerate triangles (with one warning that counts
-    /// them), builds the BVH and stores primitives in its leaf order.
+    /// Builds the scene: drops degenerate triangles ([`Triangle::is_degenerate`], with
+    /// one warning that counts them), builds the BVH and stores primitives in its leaf
+    /// order.
     pub fn build(description: SceneDescription, params: &BvhParams) -> Scene {
         let SceneDescription {
             positions,
@@ -163,10 +157,9 @@ impl Scene {
                 Some(t) => {
                     let [a, b, c] = corners(t);
                     let triangle = Triangle::new(a, b, c);
-                    // No normal: zero area, or an area beyond f32 (vertices near 1e38).
                     // The box is that of the stored form (v0 and edges), whose rounded
                     // corners the kernel intersects, not of the file's corners.
-                    has_direction(triangle.normal()).then(|| triangle.bounds())
+                    (!triangle.is_degenerate()).then(|| triangle.bounds())
                 }
                 None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
             },

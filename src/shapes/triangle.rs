@@ -39,6 +39,18 @@ impl Triangle {
         self.e1.cross(self.e2)
     }
 
+    /// Whether the triangle has no normal to shade or intersect with: zero area
+    /// (repeated or collinear corners, or corners so close that `e1 x e2` underflows
+    /// to zero) or a normal beyond `f32` (corners near 1e38). The one rule by which
+    /// the scene drops triangles and `raytracer info` counts them. A normal too small
+    /// for its squared length is not degenerate: [`try_unit`](crate::math::try_unit)
+    /// still finds its direction, and the kernel still hits the triangle.
+    #[inline]
+    pub fn is_degenerate(&self) -> bool {
+        let n = self.normal();
+        !(n.is_finite() && n != Vec3::ZERO)
+    }
+
     /// The bounding box.
     pub fn bounds(&self) -> Aabb {
         Aabb::from_points(&self.vertices())

@@ -1,0 +1,334 @@
+//! Binned SAH construction, parallel from the root.
+//!
+//! Each node costs two passes over its primitives: one bins them (which also yields
+//! both children's exact boxes), one partitions them (which also yields both
+//! children's centroid bounds). Above [`BvhParams::parallel_threshold`] primitives
+//! both passes are split into fixed blocks over threads and the two subtrees are
+//! built with `rayon::join`, so both cores work from the root on; fixed blocks keep
+//! the tree the same for any number of threads.
+//!
+//! Nodes go straight into one array: a subtree over `m` primitives has at most
+//! `2m - 1` nodes, so each subtree gets a slot range of that size at a position known
+//! before any of it is built, and one pass at the end closes the gaps the ranges
+//! leave (leaves hold more than one primitive, so most ranges are not filled).
+//!
+//! This module makes the primitive references and drives the build from the root
+//! down; the rest is split by concept:
+//! - [`refs`]: the primitive references the build moves around, and SIMD boxes;
+//! - [`bins`]: centroid binning and the SAH sweep for the cheapest plane;
+//! - [`split`]: the decision for one node (leaf, SAH plane, or halving by count);
+//! - [`partition`]: reordering a node's references around its plane, in fixed
+//!   blocks on all threads for big nodes;
+//! - [`layout`]: node slots while building, and closing their gaps at the end.
+
+mod bins;
+mod layout;
+mod partition;
+mod refs;
+mod split;
+
+use rayon::prelude::*;
+
+use super::{Bvh, BvhNode};
+use crate::math::{Aabb, Float};
+use crate::memory;
+use bins::{AxisBins, MAX_BINS, MIN_BINS};
+use layout::{Segment, Slot, close_gaps, node};
+use partition::gather_block_heads;
+use refs::{Bounds, PrimRef, measure};
+use split::{Split, split_node};
+
+/// Tuning numbers of the builder.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhParams {
+    /// Number of SAH bins per axis, in `4..=16`.
+    pub bins: usize,
+    /// Cost of visiting an interior node, relative to `intersection_cost`.
+    pub traversal_cost: Float,
+    /// Cost of intersecting one primitive.
+    pub intersection_cost: Float,
+    /// Nodes with more primitives than this are always split.
+    pub max_leaf_size: usize,
+    /// Nodes with more primitives than this are binned and partitioned on all
+    /// threads, in blocks of this many primitives, and their subtrees are built in
+    /// parallel.
+    pub parallel_threshold: usize,
+    /// Nodes with more primitives than this are binned on all three axes; smaller
+    /// ones only along their widest centroid extent, as pbrt does everywhere. The few
+    /// big nodes near the root decide most of the tree's quality; the many small
+    /// ones decide most of the build time.
+    pub all_axes_threshold: usize,
+}
+
+impl Default for BvhParams {
+    fn default() -> Self {
+        BvhParams {
+            bins: 16,
+            traversal_cost: 1.0,
+            intersection_cost: 1.0,
+            max_leaf_size: 8,
+            parallel_threshold: 16 * 1024,
+            all_axes_threshold: 64,
+        }
+    }
+}
+
+/// Primitives per block when the references are made on all threads. Fixed, so that
+/// the blocks (and with them the tree) do not depend on the number of threads.
+const REF_BLOCK: usize = 16 * 1024;
+
+/// One node's primitives with their box and centroid bounds.
+struct Task<'a> {
+    refs: &'a mut [PrimRef],
+    /// Leaf-order index of `refs[0]`.
+    offset: u32,
+    bounds: Bounds,
+    /// Bounds of the doubled centroids.
+    centroids: Bounds,
+    depth: usize,
+}
+
+impl Bvh {
+    /// Builds a BVH over `prim_bounds` (one box per primitive).
+    ///
+    /// Returns the tree and the leaf order: `order[i]` is the original index of the
+    /// primitive that must be stored at position `i`, because leaves address
+    /// primitives as ranges of that order.
+    ///
+    /// # Panics
+    /// If there are more than `u32::MAX` primitives or `params.bins` is not in
+    /// `4..=16`.
+    pub fn build(prim_bounds: &[Aabb], params: &BvhParams) -> (Bvh, Vec<u32>) {
+        Bvh::build_with(prim_bounds.len(), |i| prim_bounds[i], params)
+    }
+
+    /// [`Bvh::build`] for `prim_count` primitives whose boxes `bounds_of(i)` gives,
+    /// so that callers need not hold a second array of boxes.
+    ///
+    /// # Panics
+    /// As [`Bvh::build`].
+    pub fn build_with<F>(prim_count: usize, bounds_of: F, params: &BvhParams) -> (Bvh, Vec<u32>)
+    where
+        F: Fn(usize) -> Aabb + Sync,
+    {
+        Bvh::build_filtered(prim_count, |i| Some(bounds_of(i)), params)
+    }
+
+    /// [`Bvh::build_with`] over the primitives for which `bounds_of(i)` gives a box;
+    /// the others are left out of the tree and of the returned order, which lists
+    /// original indices. Lets the caller drop primitives in the same pass that
+    /// measures them.
+    ///
+    /// # Panics
+    /// As [`Bvh::build`].
+    pub fn build_filtered<F>(prim_count: usize, bounds_of: F, params: &BvhParams) -> (Bvh, Vec<u32>)
+    where
+        F: Fn(usize) -> Option<Aabb> + Sync,
+    {
+        assert!(u32::try_from(prim_count).is_ok(), "too many primitives");
+        assert!(
+            (MIN_BINS..=MAX_BINS).contains(&params.bins),
+            "bins out of range"
+        );
+        let (mut refs, bounds, centroids) = make_refs(prim_count, bounds_of);
+        let n = refs.len();
+        if n == 0 {
+            return (Bvh::default(), Vec::new());
+        }
+
+        // A tree over n primitives has at most 2n - 1 nodes: one slot each, the root
+        // first, none written before the builder fills it. The slots a subtree leaves
+        // unused are squeezed out afterwards, in place.
+        let mut nodes: Vec<BvhNode> = Vec::with_capacity(2 * n - 1);
+        memory::advise_huge_pages(&nodes);
+        let (root, rest) = nodes.spare_capacity_mut()[..2 * n - 1]
+            .split_first_mut()
+            .expect("n > 0");
+        let task = Task {
+            refs: &mut refs,
+            offset: 0,
+            bounds,
+            centroids,
+            depth: 0,
+        };
+        let (segments, max_depth) = build_subtree(task, root, rest, 1, params);
+        let mut order = Vec::with_capacity(n);
+        refs.par_iter()
+            .map(PrimRef::index)
+            .collect_into_vec(&mut order);
+        drop(refs);
+        close_gaps(&mut nodes, &segments);
+        (Bvh { nodes, max_depth }, order)
+    }
+}
+
+/// References to the primitives `bounds_of` keeps, with their box and centroid
+/// bounds, made on all threads in fixed blocks.
+fn make_refs<F>(prim_count: usize, bounds_of: F) -> (Vec<PrimRef>, Bounds, Bounds)
+where
+    F: Fn(usize) -> Option<Aabb> + Sync,
+{
+    let mut refs: Vec<PrimRef> = memory::zeroed_vec(prim_count);
+    // Each block keeps its primitives at its head; dropped ones leave its tail unused.
+    let blocks: Vec<(usize, Bounds, Bounds)> = refs
+        .par_chunks_mut(REF_BLOCK)
+        .enumerate()
+        .map(|(k, block)| {
+            let first = k * REF_BLOCK;
+            let mut kept = 0;
+            for i in first..first + block.len() {
+                if let Some(b) = bounds_of(i) {
+                    block[kept] = PrimRef::new(b, i);
+                    kept += 1;
+                }
+            }
+            let (bounds, centroids) = measure(&block[..kept]);
+            (kept, bounds, centroids)
+        })
+        .collect();
+    let heads: Vec<usize> = blocks.iter().map(|b| b.0).collect();
+    let kept = gather_block_heads(&mut refs, REF_BLOCK, &heads);
+    refs.truncate(kept);
+    let (bounds, centroids) = blocks
+        .iter()
+        .fold((Bounds::EMPTY, Bounds::EMPTY), |acc, b| {
+            (acc.0.union(b.1), acc.1.union(b.2))
+        });
+    (refs, bounds, centroids)
+}
+
+/// Builds the subtree of `task`: its root into `root`, the rest into `slots` (at
+/// least `2m - 2` of them for `m` primitives), which start at index `base` of the
+/// node array. Returns the filled runs of slots in order, and the subtree's depth.
+fn build_subtree(
+    task: Task<'_>,
+    root: &mut Slot,
+    slots: &mut [Slot],
+    base: u32,
+    params: &BvhParams,
+) -> (Vec<Segment>, usize) {
+    let n = task.refs.len();
+    if n <= params.parallel_threshold {
+        let (used, depth) = build_sequential(task, root, slots, base, params);
+        let segment = Segment {
+            start: base,
+            len: used as u32,
+            joined: false,
+        };
+        return (Vec::from_iter((used > 0).then_some(segment)), depth);
+    }
+    let depth = task.depth;
+    let mut bins = [AxisBins::EMPTY; 3];
+    match split_node(
+        task.refs,
+        task.bounds,
+        task.centroids,
+        depth,
+        params,
+        &mut bins,
+    ) {
+        Split::Leaf => {
+            root.write(node(task.bounds, task.offset, n));
+            (Vec::new(), depth)
+        }
+        Split::At {
+            mid,
+            bounds,
+            centroids,
+        } => {
+            // The children as a pair, then each one's own slots.
+            root.write(node(task.bounds, base, 0));
+            let (pair, rest) = slots.split_at_mut(2);
+            let (left_slots, right_slots) = rest.split_at_mut(2 * mid - 2);
+            let [left_root, right_root] = pair else {
+                unreachable!("split_at_mut(2)")
+            };
+            let (left_refs, right_refs) = task.refs.split_at_mut(mid);
+            let left = Task {
+                refs: left_refs,
+                offset: task.offset,
+                bounds: bounds[0],
+                centroids: centroids[0],
+                depth: depth + 1,
+            };
+            let right = Task {
+                refs: right_refs,
+                offset: task.offset + mid as u32,
+                bounds: bounds[1],
+                centroids: centroids[1],
+                depth: depth + 1,
+            };
+            let right_base = base + 2 * mid as u32;
+            let ((left_segments, left_depth), (right_segments, right_depth)) = rayon::join(
+                || build_subtree(left, left_root, left_slots, base + 2, params),
+                || build_subtree(right, right_root, right_slots, right_base, params),
+            );
+            let mut segments = vec![Segment {
+                start: base,
+                len: 2,
+                joined: true,
+            }];
+            segments.extend(left_segments);
+            segments.extend(right_segments);
+            (segments, left_depth.max(right_depth))
+        }
+    }
+}
+
+/// The single-threaded builder: an explicit work stack, children allocated as
+/// adjacent pairs from the start of `slots`. Returns the slots used and the depth.
+fn build_sequential(
+    task: Task<'_>,
+    root: &mut Slot,
+    slots: &mut [Slot],
+    base: u32,
+    params: &BvhParams,
+) -> (usize, usize) {
+    const ROOT: usize = usize::MAX;
+    let refs = task.refs;
+    let mut used = 0;
+    let mut max_depth = 0;
+    // (slot, start, end relative to `refs`, bounds, centroid bounds, depth)
+    let mut work = Vec::with_capacity(64);
+    let mut bins = [AxisBins::EMPTY; 3];
+    work.push((ROOT, 0, refs.len(), task.bounds, task.centroids, task.depth));
+    while let Some((slot, start, end, bounds, centroids, depth)) = work.pop() {
+        max_depth = max_depth.max(depth);
+        let split = split_node(
+            &mut refs[start..end],
+            bounds,
+            centroids,
+            depth,
+            params,
+            &mut bins,
+        );
+        let written = match split {
+            Split::Leaf => node(bounds, task.offset + start as u32, end - start),
+            Split::At {
+                mid,
+                bounds: child_bounds,
+                centroids,
+            } => {
+                let left = used;
+                used += 2;
+                let split = start + mid;
+                work.push((
+                    left + 1,
+                    split,
+                    end,
+                    child_bounds[1],
+                    centroids[1],
+                    depth + 1,
+                ));
+                work.push((left, start, split, child_bounds[0], centroids[0], depth + 1));
+                node(bounds, base + left as u32, 0)
+            }
+        };
+        if slot == ROOT {
+            root.write(written);
+        } else {
+            slots[slot].write(written);
+        }
+    }
+    (used, max_depth)
+}

@@ -371,7 +371,7 @@ impl Values {
                 "components must be finite and not all zero".into(),
             ));
         }
-        if !(self.exposure.abs() <= MAX_EXPOSURE_STOPS) {
+        if self.exposure.is_nan() || self.exposure.abs() > MAX_EXPOSURE_STOPS {
             return Err(single_error(
                 Field::Exposure,
                 origin(Field::Exposure),

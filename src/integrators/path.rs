@@ -165,7 +165,8 @@ impl Integrator for PathIntegrator {
 
             let u_survive = sample.next_1d();
             let largest = throughput.max_element();
-            if !(largest > 0.0) {
+            // Zero (nothing more to carry) or NaN.
+            if largest.is_nan() || largest <= 0.0 {
                 break;
             }
             if depth >= RUSSIAN_ROULETTE_DEPTH {

@@ -176,14 +176,13 @@ impl Scene {
         if order.is_empty() {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
-        if lights.is_empty() {
+        let area_lights = collect_area_lights(&positions, &triangles, &spheres, &materials);
+        if lights.is_empty() && area_lights.is_empty() {
             warnings.push(
-                "the scene has no lights ('P'): full mode shows only ambient and emitted colour"
+                "the scene has no lights ('P' or 'Ke'): full mode shows only ambient colour, path mode a white sky"
                     .into(),
             );
         }
-
-        let area_lights = collect_area_lights(&positions, &triangles, &spheres, &materials);
 
         // Step 2: the wide BVH and its packets; then the binary BVH can go.
         let shape_of = |prim: u32| {

@@ -7,8 +7,8 @@ against that reference at the test's sample count.
     python3 tests/data/path/make_reference.py
 
 Writes reference.exr (linear RGB, REFERENCE_SPP samples per pixel) and noise.toml
-(block errors of NOISE_SEEDS independent Mitsuba renders at TEST_SPP samples against
-the reference). The scene maps one to one onto Mitsuba plugins: `al0 * Kd` is a
+(block errors of independent Mitsuba renders at each of TEST_SPP samples per pixel
+against the reference: NOISE_SEEDS renders each). The scene maps one to one onto Mitsuba plugins: `al0 * Kd` is a
 two-sided `diffuse`, `al1` a `conductor` with `material = "none"`, `al2` with `Ni` a
 `dielectric`, `Ke` an `area` emitter on a black surface; a box pixel filter.
 """
@@ -25,8 +25,8 @@ FOV = 40.0
 LOOK_FROM, LOOK_TO, UP = [0.0, 1.0, 3.4], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]
 MAX_DEPTH = 64
 REFERENCE_SPP = 16384
-TEST_SPP = 64
-NOISE_SEEDS = 8
+TEST_SPP = [64, 1024]
+NOISE_SEEDS = 6
 BLOCK = 4
 
 
@@ -146,19 +146,23 @@ def main():
     with tempfile.TemporaryDirectory() as folder:
         reference = np.array(mi.render(mi.load_dict(scene_dict(folder, REFERENCE_SPP, 0))))
         mi.Bitmap(reference).write(os.path.join(HERE, "reference.exr"))
-        rows = []
-        for seed in range(1, NOISE_SEEDS + 1):
-            image = np.array(mi.render(mi.load_dict(scene_dict(folder, TEST_SPP, seed)), seed=seed))
-            rows.append(block_errors(image, reference))
+        noise = {}
+        for spp in TEST_SPP:
+            noise[spp] = []
+            for seed in range(1, NOISE_SEEDS + 1):
+                scene = mi.load_dict(scene_dict(folder, spp, seed))
+                noise[spp].append(block_errors(np.array(mi.render(scene, seed=seed)), reference))
     with open(os.path.join(HERE, "noise.toml"), "w") as f:
         f.write(f"# Written by make_reference.py with Mitsuba {mi.__version__} ({variant}).\n")
-        f.write(f"# Block errors ({BLOCK}x{BLOCK} blocks, relative) of {NOISE_SEEDS} Mitsuba renders at\n")
-        f.write(f"# {TEST_SPP} spp against reference.exr ({REFERENCE_SPP} spp).\n")
+        f.write(f"# Block errors ({BLOCK}x{BLOCK} blocks, relative) of {NOISE_SEEDS} Mitsuba renders per\n")
+        f.write(f"# sample count against reference.exr ({REFERENCE_SPP} spp).\n")
         f.write(f"width = {WIDTH}\nheight = {HEIGHT}\nfov = {FOV}\nmax_depth = {MAX_DEPTH}\n")
         f.write(f"look_from = {LOOK_FROM}\nlook_to = {LOOK_TO}\nblock = {BLOCK}\n")
-        f.write(f"test_spp = {TEST_SPP}\nreference_spp = {REFERENCE_SPP}\n")
-        f.write(f"mitsuba_mean = {[round(float(m), 5) for m, _ in rows]}\n")
-        f.write(f"mitsuba_p95 = {[round(float(p), 5) for _, p in rows]}\n")
+        f.write(f"reference_spp = {REFERENCE_SPP}\n")
+        for spp, rows in noise.items():
+            f.write(f"\n[[noise]]\nspp = {spp}\n")
+            f.write(f"mitsuba_mean = {[round(float(m), 5) for m, _ in rows]}\n")
+            f.write(f"mitsuba_p95 = {[round(float(p), 5) for _, p in rows]}\n")
     print(open(os.path.join(HERE, "noise.toml")).read())
 
 

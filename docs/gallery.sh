@@ -32,6 +32,7 @@ cornell=(examples/cornell-box/scene.obj "${size[@]}" --fov 60 --look-from 0,0.7,
 render "${cornell[@]}" --spp 16 -o $out/cornell.png
 render "${cornell[@]}" --mode normal -o $out/cornell-normal.png
 render "${cornell[@]}" --mode depth -o $out/cornell-depth.png
+render tests/data/path/cornell.obj --mode path "${size[@]}" --fov 40 --look-from 0,1,3.4 --look-to 0,1,0 --spp 1024 -o $out/path-cornell.png
 
 checkerboard=(examples/checkerboard/scene.obj "${size[@]}" --fov 50 --look-from 0,1.5,4 --look-to 0,0.6,-3 --depth 6)
 render "${checkerboard[@]}" -o $out/checkerboard-spp1.png

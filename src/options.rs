@@ -684,6 +684,61 @@ mod tests {
     }
 
     #[test]
+    fn path_mode_has_its_own_defaults_and_depth_limit() {
+        let path = PartialOptions {
+            mode: from_flag(Mode::Path, "--mode"),
+            ..PartialOptions::default()
+        };
+        let o = path.resolve().unwrap();
+        assert_eq!((o.depth, o.samples_per_pixel), PATH_DEFAULTS);
+        let deep = |mode| PartialOptions {
+            mode: from_flag(mode, "--mode"),
+            depth: from_flag(200, "--depth"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(deep(Mode::Path).resolve().unwrap().depth, 200);
+        assert_eq!(
+            error(&deep(Mode::Full)),
+            "invalid --depth: 200 is not in 1..=64"
+        );
+        for (stops, ok) in [
+            (3.5, true),
+            (-64.0, true),
+            (65.0, false),
+            (Float::NAN, false),
+        ] {
+            let o = PartialOptions {
+                exposure: from_flag(stops, "--exposure"),
+                ..path.clone()
+            };
+            assert_eq!(o.resolve().is_ok(), ok, "{stops}");
+        }
+        let seed = |value| PartialOptions {
+            seed: from_file(value, 9, "render.seed"),
+            ..PartialOptions::default()
+        };
+        assert_eq!(seed(7).resolve().unwrap().seed, 7);
+        assert_eq!(
+            error(&seed(-1)),
+            "scene.toml:9: render.seed: -1 is not in 0..=4294967295"
+        );
+    }
+
+    #[test]
+    fn modes_are_named_in_any_case() {
+        for (name, mode) in Mode::NAMES {
+            assert_eq!(name.to_uppercase().parse::<Mode>(), Ok(mode));
+            assert_eq!(mode.name(), name);
+        }
+        assert!(
+            "fancy"
+                .parse::<Mode>()
+                .unwrap_err()
+                .contains("full, depth, normal, path")
+        );
+    }
+
+    #[test]
     fn set_values_win_then_fallback_then_defaults() {
         let flags = PartialOptions {
             width: from_flag(10, "--width"),

@@ -200,6 +200,35 @@ mod tests {
     }
 
     #[test]
+    fn path_mode_applies_the_exposure_then_the_srgb_curve_clamped() {
+        let film = Film {
+            width: 4,
+            height: 1,
+            pixels: vec![
+                Vec3::splat(0.25),
+                Vec3::new(0.001, 0.0, -1.0),
+                Vec3::splat(100.0),
+                Vec3::splat(Float::NAN),
+            ],
+        };
+        let exposed = |stops| {
+            film.to_image(PostProcessing {
+                mode: Mode::Path,
+                exposure: stops,
+            })
+            .rgb
+        };
+        // 0.25 * 2 = 0.5 -> sRGB 0.7354 -> 188; the linear segment below 0.0031308;
+        // clamped above 1 and below 0; NaN black. One bright pixel changes nothing else.
+        assert_eq!(
+            exposed(1.0),
+            [188, 188, 188, 7, 0, 0, 255, 255, 255, 0, 0, 0]
+        );
+        assert_eq!(&exposed(0.0)[..3], [137, 137, 137]);
+        assert_eq!(film.to_image(Mode::Path).rgb, exposed(0.0));
+    }
+
+    #[test]
     fn depth_normalizes_by_farthest_hit_and_misses_are_white() {
         let film = Film {
             width: 3,

@@ -26,15 +26,37 @@ impl Progress {
     /// Starts timing a step called `label` of `total` units (`None` for a spinner).
     /// With `visible` false, or stderr not a terminal, nothing is ever drawn.
     pub fn start(label: &str, total: Option<u64>, visible: bool) -> Progress {
-        let template = match total {
-            Some(_) => {
+        Progress::with_rate(label, total, 0, visible)
+    }
+
+    /// [`Progress::start`] for rows of `samples_per_row` camera samples each, with
+    /// the samples per second so far (none shown for 0).
+    pub fn with_rate(
+        label: &str,
+        total: Option<u64>,
+        samples_per_row: u64,
+        visible: bool,
+    ) -> Progress {
+        let template = match (total, samples_per_row) {
+            (Some(_), 0) => {
                 "{msg} [{bar:40}] {pos}/{len} rows, {percent}%  elapsed {elapsed_precise}  ETA {average_eta}"
             }
-            None => "{spinner} {msg}  elapsed {elapsed_precise}",
+            (Some(_), _) => {
+                "{msg} [{bar:40}] {pos}/{len} rows, {percent}%  {samples_per_second}  elapsed {elapsed_precise}  ETA {average_eta}"
+            }
+            (None, _) => "{spinner} {msg}  elapsed {elapsed_precise}",
+        };
+        let rate = move |state: &ProgressState, out: &mut dyn std::fmt::Write| {
+            let seconds = state.elapsed().as_secs_f64();
+            if seconds > 0.0 {
+                let per_second = (state.pos() * samples_per_row) as f64 / seconds;
+                let _ = write!(out, "{:.2} M samples/s", per_second / 1e6);
+            }
         };
         let style = ProgressStyle::with_template(template)
             .expect("the templates above are valid")
             .with_key("average_eta", average_eta)
+            .with_key("samples_per_second", rate)
             .progress_chars("=> ");
         let bar = ProgressBar::with_draw_target(total, ProgressDrawTarget::hidden())
             .with_style(style)

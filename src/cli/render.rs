@@ -2,8 +2,9 @@
 
 use std::time::Instant;
 
+use raytracer::integrators::path::material_warnings;
 use raytracer::stats::{RayCounts, peak_memory_bytes};
-use raytracer::{BvhParams, ImageFormat, Scene, output, render_with_progress};
+use raytracer::{BvhParams, ImageFormat, Mode, Scene, output, render_with_progress};
 
 use super::args::RenderArgs;
 use super::interrupt;
@@ -34,7 +35,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     drop(loading);
     if options.samples_per_pixel_in_mode() != options.samples_per_pixel {
         warn(&format!(
-            "--spp {} applies to full mode only; {} mode takes one sample per pixel",
+            "--spp {} applies to full and path modes only; {} mode takes one sample per pixel",
             options.samples_per_pixel,
             options.mode.name()
         ));
@@ -42,8 +43,19 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     for warning in &scene.warnings {
         warn(warning);
     }
+    if options.mode == Mode::Path {
+        for warning in material_warnings(&scene.materials) {
+            warn(&warning);
+        }
+    }
 
-    let rendering = Progress::start("rendering", Some(options.height.into()), !quiet);
+    let samples_per_row = u64::from(options.width) * u64::from(options.samples_per_pixel_in_mode());
+    let rendering = Progress::with_rate(
+        "rendering",
+        Some(options.height.into()),
+        samples_per_row,
+        !quiet,
+    );
     let (film, rays) = render_with_progress(&scene, options, &|_row| rendering.inc());
     drop(rendering);
     let rendered = Instant::now();
@@ -57,7 +69,8 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
             render: (rendered - built).as_secs_f64(),
             write: (written - rendered).as_secs_f64(),
         };
-        print_stats(&scene, &stages, &rays);
+        let samples = samples_per_row * u64::from(options.height);
+        print_stats(&scene, &stages, &rays, samples);
     }
     Ok(())
 }
@@ -70,7 +83,8 @@ struct Stages {
     write: f64,
 }
 
-fn print_stats(scene: &Scene, stages: &Stages, rays: &RayCounts) {
+/// `samples` is the number of camera samples (paths, in path mode).
+fn print_stats(scene: &Scene, stages: &Stages, rays: &RayCounts, samples: u64) {
     let bvh = scene.bvh_summary();
     let ms = |s: f64| s * 1e3;
     eprintln!("parse         {:9.1} ms", ms(stages.parse));
@@ -85,14 +99,20 @@ fn print_stats(scene: &Scene, stages: &Stages, rays: &RayCounts) {
         bvh.packets,
     );
     eprintln!(
-        "render        {:9.1} ms  {} rays: {} primary, {} shadow, {} reflected, {} refracted; {:.1} Mrays/s",
+        "render        {:9.1} ms  {} rays: {} primary, {} shadow, {} reflected, {} refracted, {} scattered; {:.1} Mrays/s",
         ms(stages.render),
         rays.total(),
         rays.primary,
         rays.shadow,
         rays.reflected,
         rays.refracted,
+        rays.scattered,
         rays.total() as f64 / stages.render / 1e6
+    );
+    eprintln!(
+        "              {:9} samples (paths in path mode), {:.2} M samples/s",
+        samples,
+        samples as f64 / stages.render / 1e6
     );
     eprintln!("post+write    {:9.1} ms", ms(stages.write));
     eprintln!(

@@ -685,6 +685,25 @@ al = [0.1, 0.2, 0.7]
     }
 
     #[test]
+    fn path_mode_exposure_and_seed_are_read_with_their_lines() {
+        let loaded = Folder::new()
+            .parse("[render]\nmode = \"path\"\nexposure = -1.5\nseed = 42\n")
+            .unwrap();
+        let o = loaded.options.resolve().unwrap();
+        assert_eq!((o.mode, o.exposure, o.seed), (Mode::Path, -1.5, 42));
+        assert_eq!(
+            (o.depth, o.samples_per_pixel),
+            crate::options::PATH_DEFAULTS
+        );
+        let exposure = loaded.options.exposure.unwrap();
+        assert!(
+            matches!(exposure.origin, Origin::File { line: 3, .. }),
+            "{:?}",
+            exposure.origin
+        );
+    }
+
+    #[test]
     fn obj_spheres_and_lights_follow_the_transform() {
         let folder = Folder::new();
         let text =

@@ -113,6 +113,66 @@ impl Film {
     }
 }
 
+/// Why a film could not be denoised.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DenoiseError {
+    /// This build has no denoiser.
+    #[error(
+        "this build has no denoiser: rebuild with `cargo build --release --features denoise`, with OIDN_DIR naming Intel Open Image Denoise (for example the `oidn` folder of PyPI's `pyoidn` wheel)"
+    )]
+    NotBuilt,
+    /// Open Image Denoise failed.
+    #[error("Open Image Denoise failed: {0}")]
+    Failed(String),
+}
+
+/// Whether this build can denoise ([`Film::denoised`]), so that a caller can say so
+/// before a long render.
+///
+/// # Errors
+/// [`DenoiseError::NotBuilt`] in builds without the `denoise` feature.
+pub fn check_denoiser() -> Result<(), DenoiseError> {
+    if cfg!(feature = "denoise") {
+        Ok(())
+    } else {
+        Err(DenoiseError::NotBuilt)
+    }
+}
+
+impl Film {
+    /// The film with Monte Carlo noise removed by Intel Open Image Denoise's
+    /// ray-tracing filter (HDR, linear, colour only), for path mode. Available in
+    /// builds with the `denoise` feature; others return [`DenoiseError::NotBuilt`].
+    ///
+    /// # Errors
+    /// No denoiser in this build, or the library failed (no CPU device, say).
+    pub fn denoised(&self) -> Result<Film, DenoiseError> {
+        #[cfg(feature = "denoise")]
+        {
+            let failed = |e: oidn::Error| DenoiseError::Failed(format!("{e:?}"));
+            let device = oidn::Device::cpu().map_err(failed)?;
+            let mut color: Vec<f32> = self.pixels.iter().flat_map(|v| v.to_array()).collect();
+            let mut filter = oidn::RayTracing::try_new(&device).map_err(failed)?;
+            filter
+                .srgb(false)
+                .hdr(true)
+                .image_dimensions(self.width as usize, self.height as usize);
+            filter.filter_in_place(&mut color).map_err(failed)?;
+            device.get_error().map_err(failed)?;
+            Ok(Film {
+                width: self.width,
+                height: self.height,
+                pixels: color
+                    .chunks_exact(3)
+                    .map(|c| Vec3::new(c[0], c[1], c[2]))
+                    .collect(),
+            })
+        }
+        #[cfg(not(feature = "denoise"))]
+        Err(DenoiseError::NotBuilt)
+    }
+}
+
 /// Post-processing of one mode, with the image-wide maximum it needs.
 #[derive(Clone, Copy)]
 enum Encoding {

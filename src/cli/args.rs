@@ -56,6 +56,10 @@ pub struct RenderArgs {
     /// on stderr.
     #[arg(long)]
     pub stats: bool,
+    /// Remove path mode's Monte Carlo noise with Intel Open Image Denoise before the
+    /// image is written (PNG and EXR). Needs a build with `--features denoise`.
+    #[arg(long)]
+    pub denoise: bool,
 }
 
 /// The scene and how to look at it: shared by `render` and `bench`. Camera and render

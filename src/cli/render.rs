@@ -23,6 +23,10 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
             eprintln!("warning: {message}");
         }
     };
+    if args.denoise {
+        // Before any work: a build without the denoiser says so at once.
+        raytracer::postprocess::check_denoiser()?;
+    }
 
     let start = Instant::now();
     let loading = Progress::start("loading the scene", None, !quiet);
@@ -58,6 +62,17 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     );
     let (film, rays) = render_with_progress(&scene, options, &|_row| rendering.inc());
     drop(rendering);
+    let film = match (args.denoise, options.mode) {
+        (true, Mode::Path) => film.denoised()?,
+        (true, mode) => {
+            warn(&format!(
+                "--denoise applies to path mode only; {} mode is written as rendered",
+                mode.name()
+            ));
+            film
+        }
+        (false, _) => film,
+    };
     let rendered = Instant::now();
     film.write(options, format, &args.output)?;
     let written = Instant::now();

@@ -37,17 +37,22 @@ def main():
     parser.add_argument("--height", type=int, default=240)
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--threads", type=int, default=0,
+                        help="threads for both (0: every core): ours -j N, Dr.Jit's thread count N")
     parser.add_argument("--binary", default=os.path.join(ROOT, "target", "release", "raytracer"))
     args = parser.parse_args()
     ref.WIDTH, ref.HEIGHT = args.width, args.height
     variant = os.environ.get("MITSUBA_VARIANT", "llvm_ad_rgb")
     mi.set_variant(variant)
+    if args.threads:
+        import drjit as dr
+        dr.set_thread_count(args.threads)
     ours_cmd = [
         args.binary, "render", os.path.join(ROOT, "tests", "data", "path", "cornell.obj"),
         "--mode", "path", "--width", str(args.width), "--height", str(args.height),
         "--fov", str(ref.FOV), "--look-from", ",".join(map(str, ref.LOOK_FROM)),
         "--look-to", ",".join(map(str, ref.LOOK_TO)), "--depth", str(ref.MAX_DEPTH),
-        "--spp", str(args.spp), "-q",
+        "--spp", str(args.spp), "-q", "-j", str(args.threads),
     ]
     ours, theirs = [], []
     with tempfile.TemporaryDirectory() as folder:
@@ -64,7 +69,8 @@ def main():
             theirs.append(time.perf_counter() - start)
     samples = args.width * args.height * args.spp
     a, b = statistics.median(ours), statistics.median(theirs)
-    print(f"scene: tests/data/path/cornell.obj {args.width}x{args.height}, {args.spp} spp, max depth {ref.MAX_DEPTH}")
+    threads = args.threads or os.cpu_count()
+    print(f"scene: tests/data/path/cornell.obj {args.width}x{args.height}, {args.spp} spp, max depth {ref.MAX_DEPTH}, {threads} thread(s) each")
     print(f"ours (whole process):          median {a:.3f} s  ({samples / a / 1e6:.2f} M samples/s)  runs {[round(t, 3) for t in ours]}")
     print(f"Mitsuba {mi.__version__} {variant} (warm): median {b:.3f} s  ({samples / b / 1e6:.2f} M samples/s)  runs {[round(t, 3) for t in theirs]}")
     print(f"Mitsuba / ours: {b / a:.2f}x")

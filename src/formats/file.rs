@@ -35,7 +35,9 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
 
 /// Decompresses all gzip members of `bytes`. Memory is reserved step by step with
 /// `try_reserve`, so that a small file that expands beyond memory (a "zip bomb")
-/// fails with a message instead of aborting the process.
+/// fails with a message instead of aborting the process; and the first step must look
+/// like a scene file ([`looks_like_a_scene`]), so that a bomb of binary data (2 GiB of
+/// NUL bytes in 2 MB, say) is refused after one step instead of inflated whole.
 fn gunzip(bytes: &[u8]) -> io::Result<Vec<u8>> {
     let too_large = || {
         io::Error::new(
@@ -50,7 +52,6 @@ fn gunzip(bytes: &[u8]) -> io::Result<Vec<u8>> {
         None => 0,
     };
     let mut text = Vec::new();
-    text.try_reserve_exact(hint).map_err(|_| too_large())?;
     let mut decoder = flate2::read::MultiGzDecoder::new(bytes);
     loop {
         text.try_reserve(GUNZIP_STEP).map_err(|_| too_large())?;
@@ -60,7 +61,28 @@ fn gunzip(bytes: &[u8]) -> io::Result<Vec<u8>> {
         if read == 0 {
             return Ok(text);
         }
+        if text.len() == read {
+            // The first step: judge it before reserving for the rest.
+            if !looks_like_a_scene(&text) {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!(
+                        "decompresses to binary data, not a scene file (refused after the first {} MiB)",
+                        GUNZIP_STEP >> 20
+                    ),
+                ));
+            }
+            text.try_reserve_exact(hint.saturating_sub(text.len()))
+                .map_err(|_| too_large())?;
+        }
     }
+}
+
+/// Whether the start of a decompressed file can be a scene file the readers take:
+/// text (OBJ, MTL, TOML, glTF JSON) has no NUL byte; binary PLY and GLB files start
+/// with their magic words (`ply`, `glTF`).
+fn looks_like_a_scene(start: &[u8]) -> bool {
+    start.starts_with(b"ply") || start.starts_with(b"glTF") || memchr::memchr(0, start).is_none()
 }
 
 /// Reads a file as [`read_file`] does, but hands it over in pieces as they are

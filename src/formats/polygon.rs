@@ -53,14 +53,19 @@ pub(crate) enum Triangulation {
 }
 
 /// Triangulates the polygon whose corners are `points`, in order (at least 3).
+///
+/// Convex polygons (the common case: quads) allocate nothing.
 pub(crate) fn triangulate(points: &[Vec3]) -> Triangulation {
     let n = points.len();
     if n <= 3 || n > u32::MAX as usize {
         return Triangulation::Fan;
     }
-    let Some(outline) = project(points) else {
+    let Some(plane) = Plane::of(points) else {
         return Triangulation::Fan;
     };
+    if is_convex(n, |i| plane.project(points[i])) {
+        return Triangulation::Fan;
+    }
     // How far the corners may be off their written place: `f32` rounding, relative to
     // the largest coordinate.
     let magnitude = points
@@ -70,30 +75,48 @@ pub(crate) fn triangulate(points: &[Vec3]) -> Triangulation {
     let straight = Straightness {
         rounding: 4.0 * f64::from(f32::EPSILON) * f64::from(magnitude),
     };
-    if is_convex(&outline) {
-        return Triangulation::Fan;
-    }
+    let outline = points.iter().map(|&p| plane.project(p)).collect();
     Triangulation::Triangles(EarClipper::new(outline, straight).run())
 }
 
-/// The corners in 2D coordinates of the polygon's Newell plane, oriented so that the
-/// outline runs counter-clockwise (positive area); `None` if it has no plane.
-fn project(points: &[Vec3]) -> Option<Vec<[f64; 2]>> {
-    // Relative to the first corner, in f64: far from the origin, f32 differences of
-    // nearby corners would lose the digits that tell the turns apart.
-    let origin = points[0].as_dvec3();
-    let relative: Vec<glam::DVec3> = points.iter().map(|p| p.as_dvec3() - origin).collect();
-    let mut normal = glam::DVec3::ZERO;
-    for (i, a) in relative.iter().enumerate() {
-        let b = relative[(i + 1) % relative.len()];
-        normal += a.cross(b);
+/// A polygon's Newell plane, as a frame that maps its corners to 2D so that its
+/// outline runs counter-clockwise (positive area).
+struct Plane {
+    /// The first corner: coordinates are taken relative to it, in f64, since far from
+    /// the origin f32 differences of nearby corners would lose the digits that tell
+    /// the turns apart.
+    origin: glam::DVec3,
+    u: glam::DVec3,
+    v: glam::DVec3,
+}
+
+impl Plane {
+    /// `None` if the polygon has no plane: its area vector is zero.
+    fn of(points: &[Vec3]) -> Option<Plane> {
+        let origin = points[0].as_dvec3();
+        let mut normal = glam::DVec3::ZERO;
+        let mut a = glam::DVec3::ZERO;
+        for p in &points[1..] {
+            let b = p.as_dvec3() - origin;
+            normal += a.cross(b);
+            a = b;
+        }
+        let normal = normal.try_normalize()?;
+        // Any unit vector perpendicular to the normal, and the one that completes a
+        // right-handed frame: (u, v, normal) makes the outline counter-clockwise.
+        let u = normal.any_orthonormal_vector();
+        Some(Plane {
+            origin,
+            u,
+            v: normal.cross(u),
+        })
     }
-    let normal = normal.try_normalize()?;
-    // Any unit vector perpendicular to the normal, and the one that completes a
-    // right-handed frame: (u, v, normal) makes the outline counter-clockwise.
-    let u = normal.any_orthonormal_vector();
-    let v = normal.cross(u);
-    Some(relative.iter().map(|p| [p.dot(u), p.dot(v)]).collect())
+
+    #[inline]
+    fn project(&self, p: Vec3) -> [f64; 2] {
+        let d = p.as_dvec3() - self.origin;
+        [d.dot(self.u), d.dot(self.v)]
+    }
 }
 
 /// `(b - a) x (c - b)`: positive for a left (convex) turn at `b` of a
@@ -106,13 +129,11 @@ fn turn(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 /// Whether the counter-clockwise `outline` is convex: no turn goes right (beyond
 /// what rounding explains), and the turns add up to one full circle (a star drawn in
 /// one stroke turns left everywhere, twice round).
-fn is_convex(outline: &[[f64; 2]]) -> bool {
-    let n = outline.len();
+fn is_convex(n: usize, outline: impl Fn(usize) -> [f64; 2]) -> bool {
     let mut total = 0.0;
+    let (mut a, mut b) = (outline(n - 1), outline(0));
     for i in 0..n {
-        let a = outline[(i + n - 1) % n];
-        let b = outline[i];
-        let c = outline[(i + 1) % n];
+        let c = outline((i + 1) % n);
         let (e1, e2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - b[0], c[1] - b[1]]);
         let cross = e1[0] * e2[1] - e1[1] * e2[0];
         // Without the rounding allowance of the ear clipper: on a dense curve (a
@@ -125,6 +146,7 @@ fn is_convex(outline: &[[f64; 2]]) -> bool {
         }
         let dot = e1[0] * e2[0] + e1[1] * e2[1];
         total += cross.atan2(dot);
+        (a, b) = (b, c);
     }
     (total - std::f64::consts::TAU).abs() < 1e-3
 }

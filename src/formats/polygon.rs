@@ -345,6 +345,10 @@ impl EarClipper {
     }
 }
 
+/// Ranges of at most this many corners are leaves, scanned in turn: cheaper than more
+/// levels of the tree.
+const LEAF: usize = 8;
+
 /// The corners that may block ears, in an implicit k-d tree (the median of each range
 /// splits it along its longer side) with the count of corners still in each subtree,
 /// so that an ear test visits only the corners near the ear, and none of those gone.
@@ -366,7 +370,7 @@ impl Blockers {
         /// line (the teeth of a comb) would make alternating axes look at half the
         /// tree.
         fn build(items: &mut [u32], axes: &mut [u8], points: &[[f64; 2]]) {
-            if items.len() <= 1 {
+            if items.len() <= LEAF {
                 return;
             }
             let mut min = [f64::INFINITY; 2];
@@ -396,7 +400,7 @@ impl Blockers {
         }
         let mut alive = vec![0; items.len()];
         fn count(alive: &mut [u32], lo: usize, hi: usize) {
-            if lo >= hi {
+            if hi - lo <= LEAF {
                 return;
             }
             let mid = (lo + hi) / 2;
@@ -422,7 +426,7 @@ impl Blockers {
         }
         let at = at as usize;
         let (mut lo, mut hi) = (0, self.items.len());
-        while lo < hi {
+        while hi - lo > LEAF {
             let mid = (lo + hi) / 2;
             self.alive[mid] -= 1;
             match at.cmp(&mid) {
@@ -433,26 +437,41 @@ impl Blockers {
         }
     }
 
-    /// The first corner in the box of the triangle `corners` for which `test` holds.
+    /// The first corner near the counter-clockwise triangle `corners` for which `test`
+    /// holds. Subtrees whose region lies wholly outside the triangle are skipped: a
+    /// box test alone would look at every corner in the box of a long diagonal sliver
+    /// (the spikes of a star).
     fn find_in(&self, corners: [[f64; 2]; 3], test: impl Fn(u32) -> bool) -> Option<u32> {
         let min = [0, 1].map(|a| corners[0][a].min(corners[1][a]).min(corners[2][a]));
         let max = [0, 1].map(|a| corners[0][a].max(corners[1][a]).max(corners[2][a]));
-        self.search(0, self.items.len(), min, max, &test)
+        let triangle = Triangle { corners };
+        self.search(0, self.items.len(), min, max, &triangle, &test)
     }
 
+    /// The subtree of `lo..hi`, whose corners lie in the region `min..max` (its
+    /// ancestors' split lines, clamped to the triangle's box).
     fn search(
         &self,
         lo: usize,
         hi: usize,
         min: [f64; 2],
         max: [f64; 2],
+        triangle: &Triangle,
         test: &impl Fn(u32) -> bool,
     ) -> Option<u32> {
-        if lo >= hi {
-            return None;
+        if hi - lo <= LEAF {
+            return (lo..hi)
+                .find(|&k| {
+                    let (i, p) = (self.items[k], self.points[k]);
+                    self.position[i as usize] != NONE
+                        && (min[0]..=max[0]).contains(&p[0])
+                        && (min[1]..=max[1]).contains(&p[1])
+                        && test(i)
+                })
+                .map(|k| self.items[k]);
         }
         let mid = (lo + hi) / 2;
-        if self.alive[mid] == 0 {
+        if self.alive[mid] == 0 || min[0] > max[0] || min[1] > max[1] || triangle.misses(min, max) {
             return None;
         }
         let p = self.points[mid];
@@ -465,15 +484,36 @@ impl Blockers {
         {
             return Some(i);
         }
-        if min[axis] <= p[axis]
-            && let Some(found) = self.search(lo, mid, min, max, test)
-        {
+        let mut left_max = max;
+        left_max[axis] = left_max[axis].min(p[axis]);
+        if let Some(found) = self.search(lo, mid, min, left_max, triangle, test) {
             return Some(found);
         }
-        if max[axis] >= p[axis] {
-            return self.search(mid + 1, hi, min, max, test);
-        }
-        None
+        let mut right_min = min;
+        right_min[axis] = right_min[axis].max(p[axis]);
+        self.search(mid + 1, hi, right_min, max, triangle, test)
+    }
+}
+
+/// A counter-clockwise triangle, for pruning the search.
+struct Triangle {
+    corners: [[f64; 2]; 3],
+}
+
+impl Triangle {
+    /// Whether the box `min..max` lies wholly on the outer side of an edge: then no
+    /// point of it is in the triangle.
+    #[inline]
+    fn misses(&self, min: [f64; 2], max: [f64; 2]) -> bool {
+        (0..3).any(|e| {
+            let (p, q) = (self.corners[e], self.corners[(e + 1) % 3]);
+            // Inside is to the left of p -> q: the normal (-dy, dx) points in. The box
+            // corner farthest along it decides.
+            let n = [p[1] - q[1], q[0] - p[0]];
+            let x = if n[0] >= 0.0 { max[0] } else { min[0] };
+            let y = if n[1] >= 0.0 { max[1] } else { min[1] };
+            n[0] * (x - p[0]) + n[1] * (y - p[1]) < 0.0
+        })
     }
 }
 
@@ -605,7 +645,7 @@ mod tests {
         let star: Vec<Vec3> = (0..n)
             .map(|k| {
                 let a = std::f32::consts::TAU * k as f32 / n as f32;
-                let r = if k % 2 == 0 { 1.0 } else { 0.999 };
+                let r = if k % 2 == 0 { 1.0 } else { 0.9 };
                 Vec3::new(r * a.cos(), r * a.sin(), 0.0)
             })
             .collect();

@@ -64,7 +64,7 @@ fn box_scene_counts_and_values() {
 #[test]
 fn every_face_form_and_polygon_fans() {
     let d = parse(
-        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0.5 2 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
          f 1 2 3\nf 1/1 2/2 3/3\nf 1//1 2//1 3//1\nf 1/1/1 2/2/1 3/3/1\nf 1 2 3 4 5\n",
     )
     .unwrap();
@@ -133,12 +133,12 @@ fn malformed_lines_name_file_line_and_problem() {
         ("vn 1 inf 3\n", "scene.obj:1: non-finite value 'inf'"),
         ("vt\n", "scene.obj:1: 'vt' needs 1 value, found 0"),
         (
-            &format!("{tri}f 1 2\n"),
-            "scene.obj:4: face has 2 vertices, needs at least 3",
+            &format!("{tri}f 1 9\n"),
+            "scene.obj:4: face index 9 out of range (3 vertices defined)",
         ),
         (
-            &format!("{tri}f\n"),
-            "scene.obj:4: face has 0 vertices, needs at least 3",
+            "s on\n",
+            "scene.obj:1: smoothing group 'on' is not 'off' or a whole number",
         ),
         (
             &format!("{tri}f 1 2 0\n"),
@@ -193,16 +193,19 @@ fn missing_files_and_mtl_errors_name_their_path() {
         "{message}"
     );
 
+    // A missing library is a warning (tests/forgiving.rs); one that cannot be read is
+    // an error.
     let obj = dir.path().join("scene.obj");
-    std::fs::write(&obj, "mtllib gone.mtl\n").unwrap();
+    std::fs::create_dir(dir.path().join("folder.mtl")).unwrap();
+    std::fs::write(&obj, "mtllib folder.mtl\n").unwrap();
     let message = formats::load_obj(&obj).unwrap_err().to_string();
-    assert!(
-        message.starts_with(&format!(
-            "{}:1: cannot read material library {}: ",
+    assert_eq!(
+        message,
+        format!(
+            "{}:1: cannot read material library {}: is a folder, not a file",
             obj.display(),
-            dir.path().join("gone.mtl").display()
-        )),
-        "{message}"
+            dir.path().join("folder.mtl").display()
+        )
     );
 
     std::fs::write(dir.path().join("bad.mtl"), "newmtl a\nKd 1 1\n").unwrap();

@@ -107,21 +107,15 @@ pub enum ParseErrorKind {
         /// How many elements existed at that line.
         defined: usize,
     },
-    /// A face with fewer than 3 vertices.
+    /// A PLY face with fewer than 3 vertices (an OBJ face is skipped with a warning).
     #[error("face has {0} vertices, needs at least 3")]
     TooFewVertices(usize),
+    /// An `s` statement whose group is neither `off` nor a whole number.
+    #[error("smoothing group '{0}' is not 'off' or a whole number")]
+    BadSmoothingGroup(String),
     /// A sphere with a negative radius.
     #[error("sphere radius {0} is negative")]
     NegativeRadius(f32),
-    /// A value that must not be negative, such as the Phong exponent `Ns` (a negative
-    /// exponent makes the highlight infinite where it should vanish).
-    #[error("'{statement}' cannot be negative, found {value}")]
-    Negative {
-        /// The keyword, such as `Ns`.
-        statement: &'static str,
-        /// The value as read.
-        value: f32,
-    },
     /// A file named by `mtllib` cannot be read.
     #[error("cannot read material library {}: {reason}", shown_path(path))]
     MaterialLibrary {
@@ -179,7 +173,7 @@ pub enum ParseErrorKind {
 
 /// A path for a message, cut after [`MAX_SHOWN_PATH`] characters: it comes from a
 /// line of the file, which may be megabytes long.
-fn shown_path(path: &Path) -> String {
+pub(super) fn shown_path(path: &Path) -> String {
     let full = path.display().to_string();
     match full.char_indices().nth(MAX_SHOWN_PATH) {
         Some((cut, _)) => format!("{}...", &full[..cut]),

@@ -19,6 +19,7 @@ mod lex;
 mod mtl;
 mod obj;
 mod ply;
+mod polygon;
 mod toml;
 
 pub use compose::Transform;

@@ -12,6 +12,15 @@ use crate::math::{Float, Vec3};
 /// # Errors
 /// A malformed supported line, with its line number.
 pub fn parse_mtl(text: &[u8], path: &Path) -> Result<Vec<Material>, SceneError> {
+    parse_mtl_with_warnings(text, path).map(|(materials, _)| materials)
+}
+
+/// [`parse_mtl`], with the warnings about values that other tools write and this
+/// renderer reads as the nearest valid one, each naming file and line.
+pub(crate) fn parse_mtl_with_warnings(
+    text: &[u8],
+    path: &Path,
+) -> Result<(Vec<Material>, Vec<String>), SceneError> {
     let at = |line, kind| SceneError::Parse {
         path: path.to_path_buf(),
         line,
@@ -19,16 +28,33 @@ pub fn parse_mtl(text: &[u8], path: &Path) -> Result<Vec<Material>, SceneError> 
     };
     lex::check_text(text).map_err(|(line, kind)| at(line, kind))?;
     let mut materials: Vec<Material> = Vec::new();
+    // The first line with a negative `Ns`, and how many there are.
+    let mut negative_ns: Option<(usize, usize)> = None;
     for (line_number, line) in lex::lines(text) {
-        parse_line(line, &mut materials).map_err(|kind| at(line_number, kind))?;
+        let clamped = parse_line(line, &mut materials).map_err(|kind| at(line_number, kind))?;
+        if clamped {
+            let (_, count) = negative_ns.get_or_insert((line_number, 0));
+            *count += 1;
+        }
     }
-    Ok(materials)
+    let warnings = negative_ns
+        .map(|(line, count)| {
+            format!(
+                "{}:{line}: 'Ns' below 0 read as 0 ({count} line{})",
+                path.display(),
+                if count == 1 { "" } else { "s" }
+            )
+        })
+        .into_iter()
+        .collect();
+    Ok((materials, warnings))
 }
 
-fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<(), ParseErrorKind> {
+/// Reads one line into `materials`; `true` if it was an `Ns` below 0, read as 0.
+fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<bool, ParseErrorKind> {
     let mut tokens = lex::tokens(line);
     let Some(keyword) = tokens.next() else {
-        return Ok(());
+        return Ok(false);
     };
     if keyword == b"newmtl" {
         let name = lex::rest_of_line(line, b"newmtl");
@@ -36,19 +62,19 @@ fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<(), ParseErr
             return Err(ParseErrorKind::MissingName("newmtl"));
         }
         materials.push(Material::named(String::from_utf8_lossy(name)));
-        return Ok(());
+        return Ok(false);
     }
     let known = matches!(
         keyword,
         b"Ka" | b"Kd" | b"Ks" | b"Ke" | b"Ns" | b"Ni" | b"d" | b"Tr" | b"al"
     );
     if !known {
-        return Ok(());
+        return Ok(false);
     }
     // `Ka spectral file.rfl` and `Ka xyz x y z` are other colour spaces we do not model.
     let mut peek = tokens.clone();
     if matches!(peek.next(), Some(b"spectral" | b"xyz")) {
-        return Ok(());
+        return Ok(false);
     }
     let material = materials
         .last_mut()
@@ -58,26 +84,20 @@ fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<(), ParseErr
         b"Kd" => material.diffuse = colour("Kd", &mut tokens)?,
         b"Ks" => material.specular = colour("Ks", &mut tokens)?,
         b"Ke" => material.emission = colour("Ke", &mut tokens)?,
-        b"Ns" => material.shininess = non_negative("Ns", &mut tokens)?,
+        b"Ns" => {
+            // Some exporters write a negative exponent; other readers clamp it to 0
+            // (a negative one would make highlights infinite where they should fade).
+            let ns = lex::floats::<1>("Ns", &mut tokens)?[0];
+            material.shininess = ns.max(0.0);
+            return Ok(ns < 0.0);
+        }
         b"Ni" => material.ior = lex::floats::<1>("Ni", &mut tokens)?[0],
         b"d" => material.opacity = lex::floats::<1>("d", &mut tokens)?[0],
         b"Tr" => material.opacity = 1.0 - lex::floats::<1>("Tr", &mut tokens)?[0],
         b"al" => material.albedo = colour("al", &mut tokens)?.into(),
         _ => unreachable!("filtered by `known` above"),
     }
-    Ok(())
-}
-
-/// One value that must be at least 0.
-fn non_negative<'a>(
-    statement: &'static str,
-    tokens: &mut impl Iterator<Item = &'a [u8]>,
-) -> Result<Float, ParseErrorKind> {
-    let value = lex::floats::<1>(statement, tokens)?[0];
-    if value < 0.0 {
-        return Err(ParseErrorKind::Negative { statement, value });
-    }
-    Ok(value)
+    Ok(false)
 }
 
 /// An RGB triple; a single value means grey.
@@ -128,10 +148,19 @@ mod tests {
         assert_eq!(err.to_string(), "test.mtl:2: 'Ks' needs 3 values, found 2");
         let err = parse("newmtl a\nNs\n").unwrap_err();
         assert_eq!(err.to_string(), "test.mtl:2: 'Ns' needs 1 value, found 0");
-        let err = parse("newmtl a\nNs -0.5\n").unwrap_err();
+    }
+
+    #[test]
+    fn a_negative_ns_is_read_as_zero_with_one_warning() {
+        let text = "newmtl a\nNs -5\nnewmtl b\nNs 10\nnewmtl c\nNs -0.5\n";
+        let (m, warnings) = parse_mtl_with_warnings(text.as_bytes(), Path::new("t.mtl")).unwrap();
         assert_eq!(
-            err.to_string(),
-            "test.mtl:2: 'Ns' cannot be negative, found -0.5"
+            m.iter().map(|m| m.shininess).collect::<Vec<_>>(),
+            [0.0, 10.0, 0.0]
         );
+        assert_eq!(warnings, ["t.mtl:2: 'Ns' below 0 read as 0 (2 lines)"]);
+        let (_, warnings) =
+            parse_mtl_with_warnings(b"newmtl a\nNs 0\n", Path::new("t.mtl")).unwrap();
+        assert!(warnings.is_empty());
     }
 }

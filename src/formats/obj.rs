@@ -28,9 +28,11 @@ use super::error::{IndexKind, ParseErrorKind, SceneError};
 use super::{SceneDescription, SphereDesc, TriangleDesc, file, lex, mtl, read_file};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Vec2, Vec3};
+use faces::{ChunkFaces, INHERITED_GROUP, Shaping};
 use scan::Parts;
 use survey::Survey;
 
+mod faces;
 mod scan;
 mod survey;
 
@@ -164,7 +166,7 @@ fn parse_surveyed(
     }
 
     // Pass 3: every chunk into its parts of the final arrays.
-    let mut scene = resolver.scene;
+    let mut scene = std::mem::take(&mut resolver.scene);
     let lengths = |count: fn(&Counts) -> usize| -> Vec<usize> {
         let mut lengths: Vec<usize> = bases.iter().skip(1).map(count).collect();
         lengths.push(count(&total));
@@ -210,9 +212,10 @@ fn parse_surveyed(
         .map(|(((mut parts, text), base), materials)| fill(text, base, materials, &mut parts))
         .collect();
     let mut complete = true;
+    let mut shapings = Vec::with_capacity(filled.len());
     for filled in filled {
         match filled {
-            Filled::Complete => {}
+            Filled::Complete(shaping) => shapings.push(shaping),
             Filled::Failed { line, kind } => {
                 return Err(SceneError::Parse {
                     path: path.to_path_buf(),
@@ -247,7 +250,30 @@ fn parse_surveyed(
     };
     concat(&statements, |c| &c.spheres, sphere, &mut scene.spheres);
     concat(&statements, |c| &c.lights, |_, &l| l, &mut scene.lights);
+    let chunk_faces = chunk_faces(&statements, &bases, shapings);
+    faces::finish(&mut scene, chunk_faces);
+    resolver.finish_warnings(&mut scene);
     Ok(scene)
+}
+
+/// Each chunk's notes for pass 4, placed: where its triangles start, and the smoothing
+/// group in force at its start (the last `s` of the chunks before it, 0 if none).
+fn chunk_faces(statements: &[Chunk], bases: &[Counts], shapings: Vec<Shaping>) -> Vec<ChunkFaces> {
+    let mut group = 0;
+    statements
+        .iter()
+        .zip(bases)
+        .zip(shapings)
+        .map(|((chunk, base), shaping)| {
+            let faces = ChunkFaces {
+                shaping,
+                first_triangle: base.triangles,
+                group_before: group,
+            };
+            group = chunk.smoothing.unwrap_or(group);
+            faces
+        })
+        .collect()
 }
 
 /// The triangles of the chunks up to and including `chunk`.
@@ -274,8 +300,8 @@ fn parts_of<T>(out: &mut Vec<T>, lengths: Vec<usize>) -> Vec<&mut [MaybeUninit<T
 
 /// What pass 3 made of a chunk.
 enum Filled {
-    /// Every element of the chunk's parts is written.
-    Complete,
+    /// Every element of the chunk's parts is written; what pass 4 needs of its faces.
+    Complete(Shaping),
     /// The chunk's first problem, at `line` of the file.
     Failed { line: usize, kind: ParseErrorKind },
     /// The chunk has more or fewer elements than pass 1 counted.
@@ -284,10 +310,11 @@ enum Filled {
 
 /// Pass 3 on one chunk: the scanner, or the general parser if it gives up.
 fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<'_>) -> Filled {
-    if scan::fill(text, base, materials, parts).is_some() {
-        return Filled::Complete;
+    let mut shaping = Shaping::default();
+    if scan::fill(text, base, materials, parts, &mut shaping).is_some() {
+        return Filled::Complete(shaping);
     }
-    let chunk = Chunk::parse(text, *base);
+    let mut chunk = Chunk::parse(text, *base);
     if let Some((line, kind)) = chunk.error {
         return Filled::Failed { line, kind };
     }
@@ -306,7 +333,7 @@ fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<
                 && copy_into(&chunk.normals, parts.normals)
                 && copy_into(&triangles, parts.triangles) =>
         {
-            Filled::Complete
+            Filled::Complete(std::mem::take(&mut chunk.shaping))
         }
         _ => Filled::Incomplete,
     }
@@ -373,7 +400,7 @@ fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, Sc
     check_text(chunks, path)?;
     let counts: Vec<Counts> = chunks.par_iter().map(|text| Counts::of(text)).collect();
     let (bases, _) = bases(counts.iter());
-    let parsed: Vec<Chunk> = chunks
+    let mut parsed: Vec<Chunk> = chunks
         .par_iter()
         .zip(bases)
         .map(|(text, base)| Chunk::parse(text, base))
@@ -381,7 +408,12 @@ fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, Sc
     let mut resolver = Resolver::new(path);
     let mut materials = Vec::with_capacity(parsed.len());
     let mut triangles = 0;
+    let mut bases = Vec::with_capacity(parsed.len());
     for chunk in &parsed {
+        bases.push(Counts {
+            triangles,
+            ..Counts::default()
+        });
         triangles += chunk.triangles.len();
         match resolver.resolve(chunk, triangles) {
             Ok(slots) => materials.push(slots),
@@ -390,7 +422,7 @@ fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, Sc
             }
         }
     }
-    let mut scene = resolver.scene;
+    let mut scene = std::mem::take(&mut resolver.scene);
     concat(&parsed, |c| &c.positions, |_, &p| p, &mut scene.positions);
     concat(&parsed, |c| &c.texcoords, |_, &t| t, &mut scene.texcoords);
     concat(&parsed, |c| &c.normals, |_, &n| n, &mut scene.normals);
@@ -406,6 +438,13 @@ fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, Sc
     };
     concat(&parsed, |c| &c.spheres, sphere, &mut scene.spheres);
     concat(&parsed, |c| &c.lights, |_, &l| l, &mut scene.lights);
+    let shapings = parsed
+        .iter_mut()
+        .map(|c| std::mem::take(&mut c.shaping))
+        .collect();
+    let chunk_faces = chunk_faces(&parsed, &bases, shapings);
+    faces::finish(&mut scene, chunk_faces);
+    resolver.finish_warnings(&mut scene);
     Ok(scene)
 }
 
@@ -510,6 +549,51 @@ impl Counts {
     }
 }
 
+/// Statements that other tools write and this renderer skips with one warning per kind
+/// (as Blender's importer and tinyobjloader read such files): the first line of each
+/// kind and how many there were.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Skipped {
+    first_line: usize,
+    count: usize,
+}
+
+impl Skipped {
+    /// `l` (polylines), `p` (points), and faces of fewer than 3 corners.
+    const KINDS: usize = 3;
+    const LINE: usize = 0;
+    const POINT: usize = 1;
+    const SHORT_FACE: usize = 2;
+
+    fn note(&mut self, line: usize) {
+        if self.count == 0 {
+            self.first_line = line;
+        }
+        self.count += 1;
+    }
+
+    /// `other`, which comes later in the file, added.
+    fn add(&mut self, other: &Skipped) {
+        if self.count == 0 {
+            self.first_line = other.first_line;
+        }
+        self.count += other.count;
+    }
+
+    fn warning(kind: usize, count: usize) -> String {
+        let s = if count == 1 { "" } else { "s" };
+        match kind {
+            Skipped::LINE => {
+                format!("skipped {count} line element{s} ('l'): lines have no area to render")
+            }
+            Skipped::POINT => {
+                format!("skipped {count} point element{s} ('p'): points have no area to render")
+            }
+            _ => format!("skipped {count} face{s} of fewer than 3 vertices"),
+        }
+    }
+}
+
 /// A statement whose effect depends on earlier chunks, replayed in file order.
 enum Event {
     Mtllib { line: usize, file: PathBuf },
@@ -529,6 +613,12 @@ struct Chunk {
     events: Vec<Event>,
     /// Line of the first shape using slot 0, for the "no usemtl" warning.
     first_inherited_shape: Option<usize>,
+    /// Statements skipped with a warning, by [`Skipped`] kind.
+    skipped: [Skipped; Skipped::KINDS],
+    /// The smoothing group of the chunk's last `s` statement (0 for `s off`), if any.
+    smoothing: Option<u32>,
+    /// What pass 4 needs of the faces (the general parser's; the scanner notes its own).
+    shaping: Shaping,
     /// The first malformed line; parsing stopped there.
     error: Option<(usize, ParseErrorKind)>,
     /// Number of the chunk's first line.
@@ -554,6 +644,11 @@ impl Chunk {
         }
         if let Some(line) = &mut self.first_inherited_shape {
             *line += base.lines;
+        }
+        for skipped in &mut self.skipped {
+            if skipped.count > 0 {
+                skipped.first_line += base.lines;
+            }
         }
         if let Some((line, _)) = &mut self.error {
             *line += base.lines;
@@ -628,6 +723,9 @@ impl Chunk {
                     material: MaterialId(*slot),
                 });
             }
+            b"l" => self.skipped[Skipped::LINE].note(line_number),
+            b"p" => self.skipped[Skipped::POINT].note(line_number),
+            b"s" => self.smoothing = Some(smoothing_group(tokens.next())?),
             b"P" => {
                 let [x, y, z, r, g, b] = lex::floats::<6>("P", &mut tokens)?;
                 self.lights.push(PointLight {
@@ -664,6 +762,15 @@ impl Chunk {
         Ok(())
     }
 
+    /// Notes a face of `corners` corners that pass 1 counted: a shape, or skipped.
+    fn note_face(&mut self, corners: usize, line_number: usize, slot: u32) {
+        if corners < 3 {
+            self.skipped[Skipped::SHORT_FACE].note(line_number);
+        } else {
+            self.note_shape(line_number, slot);
+        }
+    }
+
     fn note_shape(&mut self, line_number: usize, slot: u32) {
         if slot == 0 && self.first_inherited_shape.is_none() {
             self.first_inherited_shape = Some(line_number);
@@ -680,9 +787,12 @@ impl Chunk {
         let mut first: Option<Corner> = None;
         let mut previous: Option<Corner> = None;
         let mut count = 0usize;
+        let mut all_normals = true;
+        let start = self.triangles.len();
         for token in tokens {
             let corner = self.parse_corner(token, base)?;
             count += 1;
+            all_normals &= corner.normal.is_some();
             if let (Some(a), Some(b), 3..) = (first, previous, count) {
                 let normals = match (a.normal, b.normal, corner.normal) {
                     (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
@@ -698,8 +808,13 @@ impl Chunk {
             previous = Some(corner);
         }
         if count < 3 {
-            return Err(ParseErrorKind::TooFewVertices(count));
+            // Its corners were checked, as those of any face.
+            self.skipped[Skipped::SHORT_FACE].note(line_number);
+            return Ok(());
         }
+        let group = self.smoothing.unwrap_or(INHERITED_GROUP);
+        self.shaping
+            .face(start, self.triangles.len() - start, all_normals, group);
         self.note_shape(line_number, slot);
         Ok(())
     }
@@ -748,6 +863,11 @@ struct Resolver<'a> {
     warned_unknown: HashSet<String>,
     /// Canonical paths of the `mtllib` files read so far.
     loaded_libraries: HashSet<PathBuf>,
+    /// Whether an `mtllib` file was missing: then its names are unknown, and are not
+    /// warned of one by one.
+    missing_library: bool,
+    /// Statements skipped so far, by [`Skipped`] kind.
+    skipped: [Skipped; Skipped::KINDS],
 }
 
 impl<'a> Resolver<'a> {
@@ -761,6 +881,22 @@ impl<'a> Resolver<'a> {
             warned_no_usemtl: false,
             warned_unknown: HashSet::new(),
             loaded_libraries: HashSet::new(),
+            missing_library: false,
+            skipped: [Skipped::default(); Skipped::KINDS],
+        }
+    }
+
+    /// The warnings that sum up the whole file: one per kind of skipped statement.
+    fn finish_warnings(&self, scene: &mut SceneDescription) {
+        for (kind, skipped) in self.skipped.iter().enumerate() {
+            if skipped.count > 0 {
+                scene.warnings.push(format!(
+                    "{}:{}: {}",
+                    self.path.display(),
+                    skipped.first_line,
+                    Skipped::warning(kind, skipped.count)
+                ));
+            }
         }
     }
 
@@ -782,7 +918,7 @@ impl<'a> Resolver<'a> {
                     let id = match self.material_ids.get(name) {
                         Some(&id) => id,
                         None => {
-                            if self.warned_unknown.insert(name.clone()) {
+                            if self.warned_unknown.insert(name.clone()) && !self.missing_library {
                                 // Shown cut, as tokens in errors are.
                                 let shown = lex::show(name.as_bytes());
                                 self.warn(
@@ -799,6 +935,9 @@ impl<'a> Resolver<'a> {
                     slots.push(Some(id));
                 }
             }
+        }
+        for (total, chunk) in self.skipped.iter_mut().zip(&chunk.skipped) {
+            total.add(chunk);
         }
         if let Some((line, kind)) = &chunk.error {
             return Err(Stop::Problem(SceneError::Parse {
@@ -842,8 +981,23 @@ impl<'a> Resolver<'a> {
                 reason: error.to_string(),
             },
         };
-        let identity =
-            std::fs::canonicalize(&mtl_path).map_err(|error| library_error(&mtl_path, &error))?;
+        let identity = match std::fs::canonicalize(&mtl_path) {
+            Ok(identity) => identity,
+            // Exported models often travel without their `.mtl`: their shapes keep the
+            // default material (or the one a scene file gives the mesh).
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => {
+                self.missing_library = true;
+                let shown = super::error::shown_path(&mtl_path);
+                self.warn(
+                    line,
+                    &format!(
+                        "material library {shown} not found; its materials get the default material"
+                    ),
+                );
+                return Ok(());
+            }
+            Err(error) => return Err(library_error(&mtl_path, &error)),
+        };
         if !self.loaded_libraries.insert(identity) {
             return Ok(());
         }
@@ -851,7 +1005,9 @@ impl<'a> Resolver<'a> {
             SceneError::Io { path, error } => library_error(&path, &error),
             other => other,
         })?;
-        for material in mtl::parse_mtl(&text, &mtl_path)? {
+        let (materials, warnings) = mtl::parse_mtl_with_warnings(&text, &mtl_path)?;
+        self.scene.warnings.extend(warnings);
+        for material in materials {
             let id = MaterialId(self.scene.materials.len() as u32);
             self.material_ids.insert(material.name.clone(), id);
             self.scene.materials.push(material);
@@ -891,6 +1047,20 @@ fn resolve(token: &[u8], kind: IndexKind, defined: usize) -> Result<u32, ParseEr
         });
     }
     Ok(resolved as u32)
+}
+
+/// The group of an `s` statement: `off` or a whole number (0 means none).
+fn smoothing_group(token: Option<&[u8]>) -> Result<u32, ParseErrorKind> {
+    let bad = || ParseErrorKind::BadSmoothingGroup(lex::show(token.unwrap_or(b"")));
+    match token {
+        Some(b"off") => Ok(0),
+        Some(token) => match parse_index(token) {
+            // The largest value marks a group inherited from an earlier chunk.
+            Some(group) if (0..i64::from(INHERITED_GROUP)).contains(&group) => Ok(group as u32),
+            _ => Err(bad()),
+        },
+        None => Err(bad()),
+    }
 }
 
 /// Parses an optionally signed decimal integer; `None` if malformed or beyond 18
@@ -1089,8 +1259,10 @@ mod tests {
                 34 => "mtllib lib.mtl".into(),
                 35 => format!("S {} 0.5", self.vector()),
                 36 => "P 0 1 0 1 1 1".into(),
-                37 => "# a comment".into(),
-                38 => "o part".into(),
+                37 => ["# a comment", "s 1", "s off", "s 2", "l 1 2", "p 1"]
+                    [self.rng.random_range(0..6)]
+                .into(),
+                38 => ["o part", "f 1 2", "f 1"][self.rng.random_range(0..3)].into(),
                 _ => String::new(),
             }
         }
@@ -1101,7 +1273,8 @@ mod tests {
                 "v 1 x 3",
                 "vn 1 2",
                 "vt",
-                "f 1 2",
+                "f 0 1",
+                "s x",
                 "f 0 1 1",
                 "f 1/ 1 1",
                 "f 1//1/1 1 1",
@@ -1162,7 +1335,14 @@ mod tests {
         };
         let materials = vec![MaterialId(0); survey.statements.events.len() + 1];
         survey.statements.error.is_none()
-            && scan::fill(text, &Counts::default(), &materials, &mut parts).is_some()
+            && scan::fill(
+                text,
+                &Counts::default(),
+                &materials,
+                &mut parts,
+                &mut Shaping::default(),
+            )
+            .is_some()
     }
 
     fn outcome(result: Result<SceneDescription, SceneError>) -> String {

@@ -13,7 +13,8 @@
 use std::mem::MaybeUninit;
 
 use super::super::decimal;
-use super::{Counts, TriangleDesc, lex};
+use super::faces::{INHERITED_GROUP, Shaping};
+use super::{Counts, TriangleDesc, lex, smoothing_group};
 use crate::material::MaterialId;
 use crate::math::{Float, Vec2, Vec3};
 
@@ -37,14 +38,17 @@ pub(super) fn fill(
     base: &Counts,
     materials: &[MaterialId],
     parts: &mut Parts<'_>,
+    shaping: &mut Shaping,
 ) -> Option<()> {
     let mut scanner = Scanner {
         rest: text,
         base,
         materials,
         slot: 0,
+        group: INHERITED_GROUP,
         written: Counts::default(),
         parts,
+        shaping,
     };
     scanner.run()?;
     let parts = &scanner.parts;
@@ -92,9 +96,13 @@ struct Scanner<'s, 'p> {
     materials: &'s [MaterialId],
     /// The slot in force: how many `usemtl` lines were passed.
     slot: usize,
+    /// The smoothing group in force.
+    group: u32,
     /// Elements written so far.
     written: Counts,
     parts: &'s mut Parts<'p>,
+    /// What pass 4 needs of the faces.
+    shaping: &'s mut Shaping,
 }
 
 impl Scanner<'_, '_> {
@@ -191,6 +199,8 @@ impl Scanner<'_, '_> {
             // As the general parser counts them (one without a name is an error,
             // which pass 1 found).
             Some(b"usemtl") if !lex::rest_of_line(line, b"usemtl").is_empty() => self.slot += 1,
+            // A malformed group is an error that pass 1 found.
+            Some(b"s") => self.group = smoothing_group(tokens.next()).ok()?,
             _ => {}
         }
         Some(())
@@ -256,19 +266,30 @@ impl Scanner<'_, '_> {
         Some(value)
     }
 
-    /// A face: triangles fanned from its first corner, as the general parser does.
+    /// A face: triangles fanned from its first corner, as the general parser does (pass
+    /// 4 cuts concave polygons again).
     #[inline(always)]
     fn face(&mut self) -> Option<()> {
         let material = *self.materials.get(self.slot)?;
-        // Fewer than three corners is an error, left to the general parser.
-        let first = self.next_corner()??;
-        let mut previous = self.next_corner()??;
-        let mut corner = self.next_corner()??;
+        // A face of fewer than three corners is skipped (pass 1 noted it for the
+        // warning); its corners are checked all the same.
+        let Some(first) = self.next_corner()? else {
+            return Some(());
+        };
+        let Some(mut previous) = self.next_corner()? else {
+            return Some(());
+        };
+        let Some(mut corner) = self.next_corner()? else {
+            return Some(());
+        };
+        let start = self.written.triangles;
+        let mut all_normals = first.normal.is_some() && previous.normal.is_some();
         loop {
             let normals = match (first.normal, previous.normal, corner.normal) {
                 (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                 _ => None,
             };
+            all_normals &= normals.is_some();
             let written = &mut self.written.triangles;
             self.parts.triangles.get_mut(*written)?.write(TriangleDesc {
                 positions: [first.position, previous.position, corner.position],
@@ -279,9 +300,12 @@ impl Scanner<'_, '_> {
             previous = corner;
             match self.next_corner()? {
                 Some(next) => corner = next,
-                None => return Some(()),
+                None => break,
             }
         }
+        let count = self.written.triangles - start;
+        self.shaping.face(start, count, all_normals, self.group);
+        Some(())
     }
 
     /// The next corner of a face, `Some(None)` at the end of the line, `None` if

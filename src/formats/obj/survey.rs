@@ -40,7 +40,7 @@ pub(super) fn survey(text: &[u8]) -> Survey {
             [b'f', b' ', corners @ ..] => match face_corners(corners) {
                 Some((count, length)) => {
                     counts.triangles += count.saturating_sub(2);
-                    survey.statements.note_shape(line_number, slot);
+                    survey.statements.note_face(count, line_number, slot);
                     2 + length
                 }
                 None => survey.other_line(rest, line_number, &mut slot),
@@ -121,8 +121,9 @@ impl Survey {
             b"vt" => counts.texcoords += 1,
             b"vn" => counts.normals += 1,
             b"f" => {
-                counts.triangles += tokens.count().saturating_sub(2);
-                self.statements.note_shape(line_number, *slot);
+                let count = tokens.count();
+                counts.triangles += count.saturating_sub(2);
+                self.statements.note_face(count, line_number, *slot);
             }
             _ if self.statements.error.is_some() => {}
             _ => {

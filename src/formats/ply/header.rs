@@ -102,6 +102,9 @@ pub(super) struct Header {
     pub(super) body_offset: usize,
     /// 1-based line number of the body's first line.
     pub(super) body_line: usize,
+    /// Header lines of no known keyword (some writers add their own, such as
+    /// `Created by ...`), skipped: the first one's line and keyword, and how many.
+    pub(super) unknown_lines: Option<(usize, String, usize)>,
 }
 
 pub(super) type HeaderError = (usize, ParseErrorKind);
@@ -110,6 +113,7 @@ pub(super) fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
     let header_error = |line: usize, message: String| (line, ParseErrorKind::PlyHeader(message));
     let mut format = None;
     let mut elements: Vec<Element> = Vec::new();
+    let mut unknown_lines: Option<(usize, String, usize)> = None;
     let mut offset = 0;
     let mut line_number = 0;
     loop {
@@ -224,12 +228,12 @@ pub(super) fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
                 });
             }
             b"end_header" => break,
-            other => {
-                return Err(header_error(
-                    line_number,
-                    format!("unknown header keyword '{}'", lex::show(other)),
-                ));
-            }
+            // Other readers (Blender's, trimesh, tinyply) skip lines they do not
+            // know; the elements and properties still say how to read the body.
+            other => match &mut unknown_lines {
+                Some((_, _, count)) => *count += 1,
+                None => unknown_lines = Some((line_number, lex::show(other), 1)),
+            },
         }
     }
     let format = format.ok_or_else(|| header_error(2, "the header has no 'format' line".into()))?;
@@ -238,6 +242,7 @@ pub(super) fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
         elements,
         body_offset: offset,
         body_line: line_number + 1,
+        unknown_lines,
     })
 }
 
@@ -332,7 +337,22 @@ pub(super) fn roles(element: &Element) -> Result<Vec<Role>, HeaderError> {
 
 #[cfg(test)]
 mod tests {
-    use crate::formats::ply::testing::{VERTS, ascii, error};
+    use crate::formats::ply::testing::{FACES, VERTS, ascii, error, parse, triangles};
+
+    #[test]
+    fn unknown_header_lines_are_skipped_with_one_warning() {
+        // As written by some exporters: a line of their own between the format and the
+        // elements.
+        let text = format!(
+            "ply\nformat ascii 1.0\nCreated by Some Modeller 2.1\n{VERTS}Created again\n{FACES}end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+        );
+        let scene = parse(text.as_bytes()).unwrap();
+        assert_eq!(triangles(&scene), [[0, 1, 2]]);
+        assert_eq!(
+            scene.warnings,
+            ["t.ply:3: skipped 2 header lines of unknown keyword ('Created')"]
+        );
+    }
 
     #[test]
     fn header_errors_name_the_line() {
@@ -375,10 +395,6 @@ mod tests {
         assert_eq!(
             error(&ascii("element v 1\nproperty float\n", "")),
             "t.ply:4: 'property' needs a type and a name"
-        );
-        assert_eq!(
-            error(&ascii("elements 1\n", "")),
-            "t.ply:3: unknown header keyword 'elements'"
         );
         assert_eq!(
             error("ply\nformat ascii 1.0\n"),

@@ -73,7 +73,18 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<SceneDescription, SceneErr
         index: e.index,
         kind: Box::new(e.kind),
     })?;
-    Ok(reader.finish())
+    let mut scene = reader.finish();
+    if let Some((line, keyword, count)) = header.unknown_lines {
+        let s = if count == 1 { "" } else { "s" };
+        scene.warnings.insert(
+            0,
+            format!(
+                "{}:{line}: skipped {count} header line{s} of unknown keyword ('{keyword}')",
+                path.display()
+            ),
+        );
+    }
+    Ok(scene)
 }
 
 /// Where in the body an element failed.

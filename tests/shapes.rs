@@ -96,7 +96,9 @@ fn convex_polygons_keep_the_fan_and_concave_ones_keep_their_outline() {
 }
 
 #[test]
-fn a_face_of_200000_corners_loads_in_well_under_a_second() {
+fn a_face_of_200000_corners_is_cut_into_triangles_that_cover_it_once() {
+    // How the work grows with the corners is tested in `formats::polygon` by counting
+    // steps; here, that such a face reads and covers its area exactly once.
     let n = 200_000;
     let mut text = String::with_capacity(n * 40);
     for k in 0..n {
@@ -109,9 +111,7 @@ fn a_face_of_200000_corners_loads_in_well_under_a_second() {
         write!(text, " {i}").unwrap();
     }
     text.push('\n');
-    let start = std::time::Instant::now();
     let d = parse(&text);
-    let seconds = start.elapsed().as_secs_f64();
     assert_eq!(d.triangles.len(), n - 2);
     // The triangles cover the star once: their areas add up to its area, and none
     // folds over (beyond rounding), as a wrong cut would.
@@ -132,10 +132,6 @@ fn a_face_of_200000_corners_loads_in_well_under_a_second() {
         })
         .sum();
     assert!((total - star).abs() < 1e-6 * star, "{total} vs {star}");
-    // About 0.1 s in release on the 2-core development machine, parse included.
-    let limit = if cfg!(debug_assertions) { 10.0 } else { 1.0 };
-    eprintln!("{n} corners: {seconds} s");
-    assert!(seconds < limit, "{seconds} s");
 }
 
 /// Two faces meeting at a ridge along x (the edge from (0,0,0) to (1,0,0)), each

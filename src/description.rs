@@ -11,7 +11,7 @@ use crate::math::{Float, Vec2, Vec3};
 pub struct SceneDescription {
     /// `v` positions.
     pub positions: Vec<Vec3>,
-    /// `vt` texture coordinates (read and checked, not used by the renderer).
+    /// `vt` texture coordinates (glTF: `TEXCOORD_0`, with `v` turned up).
     pub texcoords: Vec<Vec2>,
     /// `vn` normals, as written (not normalized).
     pub normals: Vec<Vec3>,
@@ -35,6 +35,8 @@ pub struct TriangleDesc {
     pub positions: [u32; 3],
     /// Indices into [`SceneDescription::normals`], when every corner has one.
     pub normals: Option<[u32; 3]>,
+    /// Indices into [`SceneDescription::texcoords`], when every corner has one.
+    pub texcoords: Option<[u32; 3]>,
     /// The material.
     pub material: MaterialId,
 }

@@ -63,6 +63,7 @@ fn perturbed_sphere_mesh(
         d.triangles.push(TriangleDesc {
             positions: [a, b, c],
             normals: None,
+            texcoords: None,
             material: MaterialId(0),
         });
     };
@@ -124,6 +125,7 @@ fn rays_spawned_from_a_triangle_hit_never_hit_it_again() {
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
                 normals: None,
+                texcoords: None,
                 material: MaterialId(0),
             }],
             ..SceneDescription::default()

@@ -97,6 +97,7 @@ impl SceneDescription {
         let fits = |a: usize, b: usize| a.checked_add(b).is_some_and(|n| n <= u32::MAX as usize);
         if !fits(self.positions.len(), mesh.positions.len())
             || !fits(self.normals.len(), mesh.normals.len())
+            || !fits(self.texcoords.len(), mesh.texcoords.len())
         {
             return Err(ParseErrorKind::TooMany("vertices"));
         }
@@ -105,6 +106,7 @@ impl SceneDescription {
         }
         let position_offset = self.positions.len() as u32;
         let normal_offset = self.normals.len() as u32;
+        let texcoord_offset = self.texcoords.len() as u32;
         let material_offset = self.materials.len() as u32;
         let material_of = |id: MaterialId| material.unwrap_or(MaterialId(id.0 + material_offset));
 
@@ -120,6 +122,7 @@ impl SceneDescription {
         for t in &mut mesh.triangles {
             t.positions = t.positions.map(|i| i + position_offset);
             t.normals = t.normals.map(|ns| ns.map(|i| i + normal_offset));
+            t.texcoords = t.texcoords.map(|ts| ts.map(|i| i + texcoord_offset));
             t.material = material_of(t.material);
         }
         for s in &mut mesh.spheres {
@@ -201,6 +204,7 @@ mod tests {
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
                 normals: Some([0, 0, 0]),
+                texcoords: None,
                 material: MaterialId(0),
             }],
             spheres: vec![SphereDesc {

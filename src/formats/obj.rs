@@ -539,6 +539,7 @@ struct Chunk {
 #[derive(Clone, Copy)]
 struct Corner {
     position: u32,
+    texcoord: Option<u32>,
     normal: Option<u32>,
 }
 
@@ -688,9 +689,14 @@ impl Chunk {
                     (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                     _ => None,
                 };
+                let texcoords = match (a.texcoord, b.texcoord, corner.texcoord) {
+                    (Some(ta), Some(tb), Some(tc)) => Some([ta, tb, tc]),
+                    _ => None,
+                };
                 self.triangles.push(TriangleDesc {
                     positions: [a.position, b.position, corner.position],
                     normals,
+                    texcoords,
                     material: MaterialId(slot),
                 });
             }
@@ -723,17 +729,23 @@ impl Chunk {
             IndexKind::Vertex,
             defined(base.positions, self.positions.len()),
         )?;
-        if let Some(vt) = texcoord {
-            let count = defined(base.texcoords, self.texcoords.len());
-            resolve(vt, IndexKind::TexCoord, count)?;
-        }
+        let texcoord = texcoord
+            .map(|vt| {
+                let count = defined(base.texcoords, self.texcoords.len());
+                resolve(vt, IndexKind::TexCoord, count)
+            })
+            .transpose()?;
         let normal = normal
             .map(|vn| {
                 let count = defined(base.normals, self.normals.len());
                 resolve(vn, IndexKind::Normal, count)
             })
             .transpose()?;
-        Ok(Corner { position, normal })
+        Ok(Corner {
+            position,
+            texcoord,
+            normal,
+        })
     }
 }
 
@@ -851,7 +863,9 @@ impl<'a> Resolver<'a> {
             SceneError::Io { path, error } => library_error(&path, &error),
             other => other,
         })?;
-        for material in mtl::parse_mtl(&text, &mtl_path)? {
+        let library = mtl::parse_mtl(&text, &mtl_path)?;
+        self.scene.warnings.extend(library.warnings);
+        for material in library.materials {
             let id = MaterialId(self.scene.materials.len() as u32);
             self.material_ids.insert(material.name.clone(), id);
             self.scene.materials.push(material);

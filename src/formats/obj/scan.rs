@@ -80,6 +80,7 @@ fn ends_token(b: Option<&u8>) -> bool {
 #[derive(Clone, Copy)]
 struct Corner {
     position: u32,
+    texcoord: Option<u32>,
     normal: Option<u32>,
 }
 
@@ -269,10 +270,15 @@ impl Scanner<'_, '_> {
                 (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                 _ => None,
             };
+            let texcoords = match (first.texcoord, previous.texcoord, corner.texcoord) {
+                (Some(ta), Some(tb), Some(tc)) => Some([ta, tb, tc]),
+                _ => None,
+            };
             let written = &mut self.written.triangles;
             self.parts.triangles.get_mut(*written)?.write(TriangleDesc {
                 positions: [first.position, previous.position, corner.position],
                 normals,
+                texcoords,
                 material,
             });
             *written += 1;
@@ -302,11 +308,12 @@ impl Scanner<'_, '_> {
         let defined = self.base.positions + self.written.positions;
         let position = self.index(defined)?;
         let mut normal = None;
+        let mut texcoord = None;
         if let [b'/', rest @ ..] = self.rest {
             self.rest = rest;
             let mut slash = true;
             if self.rest.first() != Some(&b'/') {
-                self.index(self.base.texcoords + self.written.texcoords)?;
+                texcoord = Some(self.index(self.base.texcoords + self.written.texcoords)?);
                 slash = self.rest.first() == Some(&b'/');
             }
             if slash {
@@ -317,7 +324,11 @@ impl Scanner<'_, '_> {
         if !ends_token(self.rest.first()) {
             return None;
         }
-        Some(Corner { position, normal })
+        Some(Corner {
+            position,
+            texcoord,
+            normal,
+        })
     }
 
     /// A 1-based index of one to [`MAX_INDEX_DIGITS`] digits, or a negative one

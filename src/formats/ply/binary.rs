@@ -379,6 +379,7 @@ impl MeshReader {
                 self.scene.triangles.push(TriangleDesc {
                     positions,
                     normals: self.has_normals.then_some(positions),
+                    texcoords: None,
                     material: MaterialId(0),
                 });
                 previous = next;
@@ -460,6 +461,7 @@ impl MeshReader {
                 TriangleDesc {
                     positions,
                     normals: has_normals.then_some(positions),
+                    texcoords: None,
                     material: MaterialId(0),
                 }
             })

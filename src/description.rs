@@ -17,6 +17,12 @@ pub struct SceneDescription {
     pub normals: Vec<Vec3>,
     /// Triangles after splitting polygons into fans.
     pub triangles: Vec<TriangleDesc>,
+    /// Indices into [`SceneDescription::texcoords`] of each triangle's corners, in
+    /// step with `triangles` (`None` where a corner has none); or empty, when no
+    /// triangle has texture coordinates or no material has a map to use them with.
+    /// (Kept apart from [`TriangleDesc`] so that untextured meshes, the large ones,
+    /// neither store nor copy them.)
+    pub triangle_texcoords: Vec<Option<[u32; 3]>>,
     /// `S` spheres.
     pub spheres: Vec<SphereDesc>,
     /// `P` lights.
@@ -28,15 +34,22 @@ pub struct SceneDescription {
     pub warnings: Vec<String>,
 }
 
-/// A triangle of a description: indices into its arrays.
+impl SceneDescription {
+    /// The texture coordinate indices of triangle `index`'s corners, if it has them.
+    #[inline]
+    pub fn texcoords_of(&self, index: usize) -> Option<[u32; 3]> {
+        self.triangle_texcoords.get(index).copied().flatten()
+    }
+}
+
+/// A triangle of a description: indices into its arrays (texture coordinates are in
+/// [`SceneDescription::triangle_texcoords`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleDesc {
     /// Indices into [`SceneDescription::positions`].
     pub positions: [u32; 3],
     /// Indices into [`SceneDescription::normals`], when every corner has one.
     pub normals: Option<[u32; 3]>,
-    /// Indices into [`SceneDescription::texcoords`], when every corner has one.
-    pub texcoords: Option<[u32; 3]>,
     /// The material.
     pub material: MaterialId,
 }

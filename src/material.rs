@@ -51,10 +51,13 @@ pub struct MaterialMaps {
     pub shininess: Option<TextureMap>,
     /// `map_d` or glTF's alpha mask: where the surface is cut out.
     pub cutout: Option<Cutout>,
-    /// `bump`/`map_Bump`: a height map (read, not applied yet).
+    /// `bump`/`map_Bump`: a height map (a scalar map), which tilts the shading
+    /// normal by its slope (see [`MaterialMaps::tangent_normal`]). Ignored when
+    /// there is a normal map.
     pub bump: Option<TextureMap>,
-    /// `norm` or glTF's normal texture: a tangent-space normal map (read, not applied
-    /// yet).
+    /// `norm`, a `bump` image that is a normal map, or glTF's normal texture: a
+    /// tangent-space normal map (OpenGL's convention, as glTF's: red along `u`, green
+    /// along `v`, blue out of the surface), linear.
     pub normal: Option<TextureMap>,
 }
 
@@ -158,6 +161,39 @@ impl MaterialMaps {
         if let Some(map) = &self.shininess {
             values.shininess = (values.shininess * map.scalar(uv, false)).max(0.0);
         }
+    }
+
+    /// Whether the maps change the shading normal (a bump or normal map).
+    #[inline]
+    pub fn perturbs_normals(&self) -> bool {
+        self.normal.is_some() || self.bump.is_some()
+    }
+
+    /// The unit shading normal at `uv` in tangent space (x along `u`, y along `v`,
+    /// z the unperturbed normal), from the normal map if there is one, else from the
+    /// bump map; `None` when neither gives one.
+    ///
+    /// A bump map's heights (0 to 1 after `-mm`) are read as heights in texels times
+    /// `-bm`: the normal tilts by the height's slope per texel, measured by central
+    /// differences one texel either side, the way height-to-normal-map tools convert
+    /// them. (MTL gives heights no unit; tying them to world units would make the same
+    /// map flat on a large model and spiky on a small one.)
+    pub fn tangent_normal(&self, uv: Vec2) -> Option<Vec3> {
+        if let Some(map) = &self.normal {
+            let n = map.colour(uv, Encoding::Linear) * 2.0 - Vec3::ONE;
+            return crate::math::try_unit(n);
+        }
+        let map = self.bump.as_ref()?;
+        let (width, height) = map.texture.size();
+        let scale = map.options.scale;
+        // One texel, in the coordinates before `-s` scales them.
+        let du = 1.0 / (width as Float * scale.x.abs().max(Float::MIN_POSITIVE));
+        let dv = 1.0 / (height as Float * scale.y.abs().max(Float::MIN_POSITIVE));
+        let h = |du: Float, dv: Float| map.scalar(uv + Vec2::new(du, dv), false);
+        let slope_u = (h(du, 0.0) - h(-du, 0.0)) * 0.5;
+        let slope_v = (h(0.0, dv) - h(0.0, -dv)) * 0.5;
+        let bm = map.options.bump_multiplier;
+        crate::math::try_unit(Vec3::new(-bm * slope_u, -bm * slope_v, 1.0))
     }
 
     /// Whether no map is set.

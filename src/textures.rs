@@ -235,6 +235,30 @@ impl Texture {
         self.channels == 2 || self.channels == 4
     }
 
+    /// Whether the image looks like a tangent-space normal map rather than a height
+    /// map: colour, with red and green near one half and blue high on average (the
+    /// pale blue of normal maps), over a grid of at most 64 x 64 texels. Exporters
+    /// write normal maps as `bump` as often as height maps.
+    pub fn looks_like_normal_map(&self) -> bool {
+        if self.channels < 3 {
+            return false;
+        }
+        let (step_x, step_y) = ((self.width / 64).max(1), (self.height / 64).max(1));
+        let mut sum = [0.0f64; 3];
+        let mut count = 0.0;
+        for y in (0..self.height).step_by(step_y as usize) {
+            for x in (0..self.width).step_by(step_x as usize) {
+                let texel = self.texel(x as usize, y as usize, Encoding::Linear);
+                for (s, t) in sum.iter_mut().zip(texel) {
+                    *s += f64::from(t);
+                }
+                count += 1.0;
+            }
+        }
+        let [r, g, b] = sum.map(|s| s / count);
+        (0.35..0.65).contains(&r) && (0.35..0.65).contains(&g) && b > 0.7
+    }
+
     /// Bytes the texels take.
     pub fn memory(&self) -> usize {
         match &self.texels {

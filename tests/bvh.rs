@@ -34,7 +34,6 @@ fn random_soup(rng: &mut Rng64, triangles: usize, spheres: usize) -> SceneDescri
         d.triangles.push(TriangleDesc {
             positions: [base, base + 1, base + 2],
             normals: None,
-            texcoords: None,
             material: MaterialId(0),
         });
     }

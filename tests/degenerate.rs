@@ -19,7 +19,6 @@ fn description(triangles: &[[Vec3; 3]]) -> SceneDescription {
         d.triangles.push(TriangleDesc {
             positions: [base, base + 1, base + 2],
             normals: None,
-            texcoords: None,
             material: MaterialId(0),
         });
     }

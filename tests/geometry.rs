@@ -88,7 +88,6 @@ fn ray_triangle_records() {
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
                 normals: None,
-                texcoords: None,
                 material: MaterialId(0),
             }],
             ..SceneDescription::default()

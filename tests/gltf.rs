@@ -72,10 +72,7 @@ fn meshes_sit_under_their_node_transforms() {
             .unwrap()
             .map(|i| d.normals[i as usize]);
         assert!(n.iter().all(|n| n.normalize() == Vec3::Z));
-        let uv = d.triangles[0]
-            .texcoords
-            .unwrap()
-            .map(|i| d.texcoords[i as usize]);
+        let uv = d.texcoords_of(0).unwrap().map(|i| d.texcoords[i as usize]);
         assert_eq!(
             uv,
             [

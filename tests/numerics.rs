@@ -131,7 +131,6 @@ fn random_scene(seed: u64) -> SceneDescription {
         d.triangles.push(TriangleDesc {
             positions: [base, base + 1, base + 2],
             normals,
-            texcoords: None,
             material: material(r),
         });
     }

@@ -63,7 +63,6 @@ fn perturbed_sphere_mesh(
         d.triangles.push(TriangleDesc {
             positions: [a, b, c],
             normals: None,
-            texcoords: None,
             material: MaterialId(0),
         });
     };
@@ -125,7 +124,6 @@ fn rays_spawned_from_a_triangle_hit_never_hit_it_again() {
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
                 normals: None,
-                texcoords: None,
                 material: MaterialId(0),
             }],
             ..SceneDescription::default()

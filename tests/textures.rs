@@ -447,3 +447,83 @@ fn path_mode_uses_textured_emission_and_diffuse_colour() {
         );
     }
 }
+
+/// The shading normal at the centre of a square at z = 0 whose texture coordinates
+/// run `u` along +x (or -x when `mirrored`), with `statement` (a bump or normal map
+/// line) in its material, seen from +z.
+fn shading_normal(dir: &Path, statement: &str, mirrored: bool) -> (Vec3, Vec<String>) {
+    let u_max = if mirrored { -1.0 } else { 1.0 };
+    let path = write_scene(
+        dir,
+        &square(0.0, u_max, 1.0, "m", 0),
+        &format!("newmtl m\nKd 1 1 1\n{statement}\n"),
+    );
+    let description = formats::load_obj(&path).unwrap();
+    let warnings = description.warnings.clone();
+    let scene = Scene::build(description, &BvhParams::default());
+    (scene.intersect(&down(0.1, 0.1)).unwrap().ns, warnings)
+}
+
+#[test]
+fn normal_maps_tilt_the_shading_normal_in_the_frame_of_the_texture_coordinates() {
+    let dir = tempfile::tempdir().unwrap();
+    // One texel: tangent-space normal (0.6, 0, 0.8), red along u, blue out.
+    write_png(&dir.path().join("normal.png"), 1, 1, 3, &[204, 128, 230]);
+    let (ns, warnings) = shading_normal(dir.path(), "norm normal.png", false);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(close(ns, Vec3::new(0.6, 0.0, 0.8), 0.01), "{ns}");
+    // With u running the other way, the tangent is -x and so is the tilt.
+    let (ns, _) = shading_normal(dir.path(), "norm normal.png", true);
+    assert!(close(ns, Vec3::new(-0.6, 0.0, 0.8), 0.01), "{ns}");
+    // A `bump` statement naming a normal map (pale blue, as exporters write them) is
+    // a normal map: (0.28, 0, 0.96).
+    write_png(&dir.path().join("pale.png"), 1, 1, 3, &[163, 128, 250]);
+    let (ns, _) = shading_normal(dir.path(), "map_Bump pale.png", false);
+    assert!(close(ns, Vec3::new(0.28, 0.0, 0.96), 0.01), "{ns}");
+}
+
+#[test]
+fn bump_maps_tilt_the_normal_down_their_slope_scaled_by_bm() {
+    let dir = tempfile::tempdir().unwrap();
+    // Heights rising along u by 0.2 a texel (grey 0, 51, 102, ... wrapping around at
+    // the far end, away from the point looked at), constant along v.
+    let row: Vec<u8> = (0..8).map(|i| (i * 51 % 256) as u8).collect();
+    let texels: Vec<u8> = row.iter().cycle().take(64).copied().collect();
+    write_png(&dir.path().join("height.png"), 8, 8, 1, &texels);
+    // Slope 0.2 per texel: the normal tilts towards -u, as (-0.2, 0, 1) normalized.
+    let expected = Vec3::new(-0.2, 0.0, 1.0).normalize();
+    let (ns, warnings) = shading_normal(dir.path(), "bump -clamp on height.png", false);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(close(ns, expected, 0.01), "{ns}, expected {expected}");
+    // `-bm 2` doubles the slope; a flat map leaves the normal alone.
+    let (ns, _) = shading_normal(dir.path(), "bump -bm 2 -clamp on height.png", false);
+    let expected = Vec3::new(-0.4, 0.0, 1.0).normalize();
+    assert!(close(ns, expected, 0.01), "{ns}, expected {expected}");
+    write_png(&dir.path().join("flat.png"), 2, 2, 1, &[90; 4]);
+    let (ns, _) = shading_normal(dir.path(), "bump flat.png", false);
+    assert_eq!(ns, Vec3::Z);
+}
+
+#[test]
+fn texture_coordinates_are_kept_only_where_a_map_can_use_them() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("t.png"), 1, 1, 1, &[255]);
+    let plain = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\n",
+    );
+    let description = formats::load_obj(&plain).unwrap();
+    assert_eq!(description.texcoords.len(), 4);
+    assert!(description.triangle_texcoords.is_empty());
+    let textured = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\nmap_Kd t.png\n",
+    );
+    let description = formats::load_obj(&textured).unwrap();
+    assert_eq!(
+        description.triangle_texcoords,
+        vec![Some([0, 1, 2]), Some([0, 2, 3])]
+    );
+}

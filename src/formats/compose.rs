@@ -122,7 +122,6 @@ impl SceneDescription {
         for t in &mut mesh.triangles {
             t.positions = t.positions.map(|i| i + position_offset);
             t.normals = t.normals.map(|ns| ns.map(|i| i + normal_offset));
-            t.texcoords = t.texcoords.map(|ts| ts.map(|i| i + texcoord_offset));
             t.material = material_of(t.material);
         }
         for s in &mut mesh.spheres {
@@ -132,6 +131,16 @@ impl SceneDescription {
         }
         for l in &mut mesh.lights {
             l.position = transform.point(l.position);
+        }
+        for t in mesh.triangle_texcoords.iter_mut().flatten() {
+            *t = t.map(|i| i + texcoord_offset);
+        }
+        // Texture coordinate indices stay in step with the triangles: if only one
+        // side has them, the other's triangles have none.
+        if !mesh.triangle_texcoords.is_empty() || !self.triangle_texcoords.is_empty() {
+            self.triangle_texcoords.resize(self.triangles.len(), None);
+            mesh.triangle_texcoords.resize(mesh.triangles.len(), None);
+            append(&mut self.triangle_texcoords, mesh.triangle_texcoords);
         }
         append(&mut self.positions, mesh.positions);
         append(&mut self.normals, mesh.normals);
@@ -204,7 +213,6 @@ mod tests {
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
                 normals: Some([0, 0, 0]),
-                texcoords: None,
                 material: MaterialId(0),
             }],
             spheres: vec![SphereDesc {

@@ -70,6 +70,10 @@ pub fn parse_gltf(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> 
         camera_found: false,
     };
     reader.read_scene().map_err(fail)?;
+    // As the OBJ reader: texture coordinate indices only where a map can use them.
+    if reader.scene.materials.iter().all(|m| m.maps.is_none()) {
+        reader.scene.triangle_texcoords = Vec::new();
+    }
     Ok(LoadedScene {
         description: reader.scene,
         options: reader.options,
@@ -374,9 +378,11 @@ impl Reader<'_> {
                 scene.triangles.push(TriangleDesc {
                     positions: corners.map(|i| position_base + i),
                     normals: has_normals.then(|| corners.map(|i| normal_base + i)),
-                    texcoords: has_texcoords.then(|| corners.map(|i| texcoord_base + i)),
                     material,
                 });
+                scene
+                    .triangle_texcoords
+                    .push(has_texcoords.then(|| corners.map(|i| texcoord_base + i)));
             }
         }
         Ok(())
@@ -496,13 +502,11 @@ impl Reader<'_> {
                 ),
             );
         }
-        let normal_map = material.normal_texture().and_then(|normal| {
-            self.warn_once(
-                "normal texture",
-                format!("material {index}: normal textures are read but not applied yet"),
-            );
-            self.texture_map(&normal.texture(), normal.tex_coord(), index)
-        });
+        // glTF's normal textures follow the convention `tangent_normal` reads: red
+        // along u, green up the image, which is +v once v is turned up.
+        let normal_map = material
+            .normal_texture()
+            .and_then(|normal| self.texture_map(&normal.texture(), normal.tex_coord(), index));
         let cutout = match material.alpha_mode() {
             gltf::material::AlphaMode::Opaque => None,
             mode => {

@@ -111,7 +111,6 @@ fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibra
         .into_par_iter()
         .map(|file| (file, load_named(folder, file)))
         .collect();
-    let mut warned_bump = false;
     for map in &maps {
         let texture = match &loaded[map.file.as_str()] {
             Ok(texture) => texture.clone(),
@@ -125,14 +124,11 @@ fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibra
                 continue;
             }
         };
-        if matches!(map.kind, MapKind::Bump | MapKind::Normal) && !warned_bump {
-            warned_bump = true;
-            library.warnings.push(format!(
-                "{}:{}: bump and normal maps are read but not applied yet",
-                mtl_path.display(),
-                map.line
-            ));
-        }
+        // A `bump` image that is a normal map is used as one.
+        let kind = match map.kind {
+            MapKind::Bump if texture.looks_like_normal_map() => MapKind::Normal,
+            kind => kind,
+        };
         let texture_map = TextureMap {
             texture,
             options: map.options,
@@ -140,7 +136,7 @@ fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibra
         let maps = library.materials[map.material]
             .maps
             .get_or_insert_with(|| Box::new(MaterialMaps::default()));
-        let slot = match map.kind {
+        let slot = match kind {
             MapKind::Ambient => &mut maps.ambient,
             MapKind::Diffuse => &mut maps.diffuse,
             MapKind::Specular => &mut maps.specular,

@@ -151,6 +151,7 @@ impl Scene {
             normals,
             texcoords,
             triangles,
+            triangle_texcoords,
             spheres,
             lights,
             materials,
@@ -244,13 +245,13 @@ impl Scene {
         // Texture coordinates only where a material can use them. An index out of
         // range (a description not made by a reader) counts as none.
         let textured = materials.iter().any(|m| m.maps.is_some())
-            && triangles.iter().any(|t| t.texcoords.is_some());
+            && triangle_texcoords.iter().any(Option::is_some);
         let prim_texcoords: Vec<[u32; 3]> = if textured {
             let in_range = |ids: [u32; 3]| ids.iter().all(|&i| (i as usize) < texcoords.len());
             order
                 .par_iter()
                 .map(
-                    |&i| match triangles.get(i as usize).and_then(|t| t.texcoords) {
+                    |&i| match triangle_texcoords.get(i as usize).copied().flatten() {
                         Some(ids) if in_range(ids) => ids,
                         _ => [NO_TEXCOORDS; 3],
                     },
@@ -460,6 +461,47 @@ impl Scene {
         }
     }
 
+    /// The shading normal `ns` of triangle `prim` tilted by its material's bump or
+    /// normal map at `uv`, in the tangent frame its texture coordinates give (`u`
+    /// along the tangent, `v` along the bitangent, made orthonormal about `ns`); `None`
+    /// without such a map, texture coordinates or a frame (a degenerate UV layout).
+    #[inline(never)]
+    fn perturbed_normal(
+        &self,
+        prim: u32,
+        triangle: &Triangle,
+        material: MaterialId,
+        uv: Vec2,
+        ns: Vec3,
+    ) -> Option<Vec3> {
+        let maps = self.materials.get(material.0 as usize)?.maps.as_ref()?;
+        if !maps.perturbs_normals() {
+            return None;
+        }
+        let ids = self.prim_texcoords.get(prim as usize)?;
+        if ids[0] == NO_TEXCOORDS {
+            return None;
+        }
+        let [t0, t1, t2] = ids.map(|i| self.texcoords[i as usize]);
+        let (duv1, duv2) = (t1 - t0, t2 - t0);
+        let det = duv1.x * duv2.y - duv1.y * duv2.x;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let dpdu = (triangle.e1 * duv2.y - triangle.e2 * duv1.y) / det;
+        let dpdv = (triangle.e2 * duv1.x - triangle.e1 * duv2.x) / det;
+        let tangent = try_unit(dpdu - ns * ns.dot(dpdu))?;
+        let bitangent = ns.cross(tangent);
+        // Mirrored texture layouts run `v` the other way round.
+        let bitangent = if bitangent.dot(dpdv) < 0.0 {
+            -bitangent
+        } else {
+            bitangent
+        };
+        let local = maps.tangent_normal(uv)?;
+        try_unit(tangent * local.x + bitangent * local.y + ns * local.z)
+    }
+
     /// Whether anything blocks `ray` before distance `t_max`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
@@ -568,11 +610,23 @@ impl Scene {
         };
         let front = n.dot(ray.dir) <= 0.0;
         let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
+        let ns_facing = match shape {
+            Shape::Triangle(tri) if !self.prim_texcoords.is_empty() => {
+                match self.perturbed_normal(prim, &tri, shading.material, uv, ns) {
+                    // Flipped with the normal it perturbs, so that a bump cannot turn
+                    // the shading normal to the other side at grazing angles.
+                    Some(bumped) if ns.dot(ray.dir) > 0.0 => -bumped,
+                    Some(bumped) => bumped,
+                    None => face(ns),
+                }
+            }
+            _ => face(ns),
+        };
         Hit {
             t: hit.t,
             p,
             n: face(n),
-            ns: face(ns),
+            ns: ns_facing,
             uv,
             material: shading.material,
             front,

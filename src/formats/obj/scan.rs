@@ -27,6 +27,8 @@ pub(super) struct Parts<'a> {
     pub(super) texcoords: &'a mut [MaybeUninit<Vec2>],
     pub(super) normals: &'a mut [MaybeUninit<Vec3>],
     pub(super) triangles: &'a mut [MaybeUninit<TriangleDesc>],
+    /// Each triangle's texture coordinate indices, when the description keeps them.
+    pub(super) triangle_texcoords: Option<&'a mut [MaybeUninit<Option<[u32; 3]>>]>,
 }
 
 /// Fills `parts` from the chunk `text`, preceded in the file by `base`; `materials`
@@ -270,15 +272,17 @@ impl Scanner<'_, '_> {
                 (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                 _ => None,
             };
-            let texcoords = match (first.texcoord, previous.texcoord, corner.texcoord) {
-                (Some(ta), Some(tb), Some(tc)) => Some([ta, tb, tc]),
-                _ => None,
-            };
             let written = &mut self.written.triangles;
+            if let Some(part) = &mut self.parts.triangle_texcoords {
+                let texcoords = match (first.texcoord, previous.texcoord, corner.texcoord) {
+                    (Some(ta), Some(tb), Some(tc)) => Some([ta, tb, tc]),
+                    _ => None,
+                };
+                part.get_mut(*written)?.write(texcoords);
+            }
             self.parts.triangles.get_mut(*written)?.write(TriangleDesc {
                 positions: [first.position, previous.position, corner.position],
                 normals,
-                texcoords,
                 material,
             });
             *written += 1;

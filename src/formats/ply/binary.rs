@@ -379,7 +379,6 @@ impl MeshReader {
                 self.scene.triangles.push(TriangleDesc {
                     positions,
                     normals: self.has_normals.then_some(positions),
-                    texcoords: None,
                     material: MaterialId(0),
                 });
                 previous = next;
@@ -461,7 +460,6 @@ impl MeshReader {
                 TriangleDesc {
                     positions,
                     normals: has_normals.then_some(positions),
-                    texcoords: None,
                     material: MaterialId(0),
                 }
             })

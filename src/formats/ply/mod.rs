@@ -313,7 +313,6 @@ impl MeshReader {
             self.scene.triangles.push(TriangleDesc {
                 positions,
                 normals: self.has_normals.then_some(positions),
-                texcoords: None,
                 material: MaterialId(0),
             });
             previous = next;

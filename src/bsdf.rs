@@ -19,7 +19,7 @@
 
 use std::f32::consts::{FRAC_1_PI, PI};
 
-use crate::material::Material;
+use crate::material::{Material, SurfaceValues};
 use crate::math::{Float, Vec2, Vec3, reflect};
 
 /// The scattering of one material, derived once per render.
@@ -64,11 +64,33 @@ impl ScatteringParams {
     /// The scattering `material` describes, and whether `Kd + Ks` had to be scaled
     /// down to conserve energy.
     pub fn new(material: &Material) -> (ScatteringParams, bool) {
+        ScatteringParams::from_values(
+            material,
+            material.diffuse,
+            material.specular,
+            material.shininess,
+        )
+    }
+
+    /// The scattering of a textured material at one point, from its values there
+    /// (`Kd`, `Ks` and `Ns` times their maps), for each hit on it.
+    #[inline]
+    pub fn at(material: &Material, surface: &SurfaceValues) -> ScatteringParams {
+        ScatteringParams::from_values(
+            material,
+            surface.diffuse,
+            surface.specular,
+            surface.shininess,
+        )
+        .0
+    }
+
+    #[inline]
+    fn from_values(material: &Material, kd: Vec3, ks: Vec3, ns: Float) -> (ScatteringParams, bool) {
         let [local, mirror, glass] = material.albedo.map(|w| w.max(0.0));
-        let mut diffuse = material.diffuse.max(Vec3::ZERO) * local;
-        let mut glossy = material.specular.max(Vec3::ZERO) * local;
-        let largest =
-            (material.diffuse.max(Vec3::ZERO) + material.specular.max(Vec3::ZERO)).max_element();
+        let mut diffuse = kd.max(Vec3::ZERO) * local;
+        let mut glossy = ks.max(Vec3::ZERO) * local;
+        let largest = (kd.max(Vec3::ZERO) + ks.max(Vec3::ZERO)).max_element();
         let scaled = largest > 1.0;
         if scaled {
             diffuse /= largest;
@@ -89,7 +111,7 @@ impl ScatteringParams {
         let params = ScatteringParams {
             diffuse,
             glossy,
-            exponent: material.shininess.max(0.0),
+            exponent: ns.max(0.0),
             mirror,
             glass,
             ior: material.ior,

@@ -11,12 +11,18 @@ use crate::math::{Float, Vec2, Vec3};
 pub struct SceneDescription {
     /// `v` positions.
     pub positions: Vec<Vec3>,
-    /// `vt` texture coordinates (read and checked, not used by the renderer).
+    /// `vt` texture coordinates (glTF: `TEXCOORD_0`, with `v` turned up).
     pub texcoords: Vec<Vec2>,
     /// `vn` normals, as written (not normalized).
     pub normals: Vec<Vec3>,
     /// Triangles after splitting polygons into fans.
     pub triangles: Vec<TriangleDesc>,
+    /// Indices into [`SceneDescription::texcoords`] of each triangle's corners, in
+    /// step with `triangles` (`None` where a corner has none); or empty, when no
+    /// triangle has texture coordinates or no material has a map to use them with.
+    /// (Kept apart from [`TriangleDesc`] so that untextured meshes, the large ones,
+    /// neither store nor copy them.)
+    pub triangle_texcoords: Vec<Option<[u32; 3]>>,
     /// `S` spheres.
     pub spheres: Vec<SphereDesc>,
     /// `P` lights.
@@ -28,7 +34,16 @@ pub struct SceneDescription {
     pub warnings: Vec<String>,
 }
 
-/// A triangle of a description: indices into its arrays.
+impl SceneDescription {
+    /// The texture coordinate indices of triangle `index`'s corners, if it has them.
+    #[inline]
+    pub fn texcoords_of(&self, index: usize) -> Option<[u32; 3]> {
+        self.triangle_texcoords.get(index).copied().flatten()
+    }
+}
+
+/// A triangle of a description: indices into its arrays (texture coordinates are in
+/// [`SceneDescription::triangle_texcoords`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleDesc {
     /// Indices into [`SceneDescription::positions`].

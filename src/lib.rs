@@ -69,6 +69,7 @@ pub mod sampler;
 pub mod scene;
 pub mod shapes;
 pub mod stats;
+pub mod textures;
 
 pub use bvh::{Bvh, BvhParams};
 pub use camera::Camera;

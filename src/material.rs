@@ -1,6 +1,7 @@
-//! Phong materials as read from MTL files.
+//! Phong materials as read from MTL files, with their texture maps.
 
-use crate::math::{Float, Vec3};
+use crate::math::{Float, Vec2, Vec3};
+use crate::textures::{Encoding, TextureMap};
 
 /// Index of a material in [`crate::Scene::materials`] (and in the description's list).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -29,6 +30,76 @@ pub struct Material {
     pub opacity: Float,
     /// `al`: weights of local shading, reflection and refraction.
     pub albedo: [Float; 3],
+    /// Texture maps, if any (boxed: most materials have none, and a material with
+    /// none stays small and is told apart by one pointer test).
+    pub maps: Option<Box<MaterialMaps>>,
+}
+
+/// A material's texture maps. Each colour map multiplies its colour (`map_Kd`
+/// multiplies `Kd`); `map_Ns` multiplies `Ns`.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct MaterialMaps {
+    /// `map_Ka`.
+    pub ambient: Option<TextureMap>,
+    /// `map_Kd` (glTF: the base colour texture).
+    pub diffuse: Option<TextureMap>,
+    /// `map_Ks`.
+    pub specular: Option<TextureMap>,
+    /// `map_Ke` (glTF: the emissive texture).
+    pub emission: Option<TextureMap>,
+    /// `map_Ns`: a scalar map.
+    pub shininess: Option<TextureMap>,
+    /// `map_d` or glTF's alpha mask: where the surface is cut out.
+    pub cutout: Option<Cutout>,
+    /// `bump`/`map_Bump`: a height map (a scalar map), which tilts the shading
+    /// normal by its slope (see [`MaterialMaps::tangent_normal`]). Ignored when
+    /// there is a normal map.
+    pub bump: Option<TextureMap>,
+    /// `norm`, a `bump` image that is a normal map, or glTF's normal texture: a
+    /// tangent-space normal map (OpenGL's convention, as glTF's: red along `u`, green
+    /// along `v`, blue out of the surface), linear.
+    pub normal: Option<TextureMap>,
+}
+
+/// Where a surface is cut out: rays pass through it where its alpha is below
+/// `cutoff`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cutout {
+    /// The alpha map (`map_d`, or glTF's base colour texture's alpha); none means
+    /// alpha is `factor` everywhere.
+    pub map: Option<TextureMap>,
+    /// Multiplies the map's alpha (glTF's base colour factor's alpha; 1 for MTL).
+    pub factor: Float,
+    /// Alpha below this is cut out: 0.5 for MTL, glTF's `alphaCutoff`.
+    pub cutoff: Float,
+}
+
+impl Cutout {
+    /// Whether the surface is there at texture coordinates `uv`.
+    #[inline]
+    pub fn keeps(&self, uv: Vec2) -> bool {
+        let alpha = match &self.map {
+            Some(map) => self.factor * map.scalar(uv, true),
+            None => self.factor,
+        };
+        alpha >= self.cutoff
+    }
+}
+
+/// A material's colours at one point of a surface: its constants, times its maps
+/// there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceValues {
+    /// `Ka`.
+    pub ambient: Vec3,
+    /// `Kd`.
+    pub diffuse: Vec3,
+    /// `Ks`.
+    pub specular: Vec3,
+    /// `Ke`.
+    pub emission: Vec3,
+    /// `Ns`.
+    pub shininess: Float,
 }
 
 impl Material {
@@ -44,9 +115,94 @@ impl Material {
             ior: 1.0,
             opacity: 1.0,
             albedo: [1.0, 0.0, 0.0],
+            maps: None,
         }
     }
 
+    /// The material's values at texture coordinates `uv`: the constants, each
+    /// multiplied by its map's filtered value there (colour maps decoded from sRGB).
+    /// Without maps, the constants exactly.
+    #[inline]
+    pub fn at(&self, uv: Vec2) -> SurfaceValues {
+        let mut values = SurfaceValues {
+            ambient: self.ambient,
+            diffuse: self.diffuse,
+            specular: self.specular,
+            emission: self.emission,
+            shininess: self.shininess,
+        };
+        if let Some(maps) = &self.maps {
+            maps.apply(uv, &mut values);
+        }
+        values
+    }
+
+    /// Whether some of the surface may be cut out (`map_d`, glTF's alpha mask).
+    #[inline]
+    pub fn cutout(&self) -> Option<&Cutout> {
+        self.maps.as_ref()?.cutout.as_ref()
+    }
+}
+
+impl MaterialMaps {
+    /// Multiplies `values` by the maps at `uv`. Out of line: only textured materials
+    /// get here.
+    #[inline(never)]
+    fn apply(&self, uv: Vec2, values: &mut SurfaceValues) {
+        let colour = |map: &Option<TextureMap>, value: &mut Vec3| {
+            if let Some(map) = map {
+                *value *= map.colour(uv, Encoding::Srgb);
+            }
+        };
+        colour(&self.ambient, &mut values.ambient);
+        colour(&self.diffuse, &mut values.diffuse);
+        colour(&self.specular, &mut values.specular);
+        colour(&self.emission, &mut values.emission);
+        if let Some(map) = &self.shininess {
+            values.shininess = (values.shininess * map.scalar(uv, false)).max(0.0);
+        }
+    }
+
+    /// Whether the maps change the shading normal (a bump or normal map).
+    #[inline]
+    pub fn perturbs_normals(&self) -> bool {
+        self.normal.is_some() || self.bump.is_some()
+    }
+
+    /// The unit shading normal at `uv` in tangent space (x along `u`, y along `v`,
+    /// z the unperturbed normal), from the normal map if there is one, else from the
+    /// bump map; `None` when neither gives one.
+    ///
+    /// A bump map's heights (0 to 1 after `-mm`) are read as heights in texels times
+    /// `-bm`: the normal tilts by the height's slope per texel, measured by central
+    /// differences one texel either side, the way height-to-normal-map tools convert
+    /// them. (MTL gives heights no unit; tying them to world units would make the same
+    /// map flat on a large model and spiky on a small one.)
+    pub fn tangent_normal(&self, uv: Vec2) -> Option<Vec3> {
+        if let Some(map) = &self.normal {
+            let n = map.colour(uv, Encoding::Linear) * 2.0 - Vec3::ONE;
+            return crate::math::try_unit(n);
+        }
+        let map = self.bump.as_ref()?;
+        let (width, height) = map.texture.size();
+        let scale = map.options.scale;
+        // One texel, in the coordinates before `-s` scales them.
+        let du = 1.0 / (width as Float * scale.x.abs().max(Float::MIN_POSITIVE));
+        let dv = 1.0 / (height as Float * scale.y.abs().max(Float::MIN_POSITIVE));
+        let h = |du: Float, dv: Float| map.scalar(uv + Vec2::new(du, dv), false);
+        let slope_u = (h(du, 0.0) - h(-du, 0.0)) * 0.5;
+        let slope_v = (h(0.0, dv) - h(0.0, -dv)) * 0.5;
+        let bm = map.options.bump_multiplier;
+        crate::math::try_unit(Vec3::new(-bm * slope_u, -bm * slope_v, 1.0))
+    }
+
+    /// Whether no map is set.
+    pub fn is_empty(&self) -> bool {
+        *self == MaterialMaps::default()
+    }
+}
+
+impl Material {
     /// What faces get when no (known) material was named: a matte light grey, so that
     /// a scene without an MTL file still shows its shapes.
     pub fn fallback() -> Material {

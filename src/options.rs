@@ -168,7 +168,7 @@ pub enum Origin {
     File {
         /// The file, as it was named.
         path: PathBuf,
-        /// 1-based line of the value.
+        /// 1-based line of the value; 0 for a file without lines (glTF).
         line: usize,
         /// The dotted key, such as `camera.width`.
         key: &'static str,
@@ -183,6 +183,8 @@ impl fmt::Display for Origin {
         match self {
             Origin::Default => f.write_str("the default"),
             Origin::Flag(flag) => f.write_str(flag),
+            // Line 0: a file without lines (glTF).
+            Origin::File { path, line: 0, key } => write!(f, "{}: {key}", path.display()),
             Origin::File { path, line, key } => write!(f, "{}:{line}: {key}", path.display()),
             Origin::Aspect(of) => write!(f, "{of} (keeping the aspect ratio)"),
         }

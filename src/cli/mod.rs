@@ -53,13 +53,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 /// Loads the scene and the options: each value from the flag if given, else from the
-/// scene file (TOML), else the default; checked once, after merging, so that a flag
+/// scene file (TOML, or a glTF camera), else the default; checked once, after merging, so that a flag
 /// can replace a bad value of the file.
 fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
     let flags = view.options();
     // OBJ and PLY files set no options, so the flags can be checked before a long
-    // load; a TOML file's values must be merged first.
-    if SceneFormat::require(&view.scene)? != SceneFormat::Toml {
+    // load; a TOML or glTF file's values (a glTF camera) must be merged first.
+    if !matches!(
+        SceneFormat::require(&view.scene)?,
+        SceneFormat::Toml | SceneFormat::Gltf
+    ) {
         flags.resolve()?;
     }
     let loaded = formats::load(&view.scene)?;

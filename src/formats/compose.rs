@@ -97,6 +97,7 @@ impl SceneDescription {
         let fits = |a: usize, b: usize| a.checked_add(b).is_some_and(|n| n <= u32::MAX as usize);
         if !fits(self.positions.len(), mesh.positions.len())
             || !fits(self.normals.len(), mesh.normals.len())
+            || !fits(self.texcoords.len(), mesh.texcoords.len())
         {
             return Err(ParseErrorKind::TooMany("vertices"));
         }
@@ -105,6 +106,7 @@ impl SceneDescription {
         }
         let position_offset = self.positions.len() as u32;
         let normal_offset = self.normals.len() as u32;
+        let texcoord_offset = self.texcoords.len() as u32;
         let material_offset = self.materials.len() as u32;
         let material_of = |id: MaterialId| material.unwrap_or(MaterialId(id.0 + material_offset));
 
@@ -129,6 +131,16 @@ impl SceneDescription {
         }
         for l in &mut mesh.lights {
             l.position = transform.point(l.position);
+        }
+        for t in mesh.triangle_texcoords.iter_mut().flatten() {
+            *t = t.map(|i| i + texcoord_offset);
+        }
+        // Texture coordinate indices stay in step with the triangles: if only one
+        // side has them, the other's triangles have none.
+        if !mesh.triangle_texcoords.is_empty() || !self.triangle_texcoords.is_empty() {
+            self.triangle_texcoords.resize(self.triangles.len(), None);
+            mesh.triangle_texcoords.resize(mesh.triangles.len(), None);
+            append(&mut self.triangle_texcoords, mesh.triangle_texcoords);
         }
         append(&mut self.positions, mesh.positions);
         append(&mut self.normals, mesh.normals);

@@ -48,6 +48,15 @@ pub enum SceneError {
         /// The file, as it was named.
         path: PathBuf,
     },
+    /// A glTF file that cannot be read: invalid JSON or GLB, a buffer that is missing
+    /// or too short, indices outside their vertices.
+    #[error("{}: {message}", path.display())]
+    Gltf {
+        /// The glTF file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// A file named by a scene file failed to load; `error` carries its own location.
     #[error("{}:{line}: {key}: {error}", path.display())]
     Included {
@@ -166,6 +175,16 @@ pub enum ParseErrorKind {
     /// A transform that would turn spheres into ellipsoids.
     #[error("spheres need the same scale on every axis")]
     NonUniformSphereScale,
+    /// A texture map option with a value it does not take.
+    #[error("'{option}' takes {expected}, found '{value}'")]
+    BadOption {
+        /// The option, such as `-clamp`.
+        option: &'static str,
+        /// The value as written.
+        value: String,
+        /// What it takes.
+        expected: &'static str,
+    },
     /// A PLY list count that is negative.
     #[error("negative list length {0}")]
     NegativeCount(i64),

@@ -7,6 +7,7 @@
 //! | Wavefront OBJ + MTL | [`obj`](load_obj), `mtl` | `v vt vn f`, `S` spheres, `P` lights, `mtllib`/`usemtl` |
 //! | PLY (ascii, binary) | [`ply`](load_ply) | vertices, normals, faces |
 //! | TOML scene file | [`toml`](load_toml) | camera, render settings, meshes placed by [`Transform`] |
+//! | glTF 2.0 (`.gltf`, `.glb`) | [`gltf`](load_gltf) | meshes under node transforms, materials, textures, first camera, point lights |
 //!
 //! A new format gets a module here, a [`SceneFormat`] variant and an extension in
 //! [`SceneFormat::of`]; it produces a [`SceneDescription`] and nothing else.
@@ -15,6 +16,7 @@ mod compose;
 mod decimal;
 mod error;
 mod file;
+mod gltf;
 mod lex;
 mod mtl;
 mod obj;
@@ -24,7 +26,8 @@ mod toml;
 
 pub use compose::Transform;
 pub use error::{IndexKind, ParseErrorKind, SceneError};
-pub use mtl::parse_mtl;
+pub use gltf::{load_gltf, parse_gltf};
+pub use mtl::{MaterialLibrary, parse_mtl};
 pub use obj::{load_obj, parse_obj};
 pub use ply::{load_ply, parse_ply};
 pub use toml::{load_toml, parse_toml};
@@ -55,10 +58,12 @@ pub enum SceneFormat {
     Ply,
     /// A TOML scene description: `.toml`.
     Toml,
+    /// glTF 2.0: `.gltf` (JSON, with `.bin` files or data URIs) or `.glb` (binary).
+    Gltf,
 }
 
 /// The extensions [`SceneFormat::of`] knows, for messages.
-pub const SUPPORTED_EXTENSIONS: &str = ".obj, .ply, .toml";
+pub const SUPPORTED_EXTENSIONS: &str = ".obj, .ply, .toml, .gltf, .glb";
 
 impl SceneFormat {
     /// The format of `path` by its extension, in any letter case, after an optional
@@ -74,6 +79,7 @@ impl SceneFormat {
             "obj" => Some(SceneFormat::Obj),
             "ply" => Some(SceneFormat::Ply),
             "toml" => Some(SceneFormat::Toml),
+            "gltf" | "glb" => Some(SceneFormat::Gltf),
             _ => None,
         }
     }
@@ -89,7 +95,7 @@ impl SceneFormat {
     }
 }
 
-/// Reads any scene file: OBJ, PLY or TOML, each possibly gzip-compressed.
+/// Reads any scene file: OBJ, PLY, TOML or glTF, each possibly gzip-compressed.
 ///
 /// # Errors
 /// The name has no supported extension, or the format's reader reports an error,
@@ -97,6 +103,7 @@ impl SceneFormat {
 pub fn load(path: &Path) -> Result<LoadedScene, SceneError> {
     match SceneFormat::require(path)? {
         SceneFormat::Toml => load_toml(path),
+        SceneFormat::Gltf => load_gltf(path),
         _ => load_mesh(path).map(|description| LoadedScene {
             description,
             options: PartialOptions::default(),
@@ -104,14 +111,16 @@ pub fn load(path: &Path) -> Result<LoadedScene, SceneError> {
     }
 }
 
-/// Reads a mesh file: OBJ or PLY. A TOML scene file is no mesh: an error.
+/// Reads a mesh file: OBJ, PLY or glTF (its meshes, materials and lights; a glTF
+/// camera is ignored here). A TOML scene file is no mesh: an error.
 ///
 /// # Errors
-/// As [`load_obj`] and [`load_ply`]; the name is neither `.obj` nor `.ply`.
+/// As [`load_obj`], [`load_ply`] and [`load_gltf`]; the name is none of theirs.
 pub fn load_mesh(path: &Path) -> Result<SceneDescription, SceneError> {
     match SceneFormat::require(path)? {
         SceneFormat::Obj => load_obj(path),
         SceneFormat::Ply => load_ply(path),
+        SceneFormat::Gltf => load_gltf(path).map(|loaded| loaded.description),
         SceneFormat::Toml => Err(SceneError::UnknownFormat {
             path: path.to_path_buf(),
         }),

@@ -1,26 +1,78 @@
-//! The MTL reader: `newmtl`, `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `Tr`, `al`.
+//! The MTL reader: `newmtl`, `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `Tr`, `al`, and
+//! the texture maps `map_Ka`, `map_Kd`, `map_Ks`, `map_Ke`, `map_Ns`, `map_d`,
+//! `bump`/`map_Bump` and `norm` with their options.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use rayon::prelude::*;
 
 use super::error::{ParseErrorKind, SceneError};
 use super::lex;
-use crate::material::Material;
-use crate::math::{Float, Vec3};
+use crate::material::{Cutout, Material, MaterialMaps};
+use crate::math::{Float, Vec2, Vec3};
+use crate::textures::{Channel, Texture, TextureMap, TextureOptions, Wrap, load_texture};
 
-/// Parses an MTL file's text; `path` names it in errors. Materials keep file order.
-///
-/// # Errors
-/// A malformed supported line, with its line number.
-pub fn parse_mtl(text: &[u8], path: &Path) -> Result<Vec<Material>, SceneError> {
-    parse_mtl_with_warnings(text, path).map(|(materials, _)| materials)
+/// The materials of an MTL file, and what was wrong with it but not fatal.
+#[derive(Clone, Debug, Default)]
+pub struct MaterialLibrary {
+    /// The materials, in file order, with their texture maps loaded.
+    pub materials: Vec<Material>,
+    /// Warnings, each naming the file and line: textures that cannot be read, map
+    /// statements the renderer does not apply.
+    pub warnings: Vec<String>,
 }
 
-/// [`parse_mtl`], with the warnings about values that other tools write and this
-/// renderer reads as the nearest valid one, each naming file and line.
-pub(crate) fn parse_mtl_with_warnings(
-    text: &[u8],
-    path: &Path,
-) -> Result<(Vec<Material>, Vec<String>), SceneError> {
+/// Which slot of [`MaterialMaps`] a map statement fills.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum MapKind {
+    Ambient,
+    Diffuse,
+    Specular,
+    Emission,
+    Shininess,
+    Alpha,
+    Bump,
+    Normal,
+}
+
+impl MapKind {
+    /// The kind of a map statement's keyword, in any letter case (exporters write
+    /// `map_Bump`, `map_bump` and `bump` alike).
+    fn of(keyword: &[u8]) -> Option<MapKind> {
+        let keyword = keyword.to_ascii_lowercase();
+        Some(match keyword.as_slice() {
+            b"map_ka" => MapKind::Ambient,
+            b"map_kd" => MapKind::Diffuse,
+            b"map_ks" => MapKind::Specular,
+            b"map_ke" => MapKind::Emission,
+            b"map_ns" => MapKind::Shininess,
+            b"map_d" => MapKind::Alpha,
+            b"bump" | b"map_bump" => MapKind::Bump,
+            b"norm" | b"map_kn" => MapKind::Normal,
+            _ => return None,
+        })
+    }
+}
+
+/// A map statement as read, before its image is loaded.
+struct PendingMap {
+    material: usize,
+    kind: MapKind,
+    options: TextureOptions,
+    file: String,
+    line: usize,
+}
+
+/// Parses an MTL file's text and loads the textures it names (relative to its
+/// folder, each file once); `path` names it in errors and warnings. Materials keep
+/// file order.
+///
+/// # Errors
+/// A malformed supported line, with its line number. A texture that cannot be read
+/// is a warning, and the material renders without it; so is an `Ns` below 0, read as 0.
+pub fn parse_mtl(text: &[u8], path: &Path) -> Result<MaterialLibrary, SceneError> {
     let at = |line, kind| SceneError::Parse {
         path: path.to_path_buf(),
         line,
@@ -28,34 +80,147 @@ pub(crate) fn parse_mtl_with_warnings(
     };
     lex::check_text(text).map_err(|(line, kind)| at(line, kind))?;
     let mut materials: Vec<Material> = Vec::new();
-    // The first line with a negative `Ns`, and how many there are.
+    let mut maps = Vec::new();
+    let mut warnings = Vec::new();
+    // The first line with a negative `Ns`, and how many there are: one warning.
     let mut negative_ns: Option<(usize, usize)> = None;
     for (line_number, line) in lex::lines(text) {
-        let clamped = parse_line(line, &mut materials).map_err(|kind| at(line_number, kind))?;
+        let clamped = parse_line(line, line_number, &mut materials, &mut maps, &mut warnings)
+            .map_err(|kind| at(line_number, kind))?;
         if clamped {
             let (_, count) = negative_ns.get_or_insert((line_number, 0));
             *count += 1;
         }
     }
-    let warnings = negative_ns
-        .map(|(line, count)| {
-            format!(
-                "{}:{line}: 'Ns' below 0 read as 0 ({count} line{})",
-                path.display(),
-                if count == 1 { "" } else { "s" }
-            )
-        })
-        .into_iter()
-        .collect();
-    Ok((materials, warnings))
+    if let Some((line, count)) = negative_ns {
+        let plural = if count == 1 { "" } else { "s" };
+        warnings.push((
+            line,
+            format!("'Ns' below 0 read as 0 ({count} line{plural})"),
+        ));
+    }
+    let mut library = MaterialLibrary {
+        materials,
+        warnings: warnings
+            .into_iter()
+            .map(|(line, message)| format!("{}:{line}: {message}", path.display()))
+            .collect(),
+    };
+    load_maps(maps, path, &mut library);
+    Ok(library)
 }
 
-/// Reads one line into `materials`; `true` if it was an `Ns` below 0, read as 0.
-fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<bool, ParseErrorKind> {
+/// Loads the images of `maps` (in parallel, each file once) and gives them to their
+/// materials; a file that cannot be loaded is a warning at each line that names it.
+fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibrary) {
+    if maps.is_empty() {
+        return;
+    }
+    let folder = mtl_path.parent().unwrap_or(Path::new(""));
+    let mut files: Vec<&str> = maps.iter().map(|m| m.file.as_str()).collect();
+    files.sort_unstable();
+    files.dedup();
+    let loaded: HashMap<&str, Result<Arc<Texture>, String>> = files
+        .into_par_iter()
+        .map(|file| (file, load_named(folder, file)))
+        .collect();
+    for map in &maps {
+        let texture = match &loaded[map.file.as_str()] {
+            Ok(texture) => texture.clone(),
+            Err(reason) => {
+                library.warnings.push(format!(
+                    "{}:{}: cannot read texture '{}': {reason}; the surface renders without it",
+                    mtl_path.display(),
+                    map.line,
+                    map.file
+                ));
+                continue;
+            }
+        };
+        // A `bump` image that is a normal map is used as one.
+        let kind = match map.kind {
+            MapKind::Bump if texture.looks_like_normal_map() => MapKind::Normal,
+            kind => kind,
+        };
+        let texture_map = TextureMap {
+            texture,
+            options: map.options,
+        };
+        let maps = library.materials[map.material]
+            .maps
+            .get_or_insert_with(|| Box::new(MaterialMaps::default()));
+        let slot = match kind {
+            MapKind::Ambient => &mut maps.ambient,
+            MapKind::Diffuse => &mut maps.diffuse,
+            MapKind::Specular => &mut maps.specular,
+            MapKind::Emission => &mut maps.emission,
+            MapKind::Shininess => &mut maps.shininess,
+            MapKind::Bump => &mut maps.bump,
+            MapKind::Normal => &mut maps.normal,
+            MapKind::Alpha => {
+                maps.cutout = Some(Cutout {
+                    map: Some(texture_map),
+                    factor: 1.0,
+                    cutoff: 0.5,
+                });
+                continue;
+            }
+        };
+        *slot = Some(texture_map);
+    }
+}
+
+/// Loads texture `file` named in an MTL file in `folder`. Exporters write Windows
+/// paths and absolute paths of the machine the model was made on: when the file is
+/// not where it says, it is looked for with `\` read as `/`, then by its bare name
+/// beside the MTL file.
+fn load_named(folder: &Path, file: &str) -> Result<Arc<Texture>, String> {
+    let first = load_texture(&folder.join(file));
+    if first.is_ok() {
+        return first;
+    }
+    let slashed = file.replace('\\', "/");
+    let mut candidates: Vec<PathBuf> = Vec::new();
+    if slashed != file {
+        candidates.push(folder.join(&slashed));
+    }
+    if let Some(name) = Path::new(&slashed).file_name()
+        && Path::new(name) != Path::new(&slashed)
+    {
+        candidates.push(folder.join(name));
+    }
+    candidates
+        .iter()
+        .find(|candidate| candidate.is_file())
+        .map_or(first, |candidate| load_texture(candidate))
+}
+
+fn parse_line(
+    line: &[u8],
+    line_number: usize,
+    materials: &mut Vec<Material>,
+    maps: &mut Vec<PendingMap>,
+    warnings: &mut Vec<(usize, String)>,
+) -> Result<bool, ParseErrorKind> {
     let mut tokens = lex::tokens(line);
     let Some(keyword) = tokens.next() else {
         return Ok(false);
     };
+    if let Some(kind) = MapKind::of(keyword) {
+        let material = materials
+            .len()
+            .checked_sub(1)
+            .ok_or_else(|| ParseErrorKind::PropertyBeforeNewmtl(lex::show(keyword)))?;
+        let (options, file) = parse_map(line, keyword, tokens, warnings, line_number)?;
+        maps.push(PendingMap {
+            material,
+            kind,
+            options,
+            file,
+            line: line_number,
+        });
+        return Ok(false);
+    }
     if keyword == b"newmtl" {
         let name = lex::rest_of_line(line, b"newmtl");
         if name.is_empty() {
@@ -100,6 +265,179 @@ fn parse_line(line: &[u8], materials: &mut Vec<Material>) -> Result<bool, ParseE
     Ok(false)
 }
 
+/// The options and the file name of a map statement (`tokens` follow the keyword).
+/// The file name is the rest of the line after the options, inner spaces kept.
+fn parse_map(
+    line: &[u8],
+    keyword: &[u8],
+    mut tokens: lex::Tokens<'_>,
+    warnings: &mut Vec<(usize, String)>,
+    line_number: usize,
+) -> Result<(TextureOptions, String), ParseErrorKind> {
+    let mut options = TextureOptions::default();
+    let statement = map_statement(keyword);
+    loop {
+        let Some(token) = tokens.next() else {
+            return Err(ParseErrorKind::MissingName(statement));
+        };
+        let Some(option) = token
+            .strip_prefix(b"-")
+            .filter(|o| o.first().is_some_and(u8::is_ascii_alphabetic))
+        else {
+            // The file name: from this token to the end of the line.
+            let start = token.as_ptr() as usize - line.as_ptr() as usize;
+            let name = line[start..].trim_ascii();
+            let name = strip_quotes(name);
+            return Ok((options, String::from_utf8_lossy(name).into_owned()));
+        };
+        match option {
+            b"o" | b"s" | b"t" => {
+                let values = up_to_three(&mut tokens, option)?;
+                match option {
+                    b"o" => options.offset = Vec2::new(values[0], values[1]),
+                    b"s" => options.scale = Vec2::new(values[0], values[1]),
+                    _ => {}
+                }
+            }
+            b"mm" => {
+                let [base, gain] = lex::floats::<2>("-mm", &mut tokens)?;
+                (options.base, options.gain) = (base, gain);
+            }
+            b"bm" => options.bump_multiplier = lex::floats::<1>("-bm", &mut tokens)?[0],
+            b"boost" => {
+                lex::floats::<1>("-boost", &mut tokens)?;
+            }
+            b"texres" => {
+                lex::floats::<1>("-texres", &mut tokens)?;
+            }
+            b"clamp" => {
+                let wrap = if on_off("-clamp", tokens.next())? {
+                    Wrap::Clamp
+                } else {
+                    Wrap::Repeat
+                };
+                (options.wrap_u, options.wrap_v) = (wrap, wrap);
+            }
+            b"blendu" | b"blendv" | b"cc" => {
+                on_off(option_name(option), tokens.next())?;
+            }
+            b"imfchan" => {
+                options.channel = match tokens.next() {
+                    Some(b"r") => Channel::Red,
+                    Some(b"g") => Channel::Green,
+                    Some(b"b") => Channel::Blue,
+                    Some(b"m") => Channel::Alpha,
+                    Some(b"l" | b"z") => Channel::Luminance,
+                    Some(other) => {
+                        return Err(ParseErrorKind::BadOption {
+                            option: "-imfchan",
+                            value: lex::show(other),
+                            expected: "r, g, b, m, l or z",
+                        });
+                    }
+                    None => {
+                        return Err(ParseErrorKind::TooFewValues {
+                            statement: "-imfchan",
+                            expected: 1,
+                            found: 0,
+                        });
+                    }
+                }
+            }
+            b"type" => {
+                if tokens.next().is_none() {
+                    return Err(ParseErrorKind::TooFewValues {
+                        statement: "-type",
+                        expected: 1,
+                        found: 0,
+                    });
+                }
+            }
+            other => warnings.push((
+                line_number,
+                format!(
+                    "unknown option '-{}' of '{statement}' ignored",
+                    lex::show(other)
+                ),
+            )),
+        }
+    }
+}
+
+/// The statement's name for messages.
+fn map_statement(keyword: &[u8]) -> &'static str {
+    match keyword.to_ascii_lowercase().as_slice() {
+        b"map_ka" => "map_Ka",
+        b"map_kd" => "map_Kd",
+        b"map_ks" => "map_Ks",
+        b"map_ke" => "map_Ke",
+        b"map_ns" => "map_Ns",
+        b"map_d" => "map_d",
+        b"bump" => "bump",
+        b"map_bump" => "map_Bump",
+        _ => "norm",
+    }
+}
+
+fn option_name(option: &[u8]) -> &'static str {
+    match option {
+        b"blendu" => "-blendu",
+        b"blendv" => "-blendv",
+        _ => "-cc",
+    }
+}
+
+/// `on` or `off`.
+fn on_off(option: &'static str, token: Option<&[u8]>) -> Result<bool, ParseErrorKind> {
+    match token {
+        Some(b"on") => Ok(true),
+        Some(b"off") => Ok(false),
+        Some(other) => Err(ParseErrorKind::BadOption {
+            option,
+            value: lex::show(other),
+            expected: "on or off",
+        }),
+        None => Err(ParseErrorKind::TooFewValues {
+            statement: option,
+            expected: 1,
+            found: 0,
+        }),
+    }
+}
+
+/// One to three numbers: `-o`, `-s` and `-t` take `u [v [w]]`, and a missing `v` or
+/// `w` keeps the option's default (0 for offsets and turbulence, 1 for scales).
+fn up_to_three(tokens: &mut lex::Tokens<'_>, option: &[u8]) -> Result<[Float; 3], ParseErrorKind> {
+    let name = match option {
+        b"o" => "-o",
+        b"s" => "-s",
+        _ => "-t",
+    };
+    let default = if option == b"s" { 1.0 } else { 0.0 };
+    let mut values = [default; 3];
+    values[0] = lex::floats::<1>(name, tokens)?[0];
+    for value in &mut values[1..] {
+        let mut peek = tokens.clone();
+        match peek.next().map(lex::float) {
+            Some(Ok(v)) => {
+                *value = v;
+                *tokens = peek;
+            }
+            _ => break,
+        }
+    }
+    Ok(values)
+}
+
+/// A file name without the double quotes some exporters put around names with
+/// spaces.
+fn strip_quotes(name: &[u8]) -> &[u8] {
+    match name {
+        [b'"', inner @ .., b'"'] => inner,
+        _ => name,
+    }
+}
+
 /// An RGB triple; a single value means grey.
 fn colour<'a>(
     statement: &'static str,
@@ -117,7 +455,7 @@ mod tests {
     use super::*;
 
     fn parse(text: &str) -> Result<Vec<Material>, SceneError> {
-        parse_mtl(text.as_bytes(), Path::new("test.mtl"))
+        parse_mtl(text.as_bytes(), Path::new("test.mtl")).map(|library| library.materials)
     }
 
     #[test]
@@ -153,14 +491,20 @@ mod tests {
     #[test]
     fn a_negative_ns_is_read_as_zero_with_one_warning() {
         let text = "newmtl a\nNs -5\nnewmtl b\nNs 10\nnewmtl c\nNs -0.5\n";
-        let (m, warnings) = parse_mtl_with_warnings(text.as_bytes(), Path::new("t.mtl")).unwrap();
+        let library = parse_mtl(text.as_bytes(), Path::new("t.mtl")).unwrap();
         assert_eq!(
-            m.iter().map(|m| m.shininess).collect::<Vec<_>>(),
+            library
+                .materials
+                .iter()
+                .map(|m| m.shininess)
+                .collect::<Vec<_>>(),
             [0.0, 10.0, 0.0]
         );
-        assert_eq!(warnings, ["t.mtl:2: 'Ns' below 0 read as 0 (2 lines)"]);
-        let (_, warnings) =
-            parse_mtl_with_warnings(b"newmtl a\nNs 0\n", Path::new("t.mtl")).unwrap();
-        assert!(warnings.is_empty());
+        assert_eq!(
+            library.warnings,
+            ["t.mtl:2: 'Ns' below 0 read as 0 (2 lines)"]
+        );
+        let library = parse_mtl(b"newmtl a\nNs 0\n", Path::new("t.mtl")).unwrap();
+        assert!(library.warnings.is_empty());
     }
 }

@@ -181,10 +181,15 @@ fn parse_surveyed(
     // Pass 1 counts the triangles of faces that may turn out malformed: memory
     // for them is asked for fallibly, so that a file claiming absurdly many gets
     // the general parser's error rather than an abort.
+    let keep_texcoords = keeps_triangle_texcoords(&total, &scene);
     let reserved = scene.positions.try_reserve_exact(total.positions).is_ok()
         && scene.texcoords.try_reserve_exact(total.texcoords).is_ok()
         && scene.normals.try_reserve_exact(total.normals).is_ok()
-        && scene.triangles.try_reserve_exact(total.triangles).is_ok();
+        && scene.triangles.try_reserve_exact(total.triangles).is_ok()
+        && (!keep_texcoords
+            || (scene.triangle_texcoords)
+                .try_reserve_exact(total.triangles)
+                .is_ok());
     if !reserved {
         return parse_generally(chunks, path);
     }
@@ -192,17 +197,28 @@ fn parse_surveyed(
     let texcoords = parts_of(&mut scene.texcoords, lengths(|c| c.texcoords));
     let normals = parts_of(&mut scene.normals, lengths(|c| c.normals));
     let triangles = parts_of(&mut scene.triangles, lengths(|c| c.triangles));
+    let mut triangle_texcoords = if keep_texcoords {
+        let parts = parts_of(&mut scene.triangle_texcoords, lengths(|c| c.triangles));
+        parts.into_iter().map(Some).collect()
+    } else {
+        Vec::new()
+    };
+    triangle_texcoords.resize_with(triangles.len(), || None);
     let parts: Vec<Parts<'_>> = positions
         .into_iter()
         .zip(texcoords)
         .zip(normals)
         .zip(triangles)
-        .map(|(((positions, texcoords), normals), triangles)| Parts {
-            positions,
-            texcoords,
-            normals,
-            triangles,
-        })
+        .zip(triangle_texcoords)
+        .map(
+            |((((positions, texcoords), normals), triangles), triangle_texcoords)| Parts {
+                positions,
+                texcoords,
+                normals,
+                triangles,
+                triangle_texcoords,
+            },
+        )
         .collect();
     let filled: Vec<Filled> = parts
         .into_par_iter()
@@ -242,6 +258,9 @@ fn parse_surveyed(
         scene.texcoords.set_len(total.texcoords);
         scene.normals.set_len(total.normals);
         scene.triangles.set_len(total.triangles);
+        if keep_texcoords {
+            scene.triangle_texcoords.set_len(total.triangles);
+        }
     }
     let material = |chunk: usize, slot: MaterialId| materials[chunk][slot.0 as usize];
     let sphere = |chunk, s: &SphereDesc| SphereDesc {
@@ -274,6 +293,13 @@ fn chunk_faces(statements: &[Chunk], bases: &[Counts], shapings: Vec<Shaping>) -
             faces
         })
         .collect()
+}
+
+/// Whether the description keeps each triangle's texture coordinate indices: only
+/// when the file has texture coordinates and a material (all loaded by now) has a map
+/// to read with them. Most large meshes have neither, and pay nothing.
+fn keeps_triangle_texcoords(total: &Counts, scene: &SceneDescription) -> bool {
+    total.texcoords > 0 && scene.materials.iter().any(|m| m.maps.is_some())
 }
 
 /// The triangles of the chunks up to and including `chunk`.
@@ -326,12 +352,17 @@ fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<
             })
         })
         .collect();
+    let triangle_texcoords = match &mut parts.triangle_texcoords {
+        Some(part) => copy_into(&chunk.triangle_texcoords, part),
+        None => true,
+    };
     match triangles {
         Some(triangles)
             if copy_into(&chunk.positions, parts.positions)
                 && copy_into(&chunk.texcoords, parts.texcoords)
                 && copy_into(&chunk.normals, parts.normals)
-                && copy_into(&triangles, parts.triangles) =>
+                && copy_into(&triangles, parts.triangles)
+                && triangle_texcoords =>
         {
             Filled::Complete(std::mem::take(&mut chunk.shaping))
         }
@@ -423,6 +454,19 @@ fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, Sc
         }
     }
     let mut scene = std::mem::take(&mut resolver.scene);
+    let total_texcoords = parsed.iter().map(|c| c.texcoords.len()).sum();
+    let total = Counts {
+        texcoords: total_texcoords,
+        ..Counts::default()
+    };
+    if keeps_triangle_texcoords(&total, &scene) {
+        concat(
+            &parsed,
+            |c| &c.triangle_texcoords,
+            |_, &t| t,
+            &mut scene.triangle_texcoords,
+        );
+    }
     concat(&parsed, |c| &c.positions, |_, &p| p, &mut scene.positions);
     concat(&parsed, |c| &c.texcoords, |_, &t| t, &mut scene.texcoords);
     concat(&parsed, |c| &c.normals, |_, &n| n, &mut scene.normals);
@@ -608,6 +652,8 @@ struct Chunk {
     texcoords: Vec<Vec2>,
     normals: Vec<Vec3>,
     triangles: Vec<TriangleDesc>,
+    /// Texture coordinate indices of each triangle, in step with `triangles`.
+    triangle_texcoords: Vec<Option<[u32; 3]>>,
     spheres: Vec<SphereDesc>,
     lights: Vec<PointLight>,
     events: Vec<Event>,
@@ -629,6 +675,7 @@ struct Chunk {
 #[derive(Clone, Copy)]
 struct Corner {
     position: u32,
+    texcoord: Option<u32>,
     normal: Option<u32>,
 }
 
@@ -798,11 +845,16 @@ impl Chunk {
                     (Some(na), Some(nb), Some(nc)) => Some([na, nb, nc]),
                     _ => None,
                 };
+                let texcoords = match (a.texcoord, b.texcoord, corner.texcoord) {
+                    (Some(ta), Some(tb), Some(tc)) => Some([ta, tb, tc]),
+                    _ => None,
+                };
                 self.triangles.push(TriangleDesc {
                     positions: [a.position, b.position, corner.position],
                     normals,
                     material: MaterialId(slot),
                 });
+                self.triangle_texcoords.push(texcoords);
             }
             first.get_or_insert(corner);
             previous = Some(corner);
@@ -838,17 +890,23 @@ impl Chunk {
             IndexKind::Vertex,
             defined(base.positions, self.positions.len()),
         )?;
-        if let Some(vt) = texcoord {
-            let count = defined(base.texcoords, self.texcoords.len());
-            resolve(vt, IndexKind::TexCoord, count)?;
-        }
+        let texcoord = texcoord
+            .map(|vt| {
+                let count = defined(base.texcoords, self.texcoords.len());
+                resolve(vt, IndexKind::TexCoord, count)
+            })
+            .transpose()?;
         let normal = normal
             .map(|vn| {
                 let count = defined(base.normals, self.normals.len());
                 resolve(vn, IndexKind::Normal, count)
             })
             .transpose()?;
-        Ok(Corner { position, normal })
+        Ok(Corner {
+            position,
+            texcoord,
+            normal,
+        })
     }
 }
 
@@ -1005,9 +1063,9 @@ impl<'a> Resolver<'a> {
             SceneError::Io { path, error } => library_error(&path, &error),
             other => other,
         })?;
-        let (materials, warnings) = mtl::parse_mtl_with_warnings(&text, &mtl_path)?;
-        self.scene.warnings.extend(warnings);
-        for material in materials {
+        let library = mtl::parse_mtl(&text, &mtl_path)?;
+        self.scene.warnings.extend(library.warnings);
+        for material in library.materials {
             let id = MaterialId(self.scene.materials.len() as u32);
             self.material_ids.insert(material.name.clone(), id);
             self.scene.materials.push(material);
@@ -1330,6 +1388,7 @@ mod tests {
         let mut parts = Parts {
             positions: &mut positions.spare_capacity_mut()[..counts.positions],
             texcoords: &mut texcoords.spare_capacity_mut()[..counts.texcoords],
+            triangle_texcoords: None,
             normals: &mut normals.spare_capacity_mut()[..counts.normals],
             triangles: &mut triangles.spare_capacity_mut()[..counts.triangles],
         };
@@ -1359,7 +1418,19 @@ mod tests {
     fn fast_scanner_equals_the_general_parser_on_random_documents() {
         use rand::SeedableRng;
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("lib.mtl"), "newmtl red\nKd 1 0 0\n").unwrap();
+        // A texture map, so that documents naming the library keep their triangles'
+        // texture coordinates (in both readers) and the others do not.
+        let image = std::fs::File::create(dir.path().join("red.png")).unwrap();
+        let mut encoder = png::Encoder::new(image, 1, 1);
+        encoder.set_color(png::ColorType::Rgb);
+        let mut writer = encoder.write_header().unwrap();
+        writer.write_image_data(&[255, 0, 0]).unwrap();
+        writer.finish().unwrap();
+        std::fs::write(
+            dir.path().join("lib.mtl"),
+            "newmtl red\nKd 1 0 0\nmap_Kd red.png\n",
+        )
+        .unwrap();
         let path = dir.path().join("scene.obj");
         let mut documents = RandomObj {
             rng: rand::rngs::StdRng::seed_from_u64(11),

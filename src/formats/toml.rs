@@ -413,19 +413,19 @@ impl Builder<'_> {
             None => file.into(),
         };
         match SceneFormat::of(&mesh_path) {
-            Some(SceneFormat::Obj | SceneFormat::Ply) => {}
+            Some(SceneFormat::Obj | SceneFormat::Ply | SceneFormat::Gltf) => {}
             Some(SceneFormat::Toml) => {
                 return Err(self.error(
                     file_span,
                     "mesh.file",
-                    format!("'{file}' is a scene file, not a mesh (OBJ or PLY)"),
+                    format!("'{file}' is a scene file, not a mesh (OBJ, PLY or glTF)"),
                 ));
             }
             None => {
                 return Err(self.error(
                     file_span,
                     "mesh.file",
-                    format!("'{file}' is not a mesh file the renderer reads (.obj or .ply, each optionally .gz)"),
+                    format!("'{file}' is not a mesh file the renderer reads (.obj, .ply, .gltf or .glb, each optionally .gz)"),
                 ));
             }
         }
@@ -792,7 +792,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[[mesh]]\nfile = \"other.toml\"\n",
-                "DIR/s.toml:2: mesh.file: 'other.toml' is a scene file, not a mesh (OBJ or PLY)",
+                "DIR/s.toml:2: mesh.file: 'other.toml' is a scene file, not a mesh (OBJ, PLY or glTF)",
             ),
             (
                 "[[mesh]]\nmaterial = \"m\"\n",

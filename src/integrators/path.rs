@@ -88,7 +88,11 @@ impl Integrator for PathIntegrator {
                 break;
             };
             let material = &scene.materials[hit.material.0 as usize];
-            if hit.front && material.emission != Vec3::ZERO {
+            // A textured material's scattering is made for this hit from the values
+            // of its maps here; an untextured one's was made once, in `new`.
+            let textured = material.maps.as_ref().map(|_| material.at(hit.uv));
+            let emission = textured.map_or(material.emission, |s| s.emission);
+            if hit.front && emission != Vec3::ZERO {
                 let weight = if previous_delta {
                     1.0
                 } else {
@@ -99,12 +103,19 @@ impl Integrator for PathIntegrator {
                             .pdf(material.emission, previous_point, hit.p, cos_light);
                     power_heuristic(previous_pdf, light_pdf)
                 };
-                radiance += throughput * material.emission * weight;
+                radiance += throughput * emission * weight;
             }
             if depth + 1 >= self.max_depth {
                 break;
             }
-            let scattering = &self.scattering[hit.material.0 as usize];
+            let per_hit;
+            let scattering = match &textured {
+                Some(surface) => {
+                    per_hit = ScatteringParams::at(material, surface);
+                    &per_hit
+                }
+                None => &self.scattering[hit.material.0 as usize],
+            };
             let wo = -ray.dir;
 
             // Next-event estimation: one point on an area light, and every point light.

@@ -48,7 +48,9 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
     };
     let material = &scene.materials[hit.material.0 as usize];
     let [local_weight, reflect_weight, refract_weight] = material.albedo;
-    let mut value = material.ambient + material.emission;
+    // The colours at the hit: the material's constants, times its maps if it has any.
+    let surface = material.at(hit.uv);
+    let mut value = surface.ambient + surface.emission;
 
     if local_weight != 0.0 {
         let to_eye = -ray.dir;
@@ -60,11 +62,11 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
             };
             let cos_light = hit.ns.dot(to_light);
             let mirrored = 2.0 * cos_light * hit.ns - to_light;
-            let diffuse = material.diffuse * cos_light.max(0.0);
+            let diffuse = surface.diffuse * cos_light.max(0.0);
             // Clamped to 1 as well: rounding can push the cosine just past 1, which a
             // large `Ns` would raise to infinity.
             let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
-            let specular = material.specular * cos_mirror.powf(material.shininess);
+            let specular = surface.specular * cos_mirror.powf(surface.shininess);
             let lit = light.intensity * (diffuse + specular);
             // Shading first, shadow ray second: a light that would add nothing (behind
             // a diffuse surface, say) needs no visibility test. The image is the same.

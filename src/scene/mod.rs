@@ -14,7 +14,7 @@ use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::{AreaLights, AreaLightsBuilder};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Aabb, Float, Ray, Vec3, try_unit};
+use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
@@ -31,6 +31,9 @@ struct PrimShading {
 }
 
 const NO_NORMALS: u32 = u32::MAX;
+
+/// Marks a primitive without texture coordinates in `Scene::prim_texcoords`.
+const NO_TEXCOORDS: u32 = u32::MAX;
 
 /// Figures about the binary BVH the scene was built with, kept after it is collapsed
 /// into the wide one that rays traverse.
@@ -63,6 +66,16 @@ pub struct Scene {
     /// The description's vertex normals, unit length, or zero where a `vn` has no
     /// direction (the geometric normal stands in for it then).
     vertex_normals: Vec<Vec3>,
+    /// The description's texture coordinates; empty unless some material has maps.
+    texcoords: Vec<Vec2>,
+    /// Indices into `texcoords` of each primitive's corners (leaf order), or
+    /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
+    /// scenes neither store nor interpolate texture coordinates.
+    prim_texcoords: Vec<[u32; 3]>,
+    /// Whether some material cuts its surface out (`map_d`, glTF's alpha mask): rays
+    /// then take the traversal that tests alpha on every candidate hit. Chosen once
+    /// per ray by this flag, so scenes without cutouts pay one predictable branch.
+    has_cutouts: bool,
     /// The materials, indexed by [`MaterialId`].
     pub materials: Vec<Material>,
     /// The point lights.
@@ -85,6 +98,9 @@ pub struct Hit {
     pub n: Vec3,
     /// Unit shading normal (interpolated `vn`, or `n`), facing against the ray.
     pub ns: Vec3,
+    /// Texture coordinates (interpolated `vt`); zero where there are none, and in
+    /// scenes without texture maps.
+    pub uv: Vec2,
     /// The material.
     pub material: MaterialId,
     /// Whether the ray hit the front: the side a triangle's winding faces
@@ -133,7 +149,9 @@ impl Scene {
         let SceneDescription {
             positions,
             normals,
+            texcoords,
             triangles,
+            triangle_texcoords,
             spheres,
             lights,
             materials,
@@ -224,6 +242,26 @@ impl Scene {
                 },
             })
             .collect();
+        // Texture coordinates only where a material can use them. An index out of
+        // range (a description not made by a reader) counts as none.
+        let textured = materials.iter().any(|m| m.maps.is_some())
+            && triangle_texcoords.iter().any(Option::is_some);
+        let prim_texcoords: Vec<[u32; 3]> = if textured {
+            let in_range = |ids: [u32; 3]| ids.iter().all(|&i| (i as usize) < texcoords.len());
+            order
+                .par_iter()
+                .map(
+                    |&i| match triangle_texcoords.get(i as usize).copied().flatten() {
+                        Some(ids) if in_range(ids) => ids,
+                        _ => [NO_TEXCOORDS; 3],
+                    },
+                )
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let texcoords = if textured { texcoords } else { Vec::new() };
+        let has_cutouts = materials.iter().any(|m| m.cutout().is_some());
         // A zero-length `vn` cannot be normalized: zero marks it, and the hit's
         // geometric normal stands in for it.
         let vertex_normals = normals
@@ -235,6 +273,9 @@ impl Scene {
             packets,
             shading,
             vertex_normals,
+            texcoords,
+            prim_texcoords,
+            has_cutouts,
             materials,
             lights,
             area_lights,
@@ -311,6 +352,9 @@ impl Scene {
     /// The closest hit as the packet and lane that hold its primitive.
     #[inline(always)]
     fn closest_lane(&self, ray: &Ray) -> Option<(u32, usize, PrimHit)> {
+        if self.has_cutouts {
+            return self.closest_lane_with_cutouts(ray);
+        }
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
         let mut closest = None;
@@ -329,9 +373,141 @@ impl Scene {
         closest
     }
 
+    /// [`Scene::closest_lane`] for scenes with cutouts: a triangle hit counts only
+    /// where its material keeps the surface, so within a packet the nearest kept lane
+    /// wins. Out of line, so that the traversal of other scenes stays as it was.
+    #[inline(never)]
+    fn closest_lane_with_cutouts(&self, ray: &Ray) -> Option<(u32, usize, PrimHit)> {
+        let query = RayQuery::new(ray);
+        let lanes = PacketRay::new(ray);
+        let mut closest = None;
+        let mut t_max = Float::INFINITY;
+        self.wide
+            .walk_ordered(&query, &mut t_max, |first, count, t_max| {
+                for index in first..first + count {
+                    let packet = &self.packets[index as usize];
+                    let found = if packet.holds_spheres() {
+                        packet.intersect_any_kind(ray, &lanes, *t_max)
+                    } else {
+                        self.nearest_kept_lane(packet, &lanes, *t_max)
+                    };
+                    if let Some((lane, hit)) = found {
+                        *t_max = hit.t;
+                        closest = Some((index, lane, hit));
+                    }
+                }
+                false
+            });
+        closest
+    }
+
+    /// The nearest lane of a triangle packet hit within `t_max` whose surface is not
+    /// cut out there (the lowest lane on equal distances, as `TrianglePacket::intersect`).
+    #[inline]
+    fn nearest_kept_lane(
+        &self,
+        packet: &TrianglePacket,
+        lanes: &PacketRay,
+        t_max: Float,
+    ) -> Option<(usize, PrimHit)> {
+        let (mut mask, t, u, v) = packet.hits(lanes, t_max);
+        while mask != 0 {
+            let mut best = mask.trailing_zeros() as usize;
+            let mut rest = mask & (mask - 1);
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                if t[lane] < t[best] {
+                    best = lane;
+                }
+            }
+            let hit = PrimHit {
+                t: t[best],
+                u: u[best],
+                v: v[best],
+            };
+            match packet.prim(best) {
+                Some(prim) if self.keeps(prim, hit.u, hit.v) => return Some((best, hit)),
+                _ => mask &= !(1 << best),
+            }
+        }
+        None
+    }
+
+    /// Whether primitive `prim` (a triangle) is there at barycentrics `u`, `v`: not
+    /// cut out by its material's alpha.
+    #[inline]
+    fn keeps(&self, prim: u32, u: Float, v: Float) -> bool {
+        if !self.has_cutouts {
+            return true;
+        }
+        let material = &self.materials[self.shading[prim as usize].material.0 as usize];
+        match material.cutout() {
+            Some(cutout) => cutout.keeps(self.uv_at(prim, u, v)),
+            None => true,
+        }
+    }
+
+    /// The texture coordinates of triangle `prim` at barycentrics `u`, `v`; zero
+    /// when it has none.
+    #[inline]
+    fn uv_at(&self, prim: u32, u: Float, v: Float) -> Vec2 {
+        match self.prim_texcoords.get(prim as usize) {
+            None | Some([NO_TEXCOORDS, ..]) => Vec2::ZERO,
+            Some(ids) => {
+                let [t0, t1, t2] = ids.map(|i| self.texcoords[i as usize]);
+                t0 * (1.0 - u - v) + t1 * u + t2 * v
+            }
+        }
+    }
+
+    /// The shading normal `ns` of triangle `prim` tilted by its material's bump or
+    /// normal map at `uv`, in the tangent frame its texture coordinates give (`u`
+    /// along the tangent, `v` along the bitangent, made orthonormal about `ns`); `None`
+    /// without such a map, texture coordinates or a frame (a degenerate UV layout).
+    #[inline(never)]
+    fn perturbed_normal(
+        &self,
+        prim: u32,
+        triangle: &Triangle,
+        material: MaterialId,
+        uv: Vec2,
+        ns: Vec3,
+    ) -> Option<Vec3> {
+        let maps = self.materials.get(material.0 as usize)?.maps.as_ref()?;
+        if !maps.perturbs_normals() {
+            return None;
+        }
+        let ids = self.prim_texcoords.get(prim as usize)?;
+        if ids[0] == NO_TEXCOORDS {
+            return None;
+        }
+        let [t0, t1, t2] = ids.map(|i| self.texcoords[i as usize]);
+        let (duv1, duv2) = (t1 - t0, t2 - t0);
+        let det = duv1.x * duv2.y - duv1.y * duv2.x;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let dpdu = (triangle.e1 * duv2.y - triangle.e2 * duv1.y) / det;
+        let dpdv = (triangle.e2 * duv1.x - triangle.e1 * duv2.x) / det;
+        let tangent = try_unit(dpdu - ns * ns.dot(dpdu))?;
+        let bitangent = ns.cross(tangent);
+        // Mirrored texture layouts run `v` the other way round.
+        let bitangent = if bitangent.dot(dpdv) < 0.0 {
+            -bitangent
+        } else {
+            bitangent
+        };
+        let local = maps.tangent_normal(uv)?;
+        try_unit(tangent * local.x + bitangent * local.y + ns * local.z)
+    }
+
     /// Whether anything blocks `ray` before distance `t_max`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
+        if self.has_cutouts {
+            return self.occluded_with_cutouts(ray, t_max);
+        }
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
@@ -340,6 +516,37 @@ impl Scene {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
                     .any(|packet| packet.occludes_any_kind(ray, &lanes, *t_max))
+            })
+    }
+
+    /// [`Scene::occluded`] for scenes with cutouts: a lane blocks the ray only where
+    /// its surface is kept.
+    #[inline(never)]
+    fn occluded_with_cutouts(&self, ray: &Ray, t_max: Float) -> bool {
+        let query = RayQuery::new(ray);
+        let lanes = PacketRay::new(ray);
+        let mut t_max = t_max;
+        self.wide
+            .walk_any(&query, &mut t_max, |first, count, t_max| {
+                self.packets[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|packet| {
+                        if packet.holds_spheres() {
+                            return packet.occludes_any_kind(ray, &lanes, *t_max);
+                        }
+                        let (mut mask, _, u, v) = packet.hits(&lanes, *t_max);
+                        while mask != 0 {
+                            let lane = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            if packet
+                                .prim(lane)
+                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane]))
+                            {
+                                return true;
+                            }
+                        }
+                        false
+                    })
             })
     }
 
@@ -353,7 +560,12 @@ impl Scene {
                 let Some(shape) = packet.shape(lane) else {
                     continue;
                 };
-                if let Some(hit) = shape.intersect(ray, t_max) {
+                if let Some(hit) = shape.intersect(ray, t_max)
+                    && (matches!(shape, Shape::Sphere(_))
+                        || packet
+                            .prim(lane)
+                            .is_some_and(|p| self.keeps(p, hit.u, hit.v)))
+                {
                     t_max = hit.t;
                     closest = Some((index as u32, lane, hit));
                 }
@@ -369,6 +581,10 @@ impl Scene {
             unreachable!("hits come from used lanes")
         };
         let shading = self.shading[prim as usize];
+        let uv = match shape {
+            Shape::Triangle(_) if !self.prim_texcoords.is_empty() => self.uv_at(prim, hit.u, hit.v),
+            _ => Vec2::ZERO,
+        };
         let (p, n, ns) = match shape {
             Shape::Triangle(tri) => {
                 // `build` kept only triangles whose normal `try_unit` accepts.
@@ -394,11 +610,24 @@ impl Scene {
         };
         let front = n.dot(ray.dir) <= 0.0;
         let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
+        let ns_facing = match shape {
+            Shape::Triangle(tri) if !self.prim_texcoords.is_empty() => {
+                match self.perturbed_normal(prim, &tri, shading.material, uv, ns) {
+                    // Flipped with the normal it perturbs, so that a bump cannot turn
+                    // the shading normal to the other side at grazing angles.
+                    Some(bumped) if ns.dot(ray.dir) > 0.0 => -bumped,
+                    Some(bumped) => bumped,
+                    None => face(ns),
+                }
+            }
+            _ => face(ns),
+        };
         Hit {
             t: hit.t,
             p,
             n: face(n),
-            ns: face(ns),
+            ns: ns_facing,
+            uv,
             material: shading.material,
             front,
         }

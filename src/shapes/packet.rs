@@ -218,6 +218,15 @@ impl TrianglePacket {
         ))
     }
 
+    /// Every lane of a triangle packet hit with `0 < t < t_max`: a bit mask of the
+    /// lanes, and each lane's `t`, `u`, `v` (meaningless where its bit is clear). For
+    /// queries that must look past the nearest hit, such as alpha cutouts.
+    #[inline(always)]
+    pub fn hits(&self, ray: &PacketRay, t_max: Float) -> (u32, [Float; 4], [Float; 4], [Float; 4]) {
+        let (valid, t, u, v) = self.lanes(ray, t_max);
+        (valid.to_bitmask(), t.to_array(), u.to_array(), v.to_array())
+    }
+
     /// Whether any lane of a triangle packet is hit with `0 < t < t_max`.
     #[inline(always)]
     pub fn occludes(&self, ray: &PacketRay, t_max: Float) -> bool {

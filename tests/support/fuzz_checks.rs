@@ -40,7 +40,7 @@ pub fn check_obj(data: &[u8], dir: &Path) {
 pub fn check_mtl(data: &[u8]) {
     let path = Path::new("fuzz.mtl");
     match formats::parse_mtl(data, path) {
-        Ok(materials) => materials.iter().for_each(check_material),
+        Ok(library) => library.materials.iter().for_each(check_material),
         Err(err) => check_error(&err, data, path),
     }
 }

@@ -92,9 +92,13 @@ pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
     for chunk in &chunks {
         let base = chunk.first_triangle;
         for p in &chunk.shaping.polygons {
-            let first = base + p.first as usize;
-            let fan = &mut scene.triangles[first..first + p.corners as usize - 2];
-            retriangulate(&scene.positions, fan);
+            let range = base + p.first as usize..base + p.first as usize + p.corners as usize - 2;
+            // Texture coordinate indices, when kept, follow their triangles.
+            let texcoords = match scene.triangle_texcoords.is_empty() {
+                true => None,
+                false => Some(&mut scene.triangle_texcoords[range.clone()]),
+            };
+            retriangulate(&scene.positions, &mut scene.triangles[range], texcoords);
         }
         for run in &chunk.shaping.runs {
             let group = match run.group {
@@ -111,8 +115,13 @@ pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
     }
 }
 
-/// Cuts again, in place, the polygon whose fan is `fan`, if it is not convex.
-fn retriangulate(positions: &[Vec3], fan: &mut [TriangleDesc]) {
+/// Cuts again, in place, the polygon whose fan is `fan` (with its triangles' texture
+/// coordinate indices, when kept), if it is not convex.
+fn retriangulate(
+    positions: &[Vec3],
+    fan: &mut [TriangleDesc],
+    texcoords: Option<&mut [Option<[u32; 3]>]>,
+) {
     // Corner k of the polygon is corner 0 of the first triangle (k = 0), corner 1 of
     // the first (k = 1), and corner 2 of triangle k - 2 (k >= 2).
     let corner = |k: usize| match k {
@@ -141,6 +150,23 @@ fn retriangulate(positions: &[Vec3], fan: &mut [TriangleDesc]) {
         }
     }
     let old: Vec<TriangleDesc> = fan.to_vec();
+    if let Some(texcoords) = texcoords {
+        // As the normals: a corner's `vt` is known from a triangle that has them all.
+        let mut corner_texcoords: Vec<Option<u32>> = vec![None; count];
+        for (t, triangle) in texcoords.iter().enumerate() {
+            if let Some(ids) = triangle {
+                for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
+                    corner_texcoords[k] = Some(ids[c]);
+                }
+            }
+        }
+        for (slot, corners) in texcoords.iter_mut().zip(&triangles) {
+            *slot = match corners.map(|k| corner_texcoords[k as usize]) {
+                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                _ => None,
+            };
+        }
+    }
     for (slot, corners) in fan.iter_mut().zip(triangles) {
         let corners = corners.map(|k| k as usize);
         let at = corners.map(corner);

@@ -28,6 +28,8 @@ pub(super) struct Parts<'a> {
     pub(super) texcoords: &'a mut [MaybeUninit<Vec2>],
     pub(super) normals: &'a mut [MaybeUninit<Vec3>],
     pub(super) triangles: &'a mut [MaybeUninit<TriangleDesc>],
+    /// Each triangle's texture coordinate indices, when the description keeps them.
+    pub(super) triangle_texcoords: Option<&'a mut [MaybeUninit<Option<[u32; 3]>>]>,
 }
 
 /// Fills `parts` from the chunk `text`, preceded in the file by `base`; `materials`
@@ -84,6 +86,7 @@ fn ends_token(b: Option<&u8>) -> bool {
 #[derive(Clone, Copy)]
 struct Corner {
     position: u32,
+    texcoord: Option<u32>,
     normal: Option<u32>,
 }
 
@@ -291,6 +294,13 @@ impl Scanner<'_, '_> {
             };
             all_normals &= normals.is_some();
             let written = &mut self.written.triangles;
+            if let Some(part) = &mut self.parts.triangle_texcoords {
+                let texcoords = match (first.texcoord, previous.texcoord, corner.texcoord) {
+                    (Some(ta), Some(tb), Some(tc)) => Some([ta, tb, tc]),
+                    _ => None,
+                };
+                part.get_mut(*written)?.write(texcoords);
+            }
             self.parts.triangles.get_mut(*written)?.write(TriangleDesc {
                 positions: [first.position, previous.position, corner.position],
                 normals,
@@ -326,11 +336,12 @@ impl Scanner<'_, '_> {
         let defined = self.base.positions + self.written.positions;
         let position = self.index(defined)?;
         let mut normal = None;
+        let mut texcoord = None;
         if let [b'/', rest @ ..] = self.rest {
             self.rest = rest;
             let mut slash = true;
             if self.rest.first() != Some(&b'/') {
-                self.index(self.base.texcoords + self.written.texcoords)?;
+                texcoord = Some(self.index(self.base.texcoords + self.written.texcoords)?);
                 slash = self.rest.first() == Some(&b'/');
             }
             if slash {
@@ -341,7 +352,11 @@ impl Scanner<'_, '_> {
         if !ends_token(self.rest.first()) {
             return None;
         }
-        Some(Corner { position, normal })
+        Some(Corner {
+            position,
+            texcoord,
+            normal,
+        })
     }
 
     /// A 1-based index of one to [`MAX_INDEX_DIGITS`] digits, or a negative one

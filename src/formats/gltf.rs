@@ -1,0 +1,711 @@
+//! The glTF 2.0 reader (`.gltf` with `.bin` files or data URIs, and `.glb`), through
+//! the `gltf` crate: the meshes of the default scene under their node transforms,
+//! materials mapped onto this renderer's (see `docs/scene-format.md`), the scene's
+//! first camera as render settings, and `KHR_lights_punctual` point lights.
+//!
+//! Buffers and images are read here rather than by the crate's importer, so that
+//! every problem (a missing `.bin`, a truncated `.glb`, a view outside its buffer, an
+//! image that does not decode) becomes an error or a warning naming the file instead
+//! of a panic, and so that images go through [`load_texture`]: each file is decoded
+//! once and shared.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{Mat3, Mat4};
+use gltf::Document;
+
+use super::error::SceneError;
+use super::{LoadedScene, SceneDescription, TriangleDesc, read_file};
+use crate::material::{Cutout, Material, MaterialId, MaterialMaps, PointLight};
+use crate::math::{Float, Vec2, Vec3};
+use crate::options::{Origin, PartialOptions, RenderOptions, Sourced};
+use crate::textures::{Channel, Texture, TextureMap, TextureOptions, Wrap, load_texture};
+
+/// Nodes deeper than this are not followed: glTF node trees are shallow, and a
+/// malformed file must not exhaust the stack.
+const MAX_NODE_DEPTH: usize = 256;
+
+/// The smallest roughness the Phong mapping takes: a smoother surface's exponent
+/// would exceed [`MAX_SHININESS`] anyway.
+const MAX_SHININESS: Float = 10_000.0;
+
+/// Reads a glTF file (`.gltf` or `.glb`) and the buffers and images it names,
+/// relative to its folder.
+///
+/// # Errors
+/// The file cannot be read, is not valid glTF, names a buffer that cannot be read or
+/// is too short, or has a mesh whose indices point outside its vertices: each names
+/// the file. A texture that cannot be read is a warning.
+pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
+    let bytes = read_file(path)?;
+    parse_gltf(&bytes, path)
+}
+
+/// Parses glTF or GLB bytes; `path` names the file in messages and locates the
+/// files it refers to.
+///
+/// # Errors
+/// As [`load_gltf`].
+pub fn parse_gltf(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> {
+    let fail = |message: String| SceneError::Gltf {
+        path: path.to_path_buf(),
+        message,
+    };
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice(bytes).map_err(|e| fail(format!("not a valid glTF file: {e}")))?;
+    let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let buffers = read_buffers(&document, blob, &folder).map_err(fail)?;
+    let mut reader = Reader {
+        path,
+        folder,
+        document: &document,
+        buffers,
+        scene: SceneDescription::default(),
+        options: PartialOptions::default(),
+        materials: HashMap::new(),
+        images: HashMap::new(),
+        warned: Vec::new(),
+        camera_found: false,
+    };
+    reader.read_scene().map_err(fail)?;
+    // As the OBJ reader: texture coordinate indices only where a map can use them.
+    if reader.scene.materials.iter().all(|m| m.maps.is_none()) {
+        reader.scene.triangle_texcoords = Vec::new();
+    }
+    Ok(LoadedScene {
+        description: reader.scene,
+        options: reader.options,
+    })
+}
+
+/// The data of every buffer: the GLB's binary chunk, a data URI or a file beside the
+/// glTF file; each at least as long as the file says.
+fn read_buffers(
+    document: &Document,
+    mut blob: Option<Vec<u8>>,
+    folder: &Path,
+) -> Result<Vec<Vec<u8>>, String> {
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let index = buffer.index();
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                format!("buffer {index} refers to the binary chunk, and there is none")
+            })?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, folder)
+                .map_err(|reason| format!("buffer {index} ('{}'): {reason}", shorten(uri)))?,
+        };
+        if data.len() < buffer.length() {
+            return Err(format!(
+                "buffer {index} has {} bytes, the file says {} (truncated?)",
+                data.len(),
+                buffer.length()
+            ));
+        }
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+/// The bytes a URI names: a base64 data URI, or a file relative to `folder`
+/// (percent-encoded, as URIs are).
+fn read_uri(uri: &str, folder: &Path) -> Result<Vec<u8>, String> {
+    if let Some(data) = uri.strip_prefix("data:") {
+        let (_, payload) = data
+            .split_once(";base64,")
+            .ok_or("a data URI that is not base64")?;
+        return decode_base64(payload).ok_or_else(|| "malformed base64 data".into());
+    }
+    let file = file_of_uri(uri)?;
+    std::fs::read(folder.join(&file)).map_err(|e| format!("cannot read {}: {e}", file.display()))
+}
+
+/// The relative path a (non-data) URI names.
+fn file_of_uri(uri: &str) -> Result<PathBuf, String> {
+    if uri.contains("://") && !uri.starts_with("file://") {
+        return Err("only data URIs and relative file names are supported".into());
+    }
+    let uri = uri.strip_prefix("file://").unwrap_or(uri);
+    percent_decode(uri)
+        .map(PathBuf::from)
+        .ok_or_else(|| "malformed percent-encoding".into())
+}
+
+/// A URI for a message: data URIs can be megabytes long.
+fn shorten(uri: &str) -> String {
+    match uri.char_indices().nth(60) {
+        Some((cut, _)) => format!("{}...", &uri[..cut]),
+        None => uri.to_owned(),
+    }
+}
+
+/// Decodes `%XX` escapes; `None` if one is malformed or the result is not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+/// Standard base64 (padding optional, whitespace skipped); `None` on any other
+/// character.
+fn decode_base64(text: &str) -> Option<Vec<u8>> {
+    let value = |c: u8| -> Option<u32> {
+        Some(match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' | b'-' => 62,
+            b'/' | b'_' => 63,
+            _ => return None,
+        } as u32)
+    };
+    let mut out = Vec::with_capacity(text.len() / 4 * 3);
+    let mut bits = 0u32;
+    let mut count = 0;
+    for &c in text.as_bytes() {
+        if c == b'=' {
+            break;
+        }
+        if c.is_ascii_whitespace() {
+            continue;
+        }
+        bits = (bits << 6) | value(c)?;
+        count += 1;
+        if count == 4 {
+            out.extend_from_slice(&bits.to_be_bytes()[1..]);
+            (bits, count) = (0, 0);
+        }
+    }
+    match count {
+        0 => {}
+        2 => out.push((bits >> 4) as u8),
+        3 => out.extend_from_slice(&((bits >> 2) as u16).to_be_bytes()),
+        _ => return None,
+    }
+    Some(out)
+}
+
+struct Reader<'a> {
+    path: &'a Path,
+    folder: PathBuf,
+    document: &'a Document,
+    buffers: Vec<Vec<u8>>,
+    scene: SceneDescription,
+    options: PartialOptions,
+    /// Material id of each glTF material (`None`: the default material) used so far.
+    materials: HashMap<Option<usize>, MaterialId>,
+    /// Each image decoded so far, or why it could not be.
+    images: HashMap<usize, Option<Arc<Texture>>>,
+    /// The kinds of warning already given, so that each is given once.
+    warned: Vec<&'static str>,
+    camera_found: bool,
+}
+
+impl Reader<'_> {
+    fn warn(&mut self, message: String) {
+        self.scene
+            .warnings
+            .push(format!("{}: {message}", self.path.display()));
+    }
+
+    fn warn_once(&mut self, kind: &'static str, message: String) {
+        if !self.warned.contains(&kind) {
+            self.warned.push(kind);
+            self.warn(message);
+        }
+    }
+
+    /// Walks the default scene (or the first, or with none every root node),
+    /// depth first in file order.
+    fn read_scene(&mut self) -> Result<(), String> {
+        let document = self.document;
+        let roots: Vec<gltf::Node<'_>> = match document
+            .default_scene()
+            .or_else(|| document.scenes().next())
+        {
+            Some(scene) => scene.nodes().collect(),
+            None => {
+                let mut is_child = vec![false; document.nodes().len()];
+                for node in document.nodes() {
+                    for child in node.children() {
+                        is_child[child.index()] = true;
+                    }
+                }
+                document.nodes().filter(|n| !is_child[n.index()]).collect()
+            }
+        };
+        let mut visited = vec![false; document.nodes().len()];
+        let mut pending: Vec<(gltf::Node<'_>, Mat4, usize)> = roots
+            .into_iter()
+            .rev()
+            .map(|node| (node, Mat4::IDENTITY, 0))
+            .collect();
+        while let Some((node, parent, depth)) = pending.pop() {
+            // Node graphs must be trees; a node reached twice (a cycle, or a node
+            // with two parents) is read the first time only.
+            if std::mem::replace(&mut visited[node.index()], true) {
+                self.warn_once(
+                    "node twice",
+                    format!(
+                        "node {} is reached twice in the node tree; read once",
+                        node.index()
+                    ),
+                );
+                continue;
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            if !world.is_finite() {
+                self.warn(format!(
+                    "node {}: a transform that is not finite; skipped",
+                    node.index()
+                ));
+                continue;
+            }
+            if let Some(mesh) = node.mesh() {
+                self.add_mesh(&mesh, &world)?;
+            }
+            if let Some(camera) = node.camera() {
+                self.add_camera(&camera, &world);
+            }
+            if let Some(light) = node.light() {
+                self.add_light(&light, &world);
+            }
+            if depth < MAX_NODE_DEPTH {
+                for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+                    pending.push((child, world, depth + 1));
+                }
+            } else if node.children().next().is_some() {
+                self.warn_once(
+                    "deep",
+                    format!("nodes deeper than {MAX_NODE_DEPTH} levels are skipped"),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    fn add_mesh(&mut self, mesh: &gltf::Mesh<'_>, world: &Mat4) -> Result<(), String> {
+        // Normals go through the inverse transpose; a mirroring transform turns the
+        // winding around, which glTF says to undo.
+        let linear = Mat3::from_mat4(*world);
+        let normal_matrix = linear.inverse().transpose();
+        let mirrored = linear.determinant() < 0.0;
+        for primitive in mesh.primitives() {
+            let name = format!("mesh {} primitive {}", mesh.index(), primitive.index());
+            use gltf::mesh::Mode;
+            let mode = primitive.mode();
+            if !matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
+                self.warn_once(
+                    "points and lines",
+                    format!("{name}: points and lines are not rendered; skipped"),
+                );
+                continue;
+            }
+            let buffers = &self.buffers;
+            let reader = primitive.reader(|buffer| buffers.get(buffer.index()).map(Vec::as_slice));
+            let Some(positions) = reader.read_positions() else {
+                self.warn(format!("{name}: no readable POSITION; skipped"));
+                continue;
+            };
+            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+            let count = positions.len();
+            let normals: Option<Vec<Vec3>> = reader
+                .read_normals()
+                .map(|n| n.map(Vec3::from).collect::<Vec<_>>())
+                .filter(|n| n.len() == count);
+            let texcoords: Option<Vec<Vec2>> = reader
+                .read_tex_coords(0)
+                .map(|t| {
+                    // glTF's v runs down the image; this renderer's runs up.
+                    t.into_f32()
+                        .map(|[u, v]| Vec2::new(u, 1.0 - v))
+                        .collect::<Vec<_>>()
+                })
+                .filter(|t| t.len() == count);
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(indices) => indices.into_u32().collect(),
+                None if primitive.indices().is_some() => {
+                    return Err(format!("{name}: the indices' data lies outside its buffer"));
+                }
+                None => (0..count as u32).collect(),
+            };
+            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
+                return Err(format!(
+                    "{name}: index {bad} out of range ({count} vertices)"
+                ));
+            }
+            let material = self.material(primitive.material());
+            let base = |len: usize| -> Result<u32, String> {
+                u32::try_from(len + count)
+                    .map(|_| len as u32)
+                    .map_err(|_| "more vertices than 32-bit indices can address".to_string())
+            };
+            let position_base = base(self.scene.positions.len())?;
+            let normal_base = base(self.scene.normals.len())?;
+            let texcoord_base = base(self.scene.texcoords.len())?;
+            let scene = &mut self.scene;
+            scene
+                .positions
+                .extend(positions.iter().map(|&p| world.transform_point3(p)));
+            let has_normals = normals.is_some();
+            if let Some(normals) = normals {
+                scene
+                    .normals
+                    .extend(normals.iter().map(|&n| normal_matrix * n));
+            }
+            let has_texcoords = texcoords.is_some();
+            if let Some(texcoords) = texcoords {
+                scene.texcoords.extend(texcoords);
+            }
+            for [a, b, c] in triangles(mode, &indices) {
+                let corners = if mirrored { [a, c, b] } else { [a, b, c] };
+                scene.triangles.push(TriangleDesc {
+                    positions: corners.map(|i| position_base + i),
+                    normals: has_normals.then(|| corners.map(|i| normal_base + i)),
+                    material,
+                });
+                scene
+                    .triangle_texcoords
+                    .push(has_texcoords.then(|| corners.map(|i| texcoord_base + i)));
+            }
+        }
+        Ok(())
+    }
+
+    fn add_camera(&mut self, camera: &gltf::Camera<'_>, world: &Mat4) {
+        if self.camera_found {
+            return;
+        }
+        let gltf::camera::Projection::Perspective(perspective) = camera.projection() else {
+            self.warn_once(
+                "orthographic",
+                format!(
+                    "camera {}: orthographic cameras are not supported; ignored",
+                    camera.index()
+                ),
+            );
+            return;
+        };
+        self.camera_found = true;
+        let origin = |key| Origin::File {
+            path: self.path.to_path_buf(),
+            line: 0,
+            key,
+        };
+        // The camera looks down its local -z with +y up.
+        let eye = world.transform_point3(Vec3::ZERO);
+        let forward = world.transform_vector3(Vec3::NEG_Z);
+        let up = world.transform_vector3(Vec3::Y);
+        let options = &mut self.options;
+        options.look_from = Some(Sourced::new(eye, origin("camera node")));
+        options.look_to = Some(Sourced::new(eye + forward, origin("camera node")));
+        options.up = Some(Sourced::new(up, origin("camera node")));
+        options.fov_degrees = Some(Sourced::new(
+            perspective.yfov().to_degrees(),
+            origin("camera.yfov"),
+        ));
+        if let Some(aspect) = perspective.aspect_ratio()
+            && aspect.is_finite()
+            && aspect > 0.0
+        {
+            // The default height, and the width that keeps the camera's aspect ratio.
+            let height = i64::from(RenderOptions::default().height);
+            let width = (height as Float * aspect).round().max(1.0) as i64;
+            options.width = Some(Sourced::new(width, origin("camera.aspectRatio")));
+            options.height = Some(Sourced::new(height, origin("camera.aspectRatio")));
+        }
+    }
+
+    fn add_light(&mut self, light: &gltf::khr_lights_punctual::Light<'_>, world: &Mat4) {
+        use gltf::khr_lights_punctual::Kind;
+        let name = format!("light {}", light.index());
+        match light.kind() {
+            Kind::Directional => {
+                self.warn_once(
+                    "directional",
+                    format!("{name}: directional lights are not supported; skipped"),
+                );
+                return;
+            }
+            Kind::Spot { .. } => self.warn_once(
+                "spot",
+                format!("{name}: spot lights are read as point lights (the cone is ignored)"),
+            ),
+            Kind::Point => {}
+        }
+        // Intensity in candela, used as is: the convention of glTF viewers, whose
+        // point lights give an irradiance of `intensity / d^2`.
+        let intensity = Vec3::from(light.color()) * light.intensity();
+        if !intensity.is_finite() {
+            self.warn(format!("{name}: an intensity that is not finite; skipped"));
+            return;
+        }
+        self.scene.lights.push(PointLight {
+            position: world.transform_point3(Vec3::ZERO),
+            intensity,
+        });
+    }
+
+    /// The id of glTF material `material` (made on first use).
+    fn material(&mut self, material: gltf::Material<'_>) -> MaterialId {
+        if let Some(&id) = self.materials.get(&material.index()) {
+            return id;
+        }
+        let made = match material.index() {
+            // Primitives without a material: glTF's default is white metal (black in
+            // a Phong renderer); the renderer's matte grey shows their shape instead.
+            None => Material::fallback(),
+            Some(_) => self.convert(&material),
+        };
+        let id = MaterialId(self.scene.materials.len() as u32);
+        self.scene.materials.push(made);
+        self.materials.insert(material.index(), id);
+        id
+    }
+
+    /// A glTF metallic-roughness material as a Phong material: see
+    /// `docs/scene-format.md` for the mapping.
+    fn convert(&mut self, material: &gltf::Material<'_>) -> Material {
+        let index = material.index().unwrap_or(0);
+        let pbr = material.pbr_metallic_roughness();
+        let [r, g, b, alpha] = pbr.base_color_factor();
+        let base = Vec3::new(r, g, b);
+        let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
+        let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
+        let base_map = pbr
+            .base_color_texture()
+            .and_then(|info| self.texture_map(&info.texture(), info.tex_coord(), index));
+        let emission_map = material
+            .emissive_texture()
+            .and_then(|info| self.texture_map(&info.texture(), info.tex_coord(), index));
+        if pbr.metallic_roughness_texture().is_some() {
+            self.warn_once(
+                "metallic-roughness texture",
+                format!(
+                    "material {index}: metallic-roughness textures are not applied; the factors alone set Ks and Ns"
+                ),
+            );
+        }
+        // glTF's normal textures follow the convention `tangent_normal` reads: red
+        // along u, green up the image, which is +v once v is turned up.
+        let normal_map = material
+            .normal_texture()
+            .and_then(|normal| self.texture_map(&normal.texture(), normal.tex_coord(), index));
+        let cutout = match material.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => None,
+            mode => {
+                if mode == gltf::material::AlphaMode::Blend {
+                    self.warn_once(
+                        "blend",
+                        format!(
+                            "material {index}: alpha blending is approximated by a cutout at alpha 0.5"
+                        ),
+                    );
+                }
+                let map = base_map.clone().map(|mut map| {
+                    map.options.channel = Channel::Alpha;
+                    map
+                });
+                Some(Cutout {
+                    map,
+                    factor: alpha,
+                    cutoff: match mode {
+                        gltf::material::AlphaMode::Mask => material.alpha_cutoff().unwrap_or(0.5),
+                        _ => 0.5,
+                    },
+                })
+            }
+        };
+        let strength = material.emissive_strength().unwrap_or(1.0);
+        // Phong exponent of the same highlight width as a GGX/Beckmann lobe of
+        // roughness alpha = roughness^2 (Walter et al. 2007): Ns = 2 / alpha^2 - 2.
+        let alpha_squared = roughness.powi(4);
+        let shininess = if alpha_squared > 0.0 {
+            (2.0 / alpha_squared - 2.0).clamp(0.0, MAX_SHININESS)
+        } else {
+            MAX_SHININESS
+        };
+        let maps = MaterialMaps {
+            diffuse: base_map.clone(),
+            // A metal's specular colour is its base colour: its texture tints it.
+            specular: if metallic > 0.0 { base_map } else { None },
+            emission: emission_map,
+            cutout,
+            normal: normal_map,
+            ..MaterialMaps::default()
+        };
+        Material {
+            name: material
+                .name()
+                .map_or_else(|| format!("material{index}"), str::to_owned),
+            ambient: Vec3::ZERO,
+            diffuse: base * (1.0 - metallic),
+            specular: Vec3::splat(0.04).lerp(base, metallic),
+            emission: Vec3::from(material.emissive_factor()) * strength,
+            shininess,
+            maps: (!maps.is_empty()).then(|| Box::new(maps)),
+            ..Material::named("")
+        }
+    }
+
+    /// The map of glTF texture `texture`, if its image can be read (else a warning).
+    fn texture_map(
+        &mut self,
+        texture: &gltf::Texture<'_>,
+        tex_coord: u32,
+        material: usize,
+    ) -> Option<TextureMap> {
+        if tex_coord != 0 {
+            self.warn_once(
+                "texcoord",
+                format!(
+                    "material {material}: only TEXCOORD_0 is read; a texture on TEXCOORD_{tex_coord} uses it instead"
+                ),
+            );
+        }
+        let image = texture.source();
+        let loaded = match self.images.get(&image.index()) {
+            Some(loaded) => loaded.clone(),
+            None => {
+                let loaded = match self.load_image(&image) {
+                    Ok(texture) => Some(texture),
+                    Err(reason) => {
+                        self.warn(format!(
+                            "image {}: {reason}; the surface renders without it",
+                            image.index()
+                        ));
+                        None
+                    }
+                };
+                self.images.insert(image.index(), loaded.clone());
+                loaded
+            }
+        }?;
+        let wrap = |mode| match mode {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let sampler = texture.sampler();
+        Some(TextureMap {
+            texture: loaded,
+            options: TextureOptions {
+                wrap_u: wrap(sampler.wrap_s()),
+                wrap_v: wrap(sampler.wrap_t()),
+                ..TextureOptions::default()
+            },
+        })
+    }
+
+    fn load_image(&self, image: &gltf::Image<'_>) -> Result<Arc<Texture>, String> {
+        let name = self.path.with_file_name(format!(
+            "{}#image{}",
+            self.path.file_name().unwrap_or_default().to_string_lossy(),
+            image.index()
+        ));
+        match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let buffer = &self.buffers[view.buffer().index()];
+                let bytes = view
+                    .offset()
+                    .checked_add(view.length())
+                    .and_then(|end| buffer.get(view.offset()..end))
+                    .ok_or("its buffer view lies outside its buffer")?;
+                Texture::decode(bytes, &name)
+                    .map(Arc::new)
+                    .map_err(|e| format!("cannot decode: {e}"))
+            }
+            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                let bytes = read_uri(uri, &self.folder)?;
+                Texture::decode(&bytes, &name)
+                    .map(Arc::new)
+                    .map_err(|e| format!("cannot decode: {e}"))
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                let file = file_of_uri(uri)?;
+                load_texture(&self.folder.join(&file))
+                    .map_err(|e| format!("cannot read texture '{}': {e}", file.display()))
+            }
+        }
+    }
+}
+
+/// The triangles of a primitive's index list in `mode`, degenerate ones included
+/// (the scene drops those).
+fn triangles(mode: gltf::mesh::Mode, indices: &[u32]) -> Vec<[u32; 3]> {
+    use gltf::mesh::Mode;
+    match mode {
+        Mode::TriangleStrip => indices
+            .windows(3)
+            .enumerate()
+            // Every other triangle of a strip is wound the other way round.
+            .map(|(i, w)| {
+                if i % 2 == 0 {
+                    [w[0], w[1], w[2]]
+                } else {
+                    [w[1], w[0], w[2]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => match indices.split_first() {
+            Some((&first, rest)) => rest.windows(2).map(|w| [first, w[0], w[1]]).collect(),
+            None => Vec::new(),
+        },
+        _ => indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_decodes_with_and_without_padding() {
+        assert_eq!(decode_base64("aGVsbG8=").unwrap(), b"hello");
+        assert_eq!(decode_base64("aGVsbG8").unwrap(), b"hello");
+        assert_eq!(decode_base64("aGVsbA==").unwrap(), b"hell");
+        assert_eq!(decode_base64("").unwrap(), b"");
+        assert!(decode_base64("a$==").is_none());
+        assert!(decode_base64("a").is_none());
+    }
+
+    #[test]
+    fn percent_escapes_decode_and_bad_ones_are_refused() {
+        assert_eq!(percent_decode("my%20model.bin").unwrap(), "my model.bin");
+        assert!(percent_decode("bad%2").is_none());
+        assert!(percent_decode("bad%zz").is_none());
+    }
+
+    #[test]
+    fn strips_and_fans_keep_their_winding() {
+        use gltf::mesh::Mode;
+        assert_eq!(
+            triangles(Mode::TriangleStrip, &[0, 1, 2, 3]),
+            vec![[0, 1, 2], [2, 1, 3]]
+        );
+        assert_eq!(
+            triangles(Mode::TriangleFan, &[0, 1, 2, 3]),
+            vec![[0, 1, 2], [0, 2, 3]]
+        );
+        assert_eq!(triangles(Mode::Triangles, &[0, 1, 2, 3]), vec![[0, 1, 2]]);
+    }
+}

@@ -1,0 +1,313 @@
+//! glTF 2.0 scenes: the fixtures of `tests/data/gltf/` (written by its
+//! `make_fixtures.py`) as separate files, data URIs and GLB; node transforms, the
+//! material mapping, textures, the alpha mask, emission, the camera, lights; and
+//! malformed files.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use raytracer::formats::{self, LoadedScene, SceneFormat};
+use raytracer::math::{Float, Ray, Vec2, Vec3};
+use raytracer::options::Origin;
+use raytracer::{BvhParams, Scene};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/gltf")
+        .join(name)
+}
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    (a - b).abs().max_element() < 1e-5
+}
+
+/// The three spellings of the fixture scene.
+fn all_fixtures() -> Vec<(PathBuf, LoadedScene)> {
+    ["scene.gltf", "scene.glb", "datauri.gltf"]
+        .into_iter()
+        .map(|name| {
+            let path = fixture(name);
+            let loaded = formats::load(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+            (path, loaded)
+        })
+        .collect()
+}
+
+#[test]
+fn gltf_and_glb_are_scene_formats() {
+    assert_eq!(SceneFormat::of(Path::new("a.glb")), Some(SceneFormat::Gltf));
+    assert_eq!(
+        SceneFormat::of(Path::new("A.GLTF")),
+        Some(SceneFormat::Gltf)
+    );
+    assert!(formats::SUPPORTED_EXTENSIONS.contains(".glb"));
+}
+
+#[test]
+fn meshes_sit_under_their_node_transforms() {
+    for (path, loaded) in all_fixtures() {
+        let d = &loaded.description;
+        assert!(
+            d.warnings.is_empty(),
+            "{}: {:?}",
+            path.display(),
+            d.warnings
+        );
+        // Five quads of two triangles.
+        assert_eq!(d.triangles.len(), 10, "{}", path.display());
+        let corners = |t: usize| d.triangles[t].positions.map(|i| d.positions[i as usize]);
+        // The quad: scaled by 2, moved by +x, then its group moved to z = -5.
+        let [a, b, c] = corners(0);
+        assert!(close(a, Vec3::new(-1.0, -2.0, -5.0)), "{a}");
+        assert!(close(b, Vec3::new(3.0, -2.0, -5.0)), "{b}");
+        assert!(close(c, Vec3::new(3.0, 2.0, -5.0)), "{c}");
+        // The mirrored copy still faces +z: its winding was turned back.
+        let [a, b, c] = corners(2);
+        let normal = (b - a).cross(c - a);
+        assert!(normal.z > 0.0, "{}: {normal}", path.display());
+        // Normals stay unit +z (the scene normalizes them) and texture coordinates
+        // have v turned up: glTF's (0, 0), the top left of the image, is v = 1.
+        let n = d.triangles[0]
+            .normals
+            .unwrap()
+            .map(|i| d.normals[i as usize]);
+        assert!(n.iter().all(|n| n.normalize() == Vec3::Z));
+        let uv = d.texcoords_of(0).unwrap().map(|i| d.texcoords[i as usize]);
+        assert_eq!(
+            uv,
+            [
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(1.0, 1.0)
+            ]
+        );
+    }
+}
+
+#[test]
+fn the_first_camera_sets_the_view_and_flags_can_override_it() {
+    for (path, loaded) in all_fixtures() {
+        let o = &loaded.options;
+        let from = o.look_from.as_ref().unwrap();
+        assert!(
+            close(from.value, Vec3::new(5.0, 0.0, -5.0)),
+            "{}",
+            from.value
+        );
+        // Turned 90 degrees about +y, the camera looks down -x.
+        let to = o.look_to.as_ref().unwrap().value;
+        assert!(close(to - from.value, Vec3::NEG_X), "{to}");
+        assert!(close(o.up.as_ref().unwrap().value, Vec3::Y));
+        let fov = o.fov_degrees.as_ref().unwrap();
+        assert!((fov.value - 0.8f32.to_degrees()).abs() < 1e-4);
+        assert_eq!(
+            fov.origin,
+            Origin::File {
+                path: path.clone(),
+                line: 0,
+                key: "camera.yfov"
+            }
+        );
+        assert_eq!(
+            fov.origin.to_string(),
+            format!("{}: camera.yfov", path.display())
+        );
+        // The aspect ratio 1.5 at the default height.
+        assert_eq!(o.width.as_ref().unwrap().value, 720);
+        assert_eq!(o.height.as_ref().unwrap().value, 480);
+    }
+}
+
+#[test]
+fn point_lights_come_from_khr_lights_punctual() {
+    for (_, loaded) in all_fixtures() {
+        let lights = &loaded.description.lights;
+        assert_eq!(lights.len(), 1);
+        assert!(
+            close(lights[0].position, Vec3::new(1.0, 2.0, 4.0)),
+            "{}",
+            lights[0].position
+        );
+        assert!(close(lights[0].intensity, Vec3::new(10.0, 5.0, 2.5)));
+    }
+}
+
+#[test]
+fn materials_map_base_colour_metal_roughness_emission_and_the_alpha_mask() {
+    for (path, loaded) in all_fixtures() {
+        let m = &loaded.description.materials;
+        let name = path.display();
+        assert_eq!(m.len(), 4, "{name}");
+        let (checker, lamp, ghost, metal) = (&m[0], &m[1], &m[2], &m[3]);
+        assert_eq!(checker.name, "checker");
+        // Dielectric: Kd is the base colour, Ks 4 percent; roughness 1 spreads the
+        // highlight all over (Ns 0).
+        assert_eq!(checker.diffuse, Vec3::new(1.0, 0.5, 0.25));
+        assert!(close(checker.specular, Vec3::splat(0.04)));
+        assert_eq!(checker.shininess, 0.0);
+        assert_eq!(checker.ambient, Vec3::ZERO);
+        // The base colour texture multiplies Kd: red in the top left (glTF uv 0, 0).
+        let top_left = checker.at(Vec2::new(0.25, 0.75)).diffuse;
+        assert!(
+            close(top_left, Vec3::new(1.0, 0.0, 0.0)),
+            "{name}: {top_left}"
+        );
+        let bottom_right = checker.at(Vec2::new(0.75, 0.25)).diffuse;
+        assert!(
+            close(bottom_right, Vec3::new(1.0, 0.5, 0.25)),
+            "{name}: {bottom_right}"
+        );
+        // Emission times KHR_materials_emissive_strength.
+        assert_eq!(lamp.emission, Vec3::new(4.0, 2.0, 0.0));
+        // The mask: base colour alpha 0.3 is below the cutoff 0.5 everywhere.
+        let cutout = ghost.cutout().unwrap();
+        assert_eq!((cutout.factor, cutout.cutoff), (0.3, 0.5));
+        assert!(!cutout.keeps(Vec2::new(0.5, 0.5)));
+        // Metal: no diffuse, the base colour as specular colour; roughness 0.5 is
+        // alpha 0.25, Ns = 2 / alpha^2 - 2 = 30.
+        assert_eq!(metal.diffuse, Vec3::ZERO);
+        assert!(close(metal.specular, Vec3::new(0.9, 0.6, 0.3)));
+        assert!((metal.shininess - 30.0).abs() < 1e-3);
+    }
+}
+
+#[test]
+fn the_scene_renders_textures_and_cuts_out_the_masked_quad() {
+    let loaded = formats::load(&fixture("scene.glb")).unwrap();
+    let scene = Scene::build(loaded.description, &BvhParams::default());
+    let down = |x: Float, y: Float| Ray::new(Vec3::new(x, y, 0.0), Vec3::NEG_Z);
+    // The textured quad spans x -1..3, y -2..2 at z = -5: its top left is red.
+    let hit = scene.intersect(&down(0.0, 1.0)).unwrap();
+    assert_eq!(hit.t, 5.0);
+    let material = &scene.materials[hit.material.0 as usize];
+    assert!(
+        close(material.at(hit.uv).diffuse, Vec3::X),
+        "{}",
+        material.at(hit.uv).diffuse
+    );
+    // The masked quad at y = -3 is cut out: the ray goes on to the mirrored quad?
+    // No: that one spans y -1..1 only; the ray meets nothing.
+    assert!(scene.intersect(&down(0.0, -3.5)).is_none());
+    // The emitter at y = 3 is there.
+    assert_eq!(scene.intersect(&down(0.0, 3.5)).unwrap().t, 5.0);
+}
+
+#[test]
+fn raytracer_renders_a_glb_with_its_camera_and_a_mesh_file_may_be_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    let output = Command::new(env!("CARGO_BIN_EXE_raytracer"))
+        .args(["render", fixture("scene.glb").to_str().unwrap(), "-o"])
+        .arg(&out)
+        .args(["--width", "90"])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    // The camera's aspect ratio 1.5, kept for the width given.
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&out).unwrap()));
+    let info = decoder.read_info().unwrap();
+    assert_eq!((info.info().width, info.info().height), (90, 60));
+
+    // A TOML scene file names the glTF file as a mesh, moved and with its own camera.
+    let toml = dir.path().join("scene.toml");
+    std::fs::write(
+        &toml,
+        format!(
+            "[camera]\nlook_from = [0, 0, 10]\nlook_to = [0, 0, 0]\n\n[[mesh]]\nfile = {:?}\ntransform.translate = [0, 0, 1]\n",
+            fixture("scene.gltf").to_str().unwrap()
+        ),
+    )
+    .unwrap();
+    let loaded = formats::load(&toml).unwrap();
+    let d = &loaded.description;
+    assert_eq!(d.triangles.len(), 10);
+    assert_eq!(d.materials.len(), 4);
+    assert_eq!(d.lights.len(), 1);
+    let first = d.positions[d.triangles[0].positions[0] as usize];
+    assert!(close(first, Vec3::new(-1.0, -2.0, -4.0)), "{first}");
+}
+
+/// The error of loading `bytes` as `name` in a fresh folder.
+fn error_of(name: &str, bytes: &[u8]) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    let error = formats::load(&path).unwrap_err().to_string();
+    assert!(
+        error.starts_with(&path.display().to_string()),
+        "{name}: the error does not name the file: {error}"
+    );
+    error
+}
+
+#[test]
+fn malformed_and_truncated_files_are_errors_naming_the_file() {
+    let glb = std::fs::read(fixture("scene.glb")).unwrap();
+    // Every truncation of the GLB is an error, never a panic.
+    for cut in (0..glb.len()).step_by(97).chain([glb.len() - 1, 12, 20]) {
+        let error = error_of("cut.glb", &glb[..cut]);
+        assert!(!error.is_empty());
+    }
+    let error = error_of("bad.gltf", b"{ not json");
+    assert!(error.contains("not a valid glTF file"), "{error}");
+    // A missing .bin file.
+    let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
+    let error = error_of("lonely.gltf", gltf.as_bytes());
+    assert!(
+        error.contains("buffer 0 ('scene.bin'): cannot read scene.bin"),
+        "{error}"
+    );
+    // A buffer shorter than the file says.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.bin"), [0u8; 10]).unwrap();
+    std::fs::write(dir.path().join("short.gltf"), &gltf).unwrap();
+    let error = formats::load(&dir.path().join("short.gltf"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("buffer 0 has 10 bytes, the file says 140"),
+        "{error}"
+    );
+    // An index past the vertices.
+    let bin = std::fs::read(fixture("scene.bin")).unwrap();
+    let mut bad = bin.clone();
+    let at = bad.len() - 12;
+    bad[at..at + 2].copy_from_slice(&9u16.to_le_bytes());
+    std::fs::write(dir.path().join("scene.bin"), &bad).unwrap();
+    std::fs::write(dir.path().join("index.gltf"), &gltf).unwrap();
+    let error = formats::load(&dir.path().join("index.gltf"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("mesh 0 primitive 0: index 9 out of range (4 vertices)"),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_missing_image_is_a_warning_and_the_surface_renders_without_it() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(fixture("scene.bin"), dir.path().join("scene.bin")).unwrap();
+    let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
+    let path = dir.path().join("scene.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    let loaded = formats::load(&path).unwrap();
+    let warnings = &loaded.description.warnings;
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with(&format!(
+            "{}: image 0: cannot read texture 'checker.png'",
+            path.display()
+        )),
+        "{warnings:?}"
+    );
+    let checker = &loaded.description.materials[0];
+    assert_eq!(
+        checker.at(Vec2::new(0.25, 0.75)).diffuse,
+        Vec3::new(1.0, 0.5, 0.25)
+    );
+}

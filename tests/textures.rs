@@ -1,0 +1,529 @@
+//! Texture maps in OBJ/MTL scenes: texture coordinates, filtering and addressing,
+//! sRGB decoding, MTL map options, cutouts, missing files, and what the integrators
+//! make of textured values. Each test writes its own tiny images and scene.
+
+use std::path::{Path, PathBuf};
+
+use raytracer::material::Material;
+use raytracer::math::{Float, Ray, Vec2, Vec3};
+use raytracer::{BvhParams, Film, Mode, RenderOptions, Scene, formats, render};
+
+/// Writes an 8-bit PNG of `channels` channels (1 grey, 2 grey + alpha, 3 RGB,
+/// 4 RGBA), rows top to bottom.
+fn write_png(path: &Path, width: u32, height: u32, channels: u32, texels: &[u8]) {
+    assert_eq!(texels.len(), (width * height * channels) as usize);
+    let file = std::fs::File::create(path).unwrap();
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(match channels {
+        1 => png::ColorType::Grayscale,
+        2 => png::ColorType::GrayscaleAlpha,
+        3 => png::ColorType::Rgb,
+        _ => png::ColorType::Rgba,
+    });
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().unwrap();
+    writer.write_image_data(texels).unwrap();
+}
+
+/// A unit square at `z` from (-1, -1) to (1, 1), texture coordinates (0, 0) at the
+/// bottom left to `(u_max, v_max)` at the top right, as OBJ text starting after
+/// `vertices_before` vertices and texture coordinates.
+fn square(z: Float, u_max: Float, v_max: Float, material: &str, before: usize) -> String {
+    let b = before;
+    format!(
+        "v -1 -1 {z}\nv 1 -1 {z}\nv 1 1 {z}\nv -1 1 {z}\n\
+         vt 0 0\nvt {u_max} 0\nvt {u_max} {v_max}\nvt 0 {v_max}\n\
+         usemtl {material}\n\
+         f {}/{} {}/{} {}/{} {}/{}\n",
+        b + 1,
+        b + 1,
+        b + 2,
+        b + 2,
+        b + 3,
+        b + 3,
+        b + 4,
+        b + 4
+    )
+}
+
+/// Writes `scene.obj` (with `mtllib scene.mtl` first) and `scene.mtl` into `dir`.
+fn write_scene(dir: &Path, obj: &str, mtl: &str) -> PathBuf {
+    std::fs::write(dir.join("scene.mtl"), mtl).unwrap();
+    let path = dir.join("scene.obj");
+    std::fs::write(&path, format!("mtllib scene.mtl\n{obj}")).unwrap();
+    path
+}
+
+fn build(path: &Path) -> Scene {
+    Scene::build(formats::load_obj(path).unwrap(), &BvhParams::default())
+}
+
+/// A ray from (x, y, 1) straight down -z.
+fn down(x: Float, y: Float) -> Ray {
+    Ray::new(Vec3::new(x, y, 1.0), Vec3::NEG_Z)
+}
+
+/// The material of the closest hit of `ray` and the texture coordinates there.
+fn material_at<'s>(scene: &'s Scene, ray: &Ray) -> (&'s Material, Vec2) {
+    let hit = scene.intersect(ray).expect("the ray hits the square");
+    (&scene.materials[hit.material.0 as usize], hit.uv)
+}
+
+fn close(a: Vec3, b: Vec3, tolerance: Float) -> bool {
+    (a - b).abs().max_element() <= tolerance
+}
+
+/// Renders from (0, 0, 1) looking down -z at 90 degrees: at distance 1 the view
+/// spans exactly the square at z = 0.
+fn render_square(scene: &Scene, size: u32, mode: Mode, depth: u32, spp: u32) -> Film {
+    let options = RenderOptions {
+        width: size,
+        height: size,
+        fov_degrees: 90.0,
+        look_from: Vec3::new(0.0, 0.0, 1.0),
+        look_to: Vec3::ZERO,
+        mode,
+        depth,
+        samples_per_pixel: spp,
+        ..RenderOptions::default()
+    };
+    options.validate().unwrap();
+    render(scene, &options)
+}
+
+#[test]
+fn u_goes_right_v_goes_up_and_row_zero_is_the_top_of_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    // Top row red, green; bottom row blue, white.
+    write_png(
+        &dir.path().join("quadrants.png"),
+        2,
+        2,
+        3,
+        &[255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255],
+    );
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKa 1 1 1\nKd 0 0 0\nmap_Ka quadrants.png\n",
+    );
+    let scene = build(&path);
+    // Each pixel of a 2x2 image looks at one texel's centre: the image is the texture.
+    let film = render_square(&scene, 2, Mode::Full, 1, 1);
+    let expected = [Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE];
+    for (i, (&got, want)) in film.pixels.iter().zip(expected).enumerate() {
+        assert!(close(got, want, 1e-4), "pixel {i}: {got}, expected {want}");
+    }
+    // Texture coordinates are those of the corners, interpolated.
+    let (_, uv) = material_at(&scene, &down(0.5, -0.5));
+    assert!(
+        (uv - Vec2::new(0.75, 0.25)).abs().max_element() < 1e-6,
+        "{uv}"
+    );
+}
+
+#[test]
+fn colour_maps_are_decoded_from_srgb_before_bilinear_filtering() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two texels side by side: black and sRGB 255 (linear 1), and a grey one whose
+    // sRGB value 188 is linear 0.5029.
+    write_png(&dir.path().join("ramp.png"), 2, 1, 1, &[0, 255]);
+    write_png(&dir.path().join("grey.png"), 1, 1, 1, &[188]);
+    let obj = format!(
+        "{}{}",
+        square(0.0, 1.0, 1.0, "ramp", 0),
+        square(-1.0, 1.0, 1.0, "grey", 4)
+    );
+    let path = write_scene(
+        dir.path(),
+        &obj,
+        "newmtl ramp\nKd 1 1 1\nmap_Kd -clamp on ramp.png\nnewmtl grey\nKd 0.5 1 1\nmap_Kd grey.png\n",
+    );
+    let scene = build(&path);
+    // Texel centres at u = 1/4 and 3/4; half-way between them the mean of the
+    // *linear* values (decoding after filtering would give 0.214), a quarter of the
+    // way a quarter.
+    for (x, expected) in [
+        (-0.5, 0.0),
+        (0.5, 1.0),
+        (0.0, 0.5),
+        (-0.25, 0.25),
+        (-0.9, 0.0),
+    ] {
+        let (material, uv) = material_at(&scene, &down(x, 0.0));
+        let kd = material.at(uv).diffuse;
+        assert!(
+            close(kd, Vec3::splat(expected), 1e-5),
+            "x = {x}: {kd}, expected {expected}"
+        );
+    }
+    // The map multiplies Kd, channel by channel.
+    let grey = &scene.materials[1];
+    let kd = grey.at(Vec2::new(0.5, 0.5)).diffuse;
+    let linear = 0.502_886;
+    assert!(
+        close(kd, Vec3::new(0.5 * linear, linear, linear), 1e-5),
+        "{kd}"
+    );
+}
+
+#[test]
+fn coordinates_outside_the_unit_square_repeat_unless_the_map_clamps() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("ramp.png"), 2, 1, 1, &[0, 255]);
+    // u runs from 0 to 2 over the square.
+    let obj = format!(
+        "{}{}",
+        square(0.0, 2.0, 1.0, "repeat", 0),
+        square(-1.0, 2.0, 1.0, "clamp", 4)
+    );
+    let path = write_scene(
+        dir.path(),
+        &obj,
+        "newmtl repeat\nKd 1 1 1\nmap_Kd ramp.png\nnewmtl clamp\nKd 1 1 1\nmap_Kd -clamp on ramp.png\n",
+    );
+    let scene = build(&path);
+    let repeat = &scene.materials[0];
+    let clamp = &scene.materials[1];
+    // u = 1.25: repeat reads u = 0.25 (the black texel's centre); clamp reads past the
+    // right edge (the white texel).
+    let uv = Vec2::new(1.25, 0.5);
+    assert_eq!(repeat.at(uv).diffuse, Vec3::ZERO);
+    assert_eq!(clamp.at(uv).diffuse, Vec3::ONE);
+    // u = 1.0 under repeat is half-way between the last texel and the first one
+    // again; under clamp, the white texel.
+    assert!(close(
+        repeat.at(Vec2::new(1.0, 0.5)).diffuse,
+        Vec3::splat(0.5),
+        1e-6
+    ));
+    assert_eq!(clamp.at(Vec2::new(1.0, 0.5)).diffuse, Vec3::ONE);
+    // And the same through the scene: the right half of the repeating square shows
+    // the ramp a second time.
+    let (material, uv) = material_at(&scene, &down(0.75, 0.0));
+    assert!((uv.x - 1.75).abs() < 1e-5);
+    assert_eq!(material.at(uv).diffuse, Vec3::ONE);
+}
+
+#[test]
+fn map_options_are_parsed_and_file_names_keep_their_spaces() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("my texture file.png"), 2, 1, 1, &[0, 255]);
+    let mtl = "newmtl m\nKd 1 1 1\n\
+        map_Kd -s 2 1 1 -o 0.5 0 0 -clamp off -bm 1 -blendu on -blendv off -boost 1.5 \
+        -texres 512 -mm 0 1 -t 0 0 0 -imfchan l -cc off -type sphere my texture file.png \n\
+        map_d -imfchan r my texture file.png\n";
+    let path = write_scene(dir.path(), &square(0.0, 1.0, 1.0, "m", 0), mtl);
+    let description = formats::load_obj(&path).unwrap();
+    assert!(
+        description.warnings.is_empty(),
+        "{:?}",
+        description.warnings
+    );
+    let maps = description.materials[0].maps.as_ref().unwrap();
+    let diffuse = maps.diffuse.as_ref().unwrap();
+    assert!(diffuse.texture.path.ends_with("my texture file.png"));
+    assert_eq!(diffuse.options.scale, Vec2::new(2.0, 1.0));
+    assert_eq!(diffuse.options.offset, Vec2::new(0.5, 0.0));
+    // One file named twice is read once.
+    let cutout = maps.cutout.as_ref().unwrap().map.as_ref().unwrap();
+    assert!(std::sync::Arc::ptr_eq(&diffuse.texture, &cutout.texture));
+    // -s 2 then -o 0.5: u = 0 reads 0.5 (half-way, repeat), u = 0.125 reads 0.75.
+    let material = &description.materials[0];
+    assert!(close(
+        material.at(Vec2::new(0.125, 0.5)).diffuse,
+        Vec3::ONE,
+        1e-6
+    ));
+    assert!(close(
+        material.at(Vec2::new(0.0, 0.5)).diffuse,
+        Vec3::splat(0.5),
+        1e-6
+    ));
+}
+
+#[test]
+fn a_bad_map_option_is_an_error_naming_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\nmap_Kd -clamp maybe t.png\n",
+    );
+    let error = formats::load_obj(&path).unwrap_err().to_string();
+    assert!(
+        error.ends_with("scene.mtl:3: '-clamp' takes on or off, found 'maybe'"),
+        "{error}"
+    );
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nmap_Kd -s\n",
+    );
+    let error = formats::load_obj(&path).unwrap_err().to_string();
+    assert!(
+        error.ends_with("scene.mtl:2: '-s' needs 1 value, found 0"),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_missing_texture_is_a_warning_naming_the_mtl_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("broken.png"), b"not a png at all").unwrap();
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKa 0.25 0.5 1\n\nmap_Ka missing.png\nmap_Kd broken.png\n",
+    );
+    let description = formats::load_obj(&path).unwrap();
+    let mtl = dir.path().join("scene.mtl");
+    let warnings = &description.warnings;
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with(&format!(
+            "{}:4: cannot read texture 'missing.png': ",
+            mtl.display()
+        )) && warnings[0].ends_with("; the surface renders without it"),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings[1].starts_with(&format!(
+            "{}:5: cannot read texture 'broken.png': ",
+            mtl.display()
+        )),
+        "{warnings:?}"
+    );
+    // The material renders with its constants alone.
+    assert!(description.materials[0].maps.is_none());
+    let scene = Scene::build(description, &BvhParams::default());
+    let film = render_square(&scene, 2, Mode::Full, 1, 1);
+    assert!(film.pixels.iter().all(|&p| p == Vec3::new(0.25, 0.5, 1.0)));
+}
+
+#[test]
+fn windows_paths_find_the_texture_beside_the_mtl_file() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("wood.png"), 1, 1, 3, &[255, 0, 0]);
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\nmap_Kd C:\\Users\\artist\\textures\\wood.png\n",
+    );
+    let description = formats::load_obj(&path).unwrap();
+    assert!(
+        description.warnings.is_empty(),
+        "{:?}",
+        description.warnings
+    );
+    let material = &description.materials[0];
+    assert_eq!(material.at(Vec2::ZERO).diffuse, Vec3::X);
+}
+
+/// A square at z = 0 cut out on its left half (`map_d` from a texture whose left
+/// texel has alpha 0), in front of an opaque square at z = -1; a light at `light`.
+fn cutout_scene(dir: &Path, light: &str, imfchan: &str, texture: (u32, &[u8])) -> Scene {
+    let (channels, texels) = texture;
+    write_png(&dir.join("mask.png"), 2, 1, channels, texels);
+    let obj = format!(
+        "{}{}{light}",
+        square(0.0, 1.0, 1.0, "leaf", 0),
+        square(-1.0, 1.0, 1.0, "wall", 4)
+    );
+    let path = write_scene(
+        dir,
+        &obj,
+        &format!(
+            "newmtl leaf\nKa 1 0 0\nKd 0 0 0\nmap_d -clamp on {imfchan}mask.png\nnewmtl wall\nKa 0 0 0.1\nKd 0 1 0\n"
+        ),
+    );
+    build(&path)
+}
+
+#[test]
+fn map_d_cuts_the_surface_out_for_camera_and_shadow_rays() {
+    let dir = tempfile::tempdir().unwrap();
+    // Grey + alpha: the left texel transparent, the right one opaque.
+    let scene = cutout_scene(dir.path(), "P 0 0 5 1 1 1\n", "", (2, &[255, 0, 255, 255]));
+    // Camera rays: through the left half to the wall, stopped on the right half.
+    assert_eq!(scene.intersect(&down(-0.5, 0.0)).unwrap().t, 2.0);
+    assert_eq!(scene.intersect(&down(0.5, 0.0)).unwrap().t, 1.0);
+    // Shadow rays from the wall up to the light: free on the left only.
+    let up = |x| Ray::new(Vec3::new(x, 0.0, -1.0), Vec3::Z);
+    assert!(!scene.occluded(&up(-0.5), 6.0));
+    assert!(scene.occluded(&up(0.5), 6.0));
+    // The linear scan agrees with the BVH.
+    assert_eq!(scene.intersect_linear(&down(-0.5, 0.0)).unwrap().t, 2.0);
+
+    // Rendered at 4x4: pixel (1, 1) looks through the leaf's left half at the lit
+    // wall (Ka + Kd n.l, green), pixel (2, 1) at the leaf's right half (its Ka, red).
+    let film = render_square(&scene, 4, Mode::Full, 1, 1);
+    let wall = film.pixels[5];
+    assert!(
+        wall.x == 0.0 && wall.y > 0.9 && (wall.z - 0.1).abs() < 1e-6,
+        "{wall}"
+    );
+    assert_eq!(film.pixels[6], Vec3::X);
+    // Seen obliquely: a wall point behind the opaque half is in the leaf's shadow,
+    // one behind the cut-out half is lit through it.
+    let to_wall = |x: Float| {
+        let target = Vec3::new(x, 0.0, -1.0);
+        let from = Vec3::new(-0.9, 0.0, -0.5);
+        Ray::new(from, (target - from).normalize())
+    };
+    let lit = scene.intersect(&to_wall(-0.5)).unwrap();
+    let shadowed = scene.intersect(&to_wall(0.5)).unwrap();
+    let light = Vec3::new(0.0, 0.0, 5.0);
+    let (ray, distance) = lit.spawn_ray_to(light);
+    assert!(!scene.occluded(&ray, distance));
+    let (ray, distance) = shadowed.spawn_ray_to(light);
+    assert!(scene.occluded(&ray, distance));
+}
+
+#[test]
+fn map_d_reads_the_channel_imfchan_names() {
+    let dir = tempfile::tempdir().unwrap();
+    // RGB without alpha: red 0 on the left, 255 on the right; the other channels the
+    // other way round. `-imfchan r` cuts out the left, luminance (the default for an
+    // image without alpha) is the mean-ish of the channels: dark on the left too.
+    let scene = cutout_scene(
+        dir.path(),
+        "",
+        "-imfchan r ",
+        (3, &[0, 255, 255, 255, 0, 0]),
+    );
+    assert_eq!(scene.intersect(&down(-0.5, 0.0)).unwrap().t, 2.0);
+    assert_eq!(scene.intersect(&down(0.5, 0.0)).unwrap().t, 1.0);
+    let scene = cutout_scene(
+        dir.path(),
+        "",
+        "-imfchan g ",
+        (3, &[0, 255, 255, 255, 0, 0]),
+    );
+    assert_eq!(scene.intersect(&down(-0.5, 0.0)).unwrap().t, 1.0);
+    assert_eq!(scene.intersect(&down(0.5, 0.0)).unwrap().t, 2.0);
+}
+
+#[test]
+fn path_mode_uses_textured_emission_and_diffuse_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(
+        &dir.path().join("quadrants.png"),
+        2,
+        2,
+        3,
+        &[255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255],
+    );
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKe 2 2 2\nKd 0 0 0\nmap_Ke quadrants.png\n",
+    );
+    let scene = build(&path);
+    // Depth 1: emitters seen directly, nothing else.
+    let film = render_square(&scene, 2, Mode::Path, 1, 1);
+    let expected = [Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE].map(|c| c * 2.0);
+    for (i, (&got, want)) in film.pixels.iter().zip(expected).enumerate() {
+        assert!(close(got, want, 1e-3), "pixel {i}: {got}, expected {want}");
+    }
+
+    // A diffuse square, black on its left and white on its right, lit by a point
+    // light: the left pixels stay black in path mode as in full mode.
+    write_png(&dir.path().join("halves.png"), 2, 1, 1, &[0, 255]);
+    let path = write_scene(
+        dir.path(),
+        &format!("{}P 0 0 1 1 1 1\n", square(0.0, 1.0, 1.0, "m", 0)),
+        "newmtl m\nKd 0.5 0.5 0.5\nmap_Kd -clamp on halves.png\n",
+    );
+    let scene = build(&path);
+    for mode in [Mode::Path, Mode::Full] {
+        let film = render_square(&scene, 2, mode, 2, 1);
+        assert_eq!(film.pixels[0], Vec3::ZERO, "{mode:?}");
+        assert_eq!(film.pixels[2], Vec3::ZERO, "{mode:?}");
+        assert!(
+            film.pixels[1].min_element() > 0.01,
+            "{mode:?}: {}",
+            film.pixels[1]
+        );
+    }
+}
+
+/// The shading normal at the centre of a square at z = 0 whose texture coordinates
+/// run `u` along +x (or -x when `mirrored`), with `statement` (a bump or normal map
+/// line) in its material, seen from +z.
+fn shading_normal(dir: &Path, statement: &str, mirrored: bool) -> (Vec3, Vec<String>) {
+    let u_max = if mirrored { -1.0 } else { 1.0 };
+    let path = write_scene(
+        dir,
+        &square(0.0, u_max, 1.0, "m", 0),
+        &format!("newmtl m\nKd 1 1 1\n{statement}\n"),
+    );
+    let description = formats::load_obj(&path).unwrap();
+    let warnings = description.warnings.clone();
+    let scene = Scene::build(description, &BvhParams::default());
+    (scene.intersect(&down(0.1, 0.1)).unwrap().ns, warnings)
+}
+
+#[test]
+fn normal_maps_tilt_the_shading_normal_in_the_frame_of_the_texture_coordinates() {
+    let dir = tempfile::tempdir().unwrap();
+    // One texel: tangent-space normal (0.6, 0, 0.8), red along u, blue out.
+    write_png(&dir.path().join("normal.png"), 1, 1, 3, &[204, 128, 230]);
+    let (ns, warnings) = shading_normal(dir.path(), "norm normal.png", false);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(close(ns, Vec3::new(0.6, 0.0, 0.8), 0.01), "{ns}");
+    // With u running the other way, the tangent is -x and so is the tilt.
+    let (ns, _) = shading_normal(dir.path(), "norm normal.png", true);
+    assert!(close(ns, Vec3::new(-0.6, 0.0, 0.8), 0.01), "{ns}");
+    // A `bump` statement naming a normal map (pale blue, as exporters write them) is
+    // a normal map: (0.28, 0, 0.96).
+    write_png(&dir.path().join("pale.png"), 1, 1, 3, &[163, 128, 250]);
+    let (ns, _) = shading_normal(dir.path(), "map_Bump pale.png", false);
+    assert!(close(ns, Vec3::new(0.28, 0.0, 0.96), 0.01), "{ns}");
+}
+
+#[test]
+fn bump_maps_tilt_the_normal_down_their_slope_scaled_by_bm() {
+    let dir = tempfile::tempdir().unwrap();
+    // Heights rising along u by 0.2 a texel (grey 0, 51, 102, ... wrapping around at
+    // the far end, away from the point looked at), constant along v.
+    let row: Vec<u8> = (0..8).map(|i| (i * 51 % 256) as u8).collect();
+    let texels: Vec<u8> = row.iter().cycle().take(64).copied().collect();
+    write_png(&dir.path().join("height.png"), 8, 8, 1, &texels);
+    // Slope 0.2 per texel: the normal tilts towards -u, as (-0.2, 0, 1) normalized.
+    let expected = Vec3::new(-0.2, 0.0, 1.0).normalize();
+    let (ns, warnings) = shading_normal(dir.path(), "bump -clamp on height.png", false);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(close(ns, expected, 0.01), "{ns}, expected {expected}");
+    // `-bm 2` doubles the slope; a flat map leaves the normal alone.
+    let (ns, _) = shading_normal(dir.path(), "bump -bm 2 -clamp on height.png", false);
+    let expected = Vec3::new(-0.4, 0.0, 1.0).normalize();
+    assert!(close(ns, expected, 0.01), "{ns}, expected {expected}");
+    write_png(&dir.path().join("flat.png"), 2, 2, 1, &[90; 4]);
+    let (ns, _) = shading_normal(dir.path(), "bump flat.png", false);
+    assert_eq!(ns, Vec3::Z);
+}
+
+#[test]
+fn texture_coordinates_are_kept_only_where_a_map_can_use_them() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("t.png"), 1, 1, 1, &[255]);
+    let plain = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\n",
+    );
+    let description = formats::load_obj(&plain).unwrap();
+    assert_eq!(description.texcoords.len(), 4);
+    assert!(description.triangle_texcoords.is_empty());
+    let textured = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\nmap_Kd t.png\n",
+    );
+    let description = formats::load_obj(&textured).unwrap();
+    assert_eq!(
+        description.triangle_texcoords,
+        vec![Some([0, 1, 2]), Some([0, 2, 3])]
+    );
+}

@@ -90,13 +90,14 @@ fn the_first_camera_sets_the_view_and_flags_can_override_it() {
         let o = &loaded.options;
         let from = o.look_from.as_ref().unwrap();
         assert!(
-            close(from.value, Vec3::new(5.0, 0.0, -5.0)),
+            close(from.value, Vec3::new(5.0, 0.0, 0.0)),
             "{}",
             from.value
         );
-        // Turned 90 degrees about +y, the camera looks down -x.
+        // Turned 45 degrees about +y, the camera looks towards (0, 0, -5).
         let to = o.look_to.as_ref().unwrap().value;
-        assert!(close(to - from.value, Vec3::NEG_X), "{to}");
+        let half = std::f32::consts::FRAC_1_SQRT_2;
+        assert!(close(to - from.value, Vec3::new(-half, 0.0, -half)), "{to}");
         assert!(close(o.up.as_ref().unwrap().value, Vec3::Y));
         let fov = o.fov_degrees.as_ref().unwrap();
         assert!((fov.value - 0.8f32.to_degrees()).abs() < 1e-4);

@@ -527,3 +527,46 @@ fn texture_coordinates_are_kept_only_where_a_map_can_use_them() {
         vec![Some([0, 1, 2]), Some([0, 2, 3])]
     );
 }
+
+#[test]
+fn an_image_claiming_an_absurd_size_is_a_warning_not_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    // A PNG header claiming 100000 x 100000 RGBA texels (40 GB), and no data.
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut header = b"IHDR".to_vec();
+    header.extend_from_slice(&100_000u32.to_be_bytes());
+    header.extend_from_slice(&100_000u32.to_be_bytes());
+    header.extend_from_slice(&[8, 6, 0, 0, 0]);
+    png.extend_from_slice(&13u32.to_be_bytes());
+    png.extend_from_slice(&header);
+    let crc = {
+        // CRC-32 of the chunk type and data, as PNG wants it.
+        let mut crc = 0xFFFF_FFFFu32;
+        for &byte in &header {
+            crc ^= u32::from(byte);
+            for _ in 0..8 {
+                crc = if crc & 1 != 0 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    };
+    png.extend_from_slice(&crc.to_be_bytes());
+    std::fs::write(dir.path().join("huge.png"), &png).unwrap();
+    let path = write_scene(
+        dir.path(),
+        &square(0.0, 1.0, 1.0, "m", 0),
+        "newmtl m\nKd 1 1 1\nmap_Kd huge.png\n",
+    );
+    let description = formats::load_obj(&path).unwrap();
+    assert_eq!(description.warnings.len(), 1, "{:?}", description.warnings);
+    assert!(
+        description.warnings[0].contains("scene.mtl:3: cannot read texture 'huge.png': "),
+        "{:?}",
+        description.warnings
+    );
+    assert!(description.materials[0].maps.is_none());
+}

@@ -465,7 +465,7 @@ impl Scene {
     /// normal map at `uv`, in the tangent frame its texture coordinates give (`u`
     /// along the tangent, `v` along the bitangent, made orthonormal about `ns`); `None`
     /// without such a map, texture coordinates or a frame (a degenerate UV layout).
-    #[inline(never)]
+    #[inline]
     fn perturbed_normal(
         &self,
         prim: u32,
@@ -581,10 +581,6 @@ impl Scene {
             unreachable!("hits come from used lanes")
         };
         let shading = self.shading[prim as usize];
-        let uv = match shape {
-            Shape::Triangle(_) if !self.prim_texcoords.is_empty() => self.uv_at(prim, hit.u, hit.v),
-            _ => Vec2::ZERO,
-        };
         let (p, n, ns) = match shape {
             Shape::Triangle(tri) => {
                 // `build` kept only triangles whose normal `try_unit` accepts.
@@ -610,27 +606,44 @@ impl Scene {
         };
         let front = n.dot(ray.dir) <= 0.0;
         let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
-        let ns_facing = match shape {
-            Shape::Triangle(tri) if !self.prim_texcoords.is_empty() => {
-                match self.perturbed_normal(prim, &tri, shading.material, uv, ns) {
-                    // Flipped with the normal it perturbs, so that a bump cannot turn
-                    // the shading normal to the other side at grazing angles.
-                    Some(bumped) if ns.dot(ray.dir) > 0.0 => -bumped,
-                    Some(bumped) => bumped,
-                    None => face(ns),
-                }
+        // Texture coordinates and bumps: in textured scenes only, out of line, so
+        // that the hits of other scenes cost what they did.
+        let (uv, bumped) = match shape {
+            Shape::Triangle(triangle) if !self.prim_texcoords.is_empty() => {
+                self.texture_details(ray, prim, &triangle, &hit, shading.material, ns)
             }
-            _ => face(ns),
+            _ => (Vec2::ZERO, None),
         };
         Hit {
             t: hit.t,
             p,
             n: face(n),
-            ns: ns_facing,
+            ns: bumped.unwrap_or_else(|| face(ns)),
             uv,
             material: shading.material,
             front,
         }
+    }
+
+    /// The texture coordinates of a hit on triangle `prim` and, under a bump or
+    /// normal map, its shading normal tilted and turned to face the ray; `ns` is the
+    /// shading normal before it was turned.
+    #[inline(never)]
+    fn texture_details(
+        &self,
+        ray: &Ray,
+        prim: u32,
+        triangle: &Triangle,
+        hit: &PrimHit,
+        material: MaterialId,
+        ns: Vec3,
+    ) -> (Vec2, Option<Vec3>) {
+        let uv = self.uv_at(prim, hit.u, hit.v);
+        let bumped = self.perturbed_normal(prim, triangle, material, uv, ns);
+        // Turned with the normal it perturbs, so that a bump cannot turn the shading
+        // normal to the other side at grazing angles.
+        let facing = |b: Vec3| if ns.dot(ray.dir) > 0.0 { -b } else { b };
+        (uv, bumped.map(facing))
     }
 }
 

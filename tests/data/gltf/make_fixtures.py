@@ -7,7 +7,7 @@
 
 The scene: a textured quad under two nested node transforms, a mirrored copy, an
 emissive quad (KHR_materials_emissive_strength), an alpha-masked quad, a metal quad,
-a perspective camera turned 90 degrees about y, and a KHR_lights_punctual point light
+a perspective camera turned 45 degrees about y, and a KHR_lights_punctual point light
 under a translated parent. Run it from anywhere; it writes beside itself.
 """
 
@@ -76,7 +76,6 @@ def geometry():
 
 def document(buffer_uri, buffer_length, image):
     _, views, accessors = geometry()
-    half = math.sqrt(0.5)
     primitive = {"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3}
     doc = {
         "asset": {"version": "2.0", "generator": "tests/data/gltf/make_fixtures.py"},
@@ -93,8 +92,13 @@ def document(buffer_uri, buffer_length, image):
             {"name": "lamp", "mesh": 1, "translation": [0, 3, -5]},
             {"name": "ghost", "mesh": 2, "translation": [0, -3, -5]},
             {"name": "metal", "mesh": 3, "translation": [5, 0, -20]},
-            # 6: the camera at (5, 0, -5), turned 90 degrees about +y: it looks down -x.
-            {"name": "camera", "camera": 0, "translation": [5, 0, -5], "rotation": [0, half, 0, half]},
+            # 6: the camera at (5, 0, 0), turned 45 degrees about +y: it looks at (0, 0, -5).
+            {
+                "name": "camera",
+                "camera": 0,
+                "translation": [5, 0, 0],
+                "rotation": [0, math.sin(math.pi / 8), 0, math.cos(math.pi / 8)],
+            },
             # 7, 8: the light at (1, 2, 3) under a parent moved by z + 1.
             {"name": "light", "extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [1, 2, 3]},
             {"name": "light parent", "translation": [0, 0, 1], "children": [7]},

@@ -216,3 +216,48 @@ fn a_group_set_in_an_earlier_chunk_holds_in_later_ones() {
     let smoothed = d.triangles.iter().filter(|t| t.normals.is_some()).count();
     assert_eq!(smoothed, 4);
 }
+
+#[test]
+fn a_textured_concave_polygon_keeps_each_corner_s_texture_coordinate() {
+    // An L-shaped hexagon, concave at corner 4, whose `vt` indices are its `v` indices
+    // plus 10: after ear clipping, every triangle's texture coordinates must still be
+    // those of its own corners.
+    let dir = tempfile::tempdir().unwrap();
+    let file = std::fs::File::create(dir.path().join("t.png")).unwrap();
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), 1, 1);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder
+        .write_header()
+        .unwrap()
+        .write_image_data(&[200, 100, 50])
+        .unwrap();
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl m\nKd 1 1 1\nmap_Kd t.png\n",
+    )
+    .unwrap();
+    let mut obj = String::from("mtllib m.mtl\nusemtl m\n");
+    for _ in 0..10 {
+        obj += "vt 0 0\n";
+    }
+    for (x, y) in [(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)] {
+        writeln!(obj, "v {x} {y} 0\nvt {x} {y}").unwrap();
+    }
+    obj += "f 1/11 2/12 3/13 4/14 5/15 6/16\n";
+    let path = dir.path().join("l.obj");
+    std::fs::write(&path, &obj).unwrap();
+    let d = raytracer::formats::load_obj(&path).unwrap();
+    assert_eq!(d.triangles.len(), 4);
+    assert_eq!(d.triangle_texcoords.len(), 4);
+    for (t, texcoords) in d.triangles.iter().zip(&d.triangle_texcoords) {
+        assert_eq!(texcoords.unwrap(), t.positions.map(|p| p + 10), "{t:?}");
+    }
+    // The polygon was re-cut (its triangles are not the fan the reader first wrote),
+    // so the texture coordinates had to follow the new triangles.
+    let fan_from_0 = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]];
+    assert_ne!(
+        d.triangles.iter().map(|t| t.positions).collect::<Vec<_>>(),
+        fan_from_0
+    );
+}

@@ -132,9 +132,9 @@ fn a_face_of_200000_corners_loads_in_well_under_a_second() {
         })
         .sum();
     assert!((total - star).abs() < 1e-6 * star, "{total} vs {star}");
-    // About 0.1 s in release on the 2-core development machine, parse included.
-    let limit = if cfg!(debug_assertions) { 10.0 } else { 1.0 };
-    eprintln!("{n} corners: {seconds} s");
+    // About 0.3 s in release on the 2-core development machine, parse included; the
+    // limit leaves room for a busy machine, while quadratic clipping takes minutes.
+    let limit = if cfg!(debug_assertions) { 20.0 } else { 2.0 };
     assert!(seconds < limit, "{seconds} s");
 }
 

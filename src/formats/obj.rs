@@ -747,10 +747,9 @@ impl Chunk {
                 }
             }
             b"usemtl" => {
+                // An empty name is a name: Blender writes `newmtl` and `usemtl` with
+                // none.
                 let name = lex::rest_of_line(line, b"usemtl");
-                if name.is_empty() {
-                    return Err(ParseErrorKind::MissingName("usemtl"));
-                }
                 self.events.push(Event::Usemtl {
                     line: line_number,
                     name: String::from_utf8_lossy(name).into_owned(),
@@ -1281,7 +1280,6 @@ mod tests {
                 "f a b c",
                 "f 99999999999 1 1",
                 "S 0 0 0 -1",
-                "usemtl",
                 "mtllib",
                 "mtllib missing.mtl",
                 "v inf 0 0",

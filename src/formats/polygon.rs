@@ -679,9 +679,10 @@ mod tests {
             if let Triangulation::Triangles(t) = &result {
                 assert_eq!(t.len(), points.len() - 2, "{name}");
             }
-            // Debug builds are ten times slower; in release each takes 0.01-0.2 s on the
-            // 2-core development machine.
-            let limit = if cfg!(debug_assertions) { 5.0 } else { 0.5 };
+            // In release each takes 0.01-0.3 s on the 2-core development machine, alone;
+            // the limit leaves room for a machine busy with other tests (and debug
+            // builds are ten times slower), while quadratic clipping would take minutes.
+            let limit = if cfg!(debug_assertions) { 20.0 } else { 2.0 };
             assert!(seconds < limit, "{name}: {seconds} s");
         }
     }

@@ -600,7 +600,8 @@ impl PartialOptions {
 
     /// These options with a camera that frames `bounds`, if neither the camera's
     /// position nor its target is set (by a flag or a scene file): it looks along -z
-    /// at the centre of the box, from as close as lets the box's bounding sphere fit
+    /// (or, at a scene that lies flat in a plane x = c or y = c, which -z would see
+    /// edge-on, along -x or -y) at the centre of the box, from as close as lets the box's bounding sphere fit
     /// both the vertical and the horizontal field of view (of the field of view and
     /// image size these options give). Both points then come from
     /// [`Origin::Framed`]. An empty box (an empty scene) leaves the defaults.
@@ -629,7 +630,18 @@ impl PartialOptions {
         // touches it: distance * sin(half_angle) = radius. (An invalid field of view
         // gives a nonsense distance here; resolving reports the field of view.)
         let distance = radius / half_angle.sin();
-        let look_from = center + Vec3::Z * distance as Float;
+        // Along -z, unless the scene lies flat in a plane x = c or y = c (a single
+        // polygon, a floor), which -z would see edge-on: then face-on, along -x or -y.
+        let extent = bounds.max - bounds.min;
+        let flat = |e: Float| e <= 1e-6 * extent.max_element();
+        let axis = if flat(extent.x) && !flat(extent.z) {
+            Vec3::X
+        } else if flat(extent.y) && !flat(extent.z) {
+            Vec3::Y
+        } else {
+            Vec3::Z
+        };
+        let look_from = center + axis * distance as Float;
         // A box near the largest f32, or one so small against its distance from the
         // origin that the step rounds away: the defaults stay (and a flag can fix them).
         if !look_from.is_finite() || look_from == center {

@@ -101,6 +101,25 @@ fn with_no_camera_the_whole_scene_is_framed() {
 }
 
 #[test]
+fn a_flat_scene_is_framed_face_on() {
+    // A square in the plane x = 2, as LightWave's concave test polygon lies: along -z
+    // it would be edge-on, so the camera looks along -x; a floor (y = 1) is seen from
+    // above.
+    for (min, max, axis) in [
+        (Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 1.0), Vec3::X),
+        (Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 1.0), Vec3::Y),
+        (Vec3::new(0.0, 0.0, 3.0), Vec3::new(1.0, 1.0, 3.0), Vec3::Z),
+    ] {
+        let options = PartialOptions::default()
+            .framed(Aabb { min, max })
+            .resolve()
+            .unwrap();
+        let back = (options.look_from - options.look_to).normalize();
+        assert!((back - axis).length() < 1e-6, "{back} for {min}..{max}");
+    }
+}
+
+#[test]
 fn a_camera_from_flags_or_file_is_not_framed() {
     let bounds = Aabb {
         min: Vec3::splat(5.0),

@@ -4,7 +4,7 @@
 //!
 //! | format | module | reads |
 //! |---|---|---|
-//! | Wavefront OBJ + MTL | [`obj`](load_obj), `mtl` | `v vt vn f`, `S` spheres, `P` lights, `mtllib`/`usemtl` |
+//! | Wavefront OBJ + MTL | [`obj`](load_obj), `mtl` | `v vt vn f s`, `S` spheres, `P` lights, `mtllib`/`usemtl` |
 //! | PLY (ascii, binary) | [`ply`](load_ply) | vertices, normals, faces |
 //! | TOML scene file | [`toml`](load_toml) | camera, render settings, meshes placed by [`Transform`] |
 //!

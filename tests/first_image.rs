@@ -290,3 +290,26 @@ fn a_scene_with_lights_keeps_the_spec_formula_exactly() {
         description.warnings
     );
 }
+
+#[test]
+fn a_scene_file_can_turn_the_default_light_off() {
+    let dir = tempfile::tempdir().unwrap();
+    write_scene(dir.path());
+    let toml = dir.path().join("scene.toml");
+    std::fs::write(
+        &toml,
+        "[render]\ndefault_light = false\n\n[[mesh]]\nfile = \"model.obj\"\n",
+    )
+    .unwrap();
+    let loaded = raytracer::formats::load(&toml).unwrap();
+    let (description, options) = loaded.resolve(PartialOptions::default()).unwrap();
+    assert!(!options.default_light);
+    assert!(description.lights.is_empty());
+    assert_eq!(
+        description.warnings,
+        ["the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka)"]
+    );
+    // The flag's default (unset) does not override the file; the file's camera is
+    // unset, so the scene is framed.
+    assert!(options.look_from.z > 6.0, "{}", options.look_from);
+}

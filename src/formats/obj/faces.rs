@@ -13,6 +13,8 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
+use rayon::prelude::*;
+
 use super::SceneDescription;
 use crate::description::TriangleDesc;
 use crate::formats::polygon::{self, Triangulation};
@@ -88,14 +90,35 @@ pub(super) struct ChunkFaces {
 
 /// Pass 4 on the whole description.
 pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
+    // Each chunk's polygons lie in its own triangles: the chunks are cut in parallel
+    // (a file of quads has a polygon per face).
+    if chunks.iter().any(|c| !c.shaping.polygons.is_empty()) {
+        let mut parts = Vec::with_capacity(chunks.len());
+        let mut rest = &mut scene.triangles[..];
+        let mut at = 0;
+        for (i, chunk) in chunks.iter().enumerate() {
+            let end = chunks
+                .get(i + 1)
+                .map_or(at + rest.len(), |c| c.first_triangle);
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(end - at);
+            parts.push((part, &chunk.shaping.polygons));
+            rest = tail;
+            at = end;
+        }
+        let positions = &scene.positions;
+        parts.into_par_iter().for_each(|(triangles, polygons)| {
+            for p in polygons {
+                let first = p.first as usize;
+                retriangulate(
+                    positions,
+                    &mut triangles[first..first + p.corners as usize - 2],
+                );
+            }
+        });
+    }
     let mut runs = Vec::new();
     for chunk in &chunks {
         let base = chunk.first_triangle;
-        for p in &chunk.shaping.polygons {
-            let first = base + p.first as usize;
-            let fan = &mut scene.triangles[first..first + p.corners as usize - 2];
-            retriangulate(&scene.positions, fan);
-        }
         for run in &chunk.shaping.runs {
             let group = match run.group {
                 INHERITED_GROUP => chunk.group_before,
@@ -121,13 +144,17 @@ fn retriangulate(positions: &[Vec3], fan: &mut [TriangleDesc]) {
         k => (k - 2, 2),
     };
     let count = fan.len() + 2;
-    let points: Vec<Vec3> = (0..count)
-        .map(|k| {
-            let (t, c) = corner(k);
-            positions[fan[t].positions[c] as usize]
-        })
-        .collect();
-    let Triangulation::Triangles(triangles) = polygon::triangulate(&points) else {
+    let point = |k: usize| {
+        let (t, c) = corner(k);
+        positions[fan[t].positions[c] as usize]
+    };
+    // Quads, the common polygon, without an allocation.
+    let triangulation = if count == 4 {
+        polygon::triangulate(&[point(0), point(1), point(2), point(3)])
+    } else {
+        polygon::triangulate(&(0..count).map(point).collect::<Vec<_>>())
+    };
+    let Triangulation::Triangles(triangles) = triangulation else {
         return;
     };
     // A corner's `vn` is known when a triangle of the fan holding it has them all (the

@@ -45,3 +45,7 @@ dragon_camera=("${size[@]}" --fov 45 --look-from 0.09,0.21,0.27 --look-to -0.005
 render $dragon "${dragon_camera[@]}" --depth 8 --spp 4 -o $out/dragon.png
 render $dragon "${dragon_camera[@]}" --mode normal -o $out/dragon-normal.png
 render $dragon "${dragon_camera[@]}" --mode depth -o $out/dragon-depth.png
+
+# A real model as a new user would render it: no flags at all (framed, default light
+# rig). From Debian's assimp-testmodels; see tests/data/real/assimp/SOURCE.md.
+render tests/data/real/assimp/spider.obj.gz -o $out/spider.png

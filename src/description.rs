@@ -2,8 +2,37 @@
 //! [`crate::scene::Scene::build`] consumes. Plain data, indices resolved to 0-based,
 //! nothing built yet.
 
+use rayon::prelude::*;
+
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Float, Vec2, Vec3};
+use crate::math::{Aabb, Float, Vec2, Vec3, try_unit};
+use crate::options::{Mode, RenderOptions};
+
+/// The default light rig of an unlit scene in full mode
+/// ([`SceneDescription::add_default_light`]): a key light above and to the left of
+/// the camera and a fill light at the camera, as a modeller's viewport lights a model,
+/// with intensities (`key`, `fill`) and the ambient light `ambient` that every `Ka`
+/// is multiplied by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightRig {
+    /// Intensity of the key light, above and to the left of the camera.
+    pub key: Float,
+    /// Intensity of the fill light, at the camera (it reaches every point the camera
+    /// sees, so nothing visible is left black).
+    pub fill: Float,
+    /// The ambient light: `Ka` becomes `Ka * ambient`, as MTL's illumination models
+    /// multiply `Ka` by the ambient light `Ia` (SPEC.md's formula has `Ia = 1`).
+    pub ambient: Float,
+}
+
+impl LightRig {
+    /// The rig [`SceneDescription::add_default_light`] adds.
+    pub const DEFAULT: LightRig = LightRig {
+        key: 0.8,
+        fill: 0.4,
+        ambient: 0.1,
+    };
+}
 
 /// A scene as read from files: plain data, indices resolved to 0-based, nothing
 /// built yet. Shapes, lights and materials keep file order.
@@ -39,6 +68,105 @@ impl SceneDescription {
     #[inline]
     pub fn texcoords_of(&self, index: usize) -> Option<[u32; 3]> {
         self.triangle_texcoords.get(index).copied().flatten()
+    }
+
+    /// The box around every triangle and sphere (not the lights, nor vertices no face
+    /// uses); empty for a scene without shapes.
+    pub fn bounds(&self) -> Aabb {
+        let triangles = self
+            .triangles
+            .par_iter()
+            .fold(
+                || Aabb::EMPTY,
+                |b, t| {
+                    t.positions
+                        .iter()
+                        .fold(b, |b, &i| b.grow(self.positions[i as usize]))
+                },
+            )
+            .reduce(|| Aabb::EMPTY, Aabb::union);
+        self.spheres.iter().fold(triangles, |b, s| {
+            let r = Vec3::splat(s.radius);
+            b.union(Aabb {
+                min: s.center - r,
+                max: s.center + r,
+            })
+        })
+    }
+
+    /// Whether nothing lights the scene: no point light, and no shape whose material
+    /// emits (`Ke`, as [`crate::scene::Scene::build`] finds area lights).
+    pub fn is_unlit(&self) -> bool {
+        if !self.lights.is_empty() {
+            return false;
+        }
+        let emitting: Vec<bool> = (self.materials.iter())
+            .map(|m| m.emission.max_element() > 0.0)
+            .collect();
+        if !emitting.contains(&true) {
+            return true;
+        }
+        let emits = |id: MaterialId| emitting.get(id.0 as usize).copied().unwrap_or(false);
+        !self.triangles.iter().any(|t| emits(t.material))
+            && !self.spheres.iter().any(|s| emits(s.material))
+    }
+
+    /// Lights a scene that has no light and no emitter ([`SceneDescription::is_unlit`])
+    /// for the mode of `options`, with one warning saying so; does nothing to a lit
+    /// scene, whose lighting stays exactly SPEC.md's.
+    ///
+    /// In full mode, unless `options.default_light` is off, it adds
+    /// [`LightRig::DEFAULT`] around the camera of `options` and multiplies every `Ka` by
+    /// the rig's ambient light: exported models carry `Ka 1 1 1` (Blender, Wings 3D),
+    /// which added in full would wash every colour out. A material whose `Ns` is below
+    /// 1 (no highlight) loses its `Ks`, which SPEC's formula would add flat. Path mode lights an unlit scene
+    /// with a white sky instead ([`crate::integrators::path`]), under the same switch.
+    /// Depth and normal modes need no light.
+    pub fn add_default_light(&mut self, options: &RenderOptions) {
+        if !self.is_unlit() {
+            return;
+        }
+        let message = match (options.mode, options.default_light) {
+            (Mode::Depth | Mode::Normal, _) => return,
+            (Mode::Full, true) => {
+                "lit by a default light rig at the camera (--no-default-light turns it off)"
+            }
+            (Mode::Full, false) => "full mode shows only its ambient colour (Ka)",
+            (Mode::Path, true) => {
+                "path mode lights it with a white sky (--no-default-light turns it off)"
+            }
+            (Mode::Path, false) => "path mode renders it black",
+        };
+        self.warnings
+            .push(format!("the scene has no lights ('P' or 'Ke'): {message}"));
+        if options.mode != Mode::Full || !options.default_light {
+            return;
+        }
+        let rig = LightRig::DEFAULT;
+        let eye = options.look_from;
+        let to_target = options.look_to - eye;
+        let forward = try_unit(to_target).unwrap_or(Vec3::NEG_Z);
+        let right = try_unit(forward.cross(options.up)).unwrap_or(Vec3::X);
+        let up = right.cross(forward);
+        let distance = to_target.length();
+        self.lights.push(PointLight {
+            position: eye + distance * (0.5 * up - 0.5 * right),
+            intensity: Vec3::splat(rig.key),
+        });
+        self.lights.push(PointLight {
+            position: eye,
+            intensity: Vec3::splat(rig.fill),
+        });
+        for material in &mut self.materials {
+            material.ambient *= rig.ambient;
+            // An exponent below 1 defines no highlight: SPEC's formula would add `Ks`
+            // flat wherever the light reaches (`max(0, x)^0 = 1`), washing the model
+            // out, where the exporting tool shows a matte surface (Blender reads
+            // `Ns 0` as fully rough). 3ds Max writes `Ks 0.9` with `Ns 0`.
+            if material.shininess < 1.0 {
+                material.specular = Vec3::ZERO;
+            }
+        }
     }
 }
 

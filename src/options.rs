@@ -10,7 +10,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-use crate::math::{Float, Vec3, try_unit};
+use crate::math::{Aabb, Float, Vec3, try_unit};
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
 
 /// Largest width or height accepted.
@@ -111,6 +111,11 @@ pub struct RenderOptions {
     /// the same image on any number of threads. 0 gives the images of earlier
     /// versions.
     pub seed: u32,
+    /// Whether a scene with no light and no emitter gets the default lighting: in
+    /// full mode a light rig at the camera
+    /// ([`SceneDescription::add_default_light`](crate::SceneDescription::add_default_light)),
+    /// in path mode a white sky. On by default; `--no-default-light` turns it off.
+    pub default_light: bool,
 }
 
 impl Default for RenderOptions {
@@ -127,6 +132,7 @@ impl Default for RenderOptions {
             samples_per_pixel: 1,
             exposure: 0.0,
             seed: 0,
+            default_light: true,
         }
     }
 }
@@ -176,6 +182,9 @@ pub enum Origin {
     /// A width or height nobody gave, computed from the other dimension (which came
     /// from the boxed origin) to keep an aspect ratio: see [`PartialOptions::or`].
     Aspect(Box<Origin>),
+    /// A camera position nobody gave, placed to frame the whole scene: see
+    /// [`PartialOptions::framed`].
+    Framed,
 }
 
 impl fmt::Display for Origin {
@@ -187,6 +196,7 @@ impl fmt::Display for Origin {
             Origin::File { path, line: 0, key } => write!(f, "{}: {key}", path.display()),
             Origin::File { path, line, key } => write!(f, "{}:{line}: {key}", path.display()),
             Origin::Aspect(of) => write!(f, "{of} (keeping the aspect ratio)"),
+            Origin::Framed => f.write_str("the camera framing the scene"),
         }
     }
 }
@@ -231,6 +241,11 @@ impl fmt::Display for OptionsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match &self.origin {
             Origin::File { .. } => write!(f, "{}: {}", self.origin, self.message)?,
+            Origin::Framed => write!(
+                f,
+                "cannot frame the scene: {}; give --look-from and --look-to",
+                self.message
+            )?,
             _ => write!(f, "invalid {}: {}", self.option, self.message)?,
         }
         match &self.other {
@@ -293,6 +308,7 @@ struct Values {
     samples_per_pixel: i64,
     exposure: Float,
     seed: i64,
+    default_light: bool,
 }
 
 impl From<&RenderOptions> for Values {
@@ -309,6 +325,7 @@ impl From<&RenderOptions> for Values {
             samples_per_pixel: o.samples_per_pixel.into(),
             exposure: o.exposure,
             seed: o.seed.into(),
+            default_light: o.default_light,
         }
     }
 }
@@ -411,6 +428,7 @@ impl Values {
             )?,
             exposure: self.exposure,
             seed,
+            default_light: self.default_light,
         })
     }
 }
@@ -542,6 +560,8 @@ pub struct PartialOptions {
     pub exposure: Option<Sourced<Float>>,
     /// The seed of the random numbers.
     pub seed: Option<Sourced<i64>>,
+    /// Whether an unlit scene gets the default lighting.
+    pub default_light: Option<Sourced<bool>>,
 }
 
 impl PartialOptions {
@@ -576,7 +596,62 @@ impl PartialOptions {
             samples_per_pixel: self.samples_per_pixel.or(fallback.samples_per_pixel),
             exposure: self.exposure.or(fallback.exposure),
             seed: self.seed.or(fallback.seed),
+            default_light: self.default_light.or(fallback.default_light),
         }
+    }
+
+    /// These options with a camera that frames `bounds`, if neither the camera's
+    /// position nor its target is set (by a flag or a scene file): it looks along -z
+    /// (or, at a scene that lies flat in a plane x = c or y = c, which -z would see
+    /// edge-on, along -x or -y) at the centre of the box, from as close as lets the box's bounding sphere fit
+    /// both the vertical and the horizontal field of view (of the field of view and
+    /// image size these options give). Both points then come from
+    /// [`Origin::Framed`]. An empty box (an empty scene) leaves the defaults.
+    ///
+    /// Call it last, after [`PartialOptions::or`]: the framing depends on the field of
+    /// view and the aspect ratio.
+    pub fn framed(mut self, bounds: Aabb) -> PartialOptions {
+        if self.look_from.is_some() || self.look_to.is_some() || bounds.is_empty() {
+            return self;
+        }
+        let d = RenderOptions::default();
+        let (width, height) = self.image_size();
+        let aspect = width.value.max(1) as f64 / height.value.max(1) as f64;
+        let half_vertical =
+            f64::from(value_or(&self.fov_degrees, d.fov_degrees)).to_radians() / 2.0;
+        let half_horizontal = (half_vertical.tan() * aspect).atan();
+        let half_angle = half_vertical.min(half_horizontal);
+        let center = bounds.center();
+        // In f64: the diagonal of a box of 1e30 overflows f32 when squared.
+        let mut radius = (bounds.max - bounds.min).as_dvec3().length() / 2.0;
+        if radius.is_nan() || radius <= 0.0 {
+            // A single point (or a degenerate box): any distance shows it.
+            radius = f64::from(center.abs().max_element().max(1.0)) * 1e-3;
+        }
+        // The sphere fits when the cone of half-angle `half_angle` from the eye
+        // touches it: distance * sin(half_angle) = radius. (An invalid field of view
+        // gives a nonsense distance here; resolving reports the field of view.)
+        let distance = radius / half_angle.sin();
+        // Along -z, unless the scene lies flat in a plane x = c or y = c (a single
+        // polygon, a floor), which -z would see edge-on: then face-on, along -x or -y.
+        let extent = bounds.max - bounds.min;
+        let flat = |e: Float| e <= 1e-6 * extent.max_element();
+        let axis = if flat(extent.x) && !flat(extent.z) {
+            Vec3::X
+        } else if flat(extent.y) && !flat(extent.z) {
+            Vec3::Y
+        } else {
+            Vec3::Z
+        };
+        let look_from = center + axis * distance as Float;
+        // A box near the largest f32, or one so small against its distance from the
+        // origin that the step rounds away: the defaults stay (and a flag can fix them).
+        if !look_from.is_finite() || look_from == center {
+            return self;
+        }
+        self.look_from = Some(Sourced::new(look_from, Origin::Framed));
+        self.look_to = Some(Sourced::new(center, Origin::Framed));
+        self
     }
 
     /// The options to render with: each value as set, else from
@@ -607,6 +682,7 @@ impl PartialOptions {
             samples_per_pixel: value_or(&self.samples_per_pixel, default_spp.into()),
             exposure: value_or(&self.exposure, d.exposure),
             seed: value_or(&self.seed, d.seed.into()),
+            default_light: value_or(&self.default_light, d.default_light),
         };
         values.check(&|field| match field {
             Field::Width => width.origin.clone(),

@@ -137,7 +137,7 @@ fn render_region(
             render_with(scene, options, &whitted, tile, row_done)
         }
         Mode::Path => {
-            let path = PathIntegrator::new(scene, options.depth);
+            let path = PathIntegrator::new(scene, options.depth, options.default_light);
             render_with(scene, options, &path, tile, row_done)
         }
     }

@@ -100,9 +100,13 @@ fn a_negative_phong_exponent_is_read_as_zero() {
 
 #[test]
 fn an_unknown_ply_header_line_is_skipped() {
-    let (warnings, _) = render("created-by.ply");
+    let (warnings, rgb) = render("created-by.ply");
     assert_eq!(
-        warnings[0],
-        "created-by.ply:3: skipped 1 header line of unknown keyword ('Created')"
+        warnings,
+        [
+            "created-by.ply:3: skipped 1 header line of unknown keyword ('Created')",
+            "the scene has no lights ('P' or 'Ke'): lit by a default light rig at the camera (--no-default-light turns it off)"
+        ]
     );
+    assert!(centre(&rgb)[0] > 50);
 }

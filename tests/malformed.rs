@@ -289,7 +289,14 @@ fn a_huge_sphere_and_lights_inside_it_render() {
     let out = dir.path().join("huge.png");
     for mode in ["full", "depth", "normal"] {
         render(dir.path(), "huge.obj", &out)
-            .args(["--mode", mode])
+            .args([
+                "--mode",
+                mode,
+                "--look-from",
+                "0,0,0",
+                "--look-to",
+                "0,0,-1",
+            ])
             .assert()
             .success();
         let (_, _, rgb) = support::read_png(&out);

@@ -175,7 +175,6 @@ fn malformed_lines_name_file_line_and_problem() {
         ("S 0 0 0 -1\n", "scene.obj:1: sphere radius -1 is negative"),
         ("S 0 0 0\n", "scene.obj:1: 'S' needs 4 values, found 3"),
         ("P 0 0 0 1 1\n", "scene.obj:1: 'P' needs 6 values, found 5"),
-        ("usemtl\n", "scene.obj:1: 'usemtl' needs a name"),
         ("mtllib\n", "scene.obj:1: 'mtllib' needs a name"),
     ];
     for (text, expected) in cases {

@@ -120,6 +120,12 @@ pub struct ViewArgs {
     /// valid image; the same seed, the same image on any number of threads [default: 0].
     #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
     pub seed: Option<i64>,
+    /// Render a scene with no light ('P', a scene file's [[light]]) and no emitter
+    /// ('Ke') as it is: black but for its ambient colour in full mode, black in path
+    /// mode. By default such a scene gets a light rig at the camera (full mode) or a
+    /// white sky (path mode), with a warning.
+    #[arg(long)]
+    pub no_default_light: bool,
     /// Worker threads (0..=1024); 0 uses every core.
     #[arg(
         short = 'j',
@@ -174,6 +180,9 @@ impl ViewArgs {
             samples_per_pixel: flag(self.spp, "--spp"),
             exposure: flag(self.exposure, "--exposure"),
             seed: flag(self.seed, "--seed"),
+            default_light: self
+                .no_default_light
+                .then(|| Sourced::new(false, Origin::Flag("--no-default-light"))),
         }
     }
 }

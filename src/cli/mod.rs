@@ -53,8 +53,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 /// Loads the scene and the options: each value from the flag if given, else from the
-/// scene file (TOML, or a glTF camera), else the default; checked once, after merging, so that a flag
-/// can replace a bad value of the file.
+/// scene file (TOML, or a glTF camera), else the default, the camera framing the scene
+/// if none is given; checked once, after merging, so that a flag can replace a bad value
+/// of the file. An unlit scene gets the default lighting
+/// ([`formats::LoadedScene::resolve`]).
 fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
     let flags = view.options();
     // OBJ and PLY files set no options, so the flags can be checked before a long
@@ -65,7 +67,5 @@ fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOption
     ) {
         flags.resolve()?;
     }
-    let loaded = formats::load(&view.scene)?;
-    let options = flags.or(loaded.options).resolve()?;
-    Ok((loaded.description, options))
+    Ok(formats::load(&view.scene)?.resolve(flags)?)
 }

@@ -4,7 +4,7 @@
 //!
 //! | format | module | reads |
 //! |---|---|---|
-//! | Wavefront OBJ + MTL | [`obj`](load_obj), `mtl` | `v vt vn f`, `S` spheres, `P` lights, `mtllib`/`usemtl` |
+//! | Wavefront OBJ + MTL | [`obj`](load_obj), `mtl` | `v vt vn f s`, `S` spheres, `P` lights, `mtllib`/`usemtl` |
 //! | PLY (ascii, binary) | [`ply`](load_ply) | vertices, normals, faces |
 //! | TOML scene file | [`toml`](load_toml) | camera, render settings, meshes placed by [`Transform`] |
 //! | glTF 2.0 (`.gltf`, `.glb`) | [`gltf`](load_gltf) | meshes under node transforms, materials, textures, first camera, point lights |
@@ -37,7 +37,7 @@ pub(crate) use file::read_file;
 use std::path::Path;
 
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
-use crate::options::PartialOptions;
+use crate::options::{OptionsError, PartialOptions, RenderOptions};
 
 /// A loaded scene file: the scene, and the render settings the file gives (a TOML
 /// file's `[camera]` and `[render]`; none for OBJ and PLY).
@@ -47,6 +47,31 @@ pub struct LoadedScene {
     pub description: SceneDescription,
     /// Settings from the file; command-line flags override them.
     pub options: PartialOptions,
+}
+
+impl LoadedScene {
+    /// The scene and the options to render it with, as the command line takes them:
+    /// each value from `flags` if set, else from the file, else the default; a camera
+    /// that frames the whole scene when neither sets one
+    /// ([`PartialOptions::framed`]); checked once; then the default lighting of a scene
+    /// without lights ([`SceneDescription::add_default_light`]).
+    ///
+    /// # Errors
+    /// The first option out of range, named by where it came from.
+    pub fn resolve(
+        self,
+        flags: PartialOptions,
+    ) -> Result<(SceneDescription, RenderOptions), OptionsError> {
+        let mut options = flags.or(self.options);
+        // The bounds cost a pass over the triangles: only when they are needed.
+        if options.look_from.is_none() && options.look_to.is_none() {
+            options = options.framed(self.description.bounds());
+        }
+        let options = options.resolve()?;
+        let mut description = self.description;
+        description.add_default_light(&options);
+        Ok((description, options))
+    }
 }
 
 /// The kinds of scene file, told apart by name.

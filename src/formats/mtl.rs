@@ -222,10 +222,9 @@ fn parse_line(
         return Ok(false);
     }
     if keyword == b"newmtl" {
+        // Blender writes `newmtl` with no name for a material it has none for (and
+        // `usemtl` with none to use it): the empty name is a name.
         let name = lex::rest_of_line(line, b"newmtl");
-        if name.is_empty() {
-            return Err(ParseErrorKind::MissingName("newmtl"));
-        }
         materials.push(Material::named(String::from_utf8_lossy(name)));
         return Ok(false);
     }

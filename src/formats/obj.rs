@@ -1,7 +1,10 @@
 //! The OBJ reader: `v`, `vt`, `vn`, `f` (any polygon, all four vertex forms, negative
-//! indices), `mtllib`, `usemtl`, and the extensions `S` (sphere) and `P` (point light).
+//! indices), `s` (smoothing groups), `mtllib`, `usemtl`, and the extensions `S` (sphere)
+//! and `P` (point light). `l`, `p` and faces of fewer than 3 corners are skipped with
+//! one warning per kind, and a missing `.mtl` with one warning.
 //!
-//! Large files are parsed in parallel, in three passes over chunks cut at line ends:
+//! Large files are parsed in parallel, in three passes over chunks cut at line ends,
+//! and a fourth over the faces:
 //! 1. each chunk is surveyed ([`survey`]) on its own, as soon as it is read: its
 //!    lines, elements and triangles are counted without reading a number, and the
 //!    rare statements are read in full: `mtllib` and `usemtl`, whose meaning depends
@@ -12,7 +15,9 @@
 //! 3. each chunk's `v`, `vt`, `vn` and `f` lines are parsed straight into their
 //!    place ([`scan`]), indices resolved against the elements before the chunk; on
 //!    anything uncommon the general parser, which stops at the first problem, reads
-//!    the chunk instead.
+//!    the chunk instead. Polygons are written as fans, and noted;
+//! 4. once every position is known, polygons that are not convex are cut again by ear
+//!    clipping, and faces of smoothing groups get their normals ([`faces`]).
 //!
 //! The first problem in file order is the one reported, exactly as a sequential
 //! reader would.
@@ -794,10 +799,9 @@ impl Chunk {
                 }
             }
             b"usemtl" => {
+                // An empty name is a name: Blender writes `newmtl` and `usemtl` with
+                // none.
                 let name = lex::rest_of_line(line, b"usemtl");
-                if name.is_empty() {
-                    return Err(ParseErrorKind::MissingName("usemtl"));
-                }
                 self.events.push(Event::Usemtl {
                     line: line_number,
                     name: String::from_utf8_lossy(name).into_owned(),
@@ -1339,7 +1343,6 @@ mod tests {
                 "f a b c",
                 "f 99999999999 1 1",
                 "S 0 0 0 -1",
-                "usemtl",
                 "mtllib",
                 "mtllib missing.mtl",
                 "v inf 0 0",

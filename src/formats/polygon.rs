@@ -60,11 +60,14 @@ pub(crate) fn triangulate(points: &[Vec3]) -> Triangulation {
 }
 
 /// [`triangulate`], and the work ear clipping did: corners tried plus k-d tree nodes
-/// visited (0 for a fan). Tests hold the growth of this count to `n log n`, where a
-/// clock would depend on the machine's load.
+/// visited (0 for a fan). Tests hold the growth of this count far below quadratic,
+/// where a clock would depend on the machine's load.
 fn triangulate_counting_work(points: &[Vec3]) -> (Triangulation, u64) {
     let n = points.len();
     if n <= 3 || n > u32::MAX as usize {
+        return (Triangulation::Fan, 0);
+    }
+    if n == 4 && is_convex_quad(points) {
         return (Triangulation::Fan, 0);
     }
     let Some(plane) = Plane::of(points) else {
@@ -85,6 +88,32 @@ fn triangulate_counting_work(points: &[Vec3]) -> (Triangulation, u64) {
     let outline = points.iter().map(|&p| plane.project(p)).collect();
     let (triangles, work) = EarClipper::new(outline, straight).run();
     (Triangulation::Triangles(triangles), work)
+}
+
+/// Whether a quad is convex in its plane, the common case, tested without the frame of
+/// [`Plane`]: its Newell normal is the cross product of its diagonals, and each corner
+/// must turn about it the same way (beyond [`STRAIGHT_TURN`]). `false` also for a quad
+/// with no plane, which the general path then keeps as a fan.
+fn is_convex_quad(points: &[Vec3]) -> bool {
+    let origin = points[0].as_dvec3();
+    let p = [0, 1, 2, 3].map(|i| points[i].as_dvec3() - origin);
+    let normal = (p[2] - p[0]).cross(p[3] - p[1]);
+    let normal_squared = normal.length_squared();
+    if normal_squared == 0.0 {
+        return false;
+    }
+    (0..4).all(|i| {
+        let (e1, e2) = (p[i] - p[(i + 3) % 4], p[(i + 1) % 4] - p[i]);
+        let turn = e1.cross(e2).dot(normal);
+        // `turn >= -STRAIGHT_TURN |e1| |e2| |normal|`, squared.
+        turn >= 0.0
+            || turn * turn
+                <= STRAIGHT_TURN
+                    * STRAIGHT_TURN
+                    * e1.length_squared()
+                    * e2.length_squared()
+                    * normal_squared
+    })
 }
 
 /// A polygon's Newell plane, as a frame that maps its corners to 2D so that its
@@ -148,15 +177,19 @@ fn is_convex(n: usize, outline: impl Fn(usize) -> [f64; 2]) -> bool {
         // circle of 100,000 corners in `f32`) rounding hides the turns, and a ring
         // drawn that densely would pass for convex. Clipping a convex polygon whose
         // rounding made it look concave costs time, not shape.
-        let lengths = e1[0].hypot(e1[1]) * e2[0].hypot(e2[1]);
-        if cross < -STRAIGHT_TURN * lengths {
+        // `cross < -STRAIGHT_TURN * |e1| |e2|`, squared: no square roots per corner.
+        let lengths_squared = (e1[0] * e1[0] + e1[1] * e1[1]) * (e2[0] * e2[0] + e2[1] * e2[1]);
+        if cross < 0.0 && cross * cross > STRAIGHT_TURN * STRAIGHT_TURN * lengths_squared {
             return false;
         }
-        let dot = e1[0] * e2[0] + e1[1] * e2[1];
-        total += cross.atan2(dot);
+        // Four corners that all turn left go round once: a star needs five.
+        if n > 4 {
+            let dot = e1[0] * e2[0] + e1[1] * e2[1];
+            total += cross.atan2(dot);
+        }
         (a, b) = (b, c);
     }
-    (total - std::f64::consts::TAU).abs() < 1e-3
+    n == 4 || (total - std::f64::consts::TAU).abs() < 1e-3
 }
 
 /// Ear clipping on a counter-clockwise outline, corners in a doubly linked ring.

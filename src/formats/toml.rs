@@ -160,6 +160,7 @@ struct RenderTable {
     spp: Option<Spanned<i64>>,
     exposure: Option<Spanned<Float>>,
     seed: Option<Spanned<i64>>,
+    default_light: Option<Spanned<bool>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -385,6 +386,7 @@ impl Builder<'_> {
             samples_per_pixel: self.sourced(&render.spp, "render.spp"),
             exposure: self.sourced(&render.exposure, "render.exposure"),
             seed: self.sourced(&render.seed, "render.seed"),
+            default_light: self.sourced(&render.default_light, "render.default_light"),
         }
     }
 

@@ -12,7 +12,9 @@
 //!   `min(max(throughput) * eta^2, 0.95)`.
 //!
 //! With no light at all (no `Ke`, no `P`) the scene sits in a uniform white
-//! environment, so that a model without lights still shows.
+//! environment, so that a model without lights still shows: path mode's default
+//! lighting, as full mode's is a light rig at the camera; `--no-default-light`
+//! ([`crate::RenderOptions::default_light`]) turns both off.
 //!
 //! Materials: [`crate::bsdf`]; lights: [`crate::lights`].
 
@@ -43,14 +45,15 @@ pub struct PathIntegrator {
 }
 
 impl PathIntegrator {
-    /// A path tracer for `scene` following at most `max_depth` segments.
-    pub fn new(scene: &Scene, max_depth: u32) -> PathIntegrator {
+    /// A path tracer for `scene` following at most `max_depth` segments; an unlit
+    /// scene sits in a white sky if `default_light` says so, else in the dark.
+    pub fn new(scene: &Scene, max_depth: u32, default_light: bool) -> PathIntegrator {
         let scattering = scene
             .materials
             .iter()
             .map(|m| ScatteringParams::new(m).0)
             .collect();
-        let unlit = scene.lights.is_empty() && scene.area_lights.is_empty();
+        let unlit = scene.lights.is_empty() && scene.area_lights.is_empty() && default_light;
         PathIntegrator {
             scattering,
             max_depth,

@@ -195,12 +195,8 @@ impl Scene {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
         let area_lights = collect_area_lights(&positions, &triangles, &spheres, &materials);
-        if lights.is_empty() && area_lights.is_empty() {
-            warnings.push(
-                "the scene has no lights ('P' or 'Ke'): full mode shows only ambient colour, path mode a white sky"
-                    .into(),
-            );
-        }
+        // An unlit scene is warned of (and lit) by `SceneDescription::add_default_light`,
+        // which knows the mode.
 
         // Step 2: the wide BVH and its packets; then the binary BVH can go.
         let shape_of = |prim: u32| {

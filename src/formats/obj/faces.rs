@@ -13,6 +13,8 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
+use rayon::prelude::*;
+
 use super::SceneDescription;
 use crate::description::TriangleDesc;
 use crate::formats::polygon::{self, Triangulation};
@@ -88,18 +90,48 @@ pub(super) struct ChunkFaces {
 
 /// Pass 4 on the whole description.
 pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
+    // Each chunk's polygons lie in its own triangles: the chunks are cut in parallel
+    // (a file of quads has a polygon per face).
+    if chunks.iter().any(|c| !c.shaping.polygons.is_empty()) {
+        let mut parts = Vec::with_capacity(chunks.len());
+        let mut rest = &mut scene.triangles[..];
+        // Texture coordinate indices, when kept, are cut with their triangles.
+        let mut rest_texcoords = &mut scene.triangle_texcoords[..];
+        let keeps_texcoords = !rest_texcoords.is_empty();
+        let mut at = 0;
+        for (i, chunk) in chunks.iter().enumerate() {
+            let end = chunks
+                .get(i + 1)
+                .map_or(at + rest.len(), |c| c.first_triangle);
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(end - at);
+            let texcoords = if keeps_texcoords {
+                let (part, tail) = std::mem::take(&mut rest_texcoords).split_at_mut(end - at);
+                rest_texcoords = tail;
+                Some(part)
+            } else {
+                None
+            };
+            parts.push((part, texcoords, &chunk.shaping.polygons));
+            rest = tail;
+            at = end;
+        }
+        let positions = &scene.positions;
+        parts
+            .into_par_iter()
+            .for_each(|(triangles, mut texcoords, polygons)| {
+                for p in polygons {
+                    let range = p.first as usize..p.first as usize + p.corners as usize - 2;
+                    retriangulate(
+                        positions,
+                        &mut triangles[range.clone()],
+                        texcoords.as_deref_mut().map(|t| &mut t[range]),
+                    );
+                }
+            });
+    }
     let mut runs = Vec::new();
     for chunk in &chunks {
         let base = chunk.first_triangle;
-        for p in &chunk.shaping.polygons {
-            let range = base + p.first as usize..base + p.first as usize + p.corners as usize - 2;
-            // Texture coordinate indices, when kept, follow their triangles.
-            let texcoords = match scene.triangle_texcoords.is_empty() {
-                true => None,
-                false => Some(&mut scene.triangle_texcoords[range.clone()]),
-            };
-            retriangulate(&scene.positions, &mut scene.triangles[range], texcoords);
-        }
         for run in &chunk.shaping.runs {
             let group = match run.group {
                 INHERITED_GROUP => chunk.group_before,
@@ -130,13 +162,17 @@ fn retriangulate(
         k => (k - 2, 2),
     };
     let count = fan.len() + 2;
-    let points: Vec<Vec3> = (0..count)
-        .map(|k| {
-            let (t, c) = corner(k);
-            positions[fan[t].positions[c] as usize]
-        })
-        .collect();
-    let Triangulation::Triangles(triangles) = polygon::triangulate(&points) else {
+    let point = |k: usize| {
+        let (t, c) = corner(k);
+        positions[fan[t].positions[c] as usize]
+    };
+    // Quads, the common polygon, without an allocation.
+    let triangulation = if count == 4 {
+        polygon::triangulate(&[point(0), point(1), point(2), point(3)])
+    } else {
+        polygon::triangulate(&(0..count).map(point).collect::<Vec<_>>())
+    };
+    let Triangulation::Triangles(triangles) = triangulation else {
         return;
     };
     // A corner's `vn` is known when a triangle of the fan holding it has them all (the

@@ -199,9 +199,7 @@ impl Scanner<'_, '_> {
                     .write(Vec2::new(u, v));
                 written.texcoords += 1;
             }
-            // As the general parser counts them (one without a name is an error,
-            // which pass 1 found).
-            Some(b"usemtl") if !lex::rest_of_line(line, b"usemtl").is_empty() => self.slot += 1,
+            Some(b"usemtl") => self.slot += 1,
             // A malformed group is an error that pass 1 found.
             Some(b"s") => self.group = smoothing_group(tokens.next()).ok()?,
             _ => {}

@@ -448,7 +448,7 @@ fn info_counts_bounds_materials_memory_and_warnings() {
         "warning: material 'unused' is not used",
         "warning: material 'default' is not used",
         "warning: 1 degenerate (zero-area) triangle will be skipped",
-        "warning: no lights: full mode shows only ambient (Ka) and emission (Ke)",
+        "warning: no lights ('P' or 'Ke'): render adds a default light rig at the camera (a white sky in path mode) unless --no-default-light",
     ];
     for line in expected_lines {
         assert!(

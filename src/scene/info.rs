@@ -126,7 +126,12 @@ impl SceneSummary {
                 if degenerate == 1 { "" } else { "s" }
             ));
         }
-        if scene.lights.is_empty() {
+        if scene.is_unlit() {
+            warnings.push(
+                "no lights ('P' or 'Ke'): render adds a default light rig at the camera (a white sky in path mode) unless --no-default-light"
+                    .into(),
+            );
+        } else if scene.lights.is_empty() {
             warnings.push("no lights: full mode shows only ambient (Ka) and emission (Ke)".into());
         }
 

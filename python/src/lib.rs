@@ -30,6 +30,7 @@ use raytracer::formats::{self, ParseErrorKind, SceneFormat};
 use raytracer::math::{Float, Vec3};
 use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced};
 use raytracer::output::{self, UnknownFormatError, WriteError};
+use raytracer::postprocess::PostProcessing;
 use raytracer::{BvhParams, Film, Image, ImageFormat, Mode, RenderOptions, Scene, Tile, TileError};
 
 create_exception!(
@@ -87,6 +88,8 @@ struct Given<'a, 'py> {
     mode: Option<&'a Bound<'py, PyAny>>,
     depth: Option<&'a Bound<'py, PyAny>>,
     spp: Option<&'a Bound<'py, PyAny>>,
+    exposure: Option<&'a Bound<'py, PyAny>>,
+    seed: Option<&'a Bound<'py, PyAny>>,
 }
 
 impl Given<'_, '_> {
@@ -102,7 +105,7 @@ impl Given<'_, '_> {
                 .map(|v| Ok(Sourced::new(convert(v, name)?, Origin::Flag(name))))
                 .transpose()
         }
-        // Options the library gains (path mode's) stay "not given" until added here.
+        // Options the library gains stay "not given" until added here.
         #[allow(clippy::needless_update)]
         Ok(PartialOptions {
             width: flag(self.width, "--width", whole_number)?,
@@ -116,6 +119,8 @@ impl Given<'_, '_> {
                 parse_mode(&v.extract::<String>()?)
             })?,
             samples_per_pixel: flag(self.spp, "--spp", whole_number)?,
+            exposure: flag(self.exposure, "--exposure", number)?,
+            seed: flag(self.seed, "--seed", whole_number)?,
             ..PartialOptions::default()
         })
     }
@@ -194,6 +199,18 @@ fn toml_string(text: &str) -> String {
     }
     quoted.push('"');
     quoted
+}
+
+/// The post-processing of `mode` with `exposure` (stops, path mode only), checked as
+/// the command line checks `--exposure`.
+fn post_processing(mode: &str, exposure: Float) -> PyResult<PostProcessing> {
+    let mode = parse_mode(mode)?;
+    let options = RenderOptions {
+        exposure,
+        ..RenderOptions::default()
+    };
+    options.validate().map_err(Error::Options)?;
+    Ok(PostProcessing { mode, exposure })
 }
 
 /// The name of `mode` as the command line and scene files spell it: `full`.
@@ -353,7 +370,8 @@ impl PyScene {
     /// array of shape ``(height, width, 3)``; see :func:`raytracer.render`, which
     /// takes the same arguments.
     #[pyo3(signature = (*, width=None, height=None, fov=None, look_from=None, look_to=None,
-                        up=None, mode=None, depth=None, spp=None, tile=None))]
+                        up=None, mode=None, depth=None, spp=None, exposure=None, seed=None,
+                        tile=None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -367,6 +385,8 @@ impl PyScene {
         mode: Option<&Bound<'py, PyAny>>,
         depth: Option<&Bound<'py, PyAny>>,
         spp: Option<&Bound<'py, PyAny>>,
+        exposure: Option<&Bound<'py, PyAny>>,
+        seed: Option<&Bound<'py, PyAny>>,
         tile: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let given = Given {
@@ -379,6 +399,8 @@ impl PyScene {
             mode,
             depth,
             spp,
+            exposure,
+            seed,
         };
         self.render_given(py, &given, tile)
     }
@@ -386,10 +408,11 @@ impl PyScene {
     /// The options a render with these arguments uses, checked: each argument given,
     /// else the scene file's value, else the default. A dict with the keys ``width``,
     /// ``height``, ``fov``, ``look_from``, ``look_to``, ``up`` (tuples), ``mode`` (its
-    /// name), ``depth``, ``spp`` and ``spp_in_mode`` (the samples per pixel the mode
-    /// takes: 1 in depth and normal modes). Raises ``ValueError`` as a render would.
+    /// name), ``depth``, ``spp``, ``spp_in_mode`` (the samples per pixel the mode
+    /// takes: 1 in depth and normal modes), ``exposure`` and ``seed``. Raises
+    /// ``ValueError`` as a render would.
     #[pyo3(signature = (*, width=None, height=None, fov=None, look_from=None, look_to=None,
-                        up=None, mode=None, depth=None, spp=None))]
+                        up=None, mode=None, depth=None, spp=None, exposure=None, seed=None))]
     #[allow(clippy::too_many_arguments)]
     fn options<'py>(
         &self,
@@ -403,6 +426,8 @@ impl PyScene {
         mode: Option<&Bound<'py, PyAny>>,
         depth: Option<&Bound<'py, PyAny>>,
         spp: Option<&Bound<'py, PyAny>>,
+        exposure: Option<&Bound<'py, PyAny>>,
+        seed: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let given = Given {
             width,
@@ -414,6 +439,8 @@ impl PyScene {
             mode,
             depth,
             spp,
+            exposure,
+            seed,
         };
         let options = self.resolve(&given)?;
         let dict = PyDict::new(py);
@@ -428,6 +455,8 @@ impl PyScene {
         dict.set_item("depth", options.depth)?;
         dict.set_item("spp", options.samples_per_pixel)?;
         dict.set_item("spp_in_mode", options.samples_per_pixel_in_mode())?;
+        dict.set_item("exposure", options.exposure)?;
+        dict.set_item("seed", options.seed)?;
         Ok(dict)
     }
 
@@ -476,10 +505,12 @@ impl PyScene {
 /// file, or a :class:`Scene` already read. The other arguments are the command line's
 /// flags: ``width``, ``height`` (pixels), ``fov`` (vertical, degrees), ``look_from``,
 /// ``look_to``, ``up`` (three numbers each), ``mode`` (``"full"``, ``"depth"``,
-/// ``"normal"``), ``depth`` (recursion depth of full mode) and ``spp`` (samples per
-/// pixel). Each one left out (``None``) takes the TOML scene file's value, else the
-/// default: 640x480, fov 90, from (0, 0, 0) to (0, 0, -1), up (0, 1, 0), full mode,
-/// depth 4, 1 sample per pixel; a width or height alone keeps the aspect ratio.
+/// ``"normal"``, ``"path"``), ``depth`` (recursion depth), ``spp`` (samples per
+/// pixel), ``exposure`` (path mode's, in stops: used by post-processing only) and
+/// ``seed`` (of the random numbers). Each one left out (``None``) takes the TOML scene
+/// file's value, else the default: 640x480, fov 90, from (0, 0, 0) to (0, 0, -1), up
+/// (0, 1, 0), full mode, depth 4 and 1 sample per pixel (64 and 64 in path mode),
+/// exposure 0, seed 0; a width or height alone keeps the aspect ratio.
 /// ``tile=(x, y, w, h)`` returns only those pixels, shape ``(h, w, 3)``, bit-identical
 /// to the same pixels of the whole image.
 ///
@@ -488,7 +519,8 @@ impl PyScene {
 /// message. The interpreter is released while the scene loads and renders.
 #[pyfunction]
 #[pyo3(signature = (scene, *, width=None, height=None, fov=None, look_from=None, look_to=None,
-                    up=None, mode=None, depth=None, spp=None, tile=None))]
+                    up=None, mode=None, depth=None, spp=None, exposure=None, seed=None,
+                        tile=None))]
 #[allow(clippy::too_many_arguments)]
 fn render<'py>(
     py: Python<'py>,
@@ -502,6 +534,8 @@ fn render<'py>(
     mode: Option<&Bound<'py, PyAny>>,
     depth: Option<&Bound<'py, PyAny>>,
     spp: Option<&Bound<'py, PyAny>>,
+    exposure: Option<&Bound<'py, PyAny>>,
+    seed: Option<&Bound<'py, PyAny>>,
     tile: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let given = Given {
@@ -514,6 +548,8 @@ fn render<'py>(
         mode,
         depth,
         spp,
+        exposure,
+        seed,
     };
     if let Ok(scene) = scene.cast::<PyScene>() {
         return scene.get().render_given(py, &given, tile);
@@ -538,21 +574,23 @@ fn render<'py>(
 /// Post-processes a linear image for display, exactly as ``raytracer render`` does
 /// before writing a PNG: full mode tone maps by the image-wide brightest channel, then
 /// applies gamma 2.2; depth mode divides by the farthest distance (misses white);
-/// normal mode maps ``n`` to ``n / 2 + 1/2`` (misses black). Returns a ``uint8`` array
-/// of shape ``(height, width, 3)``.
+/// normal mode maps ``n`` to ``n / 2 + 1/2`` (misses black); path mode multiplies by
+/// ``2 ** exposure`` and applies the sRGB curve. Returns a ``uint8`` array of shape
+/// ``(height, width, 3)``.
 ///
 /// ``linear`` is an array of shape ``(height, width, 3)``, converted to ``float32``.
 /// The maxima are image-wide: merge tiles in linear space first, then post-process.
 #[pyfunction]
-#[pyo3(signature = (linear, mode="full"))]
+#[pyo3(signature = (linear, mode="full", exposure=0.0))]
 fn postprocess<'py>(
     py: Python<'py>,
     linear: PyArrayLike3<'py, f32, AllowTypeChange>,
     mode: &str,
+    exposure: Float,
 ) -> PyResult<Bound<'py, PyArray3<u8>>> {
-    let mode = parse_mode(mode)?;
+    let post = post_processing(mode, exposure)?;
     let film = array_film(linear.as_array())?;
-    let image = py.detach(move || film.to_image(mode));
+    let image = py.detach(move || film.to_image(post));
     Ok(
         Array3::from_shape_vec((image.height as usize, image.width as usize, 3), image.rgb)
             .expect("three bytes per pixel")
@@ -561,7 +599,7 @@ fn postprocess<'py>(
 }
 
 /// Writes a linear image as ``raytracer render`` does: ``.png`` post-processed for
-/// ``mode`` (as :func:`postprocess`), ``.exr`` the linear values as 32-bit floats
+/// ``mode`` and ``exposure`` (as :func:`postprocess`), ``.exr`` the linear values as 32-bit floats
 /// (depth mode: the single channel ``Z``). The extension, in any letter case, picks
 /// the format; any other is a ``ValueError``.
 ///
@@ -569,17 +607,18 @@ fn postprocess<'py>(
 /// ``path`` once complete, so ``path`` holds either the previous file or the whole new
 /// image. Raises ``OSError`` when the file cannot be written.
 #[pyfunction]
-#[pyo3(signature = (linear, path, mode="full"))]
+#[pyo3(signature = (linear, path, mode="full", exposure=0.0))]
 fn write_image(
     py: Python<'_>,
     linear: PyArrayLike3<'_, f32, AllowTypeChange>,
     path: PathBuf,
     mode: &str,
+    exposure: Float,
 ) -> PyResult<()> {
-    let mode = parse_mode(mode)?;
+    let post = post_processing(mode, exposure)?;
     let format = ImageFormat::from_path(&path).map_err(Error::Format)?;
     let film = array_film(linear.as_array())?;
-    py.detach(move || film.write(mode, format, &path))
+    py.detach(move || film.write(post, format, &path))
         .map_err(Error::Write)?;
     Ok(())
 }

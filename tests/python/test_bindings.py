@@ -12,7 +12,7 @@ import pytest
 import raytracer
 from conftest import CAMERA, CAMERA_FLAGS, CORNELL_OBJ, CORNELL_TOML
 
-MODES = [("full", 4), ("depth", 1), ("normal", 1)]
+MODES = [("full", 4), ("depth", 1), ("normal", 1), ("path", 4)]
 
 
 def bits(array: np.ndarray) -> np.ndarray:
@@ -33,15 +33,16 @@ def test_render_is_the_command_lines_image(tmp_path, run_cli, mode, spp):
     linear = raytracer.render(CORNELL_OBJ, mode=mode, spp=spp, **size, **CAMERA)
     assert linear.dtype == np.float32 and linear.shape == (23, 37, 3)
     flags = ["--width", 37, "--height", 23, "--mode", mode, "--spp", spp, *CAMERA_FLAGS]
+    exposure = 1.5 if mode == "path" else 0.0
     for extension in ("exr", "png"):
         out = tmp_path / f"cli.{extension}"
-        result = run_cli("render", CORNELL_OBJ, "-o", out, "-q", *flags)
+        result = run_cli("render", CORNELL_OBJ, "-o", out, "-q", *flags, "--exposure", exposure)
         assert result.returncode == 0, result.stderr
         mine = tmp_path / f"python.{extension}"
-        raytracer.write_image(linear, mine, mode)
+        raytracer.write_image(linear, mine, mode, exposure)
         assert mine.read_bytes() == out.read_bytes(), extension
     # The PNG holds exactly what postprocess returns.
-    rgb = raytracer.postprocess(linear, mode)
+    rgb = raytracer.postprocess(linear, mode, exposure)
     assert rgb.dtype == np.uint8 and rgb.shape == (23, 37, 3)
     raytracer.write_png(rgb, tmp_path / "rgb.png")
     assert (tmp_path / "rgb.png").read_bytes() == (tmp_path / "cli.png").read_bytes()
@@ -69,7 +70,12 @@ def test_a_scene_read_once_renders_what_the_path_renders():
     scene = raytracer.Scene(CORNELL_TOML)
     assert scene.path == CORNELL_TOML
     assert scene.warnings == []
-    for options in ({}, {"width": 50, "spp": 2}, {"mode": "normal", "look_from": (0.3, 0.5, 1.5)}):
+    for options in (
+        {},
+        {"width": 50, "spp": 2},
+        {"mode": "normal", "look_from": (0.3, 0.5, 1.5)},
+        {"mode": "path", "width": 20, "spp": 2, "seed": 7},
+    ):
         expected = raytracer.render(CORNELL_TOML, **options)
         assert np.array_equal(bits(scene.render(**options)), bits(expected))
         assert np.array_equal(bits(raytracer.render(scene, **options)), bits(expected))
@@ -128,6 +134,10 @@ def test_a_valid_argument_replaces_a_bad_value_of_the_file(tmp_path, run_cli):
         (dict(look_from=(0, 0, -1)), ["--look-from", "0,0,-1"]),
         (dict(look_from=(1, 2, 3), look_to=(1, 2, 3)), ["--look-from", "1,2,3", "--look-to", "1,2,3"]),
         (dict(up=(0, 0, 0)), ["--up", "0,0,0"]),
+        (dict(mode="path", depth=2000), ["--mode", "path", "--depth", "2000"]),
+        (dict(exposure=99), ["--exposure", "99"]),
+        (dict(seed=-1), ["--seed", "-1"]),
+        (dict(seed=2**32), ["--seed", str(2**32)]),
     ],
 )
 def test_bad_options_are_value_errors_with_the_command_lines_message(tmp_path, run_cli, options, flags):
@@ -164,7 +174,13 @@ def test_bad_scenes_are_oserrors_with_the_command_lines_message(tmp_path, run_cl
 
 
 def test_modes_are_named_as_in_scene_files():
-    assert raytracer.Scene(CORNELL_OBJ).options(mode="normal")["mode"] == "normal"
+    scene = raytracer.Scene(CORNELL_OBJ)
+    assert scene.options(mode="normal")["mode"] == "normal"
+    # Path mode's own defaults come with it, as on the command line.
+    path = scene.options(mode="path")
+    assert (path["mode"], path["spp"], path["depth"]) == ("path", 64, 64)
+    with pytest.raises(ValueError, match="invalid --exposure"):
+        raytracer.postprocess(np.zeros((1, 1, 3), np.float32), "path", float("nan"))
     for name in ("fast", "Full", "", 'full"\nwidth = 3'):
         with pytest.raises(ValueError, match="invalid --mode: unknown variant"):
             raytracer.render(CORNELL_OBJ, mode=name, width=4)

@@ -56,7 +56,9 @@ import raytracer
 __all__ = ["render", "scene_files", "tiles"]
 
 #: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
-OPTIONS = ("width", "height", "fov", "look_from", "look_to", "up", "mode", "depth", "spp")
+OPTIONS = (
+    "width", "height", "fov", "look_from", "look_to", "up", "mode", "depth", "spp", "exposure", "seed"
+)
 
 GZIP_MAGIC = b"\x1f\x8b"
 
@@ -75,8 +77,8 @@ def render(
     The result is the same array as ``raytracer.render(scene, **options)``: ``float32``,
     shape ``(height, width, 3)``, bit-identical. ``options`` are those of
     :func:`raytracer.render` (``width``, ``height``, ``fov``, ``look_from``,
-    ``look_to``, ``up``, ``mode``, ``depth``, ``spp``); ``None`` or left out keeps the
-    TOML scene file's value, else the default.
+    ``look_to``, ``up``, ``mode``, ``depth``, ``spp``, ``exposure``, ``seed``);
+    ``None`` or left out keeps the TOML scene file's value, else the default.
 
     ``client`` is a synchronous ``dask.distributed.Client``. ``tile_size`` is the side
     of the square tiles in pixels. ``ship`` chooses how workers get the scene: ``None``
@@ -119,7 +121,8 @@ def _render(
         if ship is None:
             ship = not _workers_share(client, path, job)
         if ship:
-            bundle = client.scatter(_bundle(path), broadcast=True, hash=False)
+            # In a list: a dict would be scattered as one future per value.
+            [bundle] = client.scatter([_bundle(path)], broadcast=True, hash=False)
         info = client.submit(_prepare, job, path, bundle, given, key=f"{job}-options").result()
         width, height = info["width"], info["height"]
         parts = tiles(width, height, tile_size)

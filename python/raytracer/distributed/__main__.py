@@ -84,9 +84,11 @@ def parser() -> argparse.ArgumentParser:
     view.add_argument("--look-from", type=vector, metavar="X,Y,Z", help="camera position [default: 0,0,0]")
     view.add_argument("--look-to", type=vector, metavar="X,Y,Z", help="point looked at [default: 0,0,-1]")
     view.add_argument("--up", type=vector, metavar="X,Y,Z", help="world up direction [default: 0,1,0]")
-    view.add_argument("--depth", type=int, metavar="N", help="recursion depth of full mode [default: 4]")
-    view.add_argument("--mode", metavar="MODE", help="full, depth or normal [default: full]")
-    view.add_argument("--spp", type=int, metavar="N", help="samples per pixel in full mode [default: 1]")
+    view.add_argument("--depth", type=int, metavar="N", help="recursion depth [default: 4; 64 in path mode]")
+    view.add_argument("--mode", metavar="MODE", help="full, depth, normal or path [default: full]")
+    view.add_argument("--spp", type=int, metavar="N", help="samples per pixel [default: 1; 64 in path mode]")
+    view.add_argument("--exposure", type=float, metavar="STOPS", help="path mode's exposure for PNG [default: 0]")
+    view.add_argument("--seed", type=int, metavar="N", help="seed of the random numbers [default: 0]")
     return p
 
 
@@ -157,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
             )
         for warning in info["warnings"]:
             print(f"warning: {warning}", file=sys.stderr)
-    raytracer.write_image(linear, args.output, info["mode"])
+    raytracer.write_image(linear, args.output, info["mode"], info["exposure"])
     return 0
 
 
@@ -191,7 +193,7 @@ class cluster_client:
             threads_per_worker=1,
             processes=True,
             host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address="127.0.0.1:0",
             silence_logs=logging.ERROR,
             env={"RAYON_NUM_THREADS": str(threads)},
         )

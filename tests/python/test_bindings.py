@@ -248,10 +248,13 @@ def test_images_are_written_atomically_or_not_at_all(tmp_path):
 GIL_PROBE = textwrap.dedent(
     """
     import sys, threading
-    import raytracer
+    import numpy, raytracer
 
     big, small = sys.argv[1], sys.argv[2]
     scene = raytracer.Scene(small)
+    # Once before: a first call's lazy set-up (numpy's C API) must not be what lets
+    # the main thread run.
+    raytracer.render(small, width=2, height=2)
     started = threading.Event()
     finished = []
 

@@ -143,6 +143,8 @@ def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_p
     scene = cornell_copy / "scene.toml"
     expected = raytracer.render(scene, width=32, height=24)
     assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
+    # Once done, no worker keeps the scene or its copy of the files.
+    assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
     # A mesh in another folder, compressed.
     meshes = tmp_path / "meshes"
     meshes.mkdir()

@@ -133,17 +133,20 @@ def _render(
         where = dict(zip(keys, parts))
         image = np.empty((height, width, 3), dtype=np.float32)
         done = 0
-        waiting = as_completed(futures, with_results=True)
+        waiting = as_completed(futures)
         # Only `as_completed` keeps the futures now: each tile's result is released on
         # the cluster once it is copied into the image.
         del futures
-        for future, part in waiting:
-            x, y, w, h = where[future.key]
-            image[y : y + h, x : x + w] = part
-            future.release()
-            done += 1
-            if on_tile is not None:
-                on_tile(done, len(parts))
+        # The tiles finished since the last batch, fetched in one request. `gather`
+        # waits for a tile lost with its worker to be rendered again.
+        for batch in waiting.batches():
+            for future, part in zip(batch, client.gather(batch)):
+                x, y, w, h = where[future.key]
+                image[y : y + h, x : x + w] = part
+                future.release()
+                done += 1
+                if on_tile is not None:
+                    on_tile(done, len(parts))
         return image, info
     finally:
         if bundle is not None:
@@ -287,7 +290,7 @@ def _workers_share(client: Any, path: str, job: str) -> bool:
     client.wait_for_workers(1)
     workers = list(client.scheduler_info()["workers"])
     checks = [
-        client.submit(_digests, files, workers=[w], allow_other_workers=False, key=f"{job}-check-{i}")
+        client.submit(_digests, files, workers=[w], allow_other_workers=True, key=f"{job}-check-{i}")
         for i, w in enumerate(workers)
     ]
     return all(remote == local for remote in client.gather(checks))

@@ -187,16 +187,21 @@ class cluster_client:
         if self.args.scheduler is not None:
             self.client = Client(self.args.scheduler)
             return self.client
+        import dask
+
         threads = self.args.threads or max(1, (os.cpu_count() or 1) // self.args.workers)
-        self.cluster = LocalCluster(
-            n_workers=self.args.workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-            silence_logs=logging.ERROR,
-            env={"RAYON_NUM_THREADS": str(threads)},
-        )
+        # Tiles are independent and small: the scheduler's queuing of them (saturation
+        # 1.1) only makes each worker wait a round trip for its next tile.
+        with dask.config.set({"distributed.scheduler.worker-saturation": float("inf")}):
+            self.cluster = LocalCluster(
+                n_workers=self.args.workers,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address="127.0.0.1:0",
+                silence_logs=logging.ERROR,
+                env={"RAYON_NUM_THREADS": str(threads)},
+            )
         self.client = Client(self.cluster)
         return self.client
 

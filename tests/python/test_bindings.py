@@ -158,13 +158,14 @@ def test_bad_options_are_value_errors_with_the_command_lines_message(tmp_path, r
         ("bad.toml", "[camera]\nwidht = 3\n"),
         ("bad.ply", "ply\nformat ascii 1.0\nelement vertex 1\nend_header\n"),
         ("scene.txt", "v 0 0 0\n"),
-        ("library.obj", "mtllib nowhere.mtl\nv 0 0 0\n"),
+        ("library.obj", "mtllib bad.mtl\nv 0 0 0\n"),
     ],
 )
 def test_bad_scenes_are_oserrors_with_the_command_lines_message(tmp_path, run_cli, name, content):
     scene = tmp_path / name
     if content is not None:
         scene.write_text(content)
+    (tmp_path / "bad.mtl").write_text("newmtl x\nKd 1 one 1\n")
     expected = cli_error(run_cli("render", scene, "-o", tmp_path / "x.png"))
     for attempt in (lambda: raytracer.render(scene), lambda: raytracer.Scene(scene)):
         with pytest.raises(raytracer.SceneError) as error:

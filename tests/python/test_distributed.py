@@ -237,6 +237,9 @@ def test_the_command_fails_as_raytracer_render_does(tmp_path, run_cli, cluster):
         assert result.returncode == 2, result
         assert result.stderr == expected.stderr
     assert not (tmp_path / "x.png").exists()
+    result = run_module(CORNELL_OBJ, "-o", tmp_path / "x.png", "--scheduler", cluster.scheduler_address, "--workers", 2)
+    assert result.returncode == 2
+    assert result.stderr == "error: --workers and --threads set up a local cluster; not with --scheduler\n"
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])

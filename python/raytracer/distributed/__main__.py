@@ -63,11 +63,11 @@ def parser() -> argparse.ArgumentParser:
         help="the Dask scheduler to use; without it, a local cluster on 127.0.0.1",
     )
     p.add_argument(
-        "--workers", type=int, default=2, metavar="N",
+        "--workers", type=int, metavar="N",
         help="worker processes of the local cluster (default 2; not with --scheduler)",
     )
     p.add_argument(
-        "-j", "--threads", type=int, default=0, metavar="N",
+        "-j", "--threads", type=int, metavar="N",
         help="render threads per local worker; 0 shares the cores among the workers (default)",
     )
     p.add_argument("--tile-size", type=int, default=64, metavar="PIXELS", help="side of the square tiles (default 64)")
@@ -139,8 +139,10 @@ def run(args: argparse.Namespace) -> int:
     # Before any work, as `raytracer render`: a typo or a read-only folder costs nothing.
     raytracer.check_output(args.output)
     check_not_input(args.scene, args.output)
-    if args.scheduler is not None and (args.workers != 2 or args.threads != 0):
+    if args.scheduler is not None and (args.workers is not None or args.threads is not None):
         raise ValueError("--workers and --threads set up a local cluster; not with --scheduler")
+    args.workers = 2 if args.workers is None else args.workers
+    args.threads = 0 if args.threads is None else args.threads
     if args.workers < 1:
         raise ValueError(f"invalid --workers: {args.workers} is not at least 1")
     if args.threads < 0:

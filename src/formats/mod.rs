@@ -62,16 +62,30 @@ impl LoadedScene {
         self,
         flags: PartialOptions,
     ) -> Result<(SceneDescription, RenderOptions), OptionsError> {
-        let mut options = flags.or(self.options);
-        // The bounds cost a pass over the triangles: only when they are needed.
-        if options.look_from.is_none() && options.look_to.is_none() {
-            options = options.framed(self.description.bounds());
-        }
-        let options = options.resolve()?;
+        let options = resolve_options(flags, self.options, || self.description.bounds())?;
         let mut description = self.description;
         description.add_default_light(&options);
         Ok((description, options))
     }
+}
+
+/// The options of [`LoadedScene::resolve`] alone, for callers that keep a built scene
+/// (the Python bindings): `flags` over `file`, the camera framing `bounds` when
+/// neither sets one, checked once.
+///
+/// # Errors
+/// The first option out of range, named by where it came from.
+pub fn resolve_options(
+    flags: PartialOptions,
+    file: PartialOptions,
+    bounds: impl FnOnce() -> crate::math::Aabb,
+) -> Result<RenderOptions, OptionsError> {
+    let mut options = flags.or(file);
+    // The bounds cost a pass over the triangles: only when they are needed.
+    if options.look_from.is_none() && options.look_to.is_none() {
+        options = options.framed(bounds());
+    }
+    options.resolve()
 }
 
 /// The kinds of scene file, told apart by name.

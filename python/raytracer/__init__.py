@@ -1,0 +1,47 @@
+"""A Whitted-style CPU ray tracer for OBJ, PLY and TOML scenes, from Python.
+
+The package is a thin layer over the Rust library (the ``raytracer`` command's):
+
+>>> import raytracer
+>>> linear = raytracer.render("examples/cornell-box/scene.toml", width=320)
+>>> linear.shape, linear.dtype
+((240, 320, 3), dtype('float32'))
+>>> rgb = raytracer.postprocess(linear)          # uint8, as the PNG holds it
+>>> raytracer.write_image(linear, "cornell.png")  # or .exr: the linear values
+
+- :func:`render` renders a scene file (or a :class:`Scene` read once) into the linear
+  image before post-processing, a ``float32`` array ``(height, width, 3)``; ``tile=``
+  renders part of it, bit-identical to the same pixels of the whole.
+- :func:`postprocess` turns a linear image into 8-bit RGB exactly as the command line
+  does before writing a PNG; :func:`write_image` and :func:`write_png` write files
+  atomically, as the command line does.
+- :mod:`raytracer.distributed` renders tiles on a Dask cluster (``pip install
+  "raytracer[distributed]"``); ``python -m raytracer.distributed`` is its command.
+
+Options behave as the command line's flags: each one given replaces the TOML scene
+file's value, each one left out (``None``) keeps it, and the defaults apply last.
+Errors are exceptions with the command line's messages: ``ValueError`` for bad options,
+:class:`SceneError` (an ``OSError``) for unreadable or malformed scenes.
+"""
+
+from ._raytracer import (
+    Scene,
+    SceneError,
+    __version__,
+    check_output,
+    postprocess,
+    render,
+    write_image,
+    write_png,
+)
+
+__all__ = [
+    "Scene",
+    "SceneError",
+    "__version__",
+    "check_output",
+    "postprocess",
+    "render",
+    "write_image",
+    "write_png",
+]

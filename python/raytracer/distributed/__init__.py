@@ -1,0 +1,397 @@
+"""Rendering on a Dask cluster: the image cut into tiles, one task per tile.
+
+>>> from dask.distributed import Client
+>>> import raytracer.distributed
+>>> client = Client("tcp://scheduler:8786")
+>>> linear = raytracer.distributed.render("scene.toml", client, width=3840, spp=16)
+
+:func:`render` returns exactly (bit for bit) what :func:`raytracer.render` returns for
+the same scene and options. How it works:
+
+1. **The scene.** By default the client checks whether every worker sees the same
+   scene files at the same absolute path (a shared file system): it hashes the files
+   the scene reads (the scene file, an OBJ file's MTL libraries, a TOML file's meshes
+   and their MTL libraries) and asks each worker to hash its copies. If all agree the
+   workers read the path; otherwise the client *ships* the scene: it reads those files
+   and scatters their bytes to every worker, which writes them to a temporary folder
+   (same relative layout) and reads the scene from there. ``ship=True`` or
+   ``ship=False`` skips the check. A shipped scene must name its files by relative
+   paths; the check covers the workers connected when the render starts.
+2. **The options** are resolved on a worker, exactly as :func:`raytracer.render`
+   resolves them (arguments over the TOML file's values over the defaults).
+3. **Tiles** of ``tile_size`` x ``tile_size`` pixels (narrower at the right and bottom
+   edges) are rendered by :meth:`raytracer.Scene.render` with ``tile=``, each worker
+   process reading and building the scene once per call of :func:`render` and keeping
+   it until the render ends. Each tile is copied into the image as soon as it arrives
+   and its result released on the cluster.
+4. **A lost worker**: Dask recomputes the tiles the worker was rendering, or had
+   rendered but not yet sent, on the workers left (up to Dask's
+   ``distributed.scheduler.allowed-failures`` times per tile). Tiles are pure
+   functions of scene, options and position, so the image stays bit-identical.
+
+Workers need this package installed (the same version as the client). Each worker
+renders a tile on all its cores (rayon threads); ``RAYON_NUM_THREADS`` in a worker's
+environment limits them. One worker thread per process (``--nthreads 1``) is enough.
+
+``python -m raytracer.distributed SCENE -o OUT.png`` is the command-line version
+(``--help`` lists its flags).
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import os
+import shutil
+import tempfile
+import threading
+import uuid
+from collections import OrderedDict
+from typing import Any, Callable, Iterable, Optional
+
+import numpy as np
+
+import raytracer
+
+__all__ = ["render", "scene_files", "tiles"]
+
+#: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
+OPTIONS = (
+    "width", "height", "fov", "look_from", "look_to", "up", "mode", "depth", "spp", "exposure", "seed"
+)
+
+GZIP_MAGIC = b"\x1f\x8b"
+
+
+def render(
+    scene: "str | os.PathLike[str]",
+    client: Any,
+    *,
+    tile_size: int = 64,
+    ship: Optional[bool] = None,
+    on_tile: Optional[Callable[[int, int], None]] = None,
+    **options: Any,
+) -> np.ndarray:
+    """Renders ``scene`` on the cluster of ``client`` and returns the linear image.
+
+    The result is the same array as ``raytracer.render(scene, **options)``: ``float32``,
+    shape ``(height, width, 3)``, bit-identical. ``options`` are those of
+    :func:`raytracer.render` (``width``, ``height``, ``fov``, ``look_from``,
+    ``look_to``, ``up``, ``mode``, ``depth``, ``spp``, ``exposure``, ``seed``);
+    ``None`` or left out keeps the TOML scene file's value, else the default.
+
+    ``client`` is a synchronous ``dask.distributed.Client``. ``tile_size`` is the side
+    of the square tiles in pixels. ``ship`` chooses how workers get the scene: ``None``
+    checks whether they see the client's files at the same path and ships them if not,
+    ``True`` always ships, ``False`` never does (see the module's documentation).
+    ``on_tile(done, total)`` is called on the client after each tile arrives.
+
+    Raises what :func:`raytracer.render` raises (``ValueError`` for bad options,
+    :class:`raytracer.SceneError` for a bad scene), from the worker that found it.
+    """
+    return _render(scene, client, tile_size=tile_size, ship=ship, on_tile=on_tile, options=options)[0]
+
+
+def _render(
+    scene: "str | os.PathLike[str]",
+    client: Any,
+    *,
+    tile_size: int,
+    ship: Optional[bool],
+    on_tile: Optional[Callable[[int, int], None]],
+    options: dict,
+) -> "tuple[np.ndarray, dict]":
+    """:func:`render`, also returning the resolved options (a dict as
+    :meth:`raytracer.Scene.options` returns, plus the scene's ``warnings``)."""
+    from distributed import as_completed
+
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise TypeError(f"render() got an unexpected keyword argument {unknown[0]!r}")
+    if isinstance(tile_size, bool) or not isinstance(tile_size, int) or tile_size < 1:
+        raise ValueError(f"invalid tile_size: {tile_size!r} is not a whole number of at least 1")
+    given = {name: value for name, value in options.items() if value is not None}
+    # Workers may have another working folder; a shared file system has the same
+    # absolute paths. Not resolved: a link must mean on each worker what it means there.
+    path = os.path.abspath(os.fspath(scene))
+    job = f"raytracer-{uuid.uuid4().hex}"
+
+    bundle = None
+    try:
+        if ship is None:
+            ship = not _workers_share(client, path, job)
+        if ship:
+            # In a list: a dict would be scattered as one future per value.
+            [bundle] = client.scatter([_bundle(path)], broadcast=True, hash=False)
+        info = client.submit(_prepare, job, path, bundle, given, key=f"{job}-options").result()
+        width, height = info["width"], info["height"]
+        parts = tiles(width, height, tile_size)
+        keys = [f"{job}-tile-{x}-{y}" for (x, y, _, _) in parts]
+        futures = client.map(
+            _render_tile, parts, job=job, path=path, bundle=bundle, options=given, key=keys
+        )
+        where = dict(zip(keys, parts))
+        image = np.empty((height, width, 3), dtype=np.float32)
+        done = 0
+        waiting = as_completed(futures)
+        # Only `as_completed` keeps the futures now: each tile's result is released on
+        # the cluster once it is copied into the image.
+        del futures
+        # The tiles finished since the last batch, fetched in one request. `gather`
+        # waits for a tile lost with its worker to be rendered again.
+        for batch in waiting.batches():
+            for future, part in zip(batch, client.gather(batch)):
+                x, y, w, h = where[future.key]
+                image[y : y + h, x : x + w] = part
+                future.release()
+                done += 1
+                if on_tile is not None:
+                    on_tile(done, len(parts))
+        return image, info
+    finally:
+        if bundle is not None:
+            bundle.release()
+        try:
+            client.run(_forget, job)
+        except Exception:  # noqa: BLE001 - a worker gone or a closed client: nothing to free
+            pass
+
+
+def tiles(width: int, height: int, size: int) -> "list[tuple[int, int, int, int]]":
+    """The tiles ``(x, y, w, h)`` covering a ``width`` x ``height`` image, row by row:
+    squares of ``size`` pixels, narrower in the last column and row."""
+    return [
+        (x, y, min(size, width - x), min(size, height - y))
+        for y in range(0, height, size)
+        for x in range(0, width, size)
+    ]
+
+
+# --- The scene's files: what to check and what to ship -----------------------------
+
+
+def scene_files(scene: "str | os.PathLike[str]") -> "list[str]":
+    """The files a render of ``scene`` reads, as absolute normalized paths, the scene
+    file first: an OBJ file's ``mtllib`` libraries, a TOML file's ``[[mesh]] file``
+    meshes with their own libraries. A PLY file reads nothing else. References are
+    resolved as the library does, relative to the folder of the file naming them.
+
+    A file that cannot be read or parsed names nothing here: reading the scene reports
+    it. Raises ``OSError`` when the scene file itself cannot be read.
+    """
+    return [file for file, _, _ in _references(os.path.normpath(os.path.abspath(os.fspath(scene))))]
+
+
+def _references(scene: str) -> "list[tuple[str, Optional[str], Optional[str]]]":
+    """``(file, naming, name)`` for the scene file (``naming`` and ``name`` ``None``)
+    and every file it reads, named ``name`` in the file ``naming``; each file once."""
+    _read(scene)  # the scene file must be readable; the others may fail later
+    found: "OrderedDict[str, tuple[Optional[str], Optional[str]]]" = OrderedDict()
+    found[scene] = (None, None)
+
+    def add(naming: str, name: str) -> Optional[str]:
+        file = os.path.normpath(os.path.join(os.path.dirname(naming), name))
+        if file in found:
+            return None
+        found[file] = (naming, name)
+        return file
+
+    kind = _kind(scene)
+    if kind == "obj":
+        for name in _mtllibs(scene):
+            add(scene, name)
+    elif kind == "toml":
+        for name in _meshes(scene):
+            mesh = add(scene, name)
+            if mesh is not None and _kind(mesh) == "obj":
+                for library in _mtllibs(mesh):
+                    add(mesh, library)
+    return [(file, naming, name) for file, (naming, name) in found.items()]
+
+
+def _kind(path: str) -> Optional[str]:
+    """``obj``, ``ply`` or ``toml`` by the name, ignoring case and a final ``.gz``."""
+    name = os.path.basename(path).lower()
+    if name.endswith(".gz"):
+        name = name[:-3]
+    extension = name.rsplit(".", 1)[-1] if "." in name else ""
+    return extension if extension in ("obj", "ply", "toml") else None
+
+
+def _read(path: str) -> bytes:
+    with open(path, "rb") as file:
+        return file.read()
+
+
+def _text(path: str) -> Optional[bytes]:
+    """The file's contents, decompressed as the library does (a ``.gz`` name or the
+    gzip magic bytes); ``None`` if it cannot be read."""
+    try:
+        data = _read(path)
+        if path.lower().endswith(".gz") or data.startswith(GZIP_MAGIC):
+            data = gzip.decompress(data)
+        return data
+    except (OSError, EOFError, ValueError):
+        return None
+
+
+def _mtllibs(obj: str) -> "list[str]":
+    """The names on the ``mtllib`` lines of an OBJ file, as its reader splits them:
+    comments from ``#``, tokens separated by ASCII white space."""
+    text = _text(obj)
+    names: "list[str]" = []
+    for line in (text or b"").split(b"\n"):
+        tokens = line.split(b"#", 1)[0].split()
+        if tokens and tokens[0] == b"mtllib":
+            names.extend(t.decode("utf-8", "replace") for t in tokens[1:])
+    return names
+
+
+def _meshes(toml: str) -> "list[str]":
+    """The ``file`` of each ``[[mesh]]`` of a TOML scene file."""
+    try:
+        import tomllib
+    except ImportError:  # Python < 3.11
+        import tomli as tomllib
+    text = _text(toml)
+    try:
+        document = tomllib.loads((text or b"").decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return []
+    meshes = document.get("mesh", [])
+    if not isinstance(meshes, list):
+        return []
+    return [m["file"] for m in meshes if isinstance(m, dict) and isinstance(m.get("file"), str)]
+
+
+def _digests(files: Iterable[str]) -> "list[Optional[str]]":
+    """The SHA-256 of each file, ``None`` for one that cannot be read."""
+    digests: "list[Optional[str]]" = []
+    for file in files:
+        try:
+            digest = hashlib.sha256()
+            with open(file, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    digest.update(block)
+            digests.append(digest.hexdigest())
+        except OSError:
+            digests.append(None)
+    return digests
+
+
+def _workers_share(client: Any, path: str, job: str) -> bool:
+    """Whether every worker connected now reads the same files at the scene's path as
+    the client. True when the client cannot read the scene: then only the workers can."""
+    try:
+        files = scene_files(path)
+    except OSError:
+        return True
+    local = _digests(files)
+    client.wait_for_workers(1)
+    workers = list(client.scheduler_info()["workers"])
+    checks = [
+        client.submit(_digests, files, workers=[w], allow_other_workers=True, key=f"{job}-check-{i}")
+        for i, w in enumerate(workers)
+    ]
+    return all(remote == local for remote in client.gather(checks))
+
+
+def _bundle(path: str) -> dict:
+    """The bytes of every file the scene reads, by path relative to the folder that
+    holds them all, to be written out on a worker in the same layout."""
+    references = _references(os.path.normpath(path))
+    for _, naming, name in references:
+        if name is not None and os.path.isabs(name):
+            raise ValueError(
+                f"cannot ship {path} to the workers: {naming} names {name} by an absolute "
+                "path; name it relative to that file, or put the scene on a path the "
+                "workers share (ship=False)"
+            )
+    files = [file for file, _, _ in references]
+    root = os.path.dirname(files[0]) if len(files) == 1 else os.path.commonpath(files)
+    contents = {}
+    for file in files:
+        try:
+            contents[os.path.relpath(file, root)] = _read(file)
+        except OSError:
+            pass  # reading the scene on the worker reports it, naming the file
+    return {"root": root, "main": os.path.relpath(files[0], root), "files": contents}
+
+
+# --- On the workers -------------------------------------------------------------------
+
+_jobs_lock = threading.Lock()
+_jobs: "OrderedDict[str, _Job]" = OrderedDict()
+#: Renders whose scene a worker process keeps at most, should a client not say that it
+#: is done (a render ended by a lost client): the oldest is dropped.
+KEEP_JOBS = 2
+
+
+class _Job:
+    """One render's scene in a worker process: read once, by the first task that needs
+    it, while the process's other tasks of the same render wait for it."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.scene: Optional[raytracer.Scene] = None
+        self.folder: Optional[str] = None
+
+    def load(self, path: str, bundle: Optional[dict]) -> raytracer.Scene:
+        with self.lock:
+            if self.scene is None:
+                self.scene = self._read(path, bundle)
+            return self.scene
+
+    def _read(self, path: str, bundle: Optional[dict]) -> raytracer.Scene:
+        if bundle is None:
+            return raytracer.Scene(path)
+        self.folder = tempfile.mkdtemp(prefix="raytracer-scene-")
+        for name, data in bundle["files"].items():
+            file = os.path.join(self.folder, name)
+            os.makedirs(os.path.dirname(file), exist_ok=True)
+            with open(file, "wb") as f:
+                f.write(data)
+        try:
+            return raytracer.Scene(os.path.join(self.folder, bundle["main"]))
+        except raytracer.SceneError as error:
+            # Name the client's files, not this worker's copies.
+            raise raytracer.SceneError(str(error).replace(self.folder, bundle["root"])) from None
+
+    def close(self) -> None:
+        self.scene = None
+        if self.folder is not None:
+            shutil.rmtree(self.folder, ignore_errors=True)
+            self.folder = None
+
+
+def _job(job: str) -> _Job:
+    with _jobs_lock:
+        entry = _jobs.get(job)
+        if entry is None:
+            entry = _jobs[job] = _Job()
+            while len(_jobs) > KEEP_JOBS:
+                _jobs.popitem(last=False)[1].close()
+        else:
+            _jobs.move_to_end(job)
+        return entry
+
+
+def _prepare(job: str, path: str, bundle: Optional[dict], options: dict) -> dict:
+    """Task: reads the scene (kept for the tiles) and resolves the options."""
+    scene = _job(job).load(path, bundle)
+    info = scene.options(**options)
+    info["warnings"] = scene.warnings
+    return info
+
+
+def _render_tile(tile: tuple, job: str, path: str, bundle: Optional[dict], options: dict) -> np.ndarray:
+    """Task: renders one tile of the image."""
+    return _job(job).load(path, bundle).render(tile=tile, **options)
+
+
+def _forget(job: str) -> None:
+    """Run on every worker when a render ends: drops its scene and shipped files."""
+    with _jobs_lock:
+        entry = _jobs.pop(job, None)
+    if entry is not None:
+        entry.close()

@@ -1,0 +1,719 @@
+//! Python bindings of the `raytracer` library: the extension module
+//! `raytracer._raytracer`, which `python/raytracer/__init__.py` re-exports as the
+//! package `raytracer`.
+//!
+//! A thin layer over the library, doing what the command line does:
+//! - scenes are read by [`formats::load`] and built by [`Scene::build`];
+//! - the options a Python call gives are [`PartialOptions`] from flags, merged over the
+//!   scene file's (`given.or(file).resolve()`), so an argument left out keeps the
+//!   file's value and every error has the command line's message;
+//! - images are rendered by [`raytracer::render`] and [`raytracer::render_tile`],
+//!   post-processed by [`Film::to_image`] and written by the library's atomic writers
+//!   ([`Film::write`], [`Image::write_png`]).
+//!
+//! The interpreter is released (`Python::detach`) while scenes load and images render,
+//! post-process or encode. Errors become exceptions: `ValueError` for bad options,
+//! [`SceneError`] (an `OSError`) for unreadable or malformed scenes, `OSError` for
+//! images that cannot be written. A panic would become pyo3's `PanicException`, never
+//! an abort of the interpreter.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use numpy::ndarray::{Array3, ArrayView3};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike3, TypeMustMatch};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use raytracer::formats::{self, ParseErrorKind, SceneFormat};
+use raytracer::math::{Float, Vec3};
+use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced};
+use raytracer::output::{self, UnknownFormatError, WriteError};
+use raytracer::postprocess::PostProcessing;
+use raytracer::{BvhParams, Film, Image, ImageFormat, Mode, RenderOptions, Scene, Tile, TileError};
+
+create_exception!(
+    raytracer,
+    SceneError,
+    PyOSError,
+    "A scene file that cannot be read or is malformed (a subclass of OSError). The \
+     message is the command line's: it names the file, the line and what is wrong."
+);
+
+/// Every failure of the library, turned into a Python exception once the interpreter
+/// is attached again.
+enum Error {
+    Scene(formats::SceneError),
+    Options(OptionsError),
+    Tile(TileError),
+    Format(UnknownFormatError),
+    Write(WriteError),
+}
+
+impl From<Error> for PyErr {
+    fn from(error: Error) -> PyErr {
+        match error {
+            Error::Scene(e) => SceneError::new_err(e.to_string()),
+            Error::Options(e) => PyValueError::new_err(e.to_string()),
+            Error::Tile(e) => PyValueError::new_err(e.to_string()),
+            Error::Format(e) => PyValueError::new_err(e.to_string()),
+            Error::Write(e) => PyOSError::new_err(e.to_string()),
+        }
+    }
+}
+
+impl From<formats::SceneError> for Error {
+    fn from(e: formats::SceneError) -> Error {
+        Error::Scene(e)
+    }
+}
+
+impl From<OptionsError> for Error {
+    fn from(e: OptionsError) -> Error {
+        Error::Options(e)
+    }
+}
+
+/// The render options of one Python call, as given: `None` for each one left out.
+/// Converted to [`PartialOptions`] whose values come from the matching command-line
+/// flag ([`Origin::Flag`]), so that messages are the command line's.
+struct Given<'a, 'py> {
+    width: Option<&'a Bound<'py, PyAny>>,
+    height: Option<&'a Bound<'py, PyAny>>,
+    fov: Option<&'a Bound<'py, PyAny>>,
+    look_from: Option<&'a Bound<'py, PyAny>>,
+    look_to: Option<&'a Bound<'py, PyAny>>,
+    up: Option<&'a Bound<'py, PyAny>>,
+    mode: Option<&'a Bound<'py, PyAny>>,
+    depth: Option<&'a Bound<'py, PyAny>>,
+    spp: Option<&'a Bound<'py, PyAny>>,
+    exposure: Option<&'a Bound<'py, PyAny>>,
+    seed: Option<&'a Bound<'py, PyAny>>,
+}
+
+impl Given<'_, '_> {
+    /// The given values, converted but not range-checked: ranges are checked once,
+    /// after merging over the scene file's values.
+    fn options(&self) -> PyResult<PartialOptions> {
+        fn flag<T>(
+            value: Option<&Bound<'_, PyAny>>,
+            name: &'static str,
+            convert: impl Fn(&Bound<'_, PyAny>, &'static str) -> PyResult<T>,
+        ) -> PyResult<Option<Sourced<T>>> {
+            value
+                .map(|v| Ok(Sourced::new(convert(v, name)?, Origin::Flag(name))))
+                .transpose()
+        }
+        // Options the library gains stay "not given" until added here.
+        #[allow(clippy::needless_update)]
+        Ok(PartialOptions {
+            width: flag(self.width, "--width", whole_number)?,
+            height: flag(self.height, "--height", whole_number)?,
+            fov_degrees: flag(self.fov, "--fov", number)?,
+            look_from: flag(self.look_from, "--look-from", vector)?,
+            look_to: flag(self.look_to, "--look-to", vector)?,
+            up: flag(self.up, "--up", vector)?,
+            depth: flag(self.depth, "--depth", whole_number)?,
+            mode: flag(self.mode, "--mode", |v, _| {
+                parse_mode(&v.extract::<String>()?)
+            })?,
+            samples_per_pixel: flag(self.spp, "--spp", whole_number)?,
+            exposure: flag(self.exposure, "--exposure", number)?,
+            seed: flag(self.seed, "--seed", whole_number)?,
+            ..PartialOptions::default()
+        })
+    }
+}
+
+/// The Python argument name of a flag: `--look-from` is `look_from`.
+fn argument(flag: &str) -> String {
+    flag.trim_start_matches('-').replace('-', "_")
+}
+
+/// A whole number of any size an `i64` holds; larger ones are a `ValueError` (as the
+/// command line's "too many digits"), other types a `TypeError`.
+fn whole_number(value: &Bound<'_, PyAny>, flag: &'static str) -> PyResult<i64> {
+    value.extract::<i64>().map_err(|e| {
+        if e.is_instance_of::<PyOverflowError>(value.py()) {
+            PyValueError::new_err(format!("invalid {flag}: {value} has too many digits"))
+        } else {
+            PyTypeError::new_err(format!("{}: {e}", argument(flag)))
+        }
+    })
+}
+
+/// A number; infinity and NaN too, for the range check to refuse by name.
+fn number(value: &Bound<'_, PyAny>, flag: &'static str) -> PyResult<Float> {
+    value
+        .extract::<f64>()
+        .map(|v| v as Float)
+        .map_err(|e| PyTypeError::new_err(format!("{}: {e}", argument(flag))))
+}
+
+/// Three numbers (any sequence: a tuple, a list, a numpy array).
+fn vector(value: &Bound<'_, PyAny>, flag: &'static str) -> PyResult<Vec3> {
+    let numbers = value
+        .extract::<Vec<f64>>()
+        .map_err(|e| PyTypeError::new_err(format!("{}: {e}", argument(flag))))?;
+    match numbers[..] {
+        [x, y, z] => Ok(Vec3::new(x as Float, y as Float, z as Float)),
+        _ => Err(PyValueError::new_err(format!(
+            "invalid {flag}: a vector is three numbers (x, y, z), not {}",
+            numbers.len()
+        ))),
+    }
+}
+
+/// The mode called `name`. The TOML reader's `render.mode` is the library's one
+/// parser of mode names, so the name goes through it: a mode the library gains is
+/// known here without a change.
+fn parse_mode(name: &str) -> PyResult<Mode> {
+    let document = format!("[render]\nmode = {}\n", toml_string(name));
+    let invalid = |message: String| PyValueError::new_err(format!("invalid --mode: {message}"));
+    match formats::parse_toml(document.as_bytes(), Path::new("--mode")) {
+        Ok(loaded) => loaded
+            .options
+            .mode
+            .map(|mode| mode.value)
+            .ok_or_else(|| invalid(format!("no mode called {name:?}"))),
+        Err(formats::SceneError::Parse {
+            kind: ParseErrorKind::TomlValue { message, .. },
+            ..
+        }) => Err(invalid(message)),
+        Err(other) => Err(invalid(other.to_string())),
+    }
+}
+
+/// `text` as a TOML basic string, quoted and escaped.
+fn toml_string(text: &str) -> String {
+    let mut quoted = String::with_capacity(text.len() + 2);
+    quoted.push('"');
+    for c in text.chars() {
+        match c {
+            '"' => quoted.push_str("\\\""),
+            '\\' => quoted.push_str("\\\\"),
+            c if c.is_control() => quoted.push_str(&format!("\\u{:04X}", c as u32)),
+            c => quoted.push(c),
+        }
+    }
+    quoted.push('"');
+    quoted
+}
+
+/// The post-processing of `mode` with `exposure` (stops, path mode only), checked as
+/// the command line checks `--exposure`.
+fn post_processing(mode: &str, exposure: Float) -> PyResult<PostProcessing> {
+    let mode = parse_mode(mode)?;
+    let options = RenderOptions {
+        exposure,
+        ..RenderOptions::default()
+    };
+    options.validate().map_err(Error::Options)?;
+    Ok(PostProcessing { mode, exposure })
+}
+
+/// The name of `mode` as the command line and scene files spell it: `full`.
+fn mode_name(mode: Mode) -> String {
+    format!("{mode:?}").to_lowercase()
+}
+
+/// A tile `(x, y, width, height)` in pixels.
+fn tile(value: &Bound<'_, PyAny>) -> PyResult<Tile> {
+    let numbers = value
+        .extract::<Vec<i64>>()
+        .map_err(|e| PyTypeError::new_err(format!("tile: {e}")))?;
+    let [x, y, width, height] = numbers[..] else {
+        return Err(PyValueError::new_err(format!(
+            "invalid tile: expected (x, y, width, height), got {} numbers",
+            numbers.len()
+        )));
+    };
+    let part = |v: i64| {
+        u32::try_from(v).map_err(|_| {
+            PyValueError::new_err(format!(
+                "invalid tile ({x}, {y}, {width}, {height}): {v} is not in 0..={}",
+                u32::MAX
+            ))
+        })
+    };
+    Ok(Tile {
+        x: part(x)?,
+        y: part(y)?,
+        width: part(width)?,
+        height: part(height)?,
+    })
+}
+
+/// A scene file read and built, with the options the file gives.
+struct Loaded {
+    path: PathBuf,
+    scene: Scene,
+    options: PartialOptions,
+    /// The box around the shapes, for a camera that frames them.
+    bounds: raytracer::math::Aabb,
+    /// The description of a scene without lights, kept to light it as the command line
+    /// does for each render's camera ([`SceneDescription::add_default_light`]).
+    unlit: Option<raytracer::SceneDescription>,
+}
+
+impl Loaded {
+    /// Reads and builds the scene at `path`. Call detached from the interpreter.
+    fn read(path: &Path) -> Result<Loaded, Error> {
+        let loaded = formats::load(path)?;
+        let bounds = loaded.description.bounds();
+        let unlit = loaded
+            .description
+            .is_unlit()
+            .then(|| loaded.description.clone());
+        Ok(Loaded {
+            path: path.to_path_buf(),
+            scene: Scene::build(loaded.description, &BvhParams::default()),
+            options: loaded.options,
+            bounds,
+            unlit,
+        })
+    }
+
+    /// The given options over the file's, with the command line's framing camera.
+    fn resolve(&self, given: PartialOptions) -> Result<RenderOptions, Error> {
+        let bounds = self.bounds;
+        Ok(formats::resolve_options(
+            given,
+            self.options.clone(),
+            || bounds,
+        )?)
+    }
+
+    /// Renders the whole image or `tile` of it as the command line would: a scene
+    /// without lights gets the default lighting for this camera first.
+    fn render(&self, options: &RenderOptions, tile: Option<Tile>) -> Result<Film, Error> {
+        match &self.unlit {
+            Some(description) if options.mode == raytracer::Mode::Full && options.default_light => {
+                let mut description = description.clone();
+                description.add_default_light(options);
+                render_film(
+                    &Scene::build(description, &BvhParams::default()),
+                    options,
+                    tile,
+                )
+            }
+            _ => render_film(&self.scene, options, tile),
+        }
+    }
+}
+
+/// Renders the whole image, or `tile` of it. Call detached from the interpreter.
+fn render_film(scene: &Scene, options: &RenderOptions, tile: Option<Tile>) -> Result<Film, Error> {
+    match tile {
+        None => Ok(raytracer::render(scene, options)),
+        Some(tile) => raytracer::render_tile(scene, options, tile).map_err(Error::Tile),
+    }
+}
+
+/// The film's values, row by row, three per pixel. Call detached from the interpreter.
+fn film_values(film: &Film) -> Vec<f32> {
+    let mut values = Vec::with_capacity(film.pixels.len() * 3);
+    for pixel in &film.pixels {
+        values.extend_from_slice(&pixel.to_array());
+    }
+    values
+}
+
+/// `values` (from [`film_values`]) as a numpy array of shape `(height, width, 3)`,
+/// without a copy.
+fn film_array(
+    py: Python<'_>,
+    width: u32,
+    height: u32,
+    values: Vec<f32>,
+) -> Bound<'_, PyArray3<f32>> {
+    Array3::from_shape_vec((height as usize, width as usize, 3), values)
+        .expect("three values per pixel")
+        .into_pyarray(py)
+}
+
+/// The width and height of an image array of shape `(height, width, 3)`.
+fn image_size(shape: (usize, usize, usize), what: &str) -> PyResult<(u32, u32)> {
+    let (height, width, channels) = shape;
+    let bad = || {
+        PyValueError::new_err(format!(
+            "{what} must have the shape (height, width, 3) with at least one pixel, \
+             not ({height}, {width}, {channels})"
+        ))
+    };
+    if channels != 3 || width == 0 || height == 0 {
+        return Err(bad());
+    }
+    Ok((
+        u32::try_from(width).map_err(|_| bad())?,
+        u32::try_from(height).map_err(|_| bad())?,
+    ))
+}
+
+/// A linear image array as a film.
+fn array_film(linear: ArrayView3<'_, f32>) -> PyResult<Film> {
+    let (width, height) = image_size(linear.dim(), "the linear image")?;
+    let pixels = linear
+        .outer_iter()
+        .flat_map(|row| {
+            row.outer_iter()
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    Ok(Film {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// A scene, read and built once, to render many times (another camera, another size,
+/// tiles) without reading it again.
+///
+/// ``Scene(path)`` reads an OBJ (with its MTL files), PLY or TOML scene file, any of
+/// them optionally gzip-compressed, as ``raytracer render`` does; it raises
+/// :class:`SceneError` (an ``OSError``) when the file cannot be read or is malformed.
+/// A TOML file's camera and render values are kept: they apply to every render unless
+/// an argument replaces them.
+#[pyclass(name = "Scene", module = "raytracer", frozen)]
+struct PyScene {
+    loaded: Arc<Loaded>,
+}
+
+#[pymethods]
+impl PyScene {
+    #[new]
+    fn new(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
+        let loaded = py.detach(|| Loaded::read(&path))?;
+        Ok(PyScene {
+            loaded: Arc::new(loaded),
+        })
+    }
+
+    /// The scene file, as it was named.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.loaded.path.clone()
+    }
+
+    /// Warnings from reading and building (such as skipped zero-area triangles), as
+    /// the command line prints them.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.loaded.scene.warnings.clone()
+    }
+
+    /// Renders the scene: the linear image before post-processing, a ``float32``
+    /// array of shape ``(height, width, 3)``; see :func:`raytracer.render`, which
+    /// takes the same arguments.
+    #[pyo3(signature = (*, width=None, height=None, fov=None, look_from=None, look_to=None,
+                        up=None, mode=None, depth=None, spp=None, exposure=None, seed=None,
+                        tile=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        width: Option<&Bound<'py, PyAny>>,
+        height: Option<&Bound<'py, PyAny>>,
+        fov: Option<&Bound<'py, PyAny>>,
+        look_from: Option<&Bound<'py, PyAny>>,
+        look_to: Option<&Bound<'py, PyAny>>,
+        up: Option<&Bound<'py, PyAny>>,
+        mode: Option<&Bound<'py, PyAny>>,
+        depth: Option<&Bound<'py, PyAny>>,
+        spp: Option<&Bound<'py, PyAny>>,
+        exposure: Option<&Bound<'py, PyAny>>,
+        seed: Option<&Bound<'py, PyAny>>,
+        tile: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let given = Given {
+            width,
+            height,
+            fov,
+            look_from,
+            look_to,
+            up,
+            mode,
+            depth,
+            spp,
+            exposure,
+            seed,
+        };
+        self.render_given(py, &given, tile)
+    }
+
+    /// The options a render with these arguments uses, checked: each argument given,
+    /// else the scene file's value, else the default. A dict with the keys ``width``,
+    /// ``height``, ``fov``, ``look_from``, ``look_to``, ``up`` (tuples), ``mode`` (its
+    /// name), ``depth``, ``spp``, ``spp_in_mode`` (the samples per pixel the mode
+    /// takes: 1 in depth and normal modes), ``exposure`` and ``seed``. Raises
+    /// ``ValueError`` as a render would.
+    #[pyo3(signature = (*, width=None, height=None, fov=None, look_from=None, look_to=None,
+                        up=None, mode=None, depth=None, spp=None, exposure=None, seed=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn options<'py>(
+        &self,
+        py: Python<'py>,
+        width: Option<&Bound<'py, PyAny>>,
+        height: Option<&Bound<'py, PyAny>>,
+        fov: Option<&Bound<'py, PyAny>>,
+        look_from: Option<&Bound<'py, PyAny>>,
+        look_to: Option<&Bound<'py, PyAny>>,
+        up: Option<&Bound<'py, PyAny>>,
+        mode: Option<&Bound<'py, PyAny>>,
+        depth: Option<&Bound<'py, PyAny>>,
+        spp: Option<&Bound<'py, PyAny>>,
+        exposure: Option<&Bound<'py, PyAny>>,
+        seed: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let given = Given {
+            width,
+            height,
+            fov,
+            look_from,
+            look_to,
+            up,
+            mode,
+            depth,
+            spp,
+            exposure,
+            seed,
+        };
+        let options = self.resolve(&given)?;
+        let dict = PyDict::new(py);
+        dict.set_item("width", options.width)?;
+        dict.set_item("height", options.height)?;
+        dict.set_item("fov", options.fov_degrees)?;
+        let triple = |v: Vec3| (v.x, v.y, v.z);
+        dict.set_item("look_from", triple(options.look_from))?;
+        dict.set_item("look_to", triple(options.look_to))?;
+        dict.set_item("up", triple(options.up))?;
+        dict.set_item("mode", mode_name(options.mode))?;
+        dict.set_item("depth", options.depth)?;
+        dict.set_item("spp", options.samples_per_pixel)?;
+        dict.set_item("spp_in_mode", options.samples_per_pixel_in_mode())?;
+        dict.set_item("exposure", options.exposure)?;
+        dict.set_item("seed", options.seed)?;
+        Ok(dict)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "raytracer.Scene({:?}: {} primitives, {} lights)",
+            self.loaded.path.display().to_string(),
+            self.loaded.scene.prim_count(),
+            self.loaded.scene.lights.len()
+        )
+    }
+}
+
+impl PyScene {
+    /// The given options merged over the scene file's, checked.
+    fn resolve(&self, given: &Given<'_, '_>) -> PyResult<RenderOptions> {
+        Ok(self.loaded.resolve(given.options()?)?)
+    }
+
+    fn render_given<'py>(
+        &self,
+        py: Python<'py>,
+        given: &Given<'_, 'py>,
+        tile_value: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let options = self.resolve(given)?;
+        let tile = tile_value.map(tile).transpose()?;
+        let loaded = Arc::clone(&self.loaded);
+        let (width, height, values) = py.detach(move || {
+            let film = loaded.render(&options, tile)?;
+            Ok::<_, Error>((film.width, film.height, film_values(&film)))
+        })?;
+        Ok(film_array(py, width, height, values))
+    }
+}
+
+/// Renders a scene file and returns the linear image before post-processing (what
+/// ``raytracer render`` writes to an ``.exr`` file): a ``float32`` array of shape
+/// ``(height, width, 3)``, row 0 at the top.
+///
+/// ``scene`` is a path (``str`` or ``os.PathLike``) to an OBJ, PLY or TOML scene
+/// file, or a :class:`Scene` already read. The other arguments are the command line's
+/// flags: ``width``, ``height`` (pixels), ``fov`` (vertical, degrees), ``look_from``,
+/// ``look_to``, ``up`` (three numbers each), ``mode`` (``"full"``, ``"depth"``,
+/// ``"normal"``, ``"path"``), ``depth`` (recursion depth), ``spp`` (samples per
+/// pixel), ``exposure`` (path mode's, in stops: used by post-processing only) and
+/// ``seed`` (of the random numbers). Each one left out (``None``) takes the TOML scene
+/// file's value, else the default: 640x480, fov 90, from (0, 0, 0) to (0, 0, -1), up
+/// (0, 1, 0), full mode, depth 4 and 1 sample per pixel (64 and 64 in path mode),
+/// exposure 0, seed 0; a width or height alone keeps the aspect ratio.
+/// ``tile=(x, y, w, h)`` returns only those pixels, shape ``(h, w, 3)``, bit-identical
+/// to the same pixels of the whole image.
+///
+/// Raises ``ValueError`` for a bad option and :class:`SceneError` (an ``OSError``)
+/// for a scene file that cannot be read or is malformed, with the command line's
+/// message. The interpreter is released while the scene loads and renders.
+#[pyfunction]
+#[pyo3(signature = (scene, *, width=None, height=None, fov=None, look_from=None, look_to=None,
+                    up=None, mode=None, depth=None, spp=None, exposure=None, seed=None,
+                        tile=None))]
+#[allow(clippy::too_many_arguments)]
+fn render<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    width: Option<&Bound<'py, PyAny>>,
+    height: Option<&Bound<'py, PyAny>>,
+    fov: Option<&Bound<'py, PyAny>>,
+    look_from: Option<&Bound<'py, PyAny>>,
+    look_to: Option<&Bound<'py, PyAny>>,
+    up: Option<&Bound<'py, PyAny>>,
+    mode: Option<&Bound<'py, PyAny>>,
+    depth: Option<&Bound<'py, PyAny>>,
+    spp: Option<&Bound<'py, PyAny>>,
+    exposure: Option<&Bound<'py, PyAny>>,
+    seed: Option<&Bound<'py, PyAny>>,
+    tile: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let given = Given {
+        width,
+        height,
+        fov,
+        look_from,
+        look_to,
+        up,
+        mode,
+        depth,
+        spp,
+        exposure,
+        seed,
+    };
+    if let Ok(scene) = scene.cast::<PyScene>() {
+        return scene.get().render_given(py, &given, tile);
+    }
+    let path: PathBuf = scene.extract()?;
+    let flags = given.options()?;
+    let tile = tile.map(self::tile).transpose()?;
+    let (width, height, values) = py.detach(move || {
+        // As the command line: OBJ and PLY files set no options, so the arguments are
+        // checked before a long load; a TOML file's values are merged first.
+        if !matches!(
+            SceneFormat::require(&path)?,
+            SceneFormat::Toml | SceneFormat::Gltf
+        ) {
+            flags.resolve()?;
+        }
+        let loaded = Loaded::read(&path)?;
+        let options = loaded.resolve(flags)?;
+        let film = loaded.render(&options, tile)?;
+        Ok::<_, Error>((film.width, film.height, film_values(&film)))
+    })?;
+    Ok(film_array(py, width, height, values))
+}
+
+/// Post-processes a linear image for display, exactly as ``raytracer render`` does
+/// before writing a PNG: full mode tone maps by the image-wide brightest channel, then
+/// applies gamma 2.2; depth mode divides by the farthest distance (misses white);
+/// normal mode maps ``n`` to ``n / 2 + 1/2`` (misses black); path mode multiplies by
+/// ``2 ** exposure`` and applies the sRGB curve. Returns a ``uint8`` array of shape
+/// ``(height, width, 3)``.
+///
+/// ``linear`` is an array of shape ``(height, width, 3)``, converted to ``float32``.
+/// The maxima are image-wide: merge tiles in linear space first, then post-process.
+#[pyfunction]
+#[pyo3(signature = (linear, mode="full", exposure=0.0))]
+fn postprocess<'py>(
+    py: Python<'py>,
+    linear: PyArrayLike3<'py, f32, AllowTypeChange>,
+    mode: &str,
+    exposure: Float,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let post = post_processing(mode, exposure)?;
+    let film = array_film(linear.as_array())?;
+    let image = py.detach(move || film.to_image(post));
+    Ok(
+        Array3::from_shape_vec((image.height as usize, image.width as usize, 3), image.rgb)
+            .expect("three bytes per pixel")
+            .into_pyarray(py),
+    )
+}
+
+/// Writes a linear image as ``raytracer render`` does: ``.png`` post-processed for
+/// ``mode`` and ``exposure`` (as :func:`postprocess`), ``.exr`` the linear values as 32-bit floats
+/// (depth mode: the single channel ``Z``). The extension, in any letter case, picks
+/// the format; any other is a ``ValueError``.
+///
+/// Atomic: the image goes to a temporary file in the same folder, renamed over
+/// ``path`` once complete, so ``path`` holds either the previous file or the whole new
+/// image. Raises ``OSError`` when the file cannot be written.
+#[pyfunction]
+#[pyo3(signature = (linear, path, mode="full", exposure=0.0))]
+fn write_image(
+    py: Python<'_>,
+    linear: PyArrayLike3<'_, f32, AllowTypeChange>,
+    path: PathBuf,
+    mode: &str,
+    exposure: Float,
+) -> PyResult<()> {
+    let post = post_processing(mode, exposure)?;
+    let format = ImageFormat::from_path(&path).map_err(Error::Format)?;
+    let film = array_film(linear.as_array())?;
+    py.detach(move || film.write(post, format, &path))
+        .map_err(Error::Write)?;
+    Ok(())
+}
+
+/// Writes an 8-bit RGB image (``uint8``, shape ``(height, width, 3)``, as
+/// :func:`postprocess` returns) as a PNG file, atomically like :func:`write_image`.
+#[pyfunction]
+fn write_png(
+    py: Python<'_>,
+    rgb: PyArrayLike3<'_, u8, TypeMustMatch>,
+    path: PathBuf,
+) -> PyResult<()> {
+    let view = rgb.as_array();
+    let (width, height) = image_size(view.dim(), "the RGB image")?;
+    let image = Image {
+        width,
+        height,
+        rgb: view.iter().copied().collect(),
+    };
+    py.detach(move || image.write_png(&path))
+        .map_err(Error::Write)?;
+    Ok(())
+}
+
+/// Checks, before any work, that an image can be written to ``path``, as
+/// ``raytracer render`` does: the extension names a format (``ValueError`` if not)
+/// and the folder takes new files (``OSError`` if not). Returns the format,
+/// ``"png"`` or ``"exr"``.
+#[pyfunction]
+fn check_output(path: PathBuf) -> PyResult<&'static str> {
+    let format = ImageFormat::from_path(&path).map_err(Error::Format)?;
+    output::check_output(&path).map_err(Error::Write)?;
+    Ok(match format {
+        ImageFormat::Png => "png",
+        ImageFormat::Exr => "exr",
+    })
+}
+
+/// Whether this process has renamed a complete image over ``path`` (as given to the
+/// writer): what an interrupt handler asks, under the lock every final rename takes,
+/// to say truly whether the output holds the new image.
+#[pyfunction]
+fn _committed(path: PathBuf) -> bool {
+    output::lock_commits().contains(&path)
+}
+
+/// The extension module `raytracer._raytracer`.
+#[pymodule]
+fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("SceneError", m.py().get_type::<SceneError>())?;
+    m.add_class::<PyScene>()?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(postprocess, m)?)?;
+    m.add_function(wrap_pyfunction!(write_image, m)?)?;
+    m.add_function(wrap_pyfunction!(write_png, m)?)?;
+    m.add_function(wrap_pyfunction!(check_output, m)?)?;
+    m.add_function(wrap_pyfunction!(_committed, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

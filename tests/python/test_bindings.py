@@ -1,0 +1,305 @@
+"""The package `raytracer`: renders, tiles, post-processing and files identical to the
+command line's, options merged as its flags, its messages, and the GIL released."""
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import raytracer
+from conftest import CAMERA, CAMERA_FLAGS, CORNELL_OBJ, CORNELL_TOML
+
+MODES = [("full", 4), ("depth", 1), ("normal", 1), ("path", 4)]
+
+
+def bits(array: np.ndarray) -> np.ndarray:
+    """The array's bit patterns: equal exactly when the values are bit-identical
+    (infinity in depth mode, -0.0 and NaN included)."""
+    return np.ascontiguousarray(array).view(np.uint32)
+
+
+def cli_error(result: subprocess.CompletedProcess) -> str:
+    assert result.returncode == 2, result
+    assert result.stderr.startswith("error: "), result.stderr
+    return result.stderr[len("error: ") :].strip()
+
+
+@pytest.mark.parametrize("mode,spp", MODES)
+def test_render_is_the_command_lines_image(tmp_path, run_cli, mode, spp):
+    size = {"width": 37, "height": 23}
+    linear = raytracer.render(CORNELL_OBJ, mode=mode, spp=spp, **size, **CAMERA)
+    assert linear.dtype == np.float32 and linear.shape == (23, 37, 3)
+    flags = ["--width", 37, "--height", 23, "--mode", mode, "--spp", spp, *CAMERA_FLAGS]
+    exposure = 1.5 if mode == "path" else 0.0
+    for extension in ("exr", "png"):
+        out = tmp_path / f"cli.{extension}"
+        result = run_cli("render", CORNELL_OBJ, "-o", out, "-q", *flags, "--exposure", exposure)
+        assert result.returncode == 0, result.stderr
+        mine = tmp_path / f"python.{extension}"
+        raytracer.write_image(linear, mine, mode, exposure)
+        assert mine.read_bytes() == out.read_bytes(), extension
+    # The PNG holds exactly what postprocess returns.
+    rgb = raytracer.postprocess(linear, mode, exposure)
+    assert rgb.dtype == np.uint8 and rgb.shape == (23, 37, 3)
+    raytracer.write_png(rgb, tmp_path / "rgb.png")
+    assert (tmp_path / "rgb.png").read_bytes() == (tmp_path / "cli.png").read_bytes()
+
+
+@pytest.mark.parametrize("mode,spp", MODES)
+def test_tiles_are_the_same_pixels_as_the_whole_image(mode, spp):
+    options = dict(width=37, height=23, mode=mode, spp=spp, **CAMERA)
+    whole = raytracer.render(CORNELL_OBJ, **options)
+    scene = raytracer.Scene(CORNELL_OBJ)
+    merged = np.full_like(whole, np.nan)
+    for y in range(0, 23, 8):
+        for x in range(0, 37, 8):
+            w, h = min(8, 37 - x), min(8, 23 - y)
+            part = raytracer.render(scene, tile=(x, y, w, h), **options)
+            assert part.shape == (h, w, 3)
+            merged[y : y + h, x : x + w] = part
+    assert np.array_equal(bits(merged), bits(whole))
+    # Through the path too, and a tile the grid does not have.
+    part = raytracer.render(str(CORNELL_OBJ), tile=(5, 3, 7, 9), **options)
+    assert np.array_equal(bits(part), bits(whole[3:12, 5:12]))
+
+
+def test_a_scene_read_once_renders_what_the_path_renders():
+    scene = raytracer.Scene(CORNELL_TOML)
+    assert scene.path == CORNELL_TOML
+    assert scene.warnings == []
+    for options in (
+        {},
+        {"width": 50, "spp": 2},
+        {"mode": "normal", "look_from": (0.3, 0.5, 1.5)},
+        {"mode": "path", "width": 20, "spp": 2, "seed": 7},
+    ):
+        expected = raytracer.render(CORNELL_TOML, **options)
+        assert np.array_equal(bits(scene.render(**options)), bits(expected))
+        assert np.array_equal(bits(raytracer.render(scene, **options)), bits(expected))
+
+
+def test_arguments_left_out_keep_the_scene_files_values(tmp_path, run_cli):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(
+        CORNELL_TOML.read_text()
+        .replace("width = 640", "width = 40")
+        .replace("height = 480", "height = 30")
+        .replace('file = "scene.obj"', f'file = "{CORNELL_OBJ}"')
+        .replace("depth = 4", "depth = 2\nspp = 3")
+    )
+    for options, flags in [
+        ({}, []),
+        # Explicit None is "not given", as the flag left out.
+        (dict(width=None, fov=None, mode=None, spp=None), []),
+        # One dimension keeps the file's aspect ratio, as --width alone.
+        (dict(width=20), ["--width", 20]),
+        (dict(mode="depth", depth=1), ["--mode", "depth", "--depth", 1]),
+    ]:
+        linear = raytracer.render(scene, **options)
+        out = tmp_path / "cli.exr"
+        result = run_cli("render", scene, "-o", out, "-q", *flags)
+        assert result.returncode == 0, result.stderr
+        mine = tmp_path / "mine.exr"
+        raytracer.write_image(linear, mine, options.get("mode") or "full")
+        assert mine.read_bytes() == out.read_bytes(), options
+    assert raytracer.render(scene).shape == (30, 40, 3)
+    assert raytracer.render(scene, width=20).shape == (15, 20, 3)
+    assert raytracer.Scene(scene).options()["spp"] == 3
+
+
+def test_a_valid_argument_replaces_a_bad_value_of_the_file(tmp_path, run_cli):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(f'[camera]\nfov = 180\nwidth = 8\nheight = 6\n\n[[mesh]]\nfile = "{CORNELL_OBJ}"\n')
+    with pytest.raises(ValueError) as error:
+        raytracer.render(scene)
+    assert str(error.value) == cli_error(run_cli("render", scene, "-o", tmp_path / "x.png"))
+    assert str(error.value) == f"{scene}:2: camera.fov: 180 is not strictly between 0 and 180"
+    assert raytracer.render(scene, fov=60).shape == (6, 8, 3)
+
+
+@pytest.mark.parametrize(
+    "options,flags",
+    [
+        (dict(width=0), ["--width", "0"]),
+        (dict(height=-3), ["--height", "-3"]),
+        (dict(width=65536, height=65536), ["--width", "65536", "--height", "65536"]),
+        (dict(height=65536), ["--height", "65536"]),
+        (dict(fov=180), ["--fov", "180"]),
+        (dict(fov=float("nan")), ["--fov", "NaN"]),
+        (dict(depth=65), ["--depth", "65"]),
+        (dict(spp=0), ["--spp", "0"]),
+        (dict(look_from=(0, 0, -1)), ["--look-from", "0,0,-1"]),
+        (dict(look_from=(1, 2, 3), look_to=(1, 2, 3)), ["--look-from", "1,2,3", "--look-to", "1,2,3"]),
+        (dict(up=(0, 0, 0)), ["--up", "0,0,0"]),
+        (dict(mode="path", depth=2000), ["--mode", "path", "--depth", "2000"]),
+        (dict(exposure=99), ["--exposure", "99"]),
+        (dict(seed=-1), ["--seed", "-1"]),
+        (dict(seed=2**32), ["--seed", str(2**32)]),
+    ],
+)
+def test_bad_options_are_value_errors_with_the_command_lines_message(tmp_path, run_cli, options, flags):
+    with pytest.raises(ValueError) as error:
+        raytracer.render(CORNELL_OBJ, **options)
+    expected = cli_error(run_cli("render", CORNELL_OBJ, "-o", tmp_path / "x.png", *flags))
+    assert str(error.value) == expected
+    with pytest.raises(ValueError) as error:
+        raytracer.Scene(CORNELL_OBJ).render(**options)
+    assert str(error.value) == expected
+
+
+@pytest.mark.parametrize(
+    "name,content",
+    [
+        ("missing.obj", None),
+        ("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 x 0\nf 1 2 3\n"),
+        ("bad.toml", "[camera]\nwidht = 3\n"),
+        ("bad.ply", "ply\nformat ascii 1.0\nelement vertex 1\nend_header\n"),
+        ("scene.txt", "v 0 0 0\n"),
+        ("library.obj", "mtllib bad.mtl\nv 0 0 0\n"),
+    ],
+)
+def test_bad_scenes_are_oserrors_with_the_command_lines_message(tmp_path, run_cli, name, content):
+    scene = tmp_path / name
+    if content is not None:
+        scene.write_text(content)
+    (tmp_path / "bad.mtl").write_text("newmtl x\nKd 1 one 1\n")
+    expected = cli_error(run_cli("render", scene, "-o", tmp_path / "x.png"))
+    for attempt in (lambda: raytracer.render(scene), lambda: raytracer.Scene(scene)):
+        with pytest.raises(raytracer.SceneError) as error:
+            attempt()
+        assert isinstance(error.value, OSError)
+        assert str(error.value) == expected
+
+
+def test_modes_are_named_as_in_scene_files():
+    scene = raytracer.Scene(CORNELL_OBJ)
+    assert scene.options(mode="normal")["mode"] == "normal"
+    # Path mode's own defaults come with it, as on the command line.
+    path = scene.options(mode="path")
+    assert (path["mode"], path["spp"], path["depth"]) == ("path", 64, 64)
+    with pytest.raises(ValueError, match="invalid --exposure"):
+        raytracer.postprocess(np.zeros((1, 1, 3), np.float32), "path", float("nan"))
+    for name in ("fast", "Full", "", 'full"\nwidth = 3'):
+        with pytest.raises(ValueError, match="invalid --mode: unknown variant"):
+            raytracer.render(CORNELL_OBJ, mode=name, width=4)
+    with pytest.raises(ValueError, match="unknown variant"):
+        raytracer.postprocess(np.zeros((1, 1, 3), np.float32), "fast")
+
+
+def test_bad_arguments_raise_exceptions_not_crashes(tmp_path):
+    small = dict(width=10, height=8)
+    cases = [
+        (ValueError, "tile 4x4 at \\(8, 0\\) does not lie inside the 10x8 image", dict(tile=(8, 0, 4, 4))),
+        (ValueError, "tile 0x4 at \\(0, 0\\) has no pixels", dict(tile=(0, 0, 0, 4))),
+        (ValueError, "-1 is not in 0..=4294967295", dict(tile=(-1, 0, 2, 2))),
+        (ValueError, "expected \\(x, y, width, height\\), got 3 numbers", dict(tile=(0, 0, 2))),
+        (ValueError, "invalid --look-from: a vector is three numbers", dict(look_from=(1, 2))),
+        (ValueError, "invalid --width: .* has too many digits", dict(width=2**80)),
+        (TypeError, "width", dict(width="wide")),
+        (TypeError, "width", dict(width=1.5)),
+        (TypeError, "look_to", dict(look_to="0,0,1")),
+    ]
+    for exception, message, options in cases:
+        with pytest.raises(exception, match=message):
+            raytracer.render(CORNELL_OBJ, **{**small, **options})
+    with pytest.raises(TypeError):
+        raytracer.render(CORNELL_OBJ, colour="red")
+    with pytest.raises(TypeError):
+        raytracer.render(42)
+    with pytest.raises(ValueError, match="shape \\(height, width, 3\\)"):
+        raytracer.postprocess(np.zeros((4, 4), np.float32).reshape(4, 4, 1))
+    with pytest.raises(ValueError, match="at least one pixel"):
+        raytracer.write_image(np.zeros((0, 4, 3), np.float32), tmp_path / "x.png")
+    with pytest.raises(TypeError):
+        raytracer.write_png(np.zeros((2, 2, 3), np.float32), tmp_path / "x.png")
+
+
+def test_postprocess_takes_any_float_array_and_uses_the_image_wide_maximum():
+    linear = raytracer.render(CORNELL_OBJ, width=16, height=12, **CAMERA)
+    as_doubles = raytracer.postprocess(linear.astype(np.float64).tolist())
+    assert np.array_equal(as_doubles, raytracer.postprocess(linear))
+    # A tile alone is tone mapped by its own maximum: not the same pixels.
+    bands = [(slice(y, y + 4), slice(0, 16)) for y in (0, 4, 8)]
+    dark = next(band for band in bands if linear[band].max() < linear.max())
+    assert not np.array_equal(raytracer.postprocess(linear[dark]), raytracer.postprocess(linear)[dark])
+
+
+def test_images_are_written_atomically_or_not_at_all(tmp_path):
+    linear = raytracer.render(CORNELL_OBJ, width=8, height=6)
+    out = tmp_path / "out.png"
+    out.write_bytes(b"previous")
+    assert raytracer.check_output(out) == "png"
+    assert raytracer.check_output(tmp_path / "out.EXR") == "exr"
+    raytracer.write_image(linear, out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.png"]
+    missing = tmp_path / "no" / "folder" / "out.exr"
+    for attempt in (lambda: raytracer.write_image(linear, missing), lambda: raytracer.check_output(missing)):
+        with pytest.raises(OSError, match=f"cannot write {missing}: folder .* does not exist"):
+            attempt()
+    with pytest.raises(ValueError, match="unknown image format '.jpg' \\(use .png or .exr\\)"):
+        raytracer.write_image(linear, tmp_path / "out.jpg")
+    with pytest.raises(ValueError, match="unknown image format"):
+        raytracer.check_output(tmp_path / "out.jpg")
+
+
+GIL_PROBE = textwrap.dedent(
+    """
+    import sys, threading
+    import numpy, raytracer
+
+    big, small = sys.argv[1], sys.argv[2]
+    scene = raytracer.Scene(small)
+    # Once before: a first call's lazy set-up (numpy's C API) must not be what lets
+    # the main thread run.
+    raytracer.render(small, width=2, height=2)
+    started = threading.Event()
+    finished = []
+
+    def work(call):
+        started.set()
+        call()
+        finished.append(True)
+
+    # With a switch interval this long the rendering thread keeps the GIL until it
+    # releases it itself: the main thread runs again before the render ends only if
+    # the render released it.
+    sys.setswitchinterval(1000)
+    calls = {
+        "render(path)": lambda: raytracer.render(small, width=800, height=600, spp=4),
+        "Scene.render": lambda: scene.render(width=800, height=600, spp=4),
+        "Scene(path)": lambda: raytracer.Scene(big),
+    }
+    for name, call in calls.items():
+        finished.clear()
+        started.clear()
+        thread = threading.Thread(target=work, args=(call,))
+        thread.start()
+        started.wait()
+        print(name, "released" if not finished else "held", flush=True)
+        thread.join()
+    """
+)
+
+
+def test_the_gil_is_released_while_loading_and_rendering(tmp_path):
+    # A scene that takes a moment to read (0.1 s): the Cornell box's triangles, many times.
+    mesh = tmp_path / "many.obj"
+    lines = CORNELL_OBJ.read_text().splitlines()
+    body = "\n".join(line for line in lines if not line.startswith(("mtllib", "usemtl")))
+    mesh.write_text("\n".join([body] * 5000) + "\nP 0 1.5 0 1 1 1\n")
+    result = subprocess.run(
+        [sys.executable, "-c", GIL_PROBE, str(mesh), str(CORNELL_OBJ)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[:3] == [
+        "render(path) released",
+        "Scene.render released",
+        "Scene(path) released",
+    ]

@@ -1,0 +1,294 @@
+"""raytracer.distributed on a local Dask cluster of two worker processes: the same image
+as a local render, bit for bit, from a shared or a shipped scene, when a worker dies,
+and from `python -m raytracer.distributed` as from `raytracer render`."""
+
+import gzip
+import os
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import raytracer
+import raytracer.distributed as rd
+from conftest import CAMERA, CAMERA_FLAGS, CORNELL_OBJ, CORNELL_TOML, start_cluster
+from test_bindings import bits
+
+pytest.importorskip("distributed")
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        dict(mode="full", spp=4),
+        dict(mode="depth"),
+        dict(mode="normal"),
+        dict(mode="path", spp=2, seed=3),
+    ],
+)
+@pytest.mark.parametrize("tile_size", [7, 16, 100])
+def test_the_same_image_as_a_local_render(client, options, tile_size):
+    options = dict(width=37, height=23, **CAMERA, **options)
+    expected = raytracer.render(CORNELL_OBJ, **options)
+    done = []
+    linear = rd.render(CORNELL_OBJ, client, tile_size=tile_size, on_tile=lambda *n: done.append(n), **options)
+    assert linear.dtype == np.float32 and linear.shape == (23, 37, 3)
+    assert np.array_equal(bits(linear), bits(expected))
+    tiles = rd.tiles(37, 23, tile_size)
+    assert done == [(i + 1, len(tiles)) for i in range(len(tiles))]
+
+
+def test_tiles_cover_the_image_once():
+    for width, height, size in [(37, 23, 8), (64, 64, 64), (1, 1, 5), (130, 2, 64)]:
+        cover = np.zeros((height, width), int)
+        for x, y, w, h in rd.tiles(width, height, size):
+            assert 1 <= w <= size and 1 <= h <= size
+            cover[y : y + h, x : x + w] += 1
+        assert (cover == 1).all()
+
+
+def test_options_left_out_keep_the_scene_files_values(client, cornell_copy):
+    scene = cornell_copy / "scene.toml"
+    scene.write_text(scene.read_text().replace("width = 640", "width = 48").replace("height = 480", "height = 30"))
+    for options in ({}, dict(width=24, mode=None), dict(mode="normal", height=10)):
+        expected = raytracer.render(scene, **options)
+        assert np.array_equal(bits(rd.render(scene, client, tile_size=16, **options)), bits(expected))
+    assert rd.render(scene, client).shape == (30, 48, 3)
+
+
+def test_errors_are_those_of_a_local_render(client, tmp_path):
+    with pytest.raises(ValueError) as local:
+        raytracer.render(CORNELL_OBJ, fov=0)
+    with pytest.raises(ValueError) as remote:
+        rd.render(CORNELL_OBJ, client, fov=0)
+    assert str(remote.value) == str(local.value)
+    missing = tmp_path / "missing.obj"
+    with pytest.raises(raytracer.SceneError) as remote:
+        rd.render(missing, client)
+    assert str(remote.value) == f"{missing}: No such file or directory (os error 2)"
+    with pytest.raises(TypeError, match="colour"):
+        rd.render(CORNELL_OBJ, client, colour="red")
+    with pytest.raises(ValueError, match="tile_size"):
+        rd.render(CORNELL_OBJ, client, tile_size=0)
+
+
+def test_scene_files_are_the_files_a_render_reads(tmp_path, cornell_copy):
+    obj = cornell_copy / "scene.obj"
+    mtl = cornell_copy / "CornellBox-Sphere.mtl"
+    toml = cornell_copy / "scene.toml"
+    assert rd.scene_files(obj) == [str(obj), str(mtl)]
+    assert rd.scene_files(toml) == [str(toml), str(obj), str(mtl)]
+    # Compressed, in another folder, named twice, comments and a missing library.
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    (meshes / "a.obj.gz").write_bytes(
+        gzip.compress(b"mtllib one.mtl # two.mtl\nmtllib\tone.mtl ../lib/three.mtl\nv 0 0 0\n")
+    )
+    scene = tmp_path / "scenes" / "s.toml"
+    scene.parent.mkdir()
+    scene.write_text('[[mesh]]\nfile = "../meshes/a.obj.gz"\n[[mesh]]\nfile = "../meshes/a.obj.gz"\n')
+    assert rd.scene_files(scene) == [
+        str(scene),
+        str(meshes / "a.obj.gz"),
+        str(meshes / "one.mtl"),
+        str(tmp_path / "lib" / "three.mtl"),
+    ]
+    with pytest.raises(OSError):
+        rd.scene_files(tmp_path / "missing.toml")
+
+
+@pytest.fixture
+def worker_folder(client, tmp_path):
+    """Moves the workers into a folder of their own (restored afterwards): a path under
+    /proc/self/cwd then names other files on the workers than on the client, as a path
+    that is not shared does."""
+    if not os.path.isdir("/proc/self/cwd"):
+        pytest.skip("needs /proc/self/cwd")
+    folder = tmp_path / "workers"
+    folder.mkdir()
+    before = client.run(os.getcwd)
+    client.run(os.chdir, str(folder))
+    yield folder
+    for worker, cwd in before.items():
+        client.run(os.chdir, cwd, workers=[worker])
+
+
+def test_a_scene_the_workers_do_not_see_is_shipped(client, cornell_copy, worker_folder, monkeypatch):
+    monkeypatch.chdir(cornell_copy)
+    scene = "/proc/self/cwd/scene.toml"
+    options = dict(width=30, height=20, spp=2)
+    expected = raytracer.render(scene, **options)
+    # Missing on the workers:
+    assert not rd._workers_share(client, scene, "check-1")
+    assert np.array_equal(bits(rd.render(scene, client, tile_size=8, **options)), bits(expected))
+    # Different on the workers (another colour in the MTL file), so shipped too:
+    for name in ("scene.toml", "scene.obj", "CornellBox-Sphere.mtl"):
+        (worker_folder / name).write_bytes((cornell_copy / name).read_bytes())
+    mtl = worker_folder / "CornellBox-Sphere.mtl"
+    mtl.write_text(mtl.read_text().replace("Kd 0.3300 0.0650 0.0500", "Kd 0.1 0.7 0.1", 1))
+    assert mtl.read_bytes() != (cornell_copy / "CornellBox-Sphere.mtl").read_bytes()
+    assert not rd._workers_share(client, scene, "check-2")
+    assert np.array_equal(bits(rd.render(scene, client, tile_size=8, **options)), bits(expected))
+    # Told not to ship, the workers read their own files: another image.
+    theirs = rd.render(scene, client, ship=False, **options)
+    assert not np.array_equal(bits(theirs), bits(expected))
+    # The same files: shared.
+    mtl.write_bytes((cornell_copy / "CornellBox-Sphere.mtl").read_bytes())
+    assert rd._workers_share(client, scene, "check-3")
+
+
+def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_path, cornell_copy):
+    scene = cornell_copy / "scene.toml"
+    expected = raytracer.render(scene, width=32, height=24)
+    assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
+    # Once done, no worker keeps the scene or its copy of the files.
+    assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
+    # A mesh in another folder, compressed.
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    (meshes / "box.obj.gz").write_bytes(gzip.compress((cornell_copy / "scene.obj").read_bytes()))
+    (meshes / "CornellBox-Sphere.mtl").write_bytes((cornell_copy / "CornellBox-Sphere.mtl").read_bytes())
+    scene.write_text(scene.read_text().replace('file = "scene.obj"', 'file = "../meshes/box.obj.gz"'))
+    assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
+    # Errors name the client's files, not the workers' copies.
+    (meshes / "CornellBox-Sphere.mtl").write_text("newmtl x\nKd 1 one 1\n")
+    with pytest.raises(raytracer.SceneError) as local:
+        raytracer.render(scene)
+    with pytest.raises(raytracer.SceneError) as remote:
+        rd.render(scene, client, ship=True)
+    assert str(remote.value) == str(local.value)
+    # A file named by an absolute path would be read on the worker, not shipped.
+    scene.write_text(f'[[mesh]]\nfile = "{meshes / "box.obj.gz"}"\n')
+    with pytest.raises(ValueError, match="by an absolute path"):
+        rd.render(scene, client, ship=True)
+
+
+def test_a_lost_workers_tiles_are_recomputed():
+    from distributed import Client
+
+    options = dict(width=96, height=72, spp=4, **CAMERA)
+    expected = raytracer.render(CORNELL_OBJ, **options)
+    with start_cluster(2) as cluster, Client(cluster) as client:
+        client.wait_for_workers(2)
+        pids = client.run(os.getpid)
+        killed = []
+
+        def kill_a_busy_worker(done, total):
+            # After the second tile arrives: a deterministic point, mid-render. The
+            # worker killed is rendering a tile then, so that tile is lost with it.
+            if done == 2:
+                busy = {w: keys for w, keys in client.processing().items() if keys}
+                worker, keys = sorted(busy.items())[0]
+                os.kill(pids[worker], signal.SIGKILL)
+                killed.append(keys)
+
+        linear = rd.render(CORNELL_OBJ, client, tile_size=8, on_tile=kill_a_busy_worker, **options)
+        assert len(killed) == 1 and any("-tile-" in str(key) for key in killed[0])
+        assert np.array_equal(bits(linear), bits(expected))
+
+
+# --- python -m raytracer.distributed ----------------------------------------------------
+
+
+def run_module(*args, env=None, **kwargs):
+    return subprocess.run(
+        [sys.executable, "-m", "raytracer.distributed", *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        **kwargs,
+    )
+
+
+@pytest.mark.parametrize("extension", ["exr", "png"])
+def test_the_command_writes_what_raytracer_render_writes(tmp_path, run_cli, cluster, extension):
+    flags = ["--width", 37, "--height", 23, "--spp", 4, "--fov", 60, "--look-from", "-0.2,0.7,1.75", "--look-to", "0,0.7,0"]
+    expected = tmp_path / f"cli.{extension}"
+    assert run_cli("render", CORNELL_OBJ, "-o", expected, "-q", *flags).returncode == 0
+    out = tmp_path / f"dist.{extension}"
+    result = run_module(CORNELL_OBJ, "-o", out, "--scheduler", cluster.scheduler_address, "--tile-size", 10, *flags)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    assert out.read_bytes() == expected.read_bytes()
+
+
+def test_the_command_starts_a_local_cluster_without_a_scheduler(tmp_path, run_cli):
+    flags = ["--width", 40, "--mode", "depth", *CAMERA_FLAGS]
+    expected = tmp_path / "cli.png"
+    assert run_cli("render", CORNELL_TOML, "-o", expected, *flags).returncode == 0
+    out = tmp_path / "dist.png"
+    result = run_module(CORNELL_TOML, "-o", out, "--workers", 2, "-j", 1, "--ship", *flags)
+    assert result.returncode == 0, result.stderr
+    assert out.read_bytes() == expected.read_bytes()
+
+
+def test_the_command_fails_as_raytracer_render_does(tmp_path, run_cli, cluster):
+    for args in (
+        [CORNELL_OBJ, "-o", tmp_path / "x.png", "--width", "0"],
+        [CORNELL_OBJ, "-o", tmp_path / "x.jpg"],
+        [CORNELL_OBJ, "-o", tmp_path / "missing" / "x.png"],
+        [tmp_path / "missing.obj", "-o", tmp_path / "x.png"],
+    ):
+        expected = run_cli("render", *args)
+        result = run_module(*args, "--scheduler", cluster.scheduler_address)
+        assert result.returncode == 2, result
+        assert result.stderr == expected.stderr
+    assert not (tmp_path / "x.png").exists()
+    result = run_module(CORNELL_OBJ, "-o", tmp_path / "x.png", "--scheduler", cluster.scheduler_address, "--workers", 2)
+    assert result.returncode == 2
+    assert result.stderr == "error: --workers and --threads set up a local cluster; not with --scheduler\n"
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_an_interrupt_while_writing_waits_for_the_complete_image(tmp_path, run_cli, cluster, signum):
+    flags = ["--width", 20, "--height", 15]
+    expected = tmp_path / "cli.png"
+    assert run_cli("render", CORNELL_OBJ, "-o", expected, *flags).returncode == 0
+    out = tmp_path / "out.png"
+    out.write_bytes(b"previous")
+    # The library's test hook pauses its atomic write before the rename, after saying
+    # so on stderr: the signal then arrives mid-write, at the same step every time.
+    env = dict(os.environ, RAYTRACER_TEST_PAUSE_BEFORE_COMMIT="1000")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "raytracer.distributed", CORNELL_OBJ, "-o", out,
+         "--scheduler", cluster.scheduler_address, *map(str, flags)],
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    assert process.stderr.readline().startswith("RAYTRACER_TEST_PAUSE_BEFORE_COMMIT: pausing")
+    process.send_signal(signum)
+    rest = process.stderr.read()
+    assert process.wait(timeout=60) == 0, rest
+    assert rest == f"interrupted after {out} was written; it holds the complete new image\n"
+    assert out.read_bytes() == expected.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cli.png", "out.png"]
+
+
+def test_an_interrupt_before_writing_leaves_the_output_as_it_was(tmp_path, cluster):
+    out = tmp_path / "out.png"
+    out.write_bytes(b"previous")
+    # Reading the scene from standard input... no: a scheduler that never answers keeps
+    # the command waiting before any tile, deterministically.
+    import socket
+
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen()
+        process = subprocess.Popen(
+            [sys.executable, "-m", "raytracer.distributed", CORNELL_OBJ, "-o", out,
+             "--scheduler", f"tcp://127.0.0.1:{silent.getsockname()[1]}"],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        connection, _ = silent.accept()  # the command is connecting: past its checks
+        process.send_signal(signal.SIGTERM)
+        rest = process.stderr.read()
+        assert process.wait(timeout=60) == 130, rest
+        connection.close()
+    assert rest.endswith(f"interrupted; {out} left as it was\n")
+    assert out.read_bytes() == b"previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.png"]

@@ -303,3 +303,26 @@ def test_the_gil_is_released_while_loading_and_rendering(tmp_path):
         "Scene.render released",
         "Scene(path) released",
     ]
+
+
+def test_an_unlit_model_without_a_camera_renders_as_the_command_line_renders_it(tmp_path, run_cli):
+    # No light, no camera: the command line frames the model and lights it with the
+    # default rig; the path API and a Scene read once must do the same, bit for bit.
+    model = tmp_path / "model.obj"
+    model.write_text(
+        "mtllib m.mtl\nusemtl m\n"
+        "v -1 0 0\nv 1 0 0\nv 0 2 0\nv 0 1 1\n"
+        "f 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n"
+    )
+    (tmp_path / "m.mtl").write_text("newmtl m\nKa 1 1 1\nKd 0.2 0.6 0.9\n")
+    out = tmp_path / "cli.exr"
+    result = run_cli("render", model, "-o", out, "-q", "--width", 32, "--height", 24)
+    assert result.returncode == 0, result.stderr
+    for linear in (
+        raytracer.render(model, width=32, height=24),
+        raytracer.Scene(model).render(width=32, height=24),
+    ):
+        mine = tmp_path / "python.exr"
+        raytracer.write_image(linear, mine, "full", 0.0)
+        assert mine.read_bytes() == out.read_bytes()
+        assert linear.max() > 0

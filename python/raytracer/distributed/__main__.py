@@ -29,7 +29,7 @@ EXIT_INTERRUPTED = 130
 
 
 class Interrupted(BaseException):
-    """SIGTERM or SIGHUP, raised like KeyboardInterrupt between two Python steps (so
+    """SIGINT, SIGTERM or SIGHUP, raised like KeyboardInterrupt between two Python steps (so
     never in the middle of the library's atomic write)."""
 
 
@@ -114,7 +114,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     def interrupted(signum: int, frame: object) -> None:
         raise Interrupted()
 
-    for name in ("SIGTERM", "SIGHUP"):
+    # SIGINT too, explicitly: a process started in the background inherits SIGINT
+    # ignored, and Python then installs no KeyboardInterrupt handler of its own (the
+    # `raytracer` binary's handler is installed the same way, whatever it inherits).
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), interrupted)
     try:

@@ -359,7 +359,7 @@ impl Scene {
             .walk_ordered(&query, &mut t_max, |first, count, t_max| {
                 for index in first..first + count {
                     let packet = &self.packets[index as usize];
-                    if let Some((lane, hit)) = packet.intersect_any_kind(ray, &lanes, *t_max) {
+                    if let Some((lane, hit)) = packet.intersect_any_kind(&lanes, *t_max) {
                         *t_max = hit.t;
                         closest = Some((index, lane, hit));
                     }
@@ -383,7 +383,7 @@ impl Scene {
                 for index in first..first + count {
                     let packet = &self.packets[index as usize];
                     let found = if packet.holds_spheres() {
-                        packet.intersect_any_kind(ray, &lanes, *t_max)
+                        packet.intersect_any_kind(&lanes, *t_max)
                     } else {
                         self.nearest_kept_lane(packet, &lanes, *t_max)
                     };
@@ -511,7 +511,7 @@ impl Scene {
             .walk_any(&query, &mut t_max, |first, count, t_max| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
-                    .any(|packet| packet.occludes_any_kind(ray, &lanes, *t_max))
+                    .any(|packet| packet.occludes_any_kind(&lanes, *t_max))
             })
     }
 
@@ -528,7 +528,7 @@ impl Scene {
                     .iter()
                     .any(|packet| {
                         if packet.holds_spheres() {
-                            return packet.occludes_any_kind(ray, &lanes, *t_max);
+                            return packet.occludes_any_kind(&lanes, *t_max);
                         }
                         let (mut mask, _, u, v) = packet.hits(&lanes, *t_max);
                         while mask != 0 {

@@ -27,7 +27,7 @@ pub const MAX_PRIM: u32 = SPHERE_FLAG - 2;
 /// Up to four triangles, each lane holding one triangle's vertex 0 and two edges, and
 /// the primitive it stands for; or up to four spheres, each lane holding a centre in
 /// `v0` and a radius in `e1`'s x. Unused lanes hold a zero triangle (zero determinant
-/// for every ray), so they never hit. 160 bytes.
+/// for every ray) or a sphere of NaN radius, so they never hit. 160 bytes.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct TrianglePacket {
@@ -80,7 +80,13 @@ impl TrianglePacket {
         let lanes = spheres
             .iter()
             .map(|&(prim, s)| (prim, [s.center, Vec3::new(s.radius, 0.0, 0.0), Vec3::ZERO]));
-        TrianglePacket::from_lanes(lanes, SPHERE_FLAG)
+        let mut packet = TrianglePacket::from_lanes(lanes, SPHERE_FLAG);
+        // A NaN radius makes every test of an unused lane fail, so that the lanes
+        // need no mask (a zero radius would still meet a ray through the origin).
+        for lane in spheres.len()..LANES {
+            packet.e1[0].as_mut_array()[lane] = Float::NAN;
+        }
+        packet
     }
 
     fn from_lanes<I>(values: I, flag: u32) -> TrianglePacket
@@ -149,43 +155,58 @@ impl TrianglePacket {
     /// The nearest hit with `0 < t < t_max` in the packet, as `(lane, hit)`: all
     /// triangle lanes at once, or each sphere in turn.
     #[inline(always)]
-    pub fn intersect_any_kind(
-        &self,
-        ray: &Ray,
-        lanes: &PacketRay,
-        t_max: Float,
-    ) -> Option<(usize, PrimHit)> {
+    pub fn intersect_any_kind(&self, lanes: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
         if !self.holds_spheres() {
             return self.intersect(lanes, t_max);
         }
-        self.intersect_spheres(ray, t_max)
+        self.intersect_spheres(lanes, t_max)
     }
 
     /// Whether any lane is hit with `0 < t < t_max`, whatever the packet holds.
     #[inline(always)]
-    pub fn occludes_any_kind(&self, ray: &Ray, lanes: &PacketRay, t_max: Float) -> bool {
+    pub fn occludes_any_kind(&self, lanes: &PacketRay, t_max: Float) -> bool {
         if !self.holds_spheres() {
             return self.occludes(lanes, t_max);
         }
-        self.intersect_spheres(ray, t_max).is_some()
+        self.sphere_lanes(lanes, t_max).0.any()
     }
 
-    /// Spheres are rare (none in a mesh): tested one by one, in lane order, off the
-    /// hot path.
-    #[inline(never)]
-    fn intersect_spheres(&self, ray: &Ray, t_max: Float) -> Option<(usize, PrimHit)> {
-        let mut nearest = None;
-        let mut t_max = t_max;
-        for lane in 0..LANES {
-            let Some(shape) = self.shape(lane) else {
-                break;
-            };
-            if let Some(hit) = shape.intersect(ray, t_max) {
-                t_max = hit.t;
-                nearest = Some((lane, hit));
-            }
-        }
-        nearest
+    /// The nearest hit with `0 < t < t_max` among the lanes of a sphere packet, as
+    /// `(lane, hit)`: all lanes at once, each computing exactly what
+    /// [`Sphere::intersect`] computes (so the same hits, bit for bit), and the lowest
+    /// lane winning on equal distances, as in a scalar loop over the lanes.
+    #[inline(always)]
+    fn intersect_spheres(&self, ray: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
+        let (valid, t) = self.sphere_lanes(ray, t_max);
+        let lane = nearest_lane(valid.to_bitmask(), &t.to_array())?;
+        Some((
+            lane,
+            PrimHit {
+                t: t.as_array()[lane],
+                u: 0.0,
+                v: 0.0,
+            },
+        ))
+    }
+
+    /// [`Sphere::intersect`] on all lanes: which lanes hit, and their `t`. A negative
+    /// discriminant gives a NaN root and so a NaN `t`, which fails both tests, as
+    /// does the NaN radius of an unused lane.
+    #[inline(always)]
+    fn sphere_lanes(&self, ray: &PacketRay, t_max: Float) -> (f32x4, f32x4) {
+        let [dx, dy, dz] = ray.dir;
+        let ocx = ray.origin[0] - self.v0[0];
+        let ocy = ray.origin[1] - self.v0[1];
+        let ocz = ray.origin[2] - self.v0[2];
+        let b = ocx * dx + ocy * dy + ocz * dz;
+        let (px, py, pz) = (ocx - b * dx, ocy - b * dy, ocz - b * dz);
+        let radius = self.e1[0];
+        let discriminant = radius * radius - (px * px + py * py + pz * pz);
+        let root = discriminant.sqrt();
+        let (near, far) = (-b - root, -b + root);
+        let t = near.simd_gt(f32x4::ZERO).select(near, far);
+        let valid = t.simd_gt(f32x4::ZERO) & t.simd_lt(f32x4::splat(t_max));
+        (valid, t)
     }
 
     /// The nearest hit with `0 < t < t_max` among the lanes of a triangle packet, as
@@ -194,20 +215,8 @@ impl TrianglePacket {
     #[inline(always)]
     pub fn intersect(&self, ray: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
         let (valid, t, u, v) = self.lanes(ray, t_max);
-        let mut mask = valid.to_bitmask();
-        if mask == 0 {
-            return None;
-        }
         let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
-        let mut best = mask.trailing_zeros() as usize;
-        mask &= mask - 1;
-        while mask != 0 {
-            let lane = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            if t[lane] < t[best] {
-                best = lane;
-            }
-        }
+        let best = nearest_lane(valid.to_bitmask(), t)?;
         Some((
             best,
             PrimHit {
@@ -266,6 +275,26 @@ impl TrianglePacket {
             & t.simd_lt(f32x4::splat(t_max));
         (valid, t, u, v)
     }
+}
+
+/// The lane of smallest `t` among the lanes set in `mask`, the lowest one on equal
+/// distances (as a scalar loop keeping only strictly closer hits); `None` for an
+/// empty mask.
+#[inline(always)]
+fn nearest_lane(mut mask: u32, t: &[Float; LANES]) -> Option<usize> {
+    if mask == 0 {
+        return None;
+    }
+    let mut best = mask.trailing_zeros() as usize;
+    mask &= mask - 1;
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        if t[lane] < t[best] {
+            best = lane;
+        }
+    }
+    Some(best)
 }
 
 #[cfg(test)]
@@ -410,13 +439,106 @@ mod sphere_tests {
         assert_eq!(packet.prim(2), None);
         let ray = Ray::new(Vec3::ZERO, Vec3::NEG_Z);
         let (lane, hit) = packet
-            .intersect_any_kind(&ray, &PacketRay::new(&ray), Float::INFINITY)
+            .intersect_any_kind(&PacketRay::new(&ray), Float::INFINITY)
             .unwrap();
         assert_eq!(lane, 1);
         assert_eq!(Some(hit), spheres[1].1.intersect(&ray, Float::INFINITY));
-        assert_eq!(
-            packet.intersect_any_kind(&ray, &PacketRay::new(&ray), 2.0),
-            None
+        assert_eq!(packet.intersect_any_kind(&PacketRay::new(&ray), 2.0), None);
+    }
+
+    /// The scalar kernel over the same spheres in lane order, keeping a hit only when
+    /// strictly closer: what a sphere packet must reproduce bit for bit.
+    fn scalar_nearest(
+        spheres: &[(u32, Sphere)],
+        ray: &Ray,
+        t_max: Float,
+    ) -> Option<(usize, PrimHit)> {
+        let mut t_max = t_max;
+        let mut nearest = None;
+        for (lane, (_, sphere)) in spheres.iter().enumerate() {
+            if let Some(hit) = sphere.intersect(ray, t_max) {
+                t_max = hit.t;
+                nearest = Some((lane, hit));
+            }
+        }
+        nearest
+    }
+
+    #[test]
+    fn sphere_packets_equal_the_scalar_kernel_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+        let coordinate = |rng: &mut rand::rngs::StdRng, scale: Float| {
+            Vec3::new(
+                rng.random_range(-scale..scale),
+                rng.random_range(-scale..scale),
+                rng.random_range(-scale..scale),
+            )
+        };
+        let (mut hits, mut inside) = (0, 0);
+        for case in 0..20_000 {
+            let lanes = 1 + case % LANES;
+            // Some spheres repeated, so that equal distances occur; some around the
+            // origin, where the unused lanes' centres sit.
+            let first = Sphere {
+                center: coordinate(&mut rng, 2.0),
+                radius: rng.random_range(0.1..1.5),
+            };
+            let spheres: Vec<(u32, Sphere)> = (0..lanes)
+                .map(|i| {
+                    let sphere = match i % 3 {
+                        0 => first,
+                        1 => Sphere {
+                            center: coordinate(&mut rng, 2.0),
+                            radius: rng.random_range(0.1..1.5),
+                        },
+                        _ => Sphere {
+                            center: Vec3::ZERO,
+                            radius: rng.random_range(0.01..0.5),
+                        },
+                    };
+                    (i as u32, sphere)
+                })
+                .collect();
+            let packet = TrianglePacket::spheres(&spheres);
+            let origin = if case % 4 == 0 {
+                first.center
+            } else {
+                coordinate(&mut rng, 4.0)
+            };
+            let target = if case % 2 == 0 {
+                Vec3::ZERO
+            } else {
+                coordinate(&mut rng, 2.0)
+            };
+            let Some(dir) = (target - origin).try_normalize() else {
+                continue;
+            };
+            let ray = Ray::new(origin, dir);
+            let t_max = if case % 5 == 0 {
+                rng.random_range(0.1..4.0)
+            } else {
+                Float::INFINITY
+            };
+            let lanes_ray = PacketRay::new(&ray);
+            let expected = scalar_nearest(&spheres, &ray, t_max);
+            let got = packet.intersect_any_kind(&lanes_ray, t_max);
+            assert_eq!(
+                got.map(|(lane, hit)| (lane, hit.t.to_bits())),
+                expected.map(|(lane, hit)| (lane, hit.t.to_bits())),
+                "case {case}: {spheres:?} {ray:?}"
+            );
+            assert_eq!(got, expected);
+            assert_eq!(
+                packet.occludes_any_kind(&lanes_ray, t_max),
+                expected.is_some()
+            );
+            hits += usize::from(got.is_some());
+            inside += usize::from(case % 4 == 0 && got.is_some());
+        }
+        assert!(
+            hits > 5_000 && inside > 1_000,
+            "{hits} hits, {inside} from inside"
         );
     }
 }

@@ -164,10 +164,13 @@ fn render_with<I: Integrator>(
         .map(|(line, row)| {
             let mut rays = RayCounts::default();
             for (pixel, column) in line.iter_mut().zip(tile.x..) {
-                *pixel = sampler.average(column, row, options.width, |x, y, sample| {
-                    rays.primary += 1;
-                    integrator.radiance(scene, &camera.ray(x, y), sample, &mut rays)
-                });
+                *pixel = integrator.pixel(
+                    scene,
+                    &camera,
+                    &sampler,
+                    (column, row, options.width),
+                    &mut rays,
+                );
             }
             row_done(row);
             rays

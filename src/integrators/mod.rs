@@ -14,8 +14,9 @@ pub use debug::{DepthIntegrator, NormalIntegrator};
 pub use path::PathIntegrator;
 pub use whitted::WhittedIntegrator;
 
-use crate::math::{Ray, Vec3};
-use crate::sampler::PixelSample;
+use crate::camera::Camera;
+use crate::math::{Float, Ray, Vec3};
+use crate::sampler::{PixelSample, PixelSampler};
 use crate::scene::Scene;
 use crate::stats::RayCounts;
 
@@ -37,4 +38,23 @@ pub trait Integrator: Sync {
         sample: &mut PixelSample,
         rays: &mut RayCounts,
     ) -> Vec3;
+
+    /// The linear value of pixel (`column`, `row`) of an image `width` pixels wide:
+    /// the mean of [`Integrator::radiance`] over the camera rays `sampler` places in
+    /// it, each counted as a primary ray in `rays`. An integrator may override this to
+    /// trace the pixel's rays together, if it gives each the same value.
+    #[inline]
+    fn pixel(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        sampler: &PixelSampler,
+        (column, row, width): (u32, u32, u32),
+        rays: &mut RayCounts,
+    ) -> Vec3 {
+        sampler.average(column, row, width, |x: Float, y: Float, sample| {
+            rays.primary += 1;
+            self.radiance(scene, &camera.ray(x, y), sample, rays)
+        })
+    }
 }

@@ -20,10 +20,11 @@
 
 use super::Integrator;
 use crate::bsdf::ScatteringParams;
+use crate::camera::Camera;
 use crate::material::Material;
 use crate::math::{Float, Ray, Vec3, saturate_finite};
-use crate::sampler::PixelSample;
-use crate::scene::Scene;
+use crate::sampler::{PixelSample, PixelSampler};
+use crate::scene::{BATCH, Hit, Scene, lanes_of};
 use crate::stats::RayCounts;
 
 /// Depth (in scattering events) from which Russian roulette may end a path, as
@@ -62,6 +63,223 @@ impl PathIntegrator {
     }
 }
 
+/// One path in flight: where it goes next and what it has gathered.
+#[derive(Clone, Debug)]
+struct PathState {
+    /// The ray the path follows next.
+    ray: Ray,
+    sample: PixelSample,
+    radiance: Vec3,
+    throughput: Vec3,
+    /// What the previous bounce knew, for weighing an emitter the path hits.
+    previous_delta: bool,
+    previous_pdf: Float,
+    previous_point: Vec3,
+    eta: Float,
+    /// Path segments traced so far.
+    depth: u32,
+    /// The light a shadow ray is testing: added to `radiance` if it gets through.
+    unoccluded: Vec3,
+}
+
+impl PathState {
+    fn new(ray: Ray, sample: PixelSample) -> PathState {
+        PathState {
+            ray,
+            sample,
+            radiance: Vec3::ZERO,
+            throughput: Vec3::ONE,
+            previous_delta: true,
+            previous_pdf: 0.0,
+            previous_point: ray.origin,
+            eta: 1.0,
+            depth: 0,
+            unoccluded: Vec3::ZERO,
+        }
+    }
+}
+
+/// What one step of a path asks of the caller.
+struct Step {
+    /// A shadow ray towards a sampled light point, and the distance it must clear:
+    /// if nothing blocks it, the state's `unoccluded` light is added.
+    shadow: Option<(Ray, Float)>,
+    /// Whether the path goes on along its new `ray`.
+    alive: bool,
+}
+
+impl PathIntegrator {
+    /// One step of a path: what it gathers where its ray ends (`hit`), then where it
+    /// goes next. Point lights are tested here; the area light's shadow ray is left
+    /// to the caller, so that the shadow rays of many paths can be traced together.
+    #[inline(always)]
+    fn step(
+        &self,
+        scene: &Scene,
+        path: &mut PathState,
+        hit: Option<Hit>,
+        rays: &mut RayCounts,
+    ) -> Step {
+        let done = Step {
+            shadow: None,
+            alive: false,
+        };
+        let ray = path.ray;
+        let Some(hit) = hit else {
+            path.radiance += path.throughput * self.environment;
+            return done;
+        };
+        let material = &scene.materials[hit.material.0 as usize];
+        // A textured material's scattering is made for this hit from the values of
+        // its maps here; an untextured one's was made once, in `new`.
+        let textured = material.maps.as_ref().map(|_| material.at(hit.uv));
+        let emission = textured.map_or(material.emission, |s| s.emission);
+        if hit.front && emission != Vec3::ZERO {
+            let weight = if path.previous_delta {
+                1.0
+            } else {
+                let cos_light = hit.n.dot(-ray.dir);
+                let light_pdf =
+                    scene
+                        .area_lights
+                        .pdf(material.emission, path.previous_point, hit.p, cos_light);
+                power_heuristic(path.previous_pdf, light_pdf)
+            };
+            path.radiance += path.throughput * emission * weight;
+        }
+        if path.depth + 1 >= self.max_depth {
+            return done;
+        }
+        let per_hit;
+        let scattering = match &textured {
+            Some(surface) => {
+                per_hit = ScatteringParams::at(material, surface);
+                &per_hit
+            }
+            None => &self.scattering[hit.material.0 as usize],
+        };
+        let wo = -ray.dir;
+        let sample = &mut path.sample;
+
+        // Next-event estimation: one point on an area light, and every point light.
+        let u_pick = sample.next_1d();
+        let u_light = sample.next_2d();
+        let mut shadow = None;
+        if scattering.has_smooth_lobes() {
+            if let Some(light) = scene.area_lights.sample(hit.p, u_pick, u_light) {
+                let f = scattering.eval(wo, light.direction, hit.ns, hit.n);
+                if f != Vec3::ZERO {
+                    let (shadow_ray, distance) = hit.spawn_ray_to(light.point);
+                    rays.shadow += 1;
+                    let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n);
+                    let weight = power_heuristic(light.pdf, bsdf_pdf);
+                    path.unoccluded = path.throughput
+                        * f
+                        * light.radiance
+                        * (light.direction.dot(hit.ns) * weight / light.pdf);
+                    // The light's own surface must not block the ray to it.
+                    shadow = Some((shadow_ray, distance * (1.0 - 1e-3)));
+                }
+            }
+            for light in &scene.lights {
+                let to_light = light.position - hit.p;
+                let distance_squared = to_light.length_squared();
+                let direction = to_light / distance_squared.sqrt();
+                let f = scattering.eval(wo, direction, hit.ns, hit.n);
+                if f == Vec3::ZERO || !distance_squared.is_normal() {
+                    continue;
+                }
+                let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+                rays.shadow += 1;
+                if !scene.occluded(&shadow_ray, distance) {
+                    path.radiance += path.throughput
+                        * f
+                        * light.intensity
+                        * (direction.dot(hit.ns) / distance_squared);
+                }
+            }
+        }
+
+        // Scattering: where the path goes next.
+        let u_lobe = sample.next_1d();
+        let u_direction = sample.next_2d();
+        let Some(scattered) = scattering.sample(wo, hit.ns, hit.n, hit.front, u_lobe, u_direction)
+        else {
+            return Step {
+                shadow,
+                alive: false,
+            };
+        };
+        path.throughput *= scattered.weight;
+        path.eta *= scattered.eta;
+        path.previous_delta = scattered.delta;
+        path.previous_pdf = scattered.pdf;
+        path.previous_point = hit.p;
+        path.ray = hit.spawn_ray(scattered.wi);
+        rays.scattered += 1;
+        path.depth += 1;
+
+        let u_survive = sample.next_1d();
+        let largest = path.throughput.max_element();
+        // Zero (nothing more to carry) or NaN.
+        let mut alive = !(largest.is_nan() || largest <= 0.0);
+        if alive && path.depth >= RUSSIAN_ROULETTE_DEPTH {
+            let keep = (largest * path.eta * path.eta).min(0.95);
+            if u_survive >= keep {
+                alive = false;
+            } else {
+                path.throughput /= keep;
+            }
+        }
+        Step { shadow, alive }
+    }
+
+    /// Traces the paths `paths[..count]` to their ends together: each step's rays,
+    /// then its shadow rays, as one batch.
+    fn trace_batch(
+        &self,
+        scene: &Scene,
+        paths: &mut [PathState; BATCH],
+        count: usize,
+        rays: &mut RayCounts,
+    ) {
+        let mut alive = if count >= BATCH {
+            u32::MAX >> (32 - BATCH)
+        } else {
+            (1u32 << count) - 1
+        };
+        let mut batch_rays = [paths[0].ray; BATCH];
+        let mut hits = [None; BATCH];
+        let mut shadow_rays = [paths[0].ray; BATCH];
+        let mut shadow_t = [0.0; BATCH];
+        while alive != 0 {
+            for lane in lanes_of(alive) {
+                batch_rays[lane] = paths[lane].ray;
+            }
+            scene.intersect_batch(&batch_rays, alive, &mut hits);
+            let mut shadowed = 0;
+            for lane in lanes_of(alive) {
+                let step = self.step(scene, &mut paths[lane], hits[lane], rays);
+                if let Some((ray, t)) = step.shadow {
+                    shadow_rays[lane] = ray;
+                    shadow_t[lane] = t;
+                    shadowed |= 1 << lane;
+                }
+                if !step.alive {
+                    alive &= !(1 << lane);
+                }
+            }
+            if shadowed != 0 {
+                let blocked = scene.occluded_batch(&shadow_rays, &shadow_t, shadowed);
+                for lane in lanes_of(shadowed & !blocked) {
+                    let path = &mut paths[lane];
+                    path.radiance += path.unoccluded;
+                }
+            }
+        }
+    }
+}
+
 impl Integrator for PathIntegrator {
     /// Sample dimensions one path draws at most.
     fn dimensions(&self) -> u32 {
@@ -76,122 +294,54 @@ impl Integrator for PathIntegrator {
         sample: &mut PixelSample,
         rays: &mut RayCounts,
     ) -> Vec3 {
-        let mut ray = *ray;
-        let mut radiance = Vec3::ZERO;
-        let mut throughput = Vec3::ONE;
-        // What the previous bounce knew, for weighing an emitter the path hits.
-        let mut previous_delta = true;
-        let mut previous_pdf = 0.0;
-        let mut previous_point = ray.origin;
-        let mut eta = 1.0;
-        let mut depth = 0;
+        let mut path = PathState::new(*ray, sample.clone());
         loop {
-            let Some(hit) = scene.intersect(&ray) else {
-                radiance += throughput * self.environment;
-                break;
-            };
-            let material = &scene.materials[hit.material.0 as usize];
-            // A textured material's scattering is made for this hit from the values
-            // of its maps here; an untextured one's was made once, in `new`.
-            let textured = material.maps.as_ref().map(|_| material.at(hit.uv));
-            let emission = textured.map_or(material.emission, |s| s.emission);
-            if hit.front && emission != Vec3::ZERO {
-                let weight = if previous_delta {
-                    1.0
-                } else {
-                    let cos_light = hit.n.dot(-ray.dir);
-                    let light_pdf =
-                        scene
-                            .area_lights
-                            .pdf(material.emission, previous_point, hit.p, cos_light);
-                    power_heuristic(previous_pdf, light_pdf)
-                };
-                radiance += throughput * emission * weight;
+            let hit = scene.intersect(&path.ray);
+            let step = self.step(scene, &mut path, hit, rays);
+            if let Some((shadow_ray, t)) = step.shadow
+                && !scene.occluded(&shadow_ray, t)
+            {
+                path.radiance += path.unoccluded;
             }
-            if depth + 1 >= self.max_depth {
+            if !step.alive {
                 break;
-            }
-            let per_hit;
-            let scattering = match &textured {
-                Some(surface) => {
-                    per_hit = ScatteringParams::at(material, surface);
-                    &per_hit
-                }
-                None => &self.scattering[hit.material.0 as usize],
-            };
-            let wo = -ray.dir;
-
-            // Next-event estimation: one point on an area light, and every point light.
-            let u_pick = sample.next_1d();
-            let u_light = sample.next_2d();
-            if scattering.has_smooth_lobes() {
-                if let Some(light) = scene.area_lights.sample(hit.p, u_pick, u_light) {
-                    let f = scattering.eval(wo, light.direction, hit.ns, hit.n);
-                    if f != Vec3::ZERO {
-                        let (shadow_ray, distance) = hit.spawn_ray_to(light.point);
-                        rays.shadow += 1;
-                        // The light's own surface must not block the ray to it.
-                        if !scene.occluded(&shadow_ray, distance * (1.0 - 1e-3)) {
-                            let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n);
-                            let weight = power_heuristic(light.pdf, bsdf_pdf);
-                            radiance += throughput
-                                * f
-                                * light.radiance
-                                * (light.direction.dot(hit.ns) * weight / light.pdf);
-                        }
-                    }
-                }
-                for light in &scene.lights {
-                    let to_light = light.position - hit.p;
-                    let distance_squared = to_light.length_squared();
-                    let direction = to_light / distance_squared.sqrt();
-                    let f = scattering.eval(wo, direction, hit.ns, hit.n);
-                    if f == Vec3::ZERO || !distance_squared.is_normal() {
-                        continue;
-                    }
-                    let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
-                    rays.shadow += 1;
-                    if !scene.occluded(&shadow_ray, distance) {
-                        radiance += throughput
-                            * f
-                            * light.intensity
-                            * (direction.dot(hit.ns) / distance_squared);
-                    }
-                }
-            }
-
-            // Scattering: where the path goes next.
-            let u_lobe = sample.next_1d();
-            let u_direction = sample.next_2d();
-            let Some(scattered) =
-                scattering.sample(wo, hit.ns, hit.n, hit.front, u_lobe, u_direction)
-            else {
-                break;
-            };
-            throughput *= scattered.weight;
-            eta *= scattered.eta;
-            previous_delta = scattered.delta;
-            previous_pdf = scattered.pdf;
-            previous_point = hit.p;
-            ray = hit.spawn_ray(scattered.wi);
-            rays.scattered += 1;
-            depth += 1;
-
-            let u_survive = sample.next_1d();
-            let largest = throughput.max_element();
-            // Zero (nothing more to carry) or NaN.
-            if largest.is_nan() || largest <= 0.0 {
-                break;
-            }
-            if depth >= RUSSIAN_ROULETTE_DEPTH {
-                let keep = (largest * eta * eta).min(0.95);
-                if u_survive >= keep {
-                    break;
-                }
-                throughput /= keep;
             }
         }
-        saturate_finite(radiance)
+        *sample = path.sample;
+        saturate_finite(path.radiance)
+    }
+
+    /// The pixel's paths, [`BATCH`] at a time, each traced as [`Self::radiance`]
+    /// traces it.
+    fn pixel(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        sampler: &PixelSampler,
+        (column, row, width): (u32, u32, u32),
+        rays: &mut RayCounts,
+    ) -> Vec3 {
+        let count = sampler.count();
+        let pixel_index = row as u64 * width as u64 + column as u64;
+        let (x0, y0) = (column as Float, row as Float);
+        let mut sum = Vec3::ZERO;
+        let mut first = 0;
+        while first < count {
+            let size = (count - first).min(BATCH as u32) as usize;
+            let mut paths: [PathState; BATCH] = std::array::from_fn(|i| {
+                let sample = first + (i as u32).min(size as u32 - 1);
+                let offset = sampler.offset(pixel_index, sample);
+                let ray = camera.ray(x0 + offset.x, y0 + offset.y);
+                PathState::new(ray, sampler.sample(pixel_index, sample))
+            });
+            rays.primary += size as u64;
+            self.trace_batch(scene, &mut paths, size, rays);
+            for path in &paths[..size] {
+                sum += saturate_finite(path.radiance);
+            }
+            first += size as u32;
+        }
+        sum / count as Float
     }
 }
 

@@ -2,8 +2,10 @@
 //! order with their shading data, materials and lights ([`Scene::build`]), the closest
 //! and any-hit queries rays make, and a summary of a description ([`SceneSummary`]).
 
+mod batch;
 mod info;
 
+pub use batch::{BATCH, lanes_of};
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
 
 use std::mem::MaybeUninit;

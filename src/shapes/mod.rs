@@ -10,6 +10,7 @@ mod triangle;
 
 pub use packet::{LANES, MAX_PRIM, PacketRay, TrianglePacket};
 pub use sphere::Sphere;
+pub(crate) use triangle::EDGE_SLACK;
 pub use triangle::Triangle;
 
 use crate::math::{Aabb, Float, Ray};

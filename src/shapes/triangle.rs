@@ -5,7 +5,7 @@ use crate::math::{Aabb, Float, Ray, Vec3};
 /// is not watertight: without this slack a ray through a shared edge can slip between
 /// the two triangles in `f32`. Widening every triangle by ~1e-6 of its size closes such
 /// cracks; a double hit on an edge is harmless.
-pub(super) const EDGE_SLACK: Float = 1e-6;
+pub(crate) const EDGE_SLACK: Float = 1e-6;
 
 /// A triangle stored for the Möller–Trumbore kernel: one vertex and two edges.
 #[derive(Clone, Copy, Debug, PartialEq)]

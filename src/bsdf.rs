@@ -187,7 +187,23 @@ impl ScatteringParams {
             })
         };
         if u_lobe < p_diffuse {
-            smooth(to_world(cosine_hemisphere(u), ns))
+            let wi = to_world(cosine_hemisphere(u), ns);
+            if p_glossy > 0.0 {
+                return smooth(wi);
+            }
+            // Lambertian alone (the common case): `f * cos / pdf` reduces to the
+            // albedo over the lobe's probability.
+            let cos_i = wi.dot(ns);
+            if cos_i <= 0.0 || wi.dot(ng) <= 0.0 {
+                return None;
+            }
+            Some(ScatterSample {
+                wi,
+                weight: self.diffuse / p_diffuse,
+                pdf: p_diffuse * cos_i * FRAC_1_PI,
+                delta: false,
+                eta: 1.0,
+            })
         } else if u_lobe < p_diffuse + p_glossy {
             smooth(to_world(phong_lobe(u, self.exponent), reflect(-wo, ns)))
         } else if u_lobe < p_diffuse + p_glossy + p_mirror {

@@ -16,7 +16,7 @@
 //! BSDF, two for the light and one for Russian roulette.
 //!
 //! Every value comes from a hash of the pixel index, the sample index and (for the
-//! further dimensions) the dimension, not from a generator with state, as pbrt's
+//! further dimensions) the dimension's pair, not from a generator with state, as pbrt's
 //! `IndependentSampler` seeds from a hash of the pixel: every pixel is a pure function
 //! of its position, so an image is identical from run to run and for any number of
 //! threads, and a tile rendered alone equals the same pixels of the whole image.
@@ -116,6 +116,7 @@ impl PixelSampler {
             ),
             dimension: 0,
             declared: self.dimensions,
+            pair: 0,
         }
     }
 
@@ -168,10 +169,11 @@ impl PixelSampler {
 
 /// The further dimensions of one camera sample, drawn in order by an integrator.
 ///
-/// Dimension `d` (from 0) is output `d` of a SplitMix64 generator seeded with a hash of
-/// the pixel and sample indices, computed directly from `d` rather than by stepping:
-/// a pure function of (pixel, sample, dimension), however the integrator interleaves
-/// its 1D and 2D draws. Nothing is shared between samples or pixels.
+/// Dimensions `2k` and `2k + 1` (from 0) are two 24-bit fields of output `k` of a
+/// SplitMix64 generator seeded with a hash of the pixel and sample indices, computed
+/// directly from `k` rather than by stepping: a pure function of (pixel, sample,
+/// dimension), however the integrator interleaves its 1D and 2D draws, at one hash
+/// per two dimensions. Nothing is shared between samples or pixels.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PixelSample {
     /// The generator's seed: a hash of the pixel index and the sample index.
@@ -181,6 +183,9 @@ pub struct PixelSample {
     /// How many dimensions the integrator said it draws; drawing more is a bug in
     /// the integrator (debug-asserted), though the values stay well defined.
     declared: u32,
+    /// The output for the pair of dimensions `dimension - 1` and `dimension` when
+    /// `dimension` is odd (drawn with the even one before it).
+    pair: u64,
 }
 
 impl PixelSample {
@@ -192,11 +197,17 @@ impl PixelSample {
             "drew more than the {} dimensions the integrator declared",
             self.declared
         );
-        let key = self
-            .stream
-            .wrapping_add((self.dimension as u64).wrapping_mul(GOLDEN_GAMMA));
+        let bits = if self.dimension & 1 == 0 {
+            let key = self
+                .stream
+                .wrapping_add(u64::from(self.dimension >> 1).wrapping_mul(GOLDEN_GAMMA));
+            self.pair = mix64(key);
+            self.pair >> 40
+        } else {
+            self.pair >> 8
+        };
         self.dimension += 1;
-        unit(mix64(key) >> 40)
+        unit(bits)
     }
 
     /// The next two dimensions: a uniform point in `[0, 1)^2`, exactly the values of

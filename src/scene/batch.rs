@@ -30,8 +30,10 @@ use crate::shapes::{EDGE_SLACK, LANES, PrimHit, Shape, Sphere, Triangle};
 /// Rays per batch: one AVX-512 register of `f32` per coordinate.
 pub const BATCH: usize = 16;
 
-/// At a node met by this many rays or fewer, those rays are traced one by one.
-const FEW_RAYS: u32 = 2;
+/// At a node met by this many rays or fewer, those rays are traced one by one: a
+/// batch tests a node's eight boxes for sixteen lanes at about the cost of one ray's
+/// test, so it pays from two rays on.
+const FEW_RAYS: u32 = 1;
 
 /// Smallest direction component divided by, as in single-ray traversal.
 const MIN_DIR_COMPONENT: Float = 1e-30;
@@ -219,7 +221,8 @@ impl Scene {
             if reached == 0 {
                 continue;
             }
-            if reached.count_ones() <= FEW_RAYS {
+            // A leaf costs the batch little more than one ray: test it whoever is left.
+            if pending.item_count == 0 && reached.count_ones() <= FEW_RAYS {
                 for lane in lanes_of(reached) {
                     hits[lane] = self.intersect(&rays[lane]);
                 }
@@ -323,7 +326,7 @@ impl Scene {
             if open == 0 {
                 continue;
             }
-            if open.count_ones() <= FEW_RAYS {
+            if pending.item_count == 0 && open.count_ones() <= FEW_RAYS {
                 for lane in lanes_of(open) {
                     if self.occluded(&rays[lane], t_max[lane]) {
                         blocked |= 1 << lane;

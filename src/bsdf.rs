@@ -27,6 +27,9 @@ use crate::math::{Float, Vec2, Vec3, reflect};
 pub struct ScatteringParams {
     /// `al0 * Kd`, after the energy scaling.
     diffuse: Vec3,
+    /// `diffuse` over the probability of sampling it: the weight of a direction
+    /// sampled from the Lambertian lobe alone.
+    diffuse_weight: Vec3,
     /// `al0 * Ks`, after the energy scaling.
     glossy: Vec3,
     /// `Ns`, at least 0.
@@ -108,8 +111,14 @@ impl ScatteringParams {
         } else {
             [0.0; 4]
         };
+        let diffuse_weight = if lobe_probability[0] > 0.0 {
+            diffuse / lobe_probability[0]
+        } else {
+            Vec3::ZERO
+        };
         let params = ScatteringParams {
             diffuse,
+            diffuse_weight,
             glossy,
             exponent: ns.max(0.0),
             mirror,
@@ -199,7 +208,7 @@ impl ScatteringParams {
             }
             Some(ScatterSample {
                 wi,
-                weight: self.diffuse / p_diffuse,
+                weight: self.diffuse_weight,
                 pdf: p_diffuse * cos_i * FRAC_1_PI,
                 delta: false,
                 eta: 1.0,

@@ -169,7 +169,11 @@ impl PathIntegrator {
             if let Some(light) = scene.area_lights.sample(hit.p, u_pick, u_light) {
                 let f = scattering.eval(wo, light.direction, hit.ns, hit.n);
                 if f != Vec3::ZERO {
-                    let (shadow_ray, distance) = hit.spawn_ray_to(light.point);
+                    // The light point lies `light.distance` along `light.direction`
+                    // from the hit point: a little less from the offset origin.
+                    let shadow_ray = hit.spawn_unit_ray(light.direction);
+                    let distance =
+                        light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
                     rays.shadow += 1;
                     let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n);
                     let weight = power_heuristic(light.pdf, bsdf_pdf);
@@ -215,7 +219,7 @@ impl PathIntegrator {
         path.previous_delta = scattered.delta;
         path.previous_pdf = scattered.pdf;
         path.previous_point = hit.p;
-        path.ray = hit.spawn_ray(scattered.wi);
+        path.ray = hit.spawn_unit_ray(scattered.wi);
         rays.scattered += 1;
         path.depth += 1;
 

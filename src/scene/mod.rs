@@ -119,6 +119,16 @@ impl Hit {
         Ray::new(self.offset_origin(dir), dir)
     }
 
+    /// [`Hit::spawn_ray`] for a `dir` of unit length already, which is not normalized
+    /// again (path mode's sampled directions are unit by construction).
+    #[inline]
+    pub fn spawn_unit_ray(&self, dir: Vec3) -> Ray {
+        Ray {
+            origin: self.offset_origin(dir),
+            dir,
+        }
+    }
+
     /// A ray from the hit point towards `target` and the distance to it, for shadow
     /// tests against a light at `target`.
     #[inline]

@@ -173,8 +173,9 @@ impl ScatteringParams {
     /// Picks the direction the path continues in: a lobe by `u_lobe`, a direction in
     /// it by `u`. `front` says whether the ray hit the side the surface's geometric
     /// normal (winding, or a sphere's outside) faces, which tells entering glass from
-    /// leaving it. `None` when the material scatters nothing that way.
-    #[inline]
+    /// leaving it. `None` when the material scatters nothing that way. Inlined, so
+    /// that the caller reads the sample from registers.
+    #[inline(always)]
     pub fn sample(
         &self,
         wo: Vec3,

@@ -129,8 +129,10 @@ impl AreaLights {
     }
 
     /// A point on some emitter as seen from `from`: the emitter by `u_pick`, the
-    /// point on it by `u`. `None` when the point faces away from `from`.
-    #[inline]
+    /// point on it by `u`. `None` when the point faces away from `from`. Inlined, so
+    /// that path mode reads the sample from registers rather than from a returned
+    /// struct (whose reload would wait for store forwarding).
+    #[inline(always)]
     pub fn sample(&self, from: Vec3, u_pick: Float, u: Vec2) -> Option<LightSample> {
         if self.emitters.is_empty() {
             return None;

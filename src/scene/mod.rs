@@ -584,6 +584,14 @@ impl Scene {
 
     /// Second phase of a hit: point, normals and material, for the closest hit only.
     fn hit_details(&self, ray: &Ray, packet: u32, lane: usize, hit: PrimHit) -> Hit {
+        self.hit_details_inline(ray, packet, lane, hit)
+    }
+
+    /// [`Scene::hit_details`] inlined into the caller, which then builds the hit in
+    /// place: returned from a call, the hit is stored in pieces and read back whole,
+    /// which stalls the load (no store forwarding) in path mode's batches.
+    #[inline(always)]
+    fn hit_details_inline(&self, ray: &Ray, packet: u32, lane: usize, hit: PrimHit) -> Hit {
         let packet = &self.packets[packet as usize];
         let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
             unreachable!("hits come from used lanes")

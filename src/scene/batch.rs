@@ -290,7 +290,7 @@ impl Scene {
                     u: u[lane],
                     v: v[lane],
                 };
-                self.hit_details(
+                self.hit_details_inline(
                     &rays[lane],
                     id / LANES as u32,
                     (id % LANES as u32) as usize,

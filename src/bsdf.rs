@@ -20,7 +20,7 @@
 use std::f32::consts::{FRAC_1_PI, PI};
 
 use crate::material::{Material, SurfaceValues};
-use crate::math::{Float, Vec2, Vec3, reflect};
+use crate::math::{Float, Vec2, Vec3, reflect, sin_cos};
 
 /// The scattering of one material, derived once per render.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -285,8 +285,8 @@ fn mean(v: Vec3) -> Float {
 #[inline]
 fn cosine_hemisphere(u: Vec2) -> Vec3 {
     let r = u.x.sqrt();
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u.x).max(0.0).sqrt())
+    let (sin, cos) = sin_cos(2.0 * PI * u.y);
+    Vec3::new(r * cos, r * sin, (1.0 - u.x).max(0.0).sqrt())
 }
 
 /// A direction about +z with density proportional to `cos^exponent`.
@@ -294,8 +294,8 @@ fn cosine_hemisphere(u: Vec2) -> Vec3 {
 fn phong_lobe(u: Vec2, exponent: Float) -> Vec3 {
     let cos = u.x.powf(1.0 / (exponent + 1.0));
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(sin * phi.cos(), sin * phi.sin(), cos)
+    let (sin_phi, cos_phi) = sin_cos(2.0 * PI * u.y);
+    Vec3::new(sin * cos_phi, sin * sin_phi, cos)
 }
 
 /// `local` (about +z) turned so that +z becomes the unit vector `axis`, with the

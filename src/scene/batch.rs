@@ -381,3 +381,120 @@ impl Scene {
         blocked & active
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::BvhParams;
+    use crate::formats;
+    use crate::math::Vec3;
+    use rand::{Rng, SeedableRng};
+    use std::fmt::Write;
+    use std::path::Path;
+
+    fn cornell() -> Scene {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/data/path/cornell.obj"
+        ));
+        Scene::build(formats::load_mesh(path).unwrap(), &BvhParams::default())
+    }
+
+    /// A cloud of `n` random triangles and a few spheres in the unit cube: a tree of
+    /// many nodes, where batches split and leave rays to be traced alone.
+    fn soup(n: usize, seed: u64) -> Scene {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut obj = String::new();
+        for i in 0..n {
+            let centre: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            for _ in 0..3 {
+                let [x, y, z] = centre.map(|c| c + rng.random_range(-0.15..0.15));
+                writeln!(obj, "v {x} {y} {z}").unwrap();
+            }
+            writeln!(obj, "f {} {} {}", 3 * i + 1, 3 * i + 2, 3 * i + 3).unwrap();
+        }
+        for _ in 0..5 {
+            let [x, y, z]: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            writeln!(obj, "S {x} {y} {z} {}", rng.random_range(0.05..0.3)).unwrap();
+        }
+        let description = formats::parse_obj(obj.as_bytes(), Path::new("soup.obj")).unwrap();
+        Scene::build(description, &BvhParams::default())
+    }
+
+    fn random_rays(rng: &mut rand::rngs::StdRng, spread: Float) -> [Ray; BATCH] {
+        std::array::from_fn(|_| {
+            let origin = Vec3::new(
+                rng.random_range(-spread..spread),
+                rng.random_range(0.1..1.9),
+                rng.random_range(-spread..spread),
+            );
+            let dir = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            Ray::new(origin, dir)
+        })
+    }
+
+    /// Batches of scattered rays, some lanes inactive, find the hits single rays
+    /// find (the same distances bit for bit, as each lane computes what the scalar
+    /// kernels compute) and block exactly the shadow rays single rays say are blocked.
+    /// Returns how many rays were tested and how many hit.
+    fn check_against_single_rays(scene: &Scene, seed: u64, spread: Float) -> (usize, usize) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let (mut tested, mut hit) = (0, 0);
+        for round in 0..300 {
+            let rays = random_rays(&mut rng, spread);
+            let active: u32 = match round % 4 {
+                0 => 0xFFFF,
+                1 => rng.random_range(0..0x10000),
+                2 => 1 << rng.random_range(0..16),
+                _ => rng.random_range(0..0x10000) & rng.random_range(0..0x10000),
+            };
+            let mut hits = [None; BATCH];
+            scene.intersect_batch(&rays, active, &mut hits);
+            for lane in 0..BATCH {
+                let single = scene.intersect(&rays[lane]);
+                if active >> lane & 1 == 0 {
+                    assert_eq!(hits[lane], None, "inactive lane {lane} was written");
+                    continue;
+                }
+                tested += 1;
+                let got = hits[lane].map(|h| h.t.to_bits());
+                assert_eq!(
+                    got,
+                    single.map(|h| h.t.to_bits()),
+                    "round {round}, lane {lane}"
+                );
+                hit += usize::from(single.is_some());
+            }
+            let t_max: [Float; BATCH] = std::array::from_fn(|_| rng.random_range(0.01..3.0));
+            let blocked = scene.occluded_batch(&rays, &t_max, active);
+            for lane in 0..BATCH {
+                let expected = active >> lane & 1 != 0 && scene.occluded(&rays[lane], t_max[lane]);
+                assert_eq!(
+                    blocked >> lane & 1 != 0,
+                    expected,
+                    "round {round}, lane {lane}"
+                );
+            }
+        }
+        (tested, hit)
+    }
+
+    #[test]
+    fn batches_find_what_single_rays_find_in_a_small_scene() {
+        let (tested, hit) = check_against_single_rays(&cornell(), 1, 0.9);
+        // Inside the box (open at the front) most rays hit something.
+        assert!(tested > 2_000 && hit * 10 > tested * 8, "{hit} of {tested}");
+    }
+
+    #[test]
+    fn batches_find_what_single_rays_find_in_a_deep_tree() {
+        let scene = soup(3_000, 2);
+        assert!(scene.bvh_summary().wide_nodes > 50);
+        let (tested, hit) = check_against_single_rays(&scene, 3, 1.0);
+        assert!(hit > 300 && hit < tested, "{hit} of {tested}");
+    }
+}

@@ -56,9 +56,7 @@ import raytracer
 __all__ = ["render", "scene_files", "tiles"]
 
 #: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
-OPTIONS = (
-    "width", "height", "fov", "look_from", "look_to", "up", "mode", "depth", "spp", "exposure", "seed"
-)
+OPTIONS = raytracer.OPTIONS
 
 GZIP_MAGIC = b"\x1f\x8b"
 

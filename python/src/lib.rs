@@ -311,9 +311,9 @@ struct Loaded {
 
 impl Loaded {
     /// Reads and builds the scene at `path`. Call detached from the interpreter.
-    fn read(path: &Path) -> Result<Loaded, Error> {
+    fn read(path: &Path, access: &formats::FileAccess) -> Result<Loaded, Error> {
         test_gate("RAYTRACER_TEST_GATE_LOAD");
-        let loaded = formats::load(path)?;
+        let loaded = formats::load_with(path, access)?;
         let bounds = loaded.description.bounds();
         let unlit = loaded
             .description
@@ -450,11 +450,16 @@ fn array_film(linear: ArrayView3<'_, f32>) -> PyResult<Film> {
 /// A scene, read and built once, to render many times (another camera, another size,
 /// tiles) without reading it again.
 ///
-/// ``Scene(path)`` reads an OBJ (with its MTL files), PLY or TOML scene file, any of
-/// them optionally gzip-compressed, as ``raytracer render`` does; it raises
-/// :class:`SceneError` (an ``OSError``) when the file cannot be read or is malformed.
-/// A TOML file's camera and render values are kept: they apply to every render unless
-/// an argument replaces them.
+/// ``Scene(path)`` reads an OBJ (with its MTL files and textures), PLY, glTF or TOML
+/// scene file, any of them optionally gzip-compressed, as ``raytracer render`` does;
+/// it raises :class:`SceneError` (an ``OSError``) when the file cannot be read or is
+/// malformed. A TOML file's camera and render values are kept: they apply to every
+/// render unless an argument replaces them.
+///
+/// ``Scene(path, confined_to=folder)`` opens no file outside ``folder``, whatever the
+/// scene names (an absolute path, ``..``, a link): such a library, mesh or buffer is
+/// an error, such a texture a warning, each naming the file and line that named it.
+/// The Dask renderer reads shipped scenes so.
 #[pyclass(name = "Scene", module = "raytracer", frozen)]
 struct PyScene {
     loaded: Arc<Loaded>,
@@ -463,8 +468,20 @@ struct PyScene {
 #[pymethods]
 impl PyScene {
     #[new]
-    fn new(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
-        let loaded = py.detach(|| Loaded::read(&path))?;
+    #[pyo3(signature = (path, *, confined_to=None))]
+    fn new(py: Python<'_>, path: PathBuf, confined_to: Option<PathBuf>) -> PyResult<PyScene> {
+        let loaded = py.detach(|| {
+            let access = match confined_to {
+                Some(folder) => formats::FileAccess::confined_to(&folder).map_err(|error| {
+                    Error::Scene(formats::SceneError::Io {
+                        path: folder,
+                        error,
+                    })
+                })?,
+                None => formats::FileAccess::anywhere(),
+            };
+            Loaded::read(&path, &access)
+        })?;
         Ok(PyScene {
             loaded: Arc::new(loaded),
         })
@@ -605,7 +622,7 @@ fn render<'py>(
         ) {
             flags.resolve()?;
         }
-        let loaded = Loaded::read(&path)?;
+        let loaded = Loaded::read(&path, &formats::FileAccess::anywhere())?;
         let options = loaded.resolve(flags)?;
         let film = loaded.render(&options, tile)?;
         Ok::<_, Error>((film.width, film.height, film_values(&film)))
@@ -699,6 +716,38 @@ fn check_output(path: PathBuf) -> PyResult<&'static str> {
     })
 }
 
+/// The files a load of the scene file at ``path`` asks for, for the Dask renderer: a
+/// dict with ``asked`` (every file the readers tried, in order: the scene file, MTL
+/// libraries, meshes, textures, glTF buffers and images, missing ones too, as
+/// absolute paths), ``refused`` (those outside the scene's folder, when
+/// ``confined``), ``error`` (the load's message, or ``None``) and ``warnings``.
+/// With ``confined``, files outside the scene's folder are not opened.
+#[pyfunction]
+fn _scene_files(py: Python<'_>, path: PathBuf, confined: bool) -> PyResult<Bound<'_, PyDict>> {
+    let (asked, refused, error, warnings) = py.detach(|| {
+        let access = if confined {
+            let folder = std::path::absolute(&path)?
+                .parent()
+                .map(Path::to_path_buf)
+                .unwrap_or_default();
+            formats::FileAccess::confined_to(&folder)?
+        } else {
+            formats::FileAccess::anywhere()
+        };
+        let (error, warnings) = match formats::load_with(&path, &access) {
+            Ok(loaded) => (None, loaded.description.warnings),
+            Err(e) => (Some(e.to_string()), Vec::new()),
+        };
+        Ok::<_, std::io::Error>((access.asked(), access.refused(), error, warnings))
+    })?;
+    let dict = PyDict::new(py);
+    dict.set_item("asked", asked)?;
+    dict.set_item("refused", refused)?;
+    dict.set_item("error", error)?;
+    dict.set_item("warnings", warnings)?;
+    Ok(dict)
+}
+
 /// Whether this process has renamed a complete image over ``path`` (as given to the
 /// writer): what an interrupt handler asks, under the lock every final rename takes,
 /// to say truly whether the output holds the new image.
@@ -718,6 +767,7 @@ fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_png, m)?)?;
     m.add_function(wrap_pyfunction!(check_output, m)?)?;
     m.add_function(wrap_pyfunction!(_committed, m)?)?;
+    m.add_function(wrap_pyfunction!(_scene_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("OPTIONS", PyTuple::new(m.py(), OPTION_NAMES)?)?;
     Ok(())

@@ -17,7 +17,7 @@ use glam::{Mat3, Mat4};
 use gltf::Document;
 
 use super::error::SceneError;
-use super::{LoadedScene, SceneDescription, TriangleDesc, read_file};
+use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
 use crate::material::{Cutout, Material, MaterialId, MaterialMaps, PointLight};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, RenderOptions, Sourced};
@@ -39,8 +39,17 @@ const MAX_SHININESS: Float = 10_000.0;
 /// is too short, or has a mesh whose indices point outside its vertices: each names
 /// the file. A texture that cannot be read is a warning.
 pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
+    load_gltf_with(path, &FileAccess::anywhere())
+}
+
+/// [`load_gltf`], opening the file, its buffers and its images through `access`.
+///
+/// # Errors
+/// As [`load_gltf`]; a buffer `access` refuses is an error, an image a warning.
+pub fn load_gltf_with(path: &Path, access: &FileAccess) -> Result<LoadedScene, SceneError> {
+    super::admit(path, access)?;
     let bytes = read_file(path)?;
-    parse_gltf(&bytes, path)
+    parse_gltf_with(&bytes, path, access)
 }
 
 /// Parses glTF or GLB bytes; `path` names the file in messages and locates the
@@ -49,6 +58,18 @@ pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
 /// # Errors
 /// As [`load_gltf`].
 pub fn parse_gltf(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> {
+    parse_gltf_with(bytes, path, &FileAccess::anywhere())
+}
+
+/// [`parse_gltf`], opening buffers and images through `access`.
+///
+/// # Errors
+/// As [`load_gltf_with`].
+pub fn parse_gltf_with(
+    bytes: &[u8],
+    path: &Path,
+    access: &FileAccess,
+) -> Result<LoadedScene, SceneError> {
     let fail = |message: String| SceneError::Gltf {
         path: path.to_path_buf(),
         message,
@@ -56,9 +77,10 @@ pub fn parse_gltf(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> 
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice(bytes).map_err(|e| fail(format!("not a valid glTF file: {e}")))?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let buffers = read_buffers(&document, blob, &folder).map_err(fail)?;
+    let buffers = read_buffers(&document, blob, &folder, access).map_err(fail)?;
     let mut reader = Reader {
         path,
+        access,
         folder,
         document: &document,
         buffers,
@@ -86,6 +108,7 @@ fn read_buffers(
     document: &Document,
     mut blob: Option<Vec<u8>>,
     folder: &Path,
+    access: &FileAccess,
 ) -> Result<Vec<Vec<u8>>, String> {
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
@@ -94,7 +117,7 @@ fn read_buffers(
             gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 format!("buffer {index} refers to the binary chunk, and there is none")
             })?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, folder)
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, folder, access)
                 .map_err(|reason| format!("buffer {index} ('{}'): {reason}", shorten(uri)))?,
         };
         if data.len() < buffer.length() {
@@ -111,7 +134,7 @@ fn read_buffers(
 
 /// The bytes a URI names: a base64 data URI, or a file relative to `folder`
 /// (percent-encoded, as URIs are).
-fn read_uri(uri: &str, folder: &Path) -> Result<Vec<u8>, String> {
+fn read_uri(uri: &str, folder: &Path, access: &FileAccess) -> Result<Vec<u8>, String> {
     if let Some(data) = uri.strip_prefix("data:") {
         let (_, payload) = data
             .split_once(";base64,")
@@ -119,7 +142,11 @@ fn read_uri(uri: &str, folder: &Path) -> Result<Vec<u8>, String> {
         return decode_base64(payload).ok_or_else(|| "malformed base64 data".into());
     }
     let file = file_of_uri(uri)?;
-    std::fs::read(folder.join(&file)).map_err(|e| format!("cannot read {}: {e}", file.display()))
+    let path = folder.join(&file);
+    access
+        .admit(&path)
+        .and_then(|()| std::fs::read(&path))
+        .map_err(|e| format!("cannot read {}: {e}", file.display()))
 }
 
 /// The relative path a (non-data) URI names.
@@ -200,6 +227,8 @@ fn decode_base64(text: &str) -> Option<Vec<u8>> {
 
 struct Reader<'a> {
     path: &'a Path,
+    /// Where images may be read from.
+    access: &'a FileAccess,
     folder: PathBuf,
     document: &'a Document,
     buffers: Vec<Vec<u8>>,
@@ -632,14 +661,18 @@ impl Reader<'_> {
                     .map_err(|e| format!("cannot decode: {e}"))
             }
             gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                let bytes = read_uri(uri, &self.folder)?;
+                let bytes = read_uri(uri, &self.folder, self.access)?;
                 Texture::decode(&bytes, &name)
                     .map(Arc::new)
                     .map_err(|e| format!("cannot decode: {e}"))
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let file = file_of_uri(uri)?;
-                load_texture(&self.folder.join(&file))
+                let path = self.folder.join(&file);
+                self.access
+                    .admit(&path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|()| load_texture(&path))
                     .map_err(|e| format!("cannot read texture '{}': {e}", file.display()))
             }
         }

@@ -328,3 +328,22 @@ def test_an_unlit_model_without_a_camera_renders_as_the_command_line_renders_it(
         raytracer.write_image(linear, mine, "full", 0.0)
         assert mine.read_bytes() == out.read_bytes()
         assert linear.max() > 0
+
+
+def test_a_scene_confined_to_a_folder_opens_nothing_outside_it(tmp_path):
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    (tmp_path / "m.mtl").write_text("newmtl m\nKd 1 0 0\n")
+    obj = folder / "a.obj"
+    obj.write_text("mtllib ../m.mtl\nv 0 0 -1\nv 1 0 -1\nv 0 1 -1\nf 1 2 3\n")
+    assert raytracer.Scene(obj).render(width=4, height=3).shape == (3, 4, 3)
+    with pytest.raises(raytracer.SceneError, match=f"{obj}:1: .*outside the scene's folder {folder}"):
+        raytracer.Scene(obj, confined_to=folder)
+    # A texture outside is a warning, and the surface renders without it.
+    (tmp_path / "t.png").write_bytes(b"not read")
+    (folder / "m.mtl").write_text(f"newmtl m\nKd 1 0 0\nmap_Kd {tmp_path / 't.png'}\n")
+    obj.write_text("mtllib m.mtl\nv 0 0 -1\nv 1 0 -1\nv 0 1 -1\nusemtl m\nf 1 2 3\n")
+    warnings = raytracer.Scene(obj, confined_to=folder).warnings
+    assert any(f"{folder / 'm.mtl'}:3: cannot read texture" in w and "outside the scene's folder" in w for w in warnings)
+    with pytest.raises(raytracer.SceneError, match="missing"):
+        raytracer.Scene(obj, confined_to=tmp_path / "missing")

@@ -147,12 +147,12 @@ def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_p
     assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
     # Once done, no worker keeps the scene or its copy of the files.
     assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
-    # A mesh in another folder, compressed.
-    meshes = tmp_path / "meshes"
+    # A mesh in a folder of its own, compressed.
+    meshes = cornell_copy / "meshes"
     meshes.mkdir()
     (meshes / "box.obj.gz").write_bytes(gzip.compress((cornell_copy / "scene.obj").read_bytes()))
     (meshes / "CornellBox-Sphere.mtl").write_bytes((cornell_copy / "CornellBox-Sphere.mtl").read_bytes())
-    scene.write_text(scene.read_text().replace('file = "scene.obj"', 'file = "../meshes/box.obj.gz"'))
+    scene.write_text(scene.read_text().replace('file = "scene.obj"', 'file = "meshes/box.obj.gz"'))
     assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
     # Errors name the client's files, not the workers' copies.
     (meshes / "CornellBox-Sphere.mtl").write_text("newmtl x\nKd 1 one 1\n")
@@ -161,10 +161,57 @@ def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_p
     with pytest.raises(raytracer.SceneError) as remote:
         rd.render(scene, client, ship=True)
     assert str(remote.value) == str(local.value)
-    # A file named by an absolute path would be read on the worker, not shipped.
-    scene.write_text(f'[[mesh]]\nfile = "{meshes / "box.obj.gz"}"\n')
-    with pytest.raises(ValueError, match="by an absolute path"):
-        rd.render(scene, client, ship=True)
+
+
+def write_textured_quad(folder, texture_name):
+    """A quad with a 2x2 checker texture (four colours) named `texture_name` in its MTL
+    file, lit by a point light, in `folder`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "quad.obj").write_text(
+        "mtllib quad.mtl\nv -1 -1 -2\nv 1 -1 -2\nv 1 1 -2\nv -1 1 -2\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl checker\nf 1/1 2/2 3/3 4/4\nP 0 0 0 1 1 1\n"
+    )
+    (folder / "quad.mtl").write_text(f"newmtl checker\nKd 1 1 1\nmap_Kd {texture_name}\n")
+    return folder / "quad.obj"
+
+
+def checker(path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    colours = [[(255, 0, 0), (0, 255, 0)], [(0, 0, 255), (255, 255, 0)]]
+    raytracer.write_png(np.array(colours, dtype=np.uint8), path)
+
+
+def test_shipped_scenes_take_their_textures_and_nothing_outside_their_folder(client, tmp_path):
+    options = dict(width=16, height=12, fov=90)
+    inside = tmp_path / "inside"
+    checker(inside / "textures" / "checker.png")
+    obj = write_textured_quad(inside, "textures/checker.png")
+    expected = raytracer.render(obj, **options)
+    assert len(np.unique(expected.reshape(-1, 3), axis=0)) >= 4, "the texture shows"
+    assert rd.scene_files(obj) == [str(obj), str(inside / "quad.mtl"), str(inside / "textures" / "checker.png")]
+    assert np.array_equal(bits(rd.render(obj, client, ship=True, **options)), bits(expected))
+    # Outside the scene's folder: by `..`, by an absolute path, a mesh, a library.
+    checker(tmp_path / "elsewhere" / "checker.png")
+    outside = tmp_path / "outside"
+    cases = {
+        "../elsewhere/checker.png": "quad.mtl:3",
+        str(tmp_path / "elsewhere" / "checker.png"): "quad.mtl:3",
+    }
+    for name, line in cases.items():
+        obj = write_textured_quad(outside, name)
+        assert raytracer.render(obj, **options).shape == (12, 16, 3)
+        with pytest.raises(ValueError) as error:
+            rd.render(obj, client, ship=True, **options)
+        message = str(error.value)
+        assert f"it reads {tmp_path / 'elsewhere' / 'checker.png'}, outside its folder {outside}" in message
+        assert line in message, message
+    toml = outside / "s.toml"
+    toml.write_text('[[mesh]]\nfile = "../inside/quad.obj"\n')
+    with pytest.raises(ValueError, match=f"it reads {inside / 'quad.obj'}, outside its folder"):
+        rd.render(toml, client, ship=True)
+    (outside / "quad.obj").write_text("mtllib ../inside/quad.mtl\nv 0 0 0\n")
+    with pytest.raises(ValueError, match="quad.obj:1: cannot read material library"):
+        rd.render(outside / "quad.obj", client, ship=True)
 
 
 def test_a_lost_workers_tiles_are_recomputed(tmp_path, monkeypatch):

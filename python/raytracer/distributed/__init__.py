@@ -14,9 +14,10 @@ the same scene and options. How it works:
    and their MTL libraries) and asks each worker to hash its copies. If all agree the
    workers read the path; otherwise the client *ships* the scene: it reads those files
    and scatters their bytes to every worker, which writes them to a temporary folder
-   (same relative layout) and reads the scene from there. ``ship=True`` or
-   ``ship=False`` skips the check. A shipped scene must name its files by relative
-   paths; the check covers the workers connected when the render starts.
+   (same relative layout) and reads the scene from there, opening no file outside
+   it. ``ship=True`` or ``ship=False`` skips the check. Only files inside the scene's
+   folder are shipped: a scene that reads a file elsewhere (an absolute path, ``..``)
+   cannot be shipped. The check covers the workers connected when the render starts.
 2. **The options** are resolved on a worker, exactly as :func:`raytracer.render`
    resolves them (arguments over the TOML file's values over the defaults).
 3. **Tiles** of ``tile_size`` x ``tile_size`` pixels (narrower at the right and bottom
@@ -39,7 +40,6 @@ environment limits them. One worker thread per process (``--nthreads 1``) is eno
 
 from __future__ import annotations
 
-import gzip
 import hashlib
 import os
 import shutil
@@ -58,7 +58,6 @@ __all__ = ["render", "scene_files", "tiles"]
 #: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
 OPTIONS = raytracer.OPTIONS
 
-GZIP_MAGIC = b"\x1f\x8b"
 
 
 def render(
@@ -170,96 +169,16 @@ def tiles(width: int, height: int, size: int) -> "list[tuple[int, int, int, int]
 
 def scene_files(scene: "str | os.PathLike[str]") -> "list[str]":
     """The files a render of ``scene`` reads, as absolute normalized paths, the scene
-    file first: an OBJ file's ``mtllib`` libraries, a TOML file's ``[[mesh]] file``
-    meshes with their own libraries. A PLY file reads nothing else. References are
-    resolved as the library does, relative to the folder of the file naming them.
+    file first: an OBJ file's MTL libraries and their textures, a TOML file's meshes
+    with what they name, a glTF file's buffers and images. Files looked for and not
+    found are among them. The library's own readers tell (the scene is loaded).
 
-    A file that cannot be read or parsed names nothing here: reading the scene reports
-    it. Raises ``OSError`` when the scene file itself cannot be read.
+    Raises ``OSError`` when the scene file itself cannot be read.
     """
-    return [file for file, _, _ in _references(os.path.normpath(os.path.abspath(os.fspath(scene))))]
-
-
-def _references(scene: str) -> "list[tuple[str, Optional[str], Optional[str]]]":
-    """``(file, naming, name)`` for the scene file (``naming`` and ``name`` ``None``)
-    and every file it reads, named ``name`` in the file ``naming``; each file once."""
-    _read(scene)  # the scene file must be readable; the others may fail later
-    found: "OrderedDict[str, tuple[Optional[str], Optional[str]]]" = OrderedDict()
-    found[scene] = (None, None)
-
-    def add(naming: str, name: str) -> Optional[str]:
-        file = os.path.normpath(os.path.join(os.path.dirname(naming), name))
-        if file in found:
-            return None
-        found[file] = (naming, name)
-        return file
-
-    kind = _kind(scene)
-    if kind == "obj":
-        for name in _mtllibs(scene):
-            add(scene, name)
-    elif kind == "toml":
-        for name in _meshes(scene):
-            mesh = add(scene, name)
-            if mesh is not None and _kind(mesh) == "obj":
-                for library in _mtllibs(mesh):
-                    add(mesh, library)
-    return [(file, naming, name) for file, (naming, name) in found.items()]
-
-
-def _kind(path: str) -> Optional[str]:
-    """``obj``, ``ply`` or ``toml`` by the name, ignoring case and a final ``.gz``."""
-    name = os.path.basename(path).lower()
-    if name.endswith(".gz"):
-        name = name[:-3]
-    extension = name.rsplit(".", 1)[-1] if "." in name else ""
-    return extension if extension in ("obj", "ply", "toml") else None
-
-
-def _read(path: str) -> bytes:
-    with open(path, "rb") as file:
-        return file.read()
-
-
-def _text(path: str) -> Optional[bytes]:
-    """The file's contents, decompressed as the library does (a ``.gz`` name or the
-    gzip magic bytes); ``None`` if it cannot be read."""
-    try:
-        data = _read(path)
-        if path.lower().endswith(".gz") or data.startswith(GZIP_MAGIC):
-            data = gzip.decompress(data)
-        return data
-    except (OSError, EOFError, ValueError):
-        return None
-
-
-def _mtllibs(obj: str) -> "list[str]":
-    """The names on the ``mtllib`` lines of an OBJ file, as its reader splits them:
-    comments from ``#``, tokens separated by ASCII white space."""
-    text = _text(obj)
-    names: "list[str]" = []
-    for line in (text or b"").split(b"\n"):
-        tokens = line.split(b"#", 1)[0].split()
-        if tokens and tokens[0] == b"mtllib":
-            names.extend(t.decode("utf-8", "replace") for t in tokens[1:])
-    return names
-
-
-def _meshes(toml: str) -> "list[str]":
-    """The ``file`` of each ``[[mesh]]`` of a TOML scene file."""
-    try:
-        import tomllib
-    except ImportError:  # Python < 3.11
-        import tomli as tomllib
-    text = _text(toml)
-    try:
-        document = tomllib.loads((text or b"").decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return []
-    meshes = document.get("mesh", [])
-    if not isinstance(meshes, list):
-        return []
-    return [m["file"] for m in meshes if isinstance(m, dict) and isinstance(m.get("file"), str)]
+    path = os.path.abspath(os.fspath(scene))
+    with open(path, "rb"):
+        pass
+    return [os.fspath(file) for file in raytracer._raytracer._scene_files(path, False)["asked"]]
 
 
 def _digests(files: Iterable[str]) -> "list[Optional[str]]":
@@ -295,25 +214,32 @@ def _workers_share(client: Any, path: str, job: str) -> bool:
 
 
 def _bundle(path: str) -> dict:
-    """The bytes of every file the scene reads, by path relative to the folder that
-    holds them all, to be written out on a worker in the same layout."""
-    references = _references(os.path.normpath(path))
-    for _, naming, name in references:
-        if name is not None and os.path.isabs(name):
-            raise ValueError(
-                f"cannot ship {path} to the workers: {naming} names {name} by an absolute "
-                "path; name it relative to that file, or put the scene on a path the "
-                "workers share (ship=False)"
-            )
-    files = [file for file, _, _ in references]
-    root = os.path.dirname(files[0]) if len(files) == 1 else os.path.commonpath(files)
+    """The bytes of every file the scene reads, by path relative to the scene's
+    folder, to be written out on a worker in the same layout. Only files inside that
+    folder go: a scene that reads one outside it (named by an absolute path, by ``..``,
+    or through a link) is a ``ValueError`` naming it."""
+    folder = os.path.dirname(path)
+    found = raytracer._raytracer._scene_files(path, True)
+    outside = [os.fspath(file) for file in found["refused"] if os.path.exists(file)]
+    if outside:
+        said = [
+            line
+            for line in [found["error"] or "", *found["warnings"]]
+            if "outside the scene's folder" in line
+        ]
+        raise ValueError(
+            f"cannot ship {path} to the workers: it reads {outside[0]}, outside its folder "
+            f"{folder}" + "".join(f"\n{line}" for line in said) + "\nPut the files the "
+            "scene reads in its folder, or the scene on a path the workers share (ship=False)"
+        )
     contents = {}
-    for file in files:
-        try:
-            contents[os.path.relpath(file, root)] = _read(file)
-        except OSError:
-            pass  # reading the scene on the worker reports it, naming the file
-    return {"root": root, "main": os.path.relpath(files[0], root), "files": contents}
+    for file in found["asked"]:
+        if os.path.isfile(file):
+            with open(file, "rb") as f:
+                contents[os.path.relpath(file, folder)] = f.read()
+    # A file that cannot be read is not shipped: reading the scene on the worker
+    # reports it, naming the file.
+    return {"root": folder, "main": os.path.basename(path), "files": contents}
 
 
 # --- On the workers -------------------------------------------------------------------
@@ -350,7 +276,8 @@ class _Job:
             with open(file, "wb") as f:
                 f.write(data)
         try:
-            return raytracer.Scene(os.path.join(self.folder, bundle["main"]))
+            # Confined: the worker reads nothing of its own on the scene's behalf.
+            return raytracer.Scene(os.path.join(self.folder, bundle["main"]), confined_to=self.folder)
         except raytracer.SceneError as error:
             # Name the client's files, not this worker's copies.
             raise raytracer.SceneError(str(error).replace(self.folder, bundle["root"])) from None

@@ -123,7 +123,7 @@ def test_a_scene_the_workers_do_not_see_is_shipped(client, cornell_copy, worker_
     options = dict(width=30, height=20, spp=2)
     expected = raytracer.render(scene, **options)
     # Missing on the workers:
-    assert not rd._workers_share(client, scene, "check-1")
+    assert not rd._workers_share(client, scene, "check-1")[0]
     assert np.array_equal(bits(rd.render(scene, client, tile_size=8, **options)), bits(expected))
     # Different on the workers (another colour in the MTL file), so shipped too:
     for name in ("scene.toml", "scene.obj", "CornellBox-Sphere.mtl"):
@@ -131,22 +131,26 @@ def test_a_scene_the_workers_do_not_see_is_shipped(client, cornell_copy, worker_
     mtl = worker_folder / "CornellBox-Sphere.mtl"
     mtl.write_text(mtl.read_text().replace("Kd 0.3300 0.0650 0.0500", "Kd 0.1 0.7 0.1", 1))
     assert mtl.read_bytes() != (cornell_copy / "CornellBox-Sphere.mtl").read_bytes()
-    assert not rd._workers_share(client, scene, "check-2")
+    assert not rd._workers_share(client, scene, "check-2")[0]
     assert np.array_equal(bits(rd.render(scene, client, tile_size=8, **options)), bits(expected))
     # Told not to ship, the workers read their own files: another image.
     theirs = rd.render(scene, client, ship=False, **options)
     assert not np.array_equal(bits(theirs), bits(expected))
     # The same files: shared.
     mtl.write_bytes((cornell_copy / "CornellBox-Sphere.mtl").read_bytes())
-    assert rd._workers_share(client, scene, "check-3")
+    assert rd._workers_share(client, scene, "check-3")[0]
 
 
 def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_path, cornell_copy):
     scene = cornell_copy / "scene.toml"
     expected = raytracer.render(scene, width=32, height=24)
     assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
-    # Once done, no worker keeps the scene or its copy of the files.
+    # Once forgotten, no worker keeps the scene or its copy of the files.
+    assert sum(client.run(lambda: len(rd._jobs)).values()) >= 1
+    folders = [f for f in client.run(lambda: [j.folder for j in rd._jobs.values()]).values()]
+    rd.forget(client)
     assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
+    assert not any(os.path.exists(folder) for folder in sum(folders, []))
     # A mesh in a folder of its own, compressed.
     meshes = cornell_copy / "meshes"
     meshes.mkdir()
@@ -212,6 +216,29 @@ def test_shipped_scenes_take_their_textures_and_nothing_outside_their_folder(cli
     (outside / "quad.obj").write_text("mtllib ../inside/quad.mtl\nv 0 0 0\n")
     with pytest.raises(ValueError, match="quad.obj:1: cannot read material library"):
         rd.render(outside / "quad.obj", client, ship=True)
+
+
+@pytest.mark.parametrize("ship", [None, True])
+def test_workers_keep_a_scene_until_one_of_its_files_changes(client, cornell_copy, ship):
+    rd.forget(client)
+    scene = cornell_copy / "scene.toml"
+    loads = lambda: sum(client.run(lambda: rd._loads).values())  # noqa: E731
+    before = loads()
+    for look_from in [(0, 0.7, 1.75), (0.3, 0.7, 1.75), (-0.3, 0.9, 1.5)]:
+        options = dict(width=24, height=16, look_from=look_from, look_to=(0, 0.7, 0))
+        expected = raytracer.render(scene, **options)
+        assert np.array_equal(bits(rd.render(scene, client, ship=ship, tile_size=8, **options)), bits(expected))
+    # Read once per worker process that took a task, not once per render.
+    first = loads() - before
+    assert 1 <= first <= 2
+    # A changed MTL file (a new colour) is read again, and shows.
+    mtl = cornell_copy / "CornellBox-Sphere.mtl"
+    mtl.write_text(mtl.read_text().replace("Kd 0.3300 0.0650 0.0500", "Kd 0.1 0.7 0.1", 1))
+    expected = raytracer.render(scene, width=24, height=16)
+    assert np.array_equal(bits(rd.render(scene, client, ship=ship, tile_size=8, width=24, height=16)), bits(expected))
+    assert loads() - before > first
+    rd.forget(client)
+    assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
 
 
 def test_a_lost_workers_tiles_are_recomputed(tmp_path, monkeypatch):

@@ -22,9 +22,11 @@ the same scene and options. How it works:
    resolves them (arguments over the TOML file's values over the defaults).
 3. **Tiles** of ``tile_size`` x ``tile_size`` pixels (narrower at the right and bottom
    edges) are rendered by :meth:`raytracer.Scene.render` with ``tile=``, each worker
-   process reading and building the scene once per call of :func:`render` and keeping
-   it until the render ends. Each tile is copied into the image as soon as it arrives
-   and its result released on the cluster.
+   process reading and building the scene once and keeping it for the next renders of
+   the same files (the last :data:`KEEP_SCENES` scenes, keyed by the digests of every
+   file the scene reads, so that a changed file is read again; :func:`forget` drops
+   them). Each tile is copied into the image as soon as it arrives and its result
+   released on the cluster.
 4. **A lost worker**: Dask recomputes the tiles the worker was rendering, or had
    rendered but not yet sent, on the workers left (up to Dask's
    ``distributed.scheduler.allowed-failures`` times per tile). Tiles are pure
@@ -42,6 +44,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import pickle
 import shutil
 import tempfile
 import threading
@@ -53,7 +56,7 @@ import numpy as np
 
 import raytracer
 
-__all__ = ["render", "scene_files", "tiles"]
+__all__ = ["forget", "render", "scene_files", "tiles"]
 
 #: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
 OPTIONS = raytracer.OPTIONS
@@ -114,18 +117,28 @@ def _render(
     job = f"raytracer-{uuid.uuid4().hex}"
 
     bundle = None
+    # The workers keep a scene between renders under a key that changes whenever a
+    # file it reads does (its identity); a scene read on the workers' own terms
+    # (`ship=False`) has none the client can vouch for, and is read per render.
+    key = job
     try:
         if ship is None:
-            ship = not _workers_share(client, path, job)
+            shared, identity = _workers_share(client, path, job)
+            ship = not shared
+            if shared and identity is not None:
+                key = f"raytracer-path-{identity}"
         if ship:
+            contents = _bundle(path)
+            key = f"raytracer-shipped-{_identity(contents)}"
             # In a list: a dict would be scattered as one future per value.
-            [bundle] = client.scatter([_bundle(path)], broadcast=True, hash=False)
-        info = client.submit(_prepare, job, path, bundle, given, key=f"{job}-options").result()
+            [bundle] = client.scatter([contents], broadcast=True, hash=False)
+            del contents
+        info = client.submit(_prepare, key, path, bundle, given, key=f"{job}-options").result()
         width, height = info["width"], info["height"]
         parts = tiles(width, height, tile_size)
         keys = [f"{job}-tile-{x}-{y}" for (x, y, _, _) in parts]
         futures = client.map(
-            _render_tile, parts, job=job, path=path, bundle=bundle, options=given, key=keys
+            _render_tile, parts, job=key, path=path, bundle=bundle, options=given, key=keys
         )
         where = dict(zip(keys, parts))
         image = np.empty((height, width, 3), dtype=np.float32)
@@ -148,10 +161,17 @@ def _render(
     finally:
         if bundle is not None:
             bundle.release()
-        try:
-            client.run(_forget, job)
-        except Exception:  # noqa: BLE001 - a worker gone or a closed client: nothing to free
-            pass
+        if key == job:
+            try:
+                client.run(_forget, job)
+            except Exception:  # noqa: BLE001 - a worker gone or a closed client: nothing to free
+                pass
+
+
+def forget(client: Any) -> None:
+    """Drops the scenes the workers of ``client`` keep between renders (at most
+    :data:`KEEP_SCENES` per worker process), and their copies of shipped files."""
+    client.run(_forget_all)
 
 
 def tiles(width: int, height: int, size: int) -> "list[tuple[int, int, int, int]]":
@@ -178,7 +198,31 @@ def scene_files(scene: "str | os.PathLike[str]") -> "list[str]":
     path = os.path.abspath(os.fspath(scene))
     with open(path, "rb"):
         pass
-    return [os.fspath(file) for file in raytracer._raytracer._scene_files(path, False)["asked"]]
+    # Loading the scene to learn its files costs what a render's load does: a render
+    # of the same files again (the frames of an animation) looks them up instead.
+    known = _known_files.get(path)
+    if known is not None and known[0] == _signature(known[1]):
+        return list(known[1])
+    files = [os.fspath(file) for file in raytracer._raytracer._scene_files(path, False)["asked"]]
+    _known_files[path] = (_signature(files), files)
+    return list(files)
+
+
+#: The files of the scenes :func:`scene_files` loaded, with their signature then.
+_known_files: "dict[str, tuple[list, list[str]]]" = {}
+
+
+def _signature(files: Iterable[str]) -> list:
+    """Size and modification time of each file (``None`` when missing): a file that
+    changes, appears or disappears changes it."""
+    signature = []
+    for file in files:
+        try:
+            stat = os.stat(file)
+            signature.append((stat.st_size, stat.st_mtime_ns))
+        except OSError:
+            signature.append(None)
+    return signature
 
 
 def _digests(files: Iterable[str]) -> "list[Optional[str]]":
@@ -196,13 +240,14 @@ def _digests(files: Iterable[str]) -> "list[Optional[str]]":
     return digests
 
 
-def _workers_share(client: Any, path: str, job: str) -> bool:
+def _workers_share(client: Any, path: str, job: str) -> "tuple[bool, Optional[str]]":
     """Whether every worker connected now reads the same files at the scene's path as
-    the client. True when the client cannot read the scene: then only the workers can."""
+    the client (true when the client cannot read the scene: then only the workers can),
+    and the identity of those files (``None`` if the client cannot read them)."""
     try:
         files = scene_files(path)
     except OSError:
-        return True
+        return True, None
     local = _digests(files)
     client.wait_for_workers(1)
     workers = list(client.scheduler_info()["workers"])
@@ -210,7 +255,15 @@ def _workers_share(client: Any, path: str, job: str) -> bool:
         client.submit(_digests, files, workers=[w], allow_other_workers=True, key=f"{job}-check-{i}")
         for i, w in enumerate(workers)
     ]
-    return all(remote == local for remote in client.gather(checks))
+    shared = all(remote == local for remote in client.gather(checks))
+    return shared, _identity({"path": path, "files": dict(zip(files, local))})
+
+
+def _identity(value: Any) -> str:
+    """A digest of a scene's files: their names and contents (or their digests)."""
+    digest = hashlib.sha256()
+    digest.update(pickle.dumps(value, protocol=4))
+    return digest.hexdigest()
 
 
 def _bundle(path: str) -> dict:
@@ -246,14 +299,17 @@ def _bundle(path: str) -> dict:
 
 _jobs_lock = threading.Lock()
 _jobs: "OrderedDict[str, _Job]" = OrderedDict()
-#: Renders whose scene a worker process keeps at most, should a client not say that it
-#: is done (a render ended by a lost client): the oldest is dropped.
-KEEP_JOBS = 2
+#: Scenes a worker process keeps: those of the last renders, by the identity of their
+#: files, read again by none of the next renders that read the same files; the oldest
+#: is dropped.
+KEEP_SCENES = 2
+#: How many times this process has read a scene (for the tests).
+_loads = 0
 
 
 class _Job:
-    """One render's scene in a worker process: read once, by the first task that needs
-    it, while the process's other tasks of the same render wait for it."""
+    """A scene in a worker process: read once, by the first task that needs it, while
+    the process's other tasks for the same scene wait for it."""
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
@@ -267,6 +323,8 @@ class _Job:
             return self.scene
 
     def _read(self, path: str, bundle: Optional[dict]) -> raytracer.Scene:
+        global _loads
+        _loads += 1
         if bundle is None:
             return raytracer.Scene(path)
         self.folder = tempfile.mkdtemp(prefix="raytracer-scene-")
@@ -294,7 +352,7 @@ def _job(job: str) -> _Job:
         entry = _jobs.get(job)
         if entry is None:
             entry = _jobs[job] = _Job()
-            while len(_jobs) > KEEP_JOBS:
+            while len(_jobs) > KEEP_SCENES:
                 _jobs.popitem(last=False)[1].close()
         else:
             _jobs.move_to_end(job)
@@ -315,8 +373,18 @@ def _render_tile(tile: tuple, job: str, path: str, bundle: Optional[dict], optio
 
 
 def _forget(job: str) -> None:
-    """Run on every worker when a render ends: drops its scene and shipped files."""
+    """Run on every worker when a render whose scene is not kept ends: drops its scene
+    and shipped files."""
     with _jobs_lock:
         entry = _jobs.pop(job, None)
     if entry is not None:
+        entry.close()
+
+
+def _forget_all() -> None:
+    """Run on every worker by :func:`forget`."""
+    with _jobs_lock:
+        entries = list(_jobs.values())
+        _jobs.clear()
+    for entry in entries:
         entry.close()

@@ -177,6 +177,13 @@ impl TextureMap {
         Vec3::new(r, g, b) * o.gain + Vec3::splat(o.base)
     }
 
+    /// The mean linear RGB of the map's image after `-mm` (not weighted by how much
+    /// of the image any surface shows): what light sampling weighs emitters by.
+    pub fn mean_colour(&self, encoding: Encoding) -> Vec3 {
+        let o = &self.options;
+        self.texture.mean_colour(encoding) * o.gain + Vec3::splat(o.base)
+    }
+
     /// The filtered linear value of the map's channel at `uv`, after `-s`, `-o` and
     /// `-mm`; `alpha_by_default` says whether [`Channel::Auto`] means alpha (for
     /// `map_d`) when the image has an alpha channel.
@@ -257,6 +264,28 @@ impl Texture {
         }
         let [r, g, b] = sum.map(|s| s / count);
         (0.35..0.65).contains(&r) && (0.35..0.65).contains(&g) && b > 0.7
+    }
+
+    /// The mean linear RGB of the image, over a grid of at most 256 x 256 texels
+    /// (every texel of smaller images).
+    pub fn mean_colour(&self, encoding: Encoding) -> Vec3 {
+        let (step_x, step_y) = (
+            self.width.div_ceil(256).max(1),
+            self.height.div_ceil(256).max(1),
+        );
+        let mut sum = [0.0f64; 3];
+        let mut count = 0.0;
+        for y in (0..self.height).step_by(step_y as usize) {
+            for x in (0..self.width).step_by(step_x as usize) {
+                let texel = self.texel(x as usize, y as usize, encoding);
+                for (s, t) in sum.iter_mut().zip(texel) {
+                    *s += f64::from(t);
+                }
+                count += 1.0;
+            }
+        }
+        let [r, g, b] = sum.map(|s| (s / count) as Float);
+        Vec3::new(r, g, b)
     }
 
     /// Bytes the texels take.

@@ -194,7 +194,13 @@ impl Scene {
         if order.is_empty() {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
-        let area_lights = collect_area_lights(&positions, &triangles, &spheres, &materials);
+        let area_lights = collect_area_lights(
+            (&positions, &texcoords),
+            &triangles,
+            &triangle_texcoords,
+            &spheres,
+            &materials,
+        );
         // An unlit scene is warned of (and lit) by `SceneDescription::add_default_light`,
         // which knows the mode.
 
@@ -644,34 +650,40 @@ impl Scene {
 }
 
 /// The emitting triangles and spheres of a description: those whose material has a
-/// `Ke` with a positive mean. Scenes without one (most) cost one pass over the
-/// materials.
+/// `Ke` with a positive mean (and an emission map that is not all black), with their
+/// corners' texture coordinates where the material has an emission map. Scenes without
+/// one (most) cost one pass over the materials.
 fn collect_area_lights(
-    positions: &[Vec3],
+    description: (&[Vec3], &[Vec2]),
     triangles: &[TriangleDesc],
+    triangle_texcoords: &[Option<[u32; 3]>],
     spheres: &[SphereDesc],
     materials: &[Material],
 ) -> AreaLights {
-    let emission = |id: MaterialId| {
-        materials
-            .get(id.0 as usize)
-            .map_or(Vec3::ZERO, |m| m.emission)
-    };
-    let mut lights = AreaLightsBuilder::default();
-    if materials.iter().all(|m| m.emission.max_element() <= 0.0) {
+    let (positions, texcoords) = description;
+    let mut lights = AreaLightsBuilder::new(materials);
+    if !lights.any_emits() {
         return lights.build();
     }
-    for t in triangles {
-        let radiance = emission(t.material);
-        if radiance != Vec3::ZERO {
-            lights.triangle(t.positions.map(|i| positions[i as usize]), radiance);
-        }
+    let mapped = |id: MaterialId| {
+        materials
+            .get(id.0 as usize)
+            .and_then(|m| m.maps.as_ref())
+            .is_some_and(|m| m.emission.is_some())
+    };
+    for (i, t) in triangles.iter().enumerate() {
+        // As `Scene::uv_at` gives them to hits: none (zero) when out of range.
+        let uv = match triangle_texcoords.get(i).copied().flatten() {
+            Some(ids) if mapped(t.material) => match ids.map(|k| texcoords.get(k as usize)) {
+                [Some(&a), Some(&b), Some(&c)] => [a, b, c],
+                _ => [Vec2::ZERO; 3],
+            },
+            _ => [Vec2::ZERO; 3],
+        };
+        lights.triangle(t.positions.map(|i| positions[i as usize]), uv, t.material);
     }
     for s in spheres {
-        let radiance = emission(s.material);
-        if radiance != Vec3::ZERO {
-            lights.sphere(s.center, s.radius, radiance);
-        }
+        lights.sphere(s.center, s.radius, s.material);
     }
     lights.build()
 }

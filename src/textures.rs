@@ -113,6 +113,10 @@ pub struct TextureOptions {
     pub offset: Vec2,
     /// `-s u v w`: multiplies the texture coordinates.
     pub scale: Vec2,
+    /// Cosine and sine of an angle by which the scaled coordinates turn
+    /// counter-clockwise (in `u` right, `v` up) before `offset` is added: glTF's
+    /// `KHR_texture_transform`; MTL has none (angle 0: `(1, 0)`).
+    pub rotation: Vec2,
     /// `-clamp on` (and glTF's samplers).
     pub wrap_u: Wrap,
     /// As `wrap_u`, for `v`.
@@ -132,6 +136,7 @@ impl Default for TextureOptions {
         TextureOptions {
             offset: Vec2::ZERO,
             scale: Vec2::ONE,
+            rotation: Vec2::X,
             wrap_u: Wrap::Repeat,
             wrap_v: Wrap::Repeat,
             base: 0.0,
@@ -139,6 +144,17 @@ impl Default for TextureOptions {
             channel: Channel::Auto,
             bump_multiplier: 1.0,
         }
+    }
+}
+
+impl TextureOptions {
+    /// Where the map reads the image for texture coordinates `uv`: scaled, turned,
+    /// then offset. Without a rotation exactly `uv * scale + offset` (for finite `uv`).
+    #[inline]
+    pub fn transform(&self, uv: Vec2) -> Vec2 {
+        let s = uv * self.scale;
+        let Vec2 { x: c, y: sin } = self.rotation;
+        Vec2::new(c * s.x - sin * s.y, sin * s.x + c * s.y) + self.offset
     }
 }
 
@@ -167,13 +183,13 @@ impl TextureMap {
         }
     }
 
-    /// The filtered linear RGB at `uv`, after `-s`, `-o` and `-mm`.
+    /// The filtered linear RGB at `uv`, after `-s`, the rotation, `-o` and `-mm`.
     #[inline]
     pub fn colour(&self, uv: Vec2, encoding: Encoding) -> Vec3 {
         let o = &self.options;
-        let [r, g, b, _] =
-            self.texture
-                .bilinear(uv * o.scale + o.offset, o.wrap_u, o.wrap_v, encoding);
+        let [r, g, b, _] = self
+            .texture
+            .bilinear(o.transform(uv), o.wrap_u, o.wrap_v, encoding);
         Vec3::new(r, g, b) * o.gain + Vec3::splat(o.base)
     }
 
@@ -190,12 +206,9 @@ impl TextureMap {
     #[inline]
     pub fn scalar(&self, uv: Vec2, alpha_by_default: bool) -> Float {
         let o = &self.options;
-        let [r, g, b, a] = self.texture.bilinear(
-            uv * o.scale + o.offset,
-            o.wrap_u,
-            o.wrap_v,
-            Encoding::Linear,
-        );
+        let [r, g, b, a] =
+            self.texture
+                .bilinear(o.transform(uv), o.wrap_u, o.wrap_v, Encoding::Linear);
         let luminance = || 0.2126 * r + 0.7152 * g + 0.0722 * b;
         let value = match o.channel {
             Channel::Auto if alpha_by_default && self.texture.has_alpha() => a,

@@ -312,3 +312,80 @@ fn a_missing_image_is_a_warning_and_the_surface_renders_without_it() {
         Vec3::new(1.0, 0.5, 0.25)
     );
 }
+
+#[test]
+fn base_colour_and_emissive_textures_follow_khr_texture_transform() {
+    // The fixture with a transform on the checker's base colour texture, and the
+    // checker as the lamp's emissive texture under another one.
+    let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
+    let transform = |offset: [Float; 2], rotation: Float, scale: [Float; 2]| {
+        format!(
+            "\"extensions\": {{\"KHR_texture_transform\": {{\"offset\": [{}, {}], \"rotation\": {rotation}, \"scale\": [{}, {}]}}}}",
+            offset[0], offset[1], scale[0], scale[1]
+        )
+    };
+    let base = ([0.25, 0.5], 0.4, [1.5, -0.75]);
+    let emissive = ([0.0, 1.0], std::f32::consts::FRAC_PI_2, [0.5, 0.5]);
+    let base_texture = "\"baseColorTexture\": {\n     \"index\": 0\n    },";
+    assert!(gltf.contains(base_texture));
+    let changed = gltf
+        .replace(
+            base_texture,
+            &format!(
+                "\"baseColorTexture\": {{\"index\": 0, {}}},",
+                transform(base.0, base.1, base.2)
+            ),
+        )
+        .replace(
+            "\"emissiveFactor\": [",
+            &format!(
+                "\"emissiveTexture\": {{\"index\": 0, {}}}, \"emissiveFactor\": [",
+                transform(emissive.0, emissive.1, emissive.2)
+            ),
+        )
+        .replace(
+            "\"extensionsUsed\": [",
+            "\"extensionsUsed\": [\n  \"KHR_texture_transform\",",
+        );
+    let dir = tempfile::tempdir().unwrap();
+    for file in ["scene.bin", "checker.png"] {
+        std::fs::copy(fixture(file), dir.path().join(file)).unwrap();
+    }
+    std::fs::write(dir.path().join("scene.gltf"), changed).unwrap();
+    let loaded = formats::load(&dir.path().join("scene.gltf")).unwrap();
+    assert!(
+        loaded.description.warnings.is_empty(),
+        "{:?}",
+        loaded.description.warnings
+    );
+    let plain = &formats::load(&fixture("scene.gltf")).unwrap().description;
+    let checker = &plain.materials[0];
+    // glTF's mapping in its own coordinates (v down): scale, turn, offset.
+    let gltf_transform = |uv: Vec2, (offset, angle, scale): ([Float; 2], Float, [Float; 2])| {
+        let g = Vec2::new(uv.x * scale[0], (1.0 - uv.y) * scale[1]);
+        let (sin, cos) = angle.sin_cos();
+        let g = Vec2::new(
+            cos * g.x + sin * g.y + offset[0],
+            -sin * g.x + cos * g.y + offset[1],
+        );
+        Vec2::new(g.x, 1.0 - g.y)
+    };
+    let materials = &loaded.description.materials;
+    let mut differs = false;
+    for uv in [
+        Vec2::new(0.1, 0.2),
+        Vec2::new(0.7, 0.4),
+        Vec2::new(0.45, 0.95),
+    ] {
+        let want = checker.at(gltf_transform(uv, base)).diffuse;
+        let got = materials[0].at(uv).diffuse;
+        assert!(close(got, want), "base colour at {uv}: {got} vs {want}");
+        differs |= !close(got, checker.at(uv).diffuse);
+        // The lamp: emissive factor times the checker (texels only: its factor is 1).
+        let texel = checker.at(gltf_transform(uv, emissive)).diffuse / Vec3::new(1.0, 0.5, 0.25);
+        let want = plain.materials[1].emission * texel;
+        let got = materials[1].at(uv).emission;
+        assert!(close(got, want), "emission at {uv}: {got} vs {want}");
+    }
+    assert!(differs, "the transform changed nothing: a weak test");
+}

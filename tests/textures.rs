@@ -653,3 +653,29 @@ fn light_sampling_sees_textured_emission_as_scattered_rays_do() {
         );
     }
 }
+
+#[test]
+fn hits_interpolate_texture_coordinates_only_on_materials_with_maps() {
+    // Two squares with the same texture coordinates, one above the other: the top
+    // one's material has no map, so its hits skip the interpolation (uv stays zero);
+    // the bottom one's have theirs.
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("t.png"), 1, 1, 1, &[255]);
+    let obj = format!(
+        "{}{}",
+        square(0.5, 1.0, 1.0, "plain", 0),
+        square(0.0, 1.0, 1.0, "mapped", 4)
+    );
+    let path = write_scene(
+        dir.path(),
+        &obj,
+        "newmtl plain\nKd 1 1 1\nnewmtl mapped\nKd 1 1 1\nmap_Kd t.png\n",
+    );
+    let scene = build(&path);
+    let (material, uv) = material_at(&scene, &down(0.5, 0.5));
+    assert_eq!((material.name.as_str(), uv), ("plain", Vec2::ZERO));
+    let below = Ray::new(Vec3::new(0.5, 0.5, 0.25), Vec3::NEG_Z);
+    let (material, uv) = material_at(&scene, &below);
+    assert_eq!(material.name, "mapped");
+    assert!((uv - Vec2::new(0.75, 0.75)).abs().max_element() < 1e-6, "{uv}");
+}

@@ -245,6 +245,31 @@ impl Texture {
             })
     }
 
+    /// A texture of `width` x `height` texels of `channels` floating-point channels
+    /// each (colour channels stored as they would be decoded from a file: sRGB for
+    /// colour maps), row 0 at the top; `None` if the sizes do not match `texels`, are
+    /// zero or exceed [`MAX_TEXTURE_SIZE`].
+    pub fn from_f32(
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        channels: u32,
+        texels: Vec<f32>,
+    ) -> Option<Texture> {
+        let expected = (width as usize)
+            .checked_mul(height as usize)?
+            .checked_mul(channels as usize)?;
+        let fits = width.max(height) <= MAX_TEXTURE_SIZE;
+        (fits && width > 0 && height > 0 && (1..=4).contains(&channels) && texels.len() == expected)
+            .then_some(Texture {
+                path,
+                width,
+                height,
+                channels,
+                texels: Texels::F32(texels),
+            })
+    }
+
     /// Width and height in texels.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
@@ -471,6 +496,17 @@ pub fn srgb_to_linear(value: Float) -> Float {
         value / 12.92
     } else {
         ((value + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB transfer function, the inverse of [`srgb_to_linear`] (also beyond 0..1:
+/// both extend the linear segment below 0 and the power curve above 1).
+#[inline]
+pub fn linear_to_srgb(value: Float) -> Float {
+    if value <= 0.003_130_8 {
+        value * 12.92
+    } else {
+        1.055 * value.powf(1.0 / 2.4) - 0.055
     }
 }
 

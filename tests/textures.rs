@@ -677,5 +677,8 @@ fn hits_interpolate_texture_coordinates_only_on_materials_with_maps() {
     let below = Ray::new(Vec3::new(0.5, 0.5, 0.25), Vec3::NEG_Z);
     let (material, uv) = material_at(&scene, &below);
     assert_eq!(material.name, "mapped");
-    assert!((uv - Vec2::new(0.75, 0.75)).abs().max_element() < 1e-6, "{uv}");
+    assert!(
+        (uv - Vec2::new(0.75, 0.75)).abs().max_element() < 1e-6,
+        "{uv}"
+    );
 }

@@ -480,3 +480,34 @@ fn vertex_colours_multiply_the_base_colour_interpolated_across_each_triangle() {
     );
     assert_eq!(loaded.description.materials.len(), 1);
 }
+
+#[test]
+fn a_texture_transform_that_overflows_is_a_warning_and_is_ignored() {
+    // Offsets and scales near f32's largest value: the converted offset overflows.
+    let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
+    let base_texture = "\"baseColorTexture\": {\n     \"index\": 0\n    },";
+    let changed = gltf.replace(
+        base_texture,
+        "\"baseColorTexture\": {\"index\": 0, \"extensions\": {\"KHR_texture_transform\": {\"offset\": [0, -3e38], \"scale\": [1, -3e38]}}},",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    for file in ["scene.bin", "checker.png"] {
+        std::fs::copy(fixture(file), dir.path().join(file)).unwrap();
+    }
+    let path = dir.path().join("scene.gltf");
+    std::fs::write(&path, changed).unwrap();
+    let loaded = formats::load(&path).unwrap();
+    assert_eq!(
+        loaded.description.warnings,
+        [format!(
+            "{}: material 0: a texture transform that is not finite; ignored",
+            path.display()
+        )]
+    );
+    let plain = formats::load(&fixture("scene.gltf")).unwrap().description;
+    let uv = Vec2::new(0.3, 0.6);
+    assert_eq!(
+        loaded.description.materials[0].at(uv),
+        plain.materials[0].at(uv)
+    );
+}

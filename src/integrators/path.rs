@@ -103,7 +103,7 @@ impl Integrator for PathIntegrator {
                     let light_pdf =
                         scene
                             .area_lights
-                            .pdf(material.emission, previous_point, hit.p, cos_light);
+                            .pdf(hit.material, previous_point, hit.p, cos_light);
                     power_heuristic(previous_pdf, light_pdf)
                 };
                 radiance += throughput * emission * weight;

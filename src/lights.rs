@@ -1,17 +1,24 @@
 //! Area lights for path mode: every triangle or sphere whose material has `Ke != 0`
-//! emits radiance `Ke`. A triangle emits on the side its winding faces (normal
-//! `(p1 - p0) x (p2 - p0)`), a sphere outwards.
+//! emits radiance `Ke`, times its `map_Ke` (glTF: emissive texture) at the point. A
+//! triangle emits on the side its winding faces (normal `(p1 - p0) x (p2 - p0)`), a
+//! sphere outwards.
 //!
-//! One emitter is chosen per light sample in proportion to its power (area times the
-//! mean of `Ke`) through an alias table, then a point uniformly on it: the cost of a
-//! sample does not grow with the number of emitters, and the density of a point per
-//! unit area is the same `mean(Ke) / total power` on every emitter, which is what
+//! One emitter is chosen per light sample in proportion to its power through an alias
+//! table, then a point uniformly on it: the cost of a sample does not grow with the
+//! number of emitters. The power of an emitter is its area times its material's
+//! *weight*: the mean of `Ke`, times the mean of the emission map over its whole image
+//! when there is one (a mostly dark map draws few samples). So the density of a point
+//! per unit area, `weight / total power`, depends on the material alone, which is what
 //! lets a path that hits an emitter by chance weigh itself against light sampling
-//! without knowing which emitter it hit ([`AreaLights::pdf`]).
+//! knowing only the material it hit ([`AreaLights::pdf`]). A sampled point's radiance
+//! is evaluated as a camera ray's hit evaluates it, map and alpha cutout included, so
+//! that light sampling and scattering estimate the same light.
 
 use std::f32::consts::PI;
 
+use crate::material::{Cutout, Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
+use crate::textures::{Encoding, TextureMap};
 
 /// The shape of one emitter.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,7 +41,61 @@ enum EmitterShape {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Emitter {
     shape: EmitterShape,
-    radiance: Vec3,
+    /// Its material, an index into [`AreaLights::materials`].
+    material: u32,
+    /// Texture coordinates of a triangle's corners (zero for spheres, and where the
+    /// triangle has none, as hits see them).
+    uv: [Vec2; 3],
+}
+
+/// What light sampling needs of an emitting material.
+#[derive(Clone, Debug, PartialEq)]
+struct EmitterMaterial {
+    /// `Ke`.
+    emission: Vec3,
+    /// `map_Ke`, which multiplies `Ke`.
+    map: Option<TextureMap>,
+    /// Where the surface is cut out (and emits nothing).
+    cutout: Option<Cutout>,
+    /// Power per unit area: `mean(Ke)` times the map's mean, 0 for materials that do
+    /// not emit.
+    weight: Float,
+}
+
+impl EmitterMaterial {
+    fn new(material: &Material) -> EmitterMaterial {
+        let maps = material.maps.as_deref();
+        let map = maps.and_then(|m| m.emission.clone());
+        let mut weight = mean(material.emission);
+        if let Some(map) = &map {
+            weight *= mean(map.mean_colour(Encoding::Srgb)).max(0.0);
+        }
+        if !(weight > 0.0 && weight.is_finite() && material.emission.is_finite()) {
+            weight = 0.0;
+        }
+        EmitterMaterial {
+            emission: material.emission,
+            map,
+            cutout: maps.and_then(|m| m.cutout.clone()),
+            weight,
+        }
+    }
+
+    /// Radiance at texture coordinates `uv`, exactly as [`Material::at`] gives it to a
+    /// hit; `None` where the surface is cut out.
+    #[inline]
+    fn radiance(&self, uv: Vec2) -> Option<Vec3> {
+        if let Some(cutout) = &self.cutout
+            && !cutout.keeps(uv)
+        {
+            return None;
+        }
+        let mut radiance = self.emission;
+        if let Some(map) = &self.map {
+            radiance *= map.colour(uv, Encoding::Srgb);
+        }
+        Some(radiance)
+    }
 }
 
 /// A point chosen on a light, seen from a shading point.
@@ -56,54 +117,79 @@ pub struct LightSample {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct AreaLights {
     emitters: Vec<Emitter>,
+    /// Every material of the scene, by [`MaterialId`] (weight 0 if it does not emit).
+    materials: Vec<EmitterMaterial>,
     /// Vose's alias table: slot `i` keeps emitter `i` with probability
     /// `threshold[i]`, else takes `alias[i]`.
     threshold: Vec<Float>,
     alias: Vec<u32>,
-    /// Sum over emitters of area times mean radiance.
+    /// Sum over emitters of area times weight.
     total_power: Float,
 }
 
-/// Collects emitters for [`AreaLights::new`].
+/// Collects emitters for [`AreaLights`].
 #[derive(Clone, Debug, Default)]
 pub struct AreaLightsBuilder {
     emitters: Vec<Emitter>,
+    materials: Vec<EmitterMaterial>,
 }
 
 impl AreaLightsBuilder {
-    /// Adds the triangle `p0 p1 p2` emitting `radiance` (ignored if it has no area
-    /// or emits nothing).
-    pub fn triangle(&mut self, [p0, p1, p2]: [Vec3; 3], radiance: Vec3) {
+    /// A builder for primitives of `materials` (indexed by [`MaterialId`]).
+    pub fn new(materials: &[Material]) -> AreaLightsBuilder {
+        AreaLightsBuilder {
+            emitters: Vec::new(),
+            materials: materials.iter().map(EmitterMaterial::new).collect(),
+        }
+    }
+
+    /// Whether some material emits.
+    pub fn any_emits(&self) -> bool {
+        self.materials.iter().any(|m| m.weight > 0.0)
+    }
+
+    /// Adds the triangle `p0 p1 p2` with texture coordinates `uv` at its corners, if
+    /// its material emits and it has an area.
+    pub fn triangle(&mut self, [p0, p1, p2]: [Vec3; 3], uv: [Vec2; 3], material: MaterialId) {
         let (e1, e2) = (p1 - p0, p2 - p0);
         if let Some(normal) = e1.cross(e2).try_normalize() {
-            self.push(EmitterShape::Triangle { p0, e1, e2, normal }, radiance);
+            self.push(EmitterShape::Triangle { p0, e1, e2, normal }, uv, material);
         }
     }
 
-    /// Adds the sphere emitting `radiance` outwards.
-    pub fn sphere(&mut self, center: Vec3, radius: Float, radiance: Vec3) {
+    /// Adds the sphere, emitting outwards, if its material emits.
+    pub fn sphere(&mut self, center: Vec3, radius: Float, material: MaterialId) {
         if radius > 0.0 {
-            self.push(EmitterShape::Sphere { center, radius }, radiance);
+            self.push(
+                EmitterShape::Sphere { center, radius },
+                [Vec2::ZERO; 3],
+                material,
+            );
         }
     }
 
-    fn push(&mut self, shape: EmitterShape, radiance: Vec3) {
-        if mean(radiance) > 0.0 && radiance.is_finite() {
-            self.emitters.push(Emitter { shape, radiance });
+    fn push(&mut self, shape: EmitterShape, uv: [Vec2; 3], material: MaterialId) {
+        let emits = self
+            .materials
+            .get(material.0 as usize)
+            .is_some_and(|m| m.weight > 0.0);
+        if emits {
+            self.emitters.push(Emitter {
+                shape,
+                material: material.0,
+                uv,
+            });
         }
     }
 
     /// The lights, ready to sample.
     pub fn build(self) -> AreaLights {
-        AreaLights::new(self.emitters)
-    }
-}
-
-impl AreaLights {
-    fn new(emitters: Vec<Emitter>) -> AreaLights {
-        let powers: Vec<f64> = emitters
+        let powers: Vec<f64> = self
+            .emitters
             .iter()
-            .map(|e| f64::from(area(&e.shape)) * f64::from(mean(e.radiance)))
+            .map(|e| {
+                f64::from(area(&e.shape)) * f64::from(self.materials[e.material as usize].weight)
+            })
             .collect();
         let total: f64 = powers.iter().sum();
         if !(total > 0.0 && total.is_finite()) {
@@ -111,13 +197,16 @@ impl AreaLights {
         }
         let (threshold, alias) = alias_table(&powers, total);
         AreaLights {
-            emitters,
+            emitters: self.emitters,
+            materials: self.materials,
             threshold,
             alias,
             total_power: total as Float,
         }
     }
+}
 
+impl AreaLights {
     /// Whether there is no emitter.
     pub fn is_empty(&self) -> bool {
         self.emitters.is_empty()
@@ -146,19 +235,22 @@ impl AreaLights {
         } else {
             self.alias[slot] as usize
         }];
-        let (point, normal) = match emitter.shape {
+        let (point, normal, uv) = match emitter.shape {
             EmitterShape::Triangle { p0, e1, e2, normal } => {
                 // Uniform on the triangle (Shirley's square-root mapping).
                 let s = u.x.sqrt();
                 let (b1, b2) = (1.0 - s, u.y * s);
-                (p0 + e1 * b1 + e2 * b2, normal)
+                // Interpolated as `Scene` interpolates a hit's.
+                let [t0, t1, t2] = emitter.uv;
+                let uv = t0 * (1.0 - b1 - b2) + t1 * b1 + t2 * b2;
+                (p0 + e1 * b1 + e2 * b2, normal, uv)
             }
             EmitterShape::Sphere { center, radius } => {
                 let z = 1.0 - 2.0 * u.x;
                 let r = (1.0 - z * z).max(0.0).sqrt();
                 let phi = 2.0 * PI * u.y;
                 let normal = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-                (center + normal * radius, normal)
+                (center + normal * radius, normal, Vec2::ZERO)
             }
         };
         let to_light = point - from;
@@ -173,32 +265,33 @@ impl AreaLights {
         if cos_light <= 0.0 {
             return None;
         }
-        let pdf = self.pdf_area(emitter.radiance) * distance_squared / cos_light;
+        let material = &self.materials[emitter.material as usize];
+        let radiance = material.radiance(uv)?;
+        let pdf = material.weight / self.total_power * distance_squared / cos_light;
         Some(LightSample {
             point,
             direction,
             distance,
-            radiance: emitter.radiance,
+            radiance,
             pdf,
         })
     }
 
     /// The solid-angle density with which [`AreaLights::sample`] from `from` picks
-    /// the point `point` of an emitter of radiance `radiance` whose surface there
+    /// the point `point` of an emitter of material `material` whose surface there
     /// makes the cosine `cos_light` with the direction back to `from`.
     #[inline]
-    pub fn pdf(&self, radiance: Vec3, from: Vec3, point: Vec3, cos_light: Float) -> Float {
+    pub fn pdf(&self, material: MaterialId, from: Vec3, point: Vec3, cos_light: Float) -> Float {
         if cos_light <= 0.0 || self.total_power <= 0.0 {
             return 0.0;
         }
-        self.pdf_area(radiance) * (point - from).length_squared() / cos_light
-    }
-
-    /// Density per unit area of any point of an emitter of radiance `radiance`: the
-    /// emitter's share of the power over its area.
-    #[inline]
-    fn pdf_area(&self, radiance: Vec3) -> Float {
-        mean(radiance) / self.total_power
+        // Density per unit area: every emitter of the material gets its area's share
+        // of the material's power.
+        let weight = self
+            .materials
+            .get(material.0 as usize)
+            .map_or(0.0, |m| m.weight);
+        weight / self.total_power * (point - from).length_squared() / cos_light
     }
 }
 
@@ -241,9 +334,21 @@ fn alias_table(weights: &[f64], total: f64) -> (Vec<Float>, Vec<u32>) {
 mod tests {
     use super::*;
 
+    /// Materials emitting `Ke` = each of `emissions`, in order.
+    fn emitting(emissions: &[Vec3]) -> Vec<Material> {
+        emissions
+            .iter()
+            .map(|&emission| Material {
+                emission,
+                ..Material::named("light")
+            })
+            .collect()
+    }
+
     #[test]
     fn emitters_are_picked_in_proportion_to_power() {
-        let mut lights = AreaLightsBuilder::default();
+        let materials = emitting(&[Vec3::splat(1.0), Vec3::splat(3.0), Vec3::ZERO]);
+        let mut lights = AreaLightsBuilder::new(&materials);
         let quad = |x: Float| {
             [
                 Vec3::new(x, 0.0, 0.0),
@@ -251,9 +356,10 @@ mod tests {
                 Vec3::new(x, 0.0, 1.0),
             ]
         };
-        lights.triangle(quad(0.0), Vec3::splat(1.0));
-        lights.triangle(quad(10.0), Vec3::splat(3.0));
-        lights.triangle(quad(20.0), Vec3::ZERO); // emits nothing: left out
+        let uv = [Vec2::ZERO; 3];
+        lights.triangle(quad(0.0), uv, MaterialId(0));
+        lights.triangle(quad(10.0), uv, MaterialId(1));
+        lights.triangle(quad(20.0), uv, MaterialId(2)); // emits nothing: left out
         let lights = lights.build();
         assert_eq!(lights.len(), 2);
         let from = Vec3::new(5.0, -5.0, 0.5);
@@ -271,7 +377,8 @@ mod tests {
 
     #[test]
     fn the_sampled_pdf_equals_the_pdf_of_the_point_and_integrates_to_one() {
-        let mut lights = AreaLightsBuilder::default();
+        let materials = emitting(&[Vec3::new(1.0, 2.0, 3.0), Vec3::splat(4.0)]);
+        let mut lights = AreaLightsBuilder::new(&materials);
         // Facing -y (winding), seen from below.
         lights.triangle(
             [
@@ -279,9 +386,10 @@ mod tests {
                 Vec3::new(0.0, 1.0, 1.0),
                 Vec3::new(1.0, 1.0, 0.0),
             ],
-            Vec3::new(1.0, 2.0, 3.0),
+            [Vec2::ZERO; 3],
+            MaterialId(0),
         );
-        lights.sphere(Vec3::new(0.0, 3.0, 0.0), 0.5, Vec3::splat(4.0));
+        lights.sphere(Vec3::new(0.0, 3.0, 0.0), 0.5, MaterialId(1));
         let lights = lights.build();
         let from = Vec3::new(0.2, 0.0, 0.1);
         let mut inverse_sum = 0.0f64;
@@ -293,12 +401,13 @@ mod tests {
             );
             for pick in [0.1, 0.9] {
                 if let Some(s) = lights.sample(from, pick, u) {
-                    let cos_light = if s.point.y < 1.5 {
-                        -s.direction.y
+                    let (cos_light, material) = if s.point.y < 1.5 {
+                        (-s.direction.y, MaterialId(0))
                     } else {
-                        -s.direction.dot((s.point - Vec3::new(0.0, 3.0, 0.0)) / 0.5)
+                        let normal = (s.point - Vec3::new(0.0, 3.0, 0.0)) / 0.5;
+                        (-s.direction.dot(normal), MaterialId(1))
                     };
-                    let pdf = lights.pdf(s.radiance, from, s.point, cos_light);
+                    let pdf = lights.pdf(material, from, s.point, cos_light);
                     assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf, "{pdf} vs {}", s.pdf);
                     inverse_sum += 1.0 / f64::from(s.pdf);
                 }
@@ -306,6 +415,72 @@ mod tests {
         }
         // Summing 1/pdf estimates the solid angle the lights cover from `from`: finite and positive.
         assert!(inverse_sum > 0.0 && inverse_sum.is_finite());
+    }
+
+    #[test]
+    fn emission_maps_weigh_the_pick_and_give_the_radiance_of_each_point() {
+        use crate::material::MaterialMaps;
+        use crate::textures::Texture;
+        // A map black on its left half and white on its right (mean 1/2, linear),
+        // clamped, on the second of two equal triangles of `Ke 1`; the third material
+        // is cut out everywhere.
+        let texture = Texture::from_u8("halves.png".into(), 2, 1, 1, vec![0, 255]).unwrap();
+        let mut map = TextureMap::new(std::sync::Arc::new(texture));
+        map.options.wrap_u = crate::textures::Wrap::Clamp;
+        let mut materials = emitting(&[Vec3::ONE, Vec3::ONE, Vec3::ONE]);
+        materials[1].maps = Some(Box::new(MaterialMaps {
+            emission: Some(map),
+            ..MaterialMaps::default()
+        }));
+        materials[2].maps = Some(Box::new(MaterialMaps {
+            cutout: Some(Cutout {
+                map: None,
+                factor: 0.0,
+                cutoff: 0.5,
+            }),
+            ..MaterialMaps::default()
+        }));
+        let mut lights = AreaLightsBuilder::new(&materials);
+        let corners = |x: Float| {
+            [
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x + 1.0, 0.0, 0.0),
+                Vec3::new(x, 0.0, 1.0),
+            ]
+        };
+        // u runs along x.
+        let uv = [Vec2::ZERO, Vec2::X, Vec2::ZERO];
+        lights.triangle(corners(0.0), uv, MaterialId(0));
+        lights.triangle(corners(10.0), uv, MaterialId(1));
+        let lights = lights.build();
+        let from = Vec3::new(5.0, -5.0, 0.5);
+        let (n, mut textured) = (3000, 0);
+        for i in 0..n {
+            let u_pick = (i as Float + 0.5) / n as Float;
+            let u = Vec2::new(((i * 7) % n) as Float / n as Float, 0.5);
+            let s = lights.sample(from, u_pick, u).expect("visible");
+            if s.point.x > 5.0 {
+                textured += 1;
+                let at = Vec2::new(s.point.x - 10.0, 0.0);
+                let expected = materials[1].at(at).emission;
+                assert!((s.radiance - expected).abs().max_element() < 1e-5, "{s:?}");
+                // The triangles face -y: the cosine at the light is `direction.y`.
+                let pdf = lights.pdf(MaterialId(1), from, s.point, s.direction.y);
+                assert!((pdf - s.pdf).abs() <= 1e-4 * s.pdf);
+            } else {
+                assert_eq!(s.radiance, Vec3::ONE);
+            }
+        }
+        // Power 1/2 against 1.
+        let share = textured as Float / n as Float;
+        assert!((share - 1.0 / 3.0).abs() < 0.01, "{share}");
+
+        // A cut-out emitter is never sampled where a ray would pass through it.
+        let mut lights = AreaLightsBuilder::new(&materials);
+        lights.triangle(corners(0.0), uv, MaterialId(2));
+        let lights = lights.build();
+        assert_eq!(lights.len(), 1);
+        assert_eq!(lights.sample(from, 0.5, Vec2::splat(0.5)), None);
     }
 
     #[test]

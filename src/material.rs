@@ -102,6 +102,70 @@ pub struct SurfaceValues {
     pub shininess: Float,
 }
 
+/// The colours Phong shading reads at a point: an untextured [`Material`]'s
+/// constants, or a textured one's [`SurfaceValues`] there. Shading written over this
+/// trait reads an untextured material's fields in place, as it did before textures,
+/// instead of copying them into a [`SurfaceValues`] at every hit.
+pub trait Colours {
+    /// `Ka`.
+    fn ambient(&self) -> Vec3;
+    /// `Kd`.
+    fn diffuse(&self) -> Vec3;
+    /// `Ks`.
+    fn specular(&self) -> Vec3;
+    /// `Ke`.
+    fn emission(&self) -> Vec3;
+    /// `Ns`.
+    fn shininess(&self) -> Float;
+}
+
+/// The constants, whatever the maps: for materials without maps.
+impl Colours for Material {
+    #[inline(always)]
+    fn ambient(&self) -> Vec3 {
+        self.ambient
+    }
+    #[inline(always)]
+    fn diffuse(&self) -> Vec3 {
+        self.diffuse
+    }
+    #[inline(always)]
+    fn specular(&self) -> Vec3 {
+        self.specular
+    }
+    #[inline(always)]
+    fn emission(&self) -> Vec3 {
+        self.emission
+    }
+    #[inline(always)]
+    fn shininess(&self) -> Float {
+        self.shininess
+    }
+}
+
+impl Colours for SurfaceValues {
+    #[inline(always)]
+    fn ambient(&self) -> Vec3 {
+        self.ambient
+    }
+    #[inline(always)]
+    fn diffuse(&self) -> Vec3 {
+        self.diffuse
+    }
+    #[inline(always)]
+    fn specular(&self) -> Vec3 {
+        self.specular
+    }
+    #[inline(always)]
+    fn emission(&self) -> Vec3 {
+        self.emission
+    }
+    #[inline(always)]
+    fn shininess(&self) -> Float {
+        self.shininess
+    }
+}
+
 impl Material {
     /// A material with MTL defaults and the given name.
     pub fn named(name: impl Into<String>) -> Material {

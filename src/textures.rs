@@ -113,6 +113,10 @@ pub struct TextureOptions {
     pub offset: Vec2,
     /// `-s u v w`: multiplies the texture coordinates.
     pub scale: Vec2,
+    /// Cosine and sine of an angle by which the scaled coordinates turn
+    /// counter-clockwise (in `u` right, `v` up) before `offset` is added: glTF's
+    /// `KHR_texture_transform`; MTL has none (angle 0: `(1, 0)`).
+    pub rotation: Vec2,
     /// `-clamp on` (and glTF's samplers).
     pub wrap_u: Wrap,
     /// As `wrap_u`, for `v`.
@@ -132,6 +136,7 @@ impl Default for TextureOptions {
         TextureOptions {
             offset: Vec2::ZERO,
             scale: Vec2::ONE,
+            rotation: Vec2::X,
             wrap_u: Wrap::Repeat,
             wrap_v: Wrap::Repeat,
             base: 0.0,
@@ -139,6 +144,17 @@ impl Default for TextureOptions {
             channel: Channel::Auto,
             bump_multiplier: 1.0,
         }
+    }
+}
+
+impl TextureOptions {
+    /// Where the map reads the image for texture coordinates `uv`: scaled, turned,
+    /// then offset. Without a rotation exactly `uv * scale + offset` (for finite `uv`).
+    #[inline]
+    pub fn transform(&self, uv: Vec2) -> Vec2 {
+        let s = uv * self.scale;
+        let Vec2 { x: c, y: sin } = self.rotation;
+        Vec2::new(c * s.x - sin * s.y, sin * s.x + c * s.y) + self.offset
     }
 }
 
@@ -167,14 +183,21 @@ impl TextureMap {
         }
     }
 
-    /// The filtered linear RGB at `uv`, after `-s`, `-o` and `-mm`.
+    /// The filtered linear RGB at `uv`, after `-s`, the rotation, `-o` and `-mm`.
     #[inline]
     pub fn colour(&self, uv: Vec2, encoding: Encoding) -> Vec3 {
         let o = &self.options;
-        let [r, g, b, _] =
-            self.texture
-                .bilinear(uv * o.scale + o.offset, o.wrap_u, o.wrap_v, encoding);
+        let [r, g, b, _] = self
+            .texture
+            .bilinear(o.transform(uv), o.wrap_u, o.wrap_v, encoding);
         Vec3::new(r, g, b) * o.gain + Vec3::splat(o.base)
+    }
+
+    /// The mean linear RGB of the map's image after `-mm` (not weighted by how much
+    /// of the image any surface shows): what light sampling weighs emitters by.
+    pub fn mean_colour(&self, encoding: Encoding) -> Vec3 {
+        let o = &self.options;
+        self.texture.mean_colour(encoding) * o.gain + Vec3::splat(o.base)
     }
 
     /// The filtered linear value of the map's channel at `uv`, after `-s`, `-o` and
@@ -183,12 +206,9 @@ impl TextureMap {
     #[inline]
     pub fn scalar(&self, uv: Vec2, alpha_by_default: bool) -> Float {
         let o = &self.options;
-        let [r, g, b, a] = self.texture.bilinear(
-            uv * o.scale + o.offset,
-            o.wrap_u,
-            o.wrap_v,
-            Encoding::Linear,
-        );
+        let [r, g, b, a] =
+            self.texture
+                .bilinear(o.transform(uv), o.wrap_u, o.wrap_v, Encoding::Linear);
         let luminance = || 0.2126 * r + 0.7152 * g + 0.0722 * b;
         let value = match o.channel {
             Channel::Auto if alpha_by_default && self.texture.has_alpha() => a,
@@ -225,6 +245,31 @@ impl Texture {
             })
     }
 
+    /// A texture of `width` x `height` texels of `channels` floating-point channels
+    /// each (colour channels stored as they would be decoded from a file: sRGB for
+    /// colour maps), row 0 at the top; `None` if the sizes do not match `texels`, are
+    /// zero or exceed [`MAX_TEXTURE_SIZE`].
+    pub fn from_f32(
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        channels: u32,
+        texels: Vec<f32>,
+    ) -> Option<Texture> {
+        let expected = (width as usize)
+            .checked_mul(height as usize)?
+            .checked_mul(channels as usize)?;
+        let fits = width.max(height) <= MAX_TEXTURE_SIZE;
+        (fits && width > 0 && height > 0 && (1..=4).contains(&channels) && texels.len() == expected)
+            .then_some(Texture {
+                path,
+                width,
+                height,
+                channels,
+                texels: Texels::F32(texels),
+            })
+    }
+
     /// Width and height in texels.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
@@ -257,6 +302,28 @@ impl Texture {
         }
         let [r, g, b] = sum.map(|s| s / count);
         (0.35..0.65).contains(&r) && (0.35..0.65).contains(&g) && b > 0.7
+    }
+
+    /// The mean linear RGB of the image, over a grid of at most 256 x 256 texels
+    /// (every texel of smaller images).
+    pub fn mean_colour(&self, encoding: Encoding) -> Vec3 {
+        let (step_x, step_y) = (
+            self.width.div_ceil(256).max(1),
+            self.height.div_ceil(256).max(1),
+        );
+        let mut sum = [0.0f64; 3];
+        let mut count = 0.0;
+        for y in (0..self.height).step_by(step_y as usize) {
+            for x in (0..self.width).step_by(step_x as usize) {
+                let texel = self.texel(x as usize, y as usize, encoding);
+                for (s, t) in sum.iter_mut().zip(texel) {
+                    *s += f64::from(t);
+                }
+                count += 1.0;
+            }
+        }
+        let [r, g, b] = sum.map(|s| (s / count) as Float);
+        Vec3::new(r, g, b)
     }
 
     /// Bytes the texels take.
@@ -429,6 +496,17 @@ pub fn srgb_to_linear(value: Float) -> Float {
         value / 12.92
     } else {
         ((value + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB transfer function, the inverse of [`srgb_to_linear`] (also beyond 0..1:
+/// both extend the linear segment below 0 and the power curve above 1).
+#[inline]
+pub fn linear_to_srgb(value: Float) -> Float {
+    if value <= 0.003_130_8 {
+        value * 12.92
+    } else {
+        1.055 * value.powf(1.0 / 2.4) - 0.055
     }
 }
 

@@ -312,3 +312,202 @@ fn a_missing_image_is_a_warning_and_the_surface_renders_without_it() {
         Vec3::new(1.0, 0.5, 0.25)
     );
 }
+
+#[test]
+fn base_colour_and_emissive_textures_follow_khr_texture_transform() {
+    // The fixture with a transform on the checker's base colour texture, and the
+    // checker as the lamp's emissive texture under another one.
+    let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
+    let transform = |offset: [Float; 2], rotation: Float, scale: [Float; 2]| {
+        format!(
+            "\"extensions\": {{\"KHR_texture_transform\": {{\"offset\": [{}, {}], \"rotation\": {rotation}, \"scale\": [{}, {}]}}}}",
+            offset[0], offset[1], scale[0], scale[1]
+        )
+    };
+    let base = ([0.25, 0.5], 0.4, [1.5, -0.75]);
+    let emissive = ([0.0, 1.0], std::f32::consts::FRAC_PI_2, [0.5, 0.5]);
+    let base_texture = "\"baseColorTexture\": {\n     \"index\": 0\n    },";
+    assert!(gltf.contains(base_texture));
+    let changed = gltf
+        .replace(
+            base_texture,
+            &format!(
+                "\"baseColorTexture\": {{\"index\": 0, {}}},",
+                transform(base.0, base.1, base.2)
+            ),
+        )
+        .replace(
+            "\"emissiveFactor\": [",
+            &format!(
+                "\"emissiveTexture\": {{\"index\": 0, {}}}, \"emissiveFactor\": [",
+                transform(emissive.0, emissive.1, emissive.2)
+            ),
+        )
+        .replace(
+            "\"extensionsUsed\": [",
+            "\"extensionsUsed\": [\n  \"KHR_texture_transform\",",
+        );
+    let dir = tempfile::tempdir().unwrap();
+    for file in ["scene.bin", "checker.png"] {
+        std::fs::copy(fixture(file), dir.path().join(file)).unwrap();
+    }
+    std::fs::write(dir.path().join("scene.gltf"), changed).unwrap();
+    let loaded = formats::load(&dir.path().join("scene.gltf")).unwrap();
+    assert!(
+        loaded.description.warnings.is_empty(),
+        "{:?}",
+        loaded.description.warnings
+    );
+    let plain = &formats::load(&fixture("scene.gltf")).unwrap().description;
+    let checker = &plain.materials[0];
+    // glTF's mapping in its own coordinates (v down): scale, turn, offset.
+    let gltf_transform = |uv: Vec2, (offset, angle, scale): ([Float; 2], Float, [Float; 2])| {
+        let g = Vec2::new(uv.x * scale[0], (1.0 - uv.y) * scale[1]);
+        let (sin, cos) = angle.sin_cos();
+        let g = Vec2::new(
+            cos * g.x + sin * g.y + offset[0],
+            -sin * g.x + cos * g.y + offset[1],
+        );
+        Vec2::new(g.x, 1.0 - g.y)
+    };
+    let materials = &loaded.description.materials;
+    let mut differs = false;
+    for uv in [
+        Vec2::new(0.1, 0.2),
+        Vec2::new(0.7, 0.4),
+        Vec2::new(0.45, 0.95),
+    ] {
+        let want = checker.at(gltf_transform(uv, base)).diffuse;
+        let got = materials[0].at(uv).diffuse;
+        assert!(close(got, want), "base colour at {uv}: {got} vs {want}");
+        differs |= !close(got, checker.at(uv).diffuse);
+        // The lamp: emissive factor times the checker (texels only: its factor is 1).
+        let texel = checker.at(gltf_transform(uv, emissive)).diffuse / Vec3::new(1.0, 0.5, 0.25);
+        let want = plain.materials[1].emission * texel;
+        let got = materials[1].at(uv).emission;
+        assert!(close(got, want), "emission at {uv}: {got} vs {want}");
+    }
+    assert!(differs, "the transform changed nothing: a weak test");
+}
+
+/// A glTF file of one triangle (0, 0, 0), (1, 0, 0), (0, 1, 0) facing +z with
+/// `COLOR_0` red, green, blue (as floats), in `dir`; no material, or one with the
+/// fixtures' checker as its base colour texture.
+fn vertex_coloured_triangle(dir: &Path, textured: bool) -> PathBuf {
+    let mut bin = Vec::new();
+    let floats: [f32; 18] = [
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, // positions
+        1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, // colours
+    ];
+    for f in floats {
+        bin.extend(f.to_le_bytes());
+    }
+    std::fs::write(dir.join("t.bin"), &bin).unwrap();
+    let gltf = r#"{
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}}]}],
+  "buffers": [{"uri": "t.bin", "byteLength": 72}],
+  "bufferViews": [
+    {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+    {"buffer": 0, "byteOffset": 36, "byteLength": 36}
+  ],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}
+  ]
+}"#;
+    let gltf = if textured {
+        std::fs::copy(fixture("checker.png"), dir.join("checker.png")).unwrap();
+        gltf.replace(r#""COLOR_0": 1}}"#, r#""COLOR_0": 1}, "material": 0}"#)
+            .replace(
+                r#""buffers""#,
+                r#""materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+  "textures": [{"source": 0}],
+  "images": [{"uri": "checker.png"}],
+  "buffers""#,
+            )
+    } else {
+        gltf.to_string()
+    };
+    let path = dir.join("t.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+#[test]
+fn vertex_colours_multiply_the_base_colour_interpolated_across_each_triangle() {
+    let dir = tempfile::tempdir().unwrap();
+    let loaded = formats::load(&vertex_coloured_triangle(dir.path(), false)).unwrap();
+    assert!(
+        loaded.description.warnings.is_empty(),
+        "{:?}",
+        loaded.description.warnings
+    );
+    let scene = Scene::build(loaded.description, &BvhParams::default());
+    // Without a material, the renderer's grey (Kd 0.8) times the colours.
+    for (x, y) in [
+        (0.1, 0.1),
+        (0.6, 0.2),
+        (0.2, 0.7),
+        (0.33, 0.33),
+        (0.01, 0.98),
+    ] {
+        let hit = scene
+            .intersect(&Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z))
+            .expect("the ray hits the triangle");
+        let material = &scene.materials[hit.material.0 as usize];
+        // Barycentric weights of (x, y): red at the origin, green along x, blue along y.
+        let want = Vec3::new(1.0 - x - y, x, y) * 0.8;
+        let got = material.at(hit.uv).diffuse;
+        assert!(
+            (got - want).abs().max_element() < 1e-4,
+            "at ({x}, {y}): {got} vs {want}"
+        );
+    }
+    // A material with a texture keeps it, and its vertex colours are dropped with a
+    // warning: a hit has one set of texture coordinates.
+    let path = vertex_coloured_triangle(dir.path(), true);
+    let loaded = formats::load(&path).unwrap();
+    assert_eq!(
+        loaded.description.warnings,
+        [format!(
+            "{}: mesh 0 primitive 0: vertex colours are not applied on a material with textures",
+            path.display()
+        )]
+    );
+    assert_eq!(loaded.description.materials.len(), 1);
+}
+
+#[test]
+fn a_texture_transform_that_overflows_is_a_warning_and_is_ignored() {
+    // Offsets and scales near f32's largest value: the converted offset overflows.
+    let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
+    let base_texture = "\"baseColorTexture\": {\n     \"index\": 0\n    },";
+    let changed = gltf.replace(
+        base_texture,
+        "\"baseColorTexture\": {\"index\": 0, \"extensions\": {\"KHR_texture_transform\": {\"offset\": [0, -3e38], \"scale\": [1, -3e38]}}},",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    for file in ["scene.bin", "checker.png"] {
+        std::fs::copy(fixture(file), dir.path().join(file)).unwrap();
+    }
+    let path = dir.path().join("scene.gltf");
+    std::fs::write(&path, changed).unwrap();
+    let loaded = formats::load(&path).unwrap();
+    assert_eq!(
+        loaded.description.warnings,
+        [format!(
+            "{}: material 0: a texture transform that is not finite; ignored",
+            path.display()
+        )]
+    );
+    let plain = formats::load(&fixture("scene.gltf")).unwrap().description;
+    let uv = Vec2::new(0.3, 0.6);
+    assert_eq!(
+        loaded.description.materials[0].at(uv),
+        plain.materials[0].at(uv)
+    );
+}

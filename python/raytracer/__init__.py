@@ -18,13 +18,17 @@ The package is a thin layer over the Rust library (the ``raytracer`` command's):
 - :mod:`raytracer.distributed` renders tiles on a Dask cluster (``pip install
   "raytracer[distributed]"``); ``python -m raytracer.distributed`` is its command.
 
-Options behave as the command line's flags: each one given replaces the TOML scene
-file's value, each one left out (``None``) keeps it, and the defaults apply last.
+Every render call takes the keyword options named in :data:`OPTIONS` (``width``,
+``height``, ``fov``, ``look_from``, ``look_to``, ``up``, ``mode``, ``depth``, ``spp``,
+``exposure``, ``seed``). They behave as the command line's flags: each one given
+replaces the TOML scene file's value, each one left out (``None``) keeps it, and the
+defaults apply last.
 Errors are exceptions with the command line's messages: ``ValueError`` for bad options,
 :class:`SceneError` (an ``OSError``) for unreadable or malformed scenes.
 """
 
 from ._raytracer import (
+    OPTIONS,
     Scene,
     SceneError,
     __version__,
@@ -36,6 +40,7 @@ from ._raytracer import (
 )
 
 __all__ = [
+    "OPTIONS",
     "Scene",
     "SceneError",
     "__version__",

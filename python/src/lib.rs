@@ -19,13 +19,14 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use numpy::ndarray::{Array3, ArrayView3};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike3, TypeMustMatch};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
 use raytracer::formats::{self, ParseErrorKind, SceneFormat};
 use raytracer::math::{Float, Vec3};
 use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced};
@@ -75,24 +76,75 @@ impl From<OptionsError> for Error {
     }
 }
 
+/// The names of the render options every render call takes as keyword arguments, in
+/// the order the documentation lists them (exported as ``raytracer.OPTIONS``).
+const OPTION_NAMES: [&str; 11] = [
+    "width",
+    "height",
+    "fov",
+    "look_from",
+    "look_to",
+    "up",
+    "mode",
+    "depth",
+    "spp",
+    "exposure",
+    "seed",
+];
+
 /// The render options of one Python call, as given: `None` for each one left out.
 /// Converted to [`PartialOptions`] whose values come from the matching command-line
 /// flag ([`Origin::Flag`]), so that messages are the command line's.
-struct Given<'a, 'py> {
-    width: Option<&'a Bound<'py, PyAny>>,
-    height: Option<&'a Bound<'py, PyAny>>,
-    fov: Option<&'a Bound<'py, PyAny>>,
-    look_from: Option<&'a Bound<'py, PyAny>>,
-    look_to: Option<&'a Bound<'py, PyAny>>,
-    up: Option<&'a Bound<'py, PyAny>>,
-    mode: Option<&'a Bound<'py, PyAny>>,
-    depth: Option<&'a Bound<'py, PyAny>>,
-    spp: Option<&'a Bound<'py, PyAny>>,
-    exposure: Option<&'a Bound<'py, PyAny>>,
-    seed: Option<&'a Bound<'py, PyAny>>,
+#[derive(Default)]
+struct Given<'py> {
+    width: Option<Bound<'py, PyAny>>,
+    height: Option<Bound<'py, PyAny>>,
+    fov: Option<Bound<'py, PyAny>>,
+    look_from: Option<Bound<'py, PyAny>>,
+    look_to: Option<Bound<'py, PyAny>>,
+    up: Option<Bound<'py, PyAny>>,
+    mode: Option<Bound<'py, PyAny>>,
+    depth: Option<Bound<'py, PyAny>>,
+    spp: Option<Bound<'py, PyAny>>,
+    exposure: Option<Bound<'py, PyAny>>,
+    seed: Option<Bound<'py, PyAny>>,
 }
 
-impl Given<'_, '_> {
+impl<'py> Given<'py> {
+    /// The options among the keyword arguments of a call of `function`: one named
+    /// outside [`OPTION_NAMES`] is a `TypeError`, as Python raises for any function;
+    /// `None` counts as left out.
+    fn from_keywords(function: &str, keywords: Option<&Bound<'py, PyDict>>) -> PyResult<Self> {
+        let mut given = Given::default();
+        for (key, value) in keywords.into_iter().flat_map(|k| k.iter()) {
+            let name: String = key.extract()?;
+            let slot = match name.as_str() {
+                "width" => &mut given.width,
+                "height" => &mut given.height,
+                "fov" => &mut given.fov,
+                "look_from" => &mut given.look_from,
+                "look_to" => &mut given.look_to,
+                "up" => &mut given.up,
+                "mode" => &mut given.mode,
+                "depth" => &mut given.depth,
+                "spp" => &mut given.spp,
+                "exposure" => &mut given.exposure,
+                "seed" => &mut given.seed,
+                _ => {
+                    return Err(PyTypeError::new_err(format!(
+                        "{function}() got an unexpected keyword argument '{name}'"
+                    )));
+                }
+            };
+            if !value.is_none() {
+                *slot = Some(value);
+            }
+        }
+        Ok(given)
+    }
+}
+
+impl Given<'_> {
     /// The given values, converted but not range-checked: ranges are checked once,
     /// after merging over the scene file's values.
     fn options(&self) -> PyResult<PartialOptions> {
@@ -108,19 +160,19 @@ impl Given<'_, '_> {
         // Options the library gains stay "not given" until added here.
         #[allow(clippy::needless_update)]
         Ok(PartialOptions {
-            width: flag(self.width, "--width", whole_number)?,
-            height: flag(self.height, "--height", whole_number)?,
-            fov_degrees: flag(self.fov, "--fov", number)?,
-            look_from: flag(self.look_from, "--look-from", vector)?,
-            look_to: flag(self.look_to, "--look-to", vector)?,
-            up: flag(self.up, "--up", vector)?,
-            depth: flag(self.depth, "--depth", whole_number)?,
-            mode: flag(self.mode, "--mode", |v, _| {
+            width: flag(self.width.as_ref(), "--width", whole_number)?,
+            height: flag(self.height.as_ref(), "--height", whole_number)?,
+            fov_degrees: flag(self.fov.as_ref(), "--fov", number)?,
+            look_from: flag(self.look_from.as_ref(), "--look-from", vector)?,
+            look_to: flag(self.look_to.as_ref(), "--look-to", vector)?,
+            up: flag(self.up.as_ref(), "--up", vector)?,
+            depth: flag(self.depth.as_ref(), "--depth", whole_number)?,
+            mode: flag(self.mode.as_ref(), "--mode", |v, _| {
                 parse_mode(&v.extract::<String>()?)
             })?,
-            samples_per_pixel: flag(self.spp, "--spp", whole_number)?,
-            exposure: flag(self.exposure, "--exposure", number)?,
-            seed: flag(self.seed, "--seed", whole_number)?,
+            samples_per_pixel: flag(self.spp.as_ref(), "--spp", whole_number)?,
+            exposure: flag(self.exposure.as_ref(), "--exposure", number)?,
+            seed: flag(self.seed.as_ref(), "--seed", whole_number)?,
             ..PartialOptions::default()
         })
     }
@@ -259,8 +311,9 @@ struct Loaded {
 
 impl Loaded {
     /// Reads and builds the scene at `path`. Call detached from the interpreter.
-    fn read(path: &Path) -> Result<Loaded, Error> {
-        let loaded = formats::load(path)?;
+    fn read(path: &Path, access: &formats::FileAccess) -> Result<Loaded, Error> {
+        test_gate("RAYTRACER_TEST_GATE_LOAD");
+        let loaded = formats::load_with(path, access)?;
         let bounds = loaded.description.bounds();
         let unlit = loaded
             .description
@@ -288,6 +341,7 @@ impl Loaded {
     /// Renders the whole image or `tile` of it as the command line would: a scene
     /// without lights gets the default lighting for this camera first.
     fn render(&self, options: &RenderOptions, tile: Option<Tile>) -> Result<Film, Error> {
+        test_gate("RAYTRACER_TEST_GATE_RENDER");
         match &self.unlit {
             Some(description) if options.mode == raytracer::Mode::Full && options.default_light => {
                 let mut description = description.clone();
@@ -300,6 +354,30 @@ impl Loaded {
             }
             _ => render_film(&self.scene, options, tile),
         }
+    }
+}
+
+/// Test hook: the package's tests must see that a call releases the interpreter, and
+/// stop a Dask worker inside a tile, at a known step rather than at a lucky moment.
+/// When the environment variable `variable` names a file, the (detached) call writes
+/// the marker `<file>.<process id>` and waits until `<file>` exists, for a minute at
+/// most. Without the variable it costs one look-up per load or render.
+fn test_gate(variable: &str) {
+    let Some(gate) = std::env::var_os(variable) else {
+        return;
+    };
+    let gate = PathBuf::from(gate);
+    let mut marker = gate.clone().into_os_string();
+    marker.push(format!(".{}", std::process::id()));
+    if let Err(e) = std::fs::write(&marker, b"") {
+        eprintln!(
+            "{variable}: cannot write {}: {e}",
+            Path::new(&marker).display()
+        );
+    }
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !gate.exists() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(1));
     }
 }
 
@@ -372,11 +450,16 @@ fn array_film(linear: ArrayView3<'_, f32>) -> PyResult<Film> {
 /// A scene, read and built once, to render many times (another camera, another size,
 /// tiles) without reading it again.
 ///
-/// ``Scene(path)`` reads an OBJ (with its MTL files), PLY or TOML scene file, any of
-/// them optionally gzip-compressed, as ``raytracer render`` does; it raises
-/// :class:`SceneError` (an ``OSError``) when the file cannot be read or is malformed.
-/// A TOML file's camera and render values are kept: they apply to every render unless
-/// an argument replaces them.
+/// ``Scene(path)`` reads an OBJ (with its MTL files and textures), PLY, glTF or TOML
+/// scene file, any of them optionally gzip-compressed, as ``raytracer render`` does;
+/// it raises :class:`SceneError` (an ``OSError``) when the file cannot be read or is
+/// malformed. A TOML file's camera and render values are kept: they apply to every
+/// render unless an argument replaces them.
+///
+/// ``Scene(path, confined_to=folder)`` opens no file outside ``folder``, whatever the
+/// scene names (an absolute path, ``..``, a link): such a library, mesh or buffer is
+/// an error, such a texture a warning, each naming the file and line that named it.
+/// The Dask renderer reads shipped scenes so.
 #[pyclass(name = "Scene", module = "raytracer", frozen)]
 struct PyScene {
     loaded: Arc<Loaded>,
@@ -385,8 +468,20 @@ struct PyScene {
 #[pymethods]
 impl PyScene {
     #[new]
-    fn new(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
-        let loaded = py.detach(|| Loaded::read(&path))?;
+    #[pyo3(signature = (path, *, confined_to=None))]
+    fn new(py: Python<'_>, path: PathBuf, confined_to: Option<PathBuf>) -> PyResult<PyScene> {
+        let loaded = py.detach(|| {
+            let access = match confined_to {
+                Some(folder) => formats::FileAccess::confined_to(&folder).map_err(|error| {
+                    Error::Scene(formats::SceneError::Io {
+                        path: folder,
+                        error,
+                    })
+                })?,
+                None => formats::FileAccess::anywhere(),
+            };
+            Loaded::read(&path, &access)
+        })?;
         Ok(PyScene {
             loaded: Arc::new(loaded),
         })
@@ -408,39 +503,14 @@ impl PyScene {
     /// Renders the scene: the linear image before post-processing, a ``float32``
     /// array of shape ``(height, width, 3)``; see :func:`raytracer.render`, which
     /// takes the same arguments.
-    #[pyo3(signature = (*, width=None, height=None, fov=None, look_from=None, look_to=None,
-                        up=None, mode=None, depth=None, spp=None, exposure=None, seed=None,
-                        tile=None))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (*, tile=None, **options))]
     fn render<'py>(
         &self,
         py: Python<'py>,
-        width: Option<&Bound<'py, PyAny>>,
-        height: Option<&Bound<'py, PyAny>>,
-        fov: Option<&Bound<'py, PyAny>>,
-        look_from: Option<&Bound<'py, PyAny>>,
-        look_to: Option<&Bound<'py, PyAny>>,
-        up: Option<&Bound<'py, PyAny>>,
-        mode: Option<&Bound<'py, PyAny>>,
-        depth: Option<&Bound<'py, PyAny>>,
-        spp: Option<&Bound<'py, PyAny>>,
-        exposure: Option<&Bound<'py, PyAny>>,
-        seed: Option<&Bound<'py, PyAny>>,
         tile: Option<&Bound<'py, PyAny>>,
+        options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let given = Given {
-            width,
-            height,
-            fov,
-            look_from,
-            look_to,
-            up,
-            mode,
-            depth,
-            spp,
-            exposure,
-            seed,
-        };
+        let given = Given::from_keywords("render", options)?;
         self.render_given(py, &given, tile)
     }
 
@@ -450,37 +520,13 @@ impl PyScene {
     /// name), ``depth``, ``spp``, ``spp_in_mode`` (the samples per pixel the mode
     /// takes: 1 in depth and normal modes), ``exposure`` and ``seed``. Raises
     /// ``ValueError`` as a render would.
-    #[pyo3(signature = (*, width=None, height=None, fov=None, look_from=None, look_to=None,
-                        up=None, mode=None, depth=None, spp=None, exposure=None, seed=None))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (**options))]
     fn options<'py>(
         &self,
         py: Python<'py>,
-        width: Option<&Bound<'py, PyAny>>,
-        height: Option<&Bound<'py, PyAny>>,
-        fov: Option<&Bound<'py, PyAny>>,
-        look_from: Option<&Bound<'py, PyAny>>,
-        look_to: Option<&Bound<'py, PyAny>>,
-        up: Option<&Bound<'py, PyAny>>,
-        mode: Option<&Bound<'py, PyAny>>,
-        depth: Option<&Bound<'py, PyAny>>,
-        spp: Option<&Bound<'py, PyAny>>,
-        exposure: Option<&Bound<'py, PyAny>>,
-        seed: Option<&Bound<'py, PyAny>>,
+        options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let given = Given {
-            width,
-            height,
-            fov,
-            look_from,
-            look_to,
-            up,
-            mode,
-            depth,
-            spp,
-            exposure,
-            seed,
-        };
+        let given = Given::from_keywords("options", options)?;
         let options = self.resolve(&given)?;
         let dict = PyDict::new(py);
         dict.set_item("width", options.width)?;
@@ -511,14 +557,14 @@ impl PyScene {
 
 impl PyScene {
     /// The given options merged over the scene file's, checked.
-    fn resolve(&self, given: &Given<'_, '_>) -> PyResult<RenderOptions> {
+    fn resolve(&self, given: &Given<'_>) -> PyResult<RenderOptions> {
         Ok(self.loaded.resolve(given.options()?)?)
     }
 
     fn render_given<'py>(
         &self,
         py: Python<'py>,
-        given: &Given<'_, 'py>,
+        given: &Given<'py>,
         tile_value: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let options = self.resolve(given)?;
@@ -553,39 +599,14 @@ impl PyScene {
 /// for a scene file that cannot be read or is malformed, with the command line's
 /// message. The interpreter is released while the scene loads and renders.
 #[pyfunction]
-#[pyo3(signature = (scene, *, width=None, height=None, fov=None, look_from=None, look_to=None,
-                    up=None, mode=None, depth=None, spp=None, exposure=None, seed=None,
-                        tile=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scene, *, tile=None, **options))]
 fn render<'py>(
     py: Python<'py>,
     scene: &Bound<'py, PyAny>,
-    width: Option<&Bound<'py, PyAny>>,
-    height: Option<&Bound<'py, PyAny>>,
-    fov: Option<&Bound<'py, PyAny>>,
-    look_from: Option<&Bound<'py, PyAny>>,
-    look_to: Option<&Bound<'py, PyAny>>,
-    up: Option<&Bound<'py, PyAny>>,
-    mode: Option<&Bound<'py, PyAny>>,
-    depth: Option<&Bound<'py, PyAny>>,
-    spp: Option<&Bound<'py, PyAny>>,
-    exposure: Option<&Bound<'py, PyAny>>,
-    seed: Option<&Bound<'py, PyAny>>,
     tile: Option<&Bound<'py, PyAny>>,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let given = Given {
-        width,
-        height,
-        fov,
-        look_from,
-        look_to,
-        up,
-        mode,
-        depth,
-        spp,
-        exposure,
-        seed,
-    };
+    let given = Given::from_keywords("render", options)?;
     if let Ok(scene) = scene.cast::<PyScene>() {
         return scene.get().render_given(py, &given, tile);
     }
@@ -601,7 +622,7 @@ fn render<'py>(
         ) {
             flags.resolve()?;
         }
-        let loaded = Loaded::read(&path)?;
+        let loaded = Loaded::read(&path, &formats::FileAccess::anywhere())?;
         let options = loaded.resolve(flags)?;
         let film = loaded.render(&options, tile)?;
         Ok::<_, Error>((film.width, film.height, film_values(&film)))
@@ -695,6 +716,38 @@ fn check_output(path: PathBuf) -> PyResult<&'static str> {
     })
 }
 
+/// The files a load of the scene file at ``path`` asks for, for the Dask renderer: a
+/// dict with ``asked`` (every file the readers tried, in order: the scene file, MTL
+/// libraries, meshes, textures, glTF buffers and images, missing ones too, as
+/// absolute paths), ``refused`` (those outside the scene's folder, when
+/// ``confined``), ``error`` (the load's message, or ``None``) and ``warnings``.
+/// With ``confined``, files outside the scene's folder are not opened.
+#[pyfunction]
+fn _scene_files(py: Python<'_>, path: PathBuf, confined: bool) -> PyResult<Bound<'_, PyDict>> {
+    let (asked, refused, error, warnings) = py.detach(|| {
+        let access = if confined {
+            let folder = std::path::absolute(&path)?
+                .parent()
+                .map(Path::to_path_buf)
+                .unwrap_or_default();
+            formats::FileAccess::confined_to(&folder)?
+        } else {
+            formats::FileAccess::anywhere()
+        };
+        let (error, warnings) = match formats::load_with(&path, &access) {
+            Ok(loaded) => (None, loaded.description.warnings),
+            Err(e) => (Some(e.to_string()), Vec::new()),
+        };
+        Ok::<_, std::io::Error>((access.asked(), access.refused(), error, warnings))
+    })?;
+    let dict = PyDict::new(py);
+    dict.set_item("asked", asked)?;
+    dict.set_item("refused", refused)?;
+    dict.set_item("error", error)?;
+    dict.set_item("warnings", warnings)?;
+    Ok(dict)
+}
+
 /// Whether this process has renamed a complete image over ``path`` (as given to the
 /// writer): what an interrupt handler asks, under the lock every final rename takes,
 /// to say truly whether the output holds the new image.
@@ -714,6 +767,8 @@ fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_png, m)?)?;
     m.add_function(wrap_pyfunction!(check_output, m)?)?;
     m.add_function(wrap_pyfunction!(_committed, m)?)?;
+    m.add_function(wrap_pyfunction!(_scene_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("OPTIONS", PyTuple::new(m.py(), OPTION_NAMES)?)?;
     Ok(())
 }

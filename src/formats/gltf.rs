@@ -17,7 +17,7 @@ use glam::{Mat3, Mat4};
 use gltf::Document;
 
 use super::error::SceneError;
-use super::{LoadedScene, SceneDescription, TriangleDesc, read_file};
+use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
 use crate::material::{Cutout, Material, MaterialId, MaterialMaps, PointLight};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, RenderOptions, Sourced};
@@ -39,8 +39,17 @@ const MAX_SHININESS: Float = 10_000.0;
 /// is too short, or has a mesh whose indices point outside its vertices: each names
 /// the file. A texture that cannot be read is a warning.
 pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
+    load_gltf_with(path, &FileAccess::anywhere())
+}
+
+/// [`load_gltf`], opening the file, its buffers and its images through `access`.
+///
+/// # Errors
+/// As [`load_gltf`]; a buffer `access` refuses is an error, an image a warning.
+pub fn load_gltf_with(path: &Path, access: &FileAccess) -> Result<LoadedScene, SceneError> {
+    super::admit(path, access)?;
     let bytes = read_file(path)?;
-    parse_gltf(&bytes, path)
+    parse_gltf_with(&bytes, path, access)
 }
 
 /// Parses glTF or GLB bytes; `path` names the file in messages and locates the
@@ -49,6 +58,18 @@ pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
 /// # Errors
 /// As [`load_gltf`].
 pub fn parse_gltf(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> {
+    parse_gltf_with(bytes, path, &FileAccess::anywhere())
+}
+
+/// [`parse_gltf`], opening buffers and images through `access`.
+///
+/// # Errors
+/// As [`load_gltf_with`].
+pub fn parse_gltf_with(
+    bytes: &[u8],
+    path: &Path,
+    access: &FileAccess,
+) -> Result<LoadedScene, SceneError> {
     let fail = |message: String| SceneError::Gltf {
         path: path.to_path_buf(),
         message,
@@ -56,9 +77,10 @@ pub fn parse_gltf(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> 
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice(bytes).map_err(|e| fail(format!("not a valid glTF file: {e}")))?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let buffers = read_buffers(&document, blob, &folder).map_err(fail)?;
+    let buffers = read_buffers(&document, blob, &folder, access).map_err(fail)?;
     let mut reader = Reader {
         path,
+        access,
         folder,
         document: &document,
         buffers,
@@ -86,6 +108,7 @@ fn read_buffers(
     document: &Document,
     mut blob: Option<Vec<u8>>,
     folder: &Path,
+    access: &FileAccess,
 ) -> Result<Vec<Vec<u8>>, String> {
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
@@ -94,7 +117,7 @@ fn read_buffers(
             gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 format!("buffer {index} refers to the binary chunk, and there is none")
             })?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, folder)
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, folder, access)
                 .map_err(|reason| format!("buffer {index} ('{}'): {reason}", shorten(uri)))?,
         };
         if data.len() < buffer.length() {
@@ -111,7 +134,7 @@ fn read_buffers(
 
 /// The bytes a URI names: a base64 data URI, or a file relative to `folder`
 /// (percent-encoded, as URIs are).
-fn read_uri(uri: &str, folder: &Path) -> Result<Vec<u8>, String> {
+fn read_uri(uri: &str, folder: &Path, access: &FileAccess) -> Result<Vec<u8>, String> {
     if let Some(data) = uri.strip_prefix("data:") {
         let (_, payload) = data
             .split_once(";base64,")
@@ -119,7 +142,11 @@ fn read_uri(uri: &str, folder: &Path) -> Result<Vec<u8>, String> {
         return decode_base64(payload).ok_or_else(|| "malformed base64 data".into());
     }
     let file = file_of_uri(uri)?;
-    std::fs::read(folder.join(&file)).map_err(|e| format!("cannot read {}: {e}", file.display()))
+    let path = folder.join(&file);
+    access
+        .admit(&path)
+        .and_then(|()| std::fs::read(&path))
+        .map_err(|e| format!("cannot read {}: {e}", file.display()))
 }
 
 /// The relative path a (non-data) URI names.
@@ -200,6 +227,8 @@ fn decode_base64(text: &str) -> Option<Vec<u8>> {
 
 struct Reader<'a> {
     path: &'a Path,
+    /// Where images may be read from.
+    access: &'a FileAccess,
     folder: PathBuf,
     document: &'a Document,
     buffers: Vec<Vec<u8>>,
@@ -350,7 +379,27 @@ impl Reader<'_> {
                     "{name}: index {bad} out of range ({count} vertices)"
                 ));
             }
-            let material = self.material(primitive.material());
+            let colours: Option<Vec<Vec3>> = reader
+                .read_colors(0)
+                .map(|c| c.into_rgb_f32().map(Vec3::from).collect::<Vec<_>>())
+                .filter(|c| c.len() == count);
+            let mut material = self.material(primitive.material());
+            let triangles = triangles(mode, &indices);
+            // Vertex colours become a texture of their own (see `vertex_colour_atlas`).
+            let mut atlas_texcoords = None;
+            if let Some(colours) = &colours {
+                let corners = triangles
+                    .iter()
+                    .map(|&[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] });
+                let corner_colours: Vec<[Vec3; 3]> =
+                    corners.map(|t| t.map(|i| colours[i as usize])).collect();
+                if let Some((coloured, texcoords)) =
+                    self.vertex_coloured(material, &corner_colours, &name)
+                {
+                    material = coloured;
+                    atlas_texcoords = Some(texcoords);
+                }
+            }
             let base = |len: usize| -> Result<u32, String> {
                 u32::try_from(len + count)
                     .map(|_| len as u32)
@@ -373,19 +422,81 @@ impl Reader<'_> {
             if let Some(texcoords) = texcoords {
                 scene.texcoords.extend(texcoords);
             }
-            for [a, b, c] in triangles(mode, &indices) {
+            // The atlas's coordinates: three per triangle, after TEXCOORD_0's.
+            let atlas_base = scene.texcoords.len() as u32;
+            if let Some(atlas) = &atlas_texcoords {
+                scene.texcoords.extend(atlas.iter().flatten());
+            }
+            for (k, [a, b, c]) in triangles.into_iter().enumerate() {
                 let corners = if mirrored { [a, c, b] } else { [a, b, c] };
                 scene.triangles.push(TriangleDesc {
                     positions: corners.map(|i| position_base + i),
                     normals: has_normals.then(|| corners.map(|i| normal_base + i)),
                     material,
                 });
-                scene
-                    .triangle_texcoords
-                    .push(has_texcoords.then(|| corners.map(|i| texcoord_base + i)));
+                let texcoords = match atlas_texcoords {
+                    Some(_) => Some([0, 1, 2].map(|c| atlas_base + 3 * k as u32 + c)),
+                    None => has_texcoords.then(|| corners.map(|i| texcoord_base + i)),
+                };
+                scene.triangle_texcoords.push(texcoords);
             }
         }
         Ok(())
+    }
+
+    /// A material for a primitive with `COLOR_0`: `material` with the vertex colours
+    /// (`colours`, per triangle corner) as its base colour map, and each triangle's
+    /// coordinates in that map. `None` (with a warning) when `material` has maps
+    /// already: a hit has one set of texture coordinates.
+    fn vertex_coloured(
+        &mut self,
+        material: MaterialId,
+        colours: &[[Vec3; 3]],
+        primitive: &str,
+    ) -> Option<(MaterialId, Vec<[Vec2; 3]>)> {
+        let base = self.scene.materials[material.0 as usize].clone();
+        if base.maps.is_some() {
+            self.warn_once(
+                "vertex colours",
+                format!("{primitive}: vertex colours are not applied on a material with textures"),
+            );
+            return None;
+        }
+        let name = self.path.with_file_name(format!(
+            "{}#{primitive} COLOR_0",
+            self.path.file_name().unwrap_or_default().to_string_lossy()
+        ));
+        let Some((texture, texcoords)) = vertex_colour_atlas(colours, name) else {
+            self.warn(format!(
+                "{primitive}: too many triangles for a vertex colour texture; colours not applied"
+            ));
+            return None;
+        };
+        let map = TextureMap {
+            texture: Arc::new(texture),
+            options: TextureOptions {
+                wrap_u: Wrap::Clamp,
+                wrap_v: Wrap::Clamp,
+                ..TextureOptions::default()
+            },
+        };
+        // As a base colour texture: it tints a metal's specular colour too. A
+        // converted material's `Ks` is 0.04 unless it is metallic (the renderer's
+        // grey for primitives without a material has none).
+        let metallic = base.specular != Vec3::splat(0.04) && base.specular != Vec3::ZERO;
+        let maps = MaterialMaps {
+            diffuse: Some(map.clone()),
+            specular: metallic.then_some(map),
+            ..MaterialMaps::default()
+        };
+        let coloured = Material {
+            name: format!("{} (vertex colours)", base.name),
+            maps: Some(Box::new(maps)),
+            ..base
+        };
+        let id = MaterialId(self.scene.materials.len() as u32);
+        self.scene.materials.push(coloured);
+        Some((id, texcoords))
     }
 
     fn add_camera(&mut self, camera: &gltf::Camera<'_>, world: &Mat4) {
@@ -490,10 +601,10 @@ impl Reader<'_> {
         let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
         let base_map = pbr
             .base_color_texture()
-            .and_then(|info| self.texture_map(&info.texture(), info.tex_coord(), index));
+            .and_then(|info| self.texture_info_map(&info, index));
         let emission_map = material
             .emissive_texture()
-            .and_then(|info| self.texture_map(&info.texture(), info.tex_coord(), index));
+            .and_then(|info| self.texture_info_map(&info, index));
         if pbr.metallic_roughness_texture().is_some() {
             self.warn_once(
                 "metallic-roughness texture",
@@ -564,6 +675,33 @@ impl Reader<'_> {
         }
     }
 
+    /// The map of a base colour or emissive texture, with its `KHR_texture_transform`.
+    fn texture_info_map(
+        &mut self,
+        info: &gltf::texture::Info<'_>,
+        material: usize,
+    ) -> Option<TextureMap> {
+        let transform = info.texture_transform();
+        let tex_coord = transform
+            .as_ref()
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord());
+        let mut map = self.texture_map(&info.texture(), tex_coord, material)?;
+        if let Some(t) = transform {
+            let (scale, rotation, offset) = texture_transform(t.offset(), t.rotation(), t.scale());
+            if [scale, rotation, offset].iter().all(|v| v.is_finite()) {
+                map.options.scale = scale;
+                map.options.rotation = rotation;
+                map.options.offset = offset;
+            } else {
+                self.warn(format!(
+                    "material {material}: a texture transform that is not finite; ignored"
+                ));
+            }
+        }
+        Some(map)
+    }
+
     /// The map of glTF texture `texture`, if its image can be read (else a warning).
     fn texture_map(
         &mut self,
@@ -632,18 +770,75 @@ impl Reader<'_> {
                     .map_err(|e| format!("cannot decode: {e}"))
             }
             gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                let bytes = read_uri(uri, &self.folder)?;
+                let bytes = read_uri(uri, &self.folder, self.access)?;
                 Texture::decode(&bytes, &name)
                     .map(Arc::new)
                     .map_err(|e| format!("cannot decode: {e}"))
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let file = file_of_uri(uri)?;
-                load_texture(&self.folder.join(&file))
+                let path = self.folder.join(&file);
+                self.access
+                    .admit(&path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|()| load_texture(&path))
                     .map_err(|e| format!("cannot read texture '{}': {e}", file.display()))
             }
         }
     }
+}
+
+/// Vertex colours as a texture: each triangle gets a block of 2 x 2 texels holding
+/// its corners' colours `c0`, `c1`, `c2` and `c1 + c2 - c0`, and its corners sit at
+/// the centres of the first three. Bilinear filtering between those centres is then
+/// `c0 + (c1 - c0) s + (c2 - c0) t`, exactly the barycentric interpolation of the
+/// colours, and a renderer that knows only texture maps draws vertex colours. Texels
+/// are `f32`, stored sRGB-encoded (the map is read as a colour map), so the fourth may
+/// leave 0..1. Returns the texture and each triangle's corner coordinates; `None` if
+/// the blocks would not fit [`crate::textures::MAX_TEXTURE_SIZE`] on a side.
+fn vertex_colour_atlas(colours: &[[Vec3; 3]], name: PathBuf) -> Option<(Texture, Vec<[Vec2; 3]>)> {
+    let blocks = colours.len().max(1);
+    let columns = (blocks as f64).sqrt().ceil() as usize;
+    let rows = blocks.div_ceil(columns);
+    let (width, height) = (2 * columns, 2 * rows);
+    let (w, h) = (u32::try_from(width).ok()?, u32::try_from(height).ok()?);
+    if w.max(h) > crate::textures::MAX_TEXTURE_SIZE {
+        return None;
+    }
+    let mut texels = vec![0.0f32; width * height * 3];
+    let mut texcoords = Vec::with_capacity(colours.len());
+    let centre = |x: usize, y: usize| {
+        Vec2::new(
+            (x as Float + 0.5) / width as Float,
+            1.0 - (y as Float + 0.5) / height as Float,
+        )
+    };
+    for (k, &[c0, c1, c2]) in colours.iter().enumerate() {
+        let (x, y) = (2 * (k % columns), 2 * (k / columns));
+        for (dx, dy, colour) in [(0, 0, c0), (1, 0, c1), (0, 1, c2), (1, 1, c1 + c2 - c0)] {
+            let at = ((y + dy) * width + x + dx) * 3;
+            let encoded = colour.to_array().map(crate::textures::linear_to_srgb);
+            texels[at..at + 3].copy_from_slice(&encoded);
+        }
+        texcoords.push([centre(x, y), centre(x + 1, y), centre(x, y + 1)]);
+    }
+    let texture = Texture::from_f32(name, w, h, 3, texels)?;
+    Some((texture, texcoords))
+}
+
+/// `KHR_texture_transform`'s `offset`, `rotation` and `scale` as this renderer's
+/// [`TextureOptions`] `scale`, `rotation` and `offset`.
+///
+/// glTF turns its coordinates `g` (`v` down the image) into `R S g + o`, where `R`
+/// takes `(u, v)` to `(c u + s v, -s u + c v)` (`c`, `s`: cosine and sine of the
+/// angle; the extension's example, the lower left quadrant turned, fixes the sign).
+/// Ours are `r = F g` with `F(u, v) = (u, 1 - v)`: conjugating by `F` gives
+/// `R' S r + o'` with `R'` the counter-clockwise turn by the same angle and
+/// `o' = (o.x + s.y sin, 1 - o.y - s.y cos)`.
+fn texture_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> (Vec2, Vec2, Vec2) {
+    let (sin, cos) = rotation.sin_cos();
+    let offset = Vec2::new(offset[0] + scale[1] * sin, 1.0 - offset[1] - scale[1] * cos);
+    (Vec2::from(scale), Vec2::new(cos, sin), offset)
 }
 
 /// The triangles of a primitive's index list in `mode`, degenerate ones included
@@ -693,6 +888,54 @@ mod tests {
         assert_eq!(percent_decode("my%20model.bin").unwrap(), "my model.bin");
         assert!(percent_decode("bad%2").is_none());
         assert!(percent_decode("bad%zz").is_none());
+    }
+
+    #[test]
+    fn texture_transforms_read_the_image_where_gltf_says() {
+        // glTF's own mapping, in its coordinates (v down).
+        let gltf = |g: Vec2, o: [f32; 2], angle: f32, s: [f32; 2]| {
+            let (sin, cos) = angle.sin_cos();
+            let (x, y) = (g.x * s[0], g.y * s[1]);
+            Vec2::new(cos * x + sin * y + o[0], -sin * x + cos * y + o[1])
+        };
+        let cases = [
+            ([0.0, 1.0], std::f32::consts::FRAC_PI_2, [0.5, 0.5]),
+            ([0.25, -0.5], 0.3, [2.0, -1.5]),
+            ([0.0, 0.0], 0.0, [1.0, 1.0]),
+        ];
+        for (o, angle, s) in cases {
+            let (scale, rotation, offset) = texture_transform(o, angle, s);
+            let options = TextureOptions {
+                scale,
+                rotation,
+                offset,
+                ..TextureOptions::default()
+            };
+            for g in [Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(0.3, 0.8)] {
+                let want = gltf(g, o, angle, s);
+                // Ours: v up.
+                let got = options.transform(Vec2::new(g.x, 1.0 - g.y));
+                let want = Vec2::new(want.x, 1.0 - want.y);
+                assert!((got - want).abs().max_element() < 1e-5, "{got} vs {want}");
+            }
+        }
+        // The extension's example reads the lower left quadrant of the image: in our
+        // coordinates u in 0..0.5, v in 0..0.5, for every point of the unit square.
+        let (scale, rotation, offset) =
+            texture_transform([0.0, 1.0], std::f32::consts::FRAC_PI_2, [0.5, 0.5]);
+        let options = TextureOptions {
+            scale,
+            rotation,
+            offset,
+            ..TextureOptions::default()
+        };
+        for uv in [Vec2::ZERO, Vec2::ONE, Vec2::new(0.2, 0.9)] {
+            let at = options.transform(uv);
+            assert!(
+                (-1e-6..=0.5 + 1e-6).contains(&at.x) && (-1e-6..=0.5 + 1e-6).contains(&at.y),
+                "{uv} -> {at}"
+            );
+        }
     }
 
     #[test]

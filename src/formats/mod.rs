@@ -12,6 +12,7 @@
 //! A new format gets a module here, a [`SceneFormat`] variant and an extension in
 //! [`SceneFormat::of`]; it produces a [`SceneDescription`] and nothing else.
 
+mod access;
 mod compose;
 mod decimal;
 mod error;
@@ -24,13 +25,14 @@ mod ply;
 mod polygon;
 mod toml;
 
+pub use access::FileAccess;
 pub use compose::Transform;
 pub use error::{IndexKind, ParseErrorKind, SceneError};
-pub use gltf::{load_gltf, parse_gltf};
-pub use mtl::{MaterialLibrary, parse_mtl};
-pub use obj::{load_obj, parse_obj};
+pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
+pub use mtl::{MaterialLibrary, parse_mtl, parse_mtl_with};
+pub use obj::{load_obj, load_obj_with, parse_obj};
 pub use ply::{load_ply, parse_ply};
-pub use toml::{load_toml, parse_toml};
+pub use toml::{load_toml, load_toml_with, parse_toml};
 
 pub(crate) use file::read_file;
 
@@ -88,6 +90,15 @@ pub fn resolve_options(
     options.resolve()
 }
 
+/// Asks `access` whether the scene file `path` may be read: an I/O error naming it if
+/// not.
+fn admit(path: &Path, access: &FileAccess) -> Result<(), SceneError> {
+    access.admit(path).map_err(|error| SceneError::Io {
+        path: path.to_path_buf(),
+        error,
+    })
+}
+
 /// The kinds of scene file, told apart by name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SceneFormat {
@@ -140,10 +151,21 @@ impl SceneFormat {
 /// The name has no supported extension, or the format's reader reports an error,
 /// naming file and line.
 pub fn load(path: &Path) -> Result<LoadedScene, SceneError> {
+    load_with(path, &FileAccess::anywhere())
+}
+
+/// [`load`], opening the scene file and every file it names through `access`: a
+/// shipped scene is read with [`FileAccess::confined_to`] its folder, and
+/// [`FileAccess::asked`] lists the files a scene reads.
+///
+/// # Errors
+/// As [`load`]; a file `access` refuses is an error as an unreadable one is (a
+/// warning for a texture).
+pub fn load_with(path: &Path, access: &FileAccess) -> Result<LoadedScene, SceneError> {
     match SceneFormat::require(path)? {
-        SceneFormat::Toml => load_toml(path),
-        SceneFormat::Gltf => load_gltf(path),
-        _ => load_mesh(path).map(|description| LoadedScene {
+        SceneFormat::Toml => load_toml_with(path, access),
+        SceneFormat::Gltf => load_gltf_with(path, access),
+        _ => load_mesh_with(path, access).map(|description| LoadedScene {
             description,
             options: PartialOptions::default(),
         }),
@@ -156,10 +178,21 @@ pub fn load(path: &Path) -> Result<LoadedScene, SceneError> {
 /// # Errors
 /// As [`load_obj`], [`load_ply`] and [`load_gltf`]; the name is none of theirs.
 pub fn load_mesh(path: &Path) -> Result<SceneDescription, SceneError> {
+    load_mesh_with(path, &FileAccess::anywhere())
+}
+
+/// [`load_mesh`] through `access`, as [`load_with`].
+///
+/// # Errors
+/// As [`load_mesh`] and [`load_with`].
+pub fn load_mesh_with(path: &Path, access: &FileAccess) -> Result<SceneDescription, SceneError> {
     match SceneFormat::require(path)? {
-        SceneFormat::Obj => load_obj(path),
-        SceneFormat::Ply => load_ply(path),
-        SceneFormat::Gltf => load_gltf(path).map(|loaded| loaded.description),
+        SceneFormat::Obj => load_obj_with(path, access),
+        SceneFormat::Ply => {
+            admit(path, access)?;
+            load_ply(path)
+        }
+        SceneFormat::Gltf => load_gltf_with(path, access).map(|loaded| loaded.description),
         SceneFormat::Toml => Err(SceneError::UnknownFormat {
             path: path.to_path_buf(),
         }),

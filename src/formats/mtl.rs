@@ -9,7 +9,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::error::{ParseErrorKind, SceneError};
-use super::lex;
+use super::{FileAccess, lex};
 use crate::material::{Cutout, Material, MaterialMaps};
 use crate::math::{Float, Vec2, Vec3};
 use crate::textures::{Channel, Texture, TextureMap, TextureOptions, Wrap, load_texture};
@@ -73,6 +73,19 @@ struct PendingMap {
 /// A malformed supported line, with its line number. A texture that cannot be read
 /// is a warning, and the material renders without it; so is an `Ns` below 0, read as 0.
 pub fn parse_mtl(text: &[u8], path: &Path) -> Result<MaterialLibrary, SceneError> {
+    parse_mtl_with(text, path, &FileAccess::anywhere())
+}
+
+/// [`parse_mtl`], opening textures through `access`: one it refuses is a warning of
+/// the line naming it, as a missing one is.
+///
+/// # Errors
+/// As [`parse_mtl`].
+pub fn parse_mtl_with(
+    text: &[u8],
+    path: &Path,
+    access: &FileAccess,
+) -> Result<MaterialLibrary, SceneError> {
     let at = |line, kind| SceneError::Parse {
         path: path.to_path_buf(),
         line,
@@ -106,13 +119,18 @@ pub fn parse_mtl(text: &[u8], path: &Path) -> Result<MaterialLibrary, SceneError
             .map(|(line, message)| format!("{}:{line}: {message}", path.display()))
             .collect(),
     };
-    load_maps(maps, path, &mut library);
+    load_maps(maps, path, access, &mut library);
     Ok(library)
 }
 
 /// Loads the images of `maps` (in parallel, each file once) and gives them to their
 /// materials; a file that cannot be loaded is a warning at each line that names it.
-fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibrary) {
+fn load_maps(
+    maps: Vec<PendingMap>,
+    mtl_path: &Path,
+    access: &FileAccess,
+    library: &mut MaterialLibrary,
+) {
     if maps.is_empty() {
         return;
     }
@@ -122,7 +140,7 @@ fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibra
     files.dedup();
     let loaded: HashMap<&str, Result<Arc<Texture>, String>> = files
         .into_par_iter()
-        .map(|file| (file, load_named(folder, file)))
+        .map(|file| (file, load_named(folder, file, access)))
         .collect();
     for map in &maps {
         let texture = match &loaded[map.file.as_str()] {
@@ -174,8 +192,12 @@ fn load_maps(maps: Vec<PendingMap>, mtl_path: &Path, library: &mut MaterialLibra
 /// paths and absolute paths of the machine the model was made on: when the file is
 /// not where it says, it is looked for with `\` read as `/`, then by its bare name
 /// beside the MTL file.
-fn load_named(folder: &Path, file: &str) -> Result<Arc<Texture>, String> {
-    let first = load_texture(&folder.join(file));
+fn load_named(folder: &Path, file: &str, access: &FileAccess) -> Result<Arc<Texture>, String> {
+    let open = |path: &Path| {
+        access.admit(path).map_err(|e| e.to_string())?;
+        load_texture(path)
+    };
+    let first = open(&folder.join(file));
     if first.is_ok() {
         return first;
     }
@@ -191,8 +213,8 @@ fn load_named(folder: &Path, file: &str) -> Result<Arc<Texture>, String> {
     }
     candidates
         .iter()
-        .find(|candidate| candidate.is_file())
-        .map_or(first, |candidate| load_texture(candidate))
+        .find(|candidate| access.admit(candidate).is_ok() && candidate.is_file())
+        .map_or(first, |candidate| open(candidate))
 }
 
 fn parse_line(

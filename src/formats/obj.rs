@@ -30,7 +30,7 @@ use std::sync::{Mutex, PoisonError};
 use rayon::prelude::*;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
-use super::{SceneDescription, SphereDesc, TriangleDesc, file, lex, mtl, read_file};
+use super::{FileAccess, SceneDescription, SphereDesc, TriangleDesc, file, lex, mtl, read_file};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Vec2, Vec3};
 use faces::{ChunkFaces, INHERITED_GROUP, Shaping};
@@ -54,6 +54,16 @@ const CHUNK_BYTES: usize = 1 << 20;
 /// A missing or unreadable file (naming its path), or a malformed supported line
 /// (naming file and line).
 pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
+    load_obj_with(path, &FileAccess::anywhere())
+}
+
+/// [`load_obj`], opening its MTL libraries and textures through `access`.
+///
+/// # Errors
+/// As [`load_obj`]; a library `access` refuses is an error of the line naming it, a
+/// texture it refuses a warning.
+pub fn load_obj_with(path: &Path, access: &FileAccess) -> Result<SceneDescription, SceneError> {
+    super::admit(path, access)?;
     let read = Mutex::new(Vec::new());
     let whole = rayon::in_place_scope_fifo(|scope| {
         file::read_in_pieces(path, CHUNK_BYTES, |index, chunk| {
@@ -66,7 +76,7 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
         })
     })?;
     if let Some(text) = whole {
-        return parse_obj(&text, path);
+        return parse_in_chunks(&text, path, access, CHUNK_BYTES, Parser::Fast);
     }
     let mut read = read.into_inner().unwrap_or_else(PoisonError::into_inner);
     read.sort_unstable_by_key(|&(index, ..)| index);
@@ -75,7 +85,7 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
         .map(|(_, text, survey)| (text, survey))
         .unzip();
     let chunks: Vec<&[u8]> = texts.iter().map(Vec::as_slice).collect();
-    parse_surveyed(&chunks, surveys, path)
+    parse_surveyed(&chunks, surveys, path, access)
 }
 
 /// Parses OBJ text; `path` names it in messages and locates `mtllib` files.
@@ -83,7 +93,13 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// # Errors
 /// As [`load_obj`].
 pub fn parse_obj(text: &[u8], path: &Path) -> Result<SceneDescription, SceneError> {
-    parse_in_chunks(text, path, CHUNK_BYTES, Parser::Fast)
+    parse_in_chunks(
+        text,
+        path,
+        &FileAccess::anywhere(),
+        CHUNK_BYTES,
+        Parser::Fast,
+    )
 }
 
 /// The readers of [`parse_in_chunks`]; tests compare them.
@@ -99,6 +115,7 @@ enum Parser {
 fn parse_in_chunks(
     text: &[u8],
     path: &Path,
+    access: &FileAccess,
     chunk_bytes: usize,
     parser: Parser,
 ) -> Result<SceneDescription, SceneError> {
@@ -106,10 +123,10 @@ fn parse_in_chunks(
     match parser {
         Parser::Fast => {
             let surveys = chunks.par_iter().map(|text| survey::survey(text)).collect();
-            parse_surveyed(&chunks, surveys, path)
+            parse_surveyed(&chunks, surveys, path, access)
         }
         #[cfg(test)]
-        Parser::General => parse_generally(&chunks, path),
+        Parser::General => parse_generally(&chunks, path, access),
     }
 }
 
@@ -148,6 +165,7 @@ fn parse_surveyed(
     chunks: &[&[u8]],
     surveys: Vec<Survey>,
     path: &Path,
+    access: &FileAccess,
 ) -> Result<SceneDescription, SceneError> {
     if surveys.iter().any(|survey| survey.has_nul) {
         check_text(chunks, path)?;
@@ -161,7 +179,7 @@ fn parse_surveyed(
 
     // Pass 2: the events in file order. A problem is only a candidate: a chunk's
     // elements and faces, not parsed yet, may hold an earlier one.
-    let mut resolver = Resolver::new(path);
+    let mut resolver = Resolver::new(path, access);
     let mut materials = Vec::with_capacity(chunks.len());
     for (chunk, statements) in statements.iter().enumerate() {
         match resolver.resolve(statements, total_triangles_to(&bases, &total, chunk)) {
@@ -196,7 +214,7 @@ fn parse_surveyed(
                 .try_reserve_exact(total.triangles)
                 .is_ok());
     if !reserved {
-        return parse_generally(chunks, path);
+        return parse_generally(chunks, path, access);
     }
     let positions = parts_of(&mut scene.positions, lengths(|c| c.positions));
     let texcoords = parts_of(&mut scene.texcoords, lengths(|c| c.texcoords));
@@ -251,7 +269,7 @@ fn parse_surveyed(
         // The counts of pass 1 and the elements of pass 3 disagree, which they
         // cannot for a chunk without errors; should they ever, read the file as
         // the general parser does, rather than leave an element unwritten.
-        return parse_generally(chunks, path);
+        return parse_generally(chunks, path, access);
     }
     // SAFETY: the parts split the first `total` elements of each array's spare
     // capacity (see `parts_of`), and every chunk's fill was `Complete`: it wrote
@@ -432,7 +450,11 @@ fn first_problem(
 /// Passes 1 to 3 with the general parser on every chunk: the reference the
 /// scanner is tested against, and the way out should the counts of pass 1 ever
 /// disagree with the elements.
-fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, SceneError> {
+fn parse_generally(
+    chunks: &[&[u8]],
+    path: &Path,
+    access: &FileAccess,
+) -> Result<SceneDescription, SceneError> {
     check_text(chunks, path)?;
     let counts: Vec<Counts> = chunks.par_iter().map(|text| Counts::of(text)).collect();
     let (bases, _) = bases(counts.iter());
@@ -441,7 +463,7 @@ fn parse_generally(chunks: &[&[u8]], path: &Path) -> Result<SceneDescription, Sc
         .zip(bases)
         .map(|(text, base)| Chunk::parse(text, base))
         .collect();
-    let mut resolver = Resolver::new(path);
+    let mut resolver = Resolver::new(path, access);
     let mut materials = Vec::with_capacity(parsed.len());
     let mut triangles = 0;
     let mut bases = Vec::with_capacity(parsed.len());
@@ -917,6 +939,8 @@ impl Chunk {
 /// Pass 3: replays chunks' statements in file order.
 struct Resolver<'a> {
     path: &'a Path,
+    /// Where `mtllib` files and their textures may be read from.
+    access: &'a FileAccess,
     scene: SceneDescription,
     material_ids: HashMap<String, MaterialId>,
     current_material: Option<MaterialId>,
@@ -933,9 +957,10 @@ struct Resolver<'a> {
 }
 
 impl<'a> Resolver<'a> {
-    fn new(path: &'a Path) -> Resolver<'a> {
+    fn new(path: &'a Path, access: &'a FileAccess) -> Resolver<'a> {
         Resolver {
             path,
+            access,
             scene: SceneDescription::default(),
             material_ids: HashMap::new(),
             current_material: None,
@@ -1043,6 +1068,9 @@ impl<'a> Resolver<'a> {
                 reason: error.to_string(),
             },
         };
+        self.access
+            .admit(&mtl_path)
+            .map_err(|error| library_error(&mtl_path, &error))?;
         let identity = match std::fs::canonicalize(&mtl_path) {
             Ok(identity) => identity,
             // Exported models often travel without their `.mtl`: their shapes keep the
@@ -1067,7 +1095,7 @@ impl<'a> Resolver<'a> {
             SceneError::Io { path, error } => library_error(&path, &error),
             other => other,
         })?;
-        let library = mtl::parse_mtl(&text, &mtl_path)?;
+        let library = mtl::parse_mtl_with(&text, &mtl_path, self.access)?;
         self.scene.warnings.extend(library.warnings);
         for material in library.materials {
             let id = MaterialId(self.scene.materials.len() as u32);
@@ -1447,11 +1475,23 @@ mod tests {
             let text = text.as_bytes();
             scanned += usize::from(scanner_reads_whole(text));
             for size in [1, 13, 100, 700, usize::MAX] {
-                let expected = outcome(parse_in_chunks(text, &path, size, Parser::General));
+                let expected = outcome(parse_in_chunks(
+                    text,
+                    &path,
+                    &FileAccess::anywhere(),
+                    size,
+                    Parser::General,
+                ));
                 if size == usize::MAX {
                     errors += usize::from(expected.starts_with("error"));
                 }
-                let got = outcome(parse_in_chunks(text, &path, size, Parser::Fast));
+                let got = outcome(parse_in_chunks(
+                    text,
+                    &path,
+                    &FileAccess::anywhere(),
+                    size,
+                    Parser::Fast,
+                ));
                 assert_eq!(
                     got,
                     expected,

@@ -9,6 +9,9 @@
 //! block an ear (the reflex ones) are tested, and only those in the grid cells the ear's
 //! box covers, so a face of 200,000 corners takes milliseconds.
 
+use rayon::prelude::*;
+
+use crate::description::TriangleDesc;
 use crate::math::Vec3;
 
 /// Sine of the angle below which a turn counts as straight, whatever the rounding.
@@ -88,6 +91,117 @@ fn triangulate_counting_work(points: &[Vec3]) -> (Triangulation, u64) {
     let outline = points.iter().map(|&p| plane.project(p)).collect();
     let (triangles, work) = EarClipper::new(outline, straight).run();
     (Triangulation::Triangles(triangles), work)
+}
+
+/// A polygon of more than three corners, written as the fan of triangles from its
+/// first corner: its first triangle and its corner count (the fan has `corners - 2`
+/// triangles).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct FanPolygon {
+    pub(crate) first: u32,
+    pub(crate) corners: u32,
+}
+
+/// Polygons one parallel task cuts: enough that splitting costs little beside the
+/// convexity tests of as many quads.
+const POLYGONS_PER_TASK: usize = 4096;
+
+/// Cuts again, in place and on all threads, each polygon of `polygons` (in increasing
+/// order of `first`, fans that do not overlap) that is not convex: see [`recut_fan`].
+/// For readers without texture coordinate indices (PLY).
+pub(crate) fn recut_fans(
+    positions: &[Vec3],
+    triangles: &mut [TriangleDesc],
+    polygons: &[FanPolygon],
+) {
+    let mut tasks = Vec::with_capacity(polygons.len().div_ceil(POLYGONS_PER_TASK));
+    let mut rest = triangles;
+    let mut at = 0usize;
+    for batch in polygons.chunks(POLYGONS_PER_TASK) {
+        let last = batch[batch.len() - 1];
+        let end = last.first as usize + last.corners as usize - 2;
+        let (part, tail) = std::mem::take(&mut rest).split_at_mut(end - at);
+        tasks.push((part, at, batch));
+        rest = tail;
+        at = end;
+    }
+    tasks.into_par_iter().for_each(|(part, base, batch)| {
+        for p in batch {
+            let first = p.first as usize - base;
+            let fan = &mut part[first..first + p.corners as usize - 2];
+            recut_fan(positions, fan, None);
+        }
+    });
+}
+
+/// Cuts again, in place, the polygon whose fan is `fan` (with its triangles' texture
+/// coordinate indices, when kept), if it is not convex.
+pub(crate) fn recut_fan(
+    positions: &[Vec3],
+    fan: &mut [TriangleDesc],
+    texcoords: Option<&mut [Option<[u32; 3]>]>,
+) {
+    // Corner k of the polygon is corner 0 of the first triangle (k = 0), corner 1 of
+    // the first (k = 1), and corner 2 of triangle k - 2 (k >= 2).
+    let corner = |k: usize| match k {
+        0 => (0, 0),
+        1 => (0, 1),
+        k => (k - 2, 2),
+    };
+    let count = fan.len() + 2;
+    let point = |k: usize| {
+        let (t, c) = corner(k);
+        positions[fan[t].positions[c] as usize]
+    };
+    // Quads, the common polygon, without an allocation.
+    let triangulation = if count == 4 {
+        triangulate(&[point(0), point(1), point(2), point(3)])
+    } else {
+        triangulate(&(0..count).map(point).collect::<Vec<_>>())
+    };
+    let Triangulation::Triangles(triangles) = triangulation else {
+        return;
+    };
+    // A corner's `vn` is known when a triangle of the fan holding it has them all (the
+    // fan gave a triangle normals only when all three corners had one).
+    let mut normals: Vec<Option<u32>> = vec![None; count];
+    for (t, triangle) in fan.iter().enumerate() {
+        if let Some(n) = triangle.normals {
+            for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
+                normals[k] = Some(n[c]);
+            }
+        }
+    }
+    let old: Vec<TriangleDesc> = fan.to_vec();
+    if let Some(texcoords) = texcoords {
+        // As the normals: a corner's `vt` is known from a triangle that has them all.
+        let mut corner_texcoords: Vec<Option<u32>> = vec![None; count];
+        for (t, triangle) in texcoords.iter().enumerate() {
+            if let Some(ids) = triangle {
+                for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
+                    corner_texcoords[k] = Some(ids[c]);
+                }
+            }
+        }
+        for (slot, corners) in texcoords.iter_mut().zip(&triangles) {
+            *slot = match corners.map(|k| corner_texcoords[k as usize]) {
+                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                _ => None,
+            };
+        }
+    }
+    for (slot, corners) in fan.iter_mut().zip(triangles) {
+        let corners = corners.map(|k| k as usize);
+        let at = corners.map(corner);
+        *slot = TriangleDesc {
+            positions: at.map(|(t, c)| old[t].positions[c]),
+            normals: match corners.map(|k| normals[k]) {
+                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                _ => None,
+            },
+            ..old[0]
+        };
+    }
 }
 
 /// Whether a quad is convex in its plane, the common case, tested without the frame of

@@ -20,7 +20,8 @@ use toml::de::{DeTable, DeValue};
 
 use super::error::{ParseErrorKind, SceneError};
 use super::{
-    LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh, read_file,
+    FileAccess, LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh_with,
+    read_file,
 };
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
@@ -34,8 +35,17 @@ use crate::options::{Mode, Origin, PartialOptions, Sourced};
 /// line and key (a failing mesh adds its own error). The ranges of the camera and
 /// render values are checked by [`PartialOptions::resolve`], not here.
 pub fn load_toml(path: &Path) -> Result<LoadedScene, SceneError> {
+    load_toml_with(path, &FileAccess::anywhere())
+}
+
+/// [`load_toml`], opening the scene file and its meshes through `access`.
+///
+/// # Errors
+/// As [`load_toml`]; a mesh `access` refuses is an error of the line naming it.
+pub fn load_toml_with(path: &Path, access: &FileAccess) -> Result<LoadedScene, SceneError> {
+    super::admit(path, access)?;
     let bytes = read_file(path)?;
-    parse_toml(&bytes, path)
+    parse_toml_with(&bytes, path, access)
 }
 
 /// Parses a TOML scene; `path` names it in messages and locates its meshes.
@@ -43,6 +53,14 @@ pub fn load_toml(path: &Path) -> Result<LoadedScene, SceneError> {
 /// # Errors
 /// As [`load_toml`].
 pub fn parse_toml(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> {
+    parse_toml_with(bytes, path, &FileAccess::anywhere())
+}
+
+fn parse_toml_with(
+    bytes: &[u8],
+    path: &Path,
+    access: &FileAccess,
+) -> Result<LoadedScene, SceneError> {
     let text = std::str::from_utf8(bytes).map_err(|e| SceneError::Parse {
         path: path.to_path_buf(),
         line: line_of(&bytes[..e.valid_up_to()], e.valid_up_to()),
@@ -63,6 +81,7 @@ pub fn parse_toml(bytes: &[u8], path: &Path) -> Result<LoadedScene, SceneError> 
     })?;
     Builder {
         path,
+        access,
         text,
         scene: SceneDescription::default(),
         material_ids: HashMap::new(),
@@ -326,6 +345,8 @@ impl<'de> Deserialize<'de> for Splat {
 /// Turns the checked document into a description.
 struct Builder<'a> {
     path: &'a Path,
+    /// Where meshes (and what they name) may be read from.
+    access: &'a FileAccess,
     text: &'a str,
     scene: SceneDescription,
     material_ids: HashMap<String, MaterialId>,
@@ -451,12 +472,13 @@ impl Builder<'_> {
             t.translate.map_or(Vec3::ZERO, |r| r.0),
         );
 
-        let mut description = load_mesh(&mesh_path).map_err(|error| SceneError::Included {
-            path: self.path.to_path_buf(),
-            line: line_of(self.text.as_bytes(), file_span.start),
-            key: "mesh.file".into(),
-            error: Box::new(error),
-        })?;
+        let mut description =
+            load_mesh_with(&mesh_path, self.access).map_err(|error| SceneError::Included {
+                path: self.path.to_path_buf(),
+                line: line_of(self.text.as_bytes(), file_span.start),
+                key: "mesh.file".into(),
+                error: Box::new(error),
+            })?;
         if material.is_some() {
             // The mesh's own material assignments are replaced, so what its reader
             // said about them (a missing `usemtl`, an unknown name) no longer holds.

@@ -142,7 +142,7 @@ impl PathIntegrator {
                 let light_pdf =
                     scene
                         .area_lights
-                        .pdf(material.emission, path.previous_point, hit.p, cos_light);
+                        .pdf(hit.material, path.previous_point, hit.p, cos_light);
                 power_heuristic(path.previous_pdf, light_pdf)
             };
             path.radiance += path.throughput * emission * weight;

@@ -2,9 +2,10 @@
 //! reflection and refraction, recursion limited by depth.
 
 use super::Integrator;
-use crate::math::{Ray, Vec3, reflect, refract, saturate_finite, try_unit};
+use crate::material::Colours;
+use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
 use crate::sampler::PixelSample;
-use crate::scene::Scene;
+use crate::scene::{Hit, Scene};
 use crate::stats::RayCounts;
 
 /// SPEC's lighting: deterministic, so it draws no sample dimensions.
@@ -48,39 +49,12 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
     };
     let material = &scene.materials[hit.material.0 as usize];
     let [local_weight, reflect_weight, refract_weight] = material.albedo;
-    // The colours at the hit: the material's constants, times its maps if it has any.
-    let surface = material.at(hit.uv);
-    let mut value = surface.ambient + surface.emission;
-
-    if local_weight != 0.0 {
-        let to_eye = -ray.dir;
-        let mut local = Vec3::ZERO;
-        for light in &scene.lights {
-            // A light exactly at the hit point lights it from no direction.
-            let Some(to_light) = try_unit(light.position - hit.p) else {
-                continue;
-            };
-            let cos_light = hit.ns.dot(to_light);
-            let mirrored = 2.0 * cos_light * hit.ns - to_light;
-            let diffuse = surface.diffuse * cos_light.max(0.0);
-            // Clamped to 1 as well: rounding can push the cosine just past 1, which a
-            // large `Ns` would raise to infinity.
-            let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
-            let specular = surface.specular * cos_mirror.powf(surface.shininess);
-            let lit = light.intensity * (diffuse + specular);
-            // Shading first, shadow ray second: a light that would add nothing (behind
-            // a diffuse surface, say) needs no visibility test. The image is the same.
-            if lit == Vec3::ZERO {
-                continue;
-            }
-            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
-            rays.shadow += 1;
-            if !scene.occluded(&shadow_ray, distance) {
-                local += lit;
-            }
-        }
-        value += local_weight * local;
-    }
+    // The colours at the hit: an untextured material's constants, read in place, or
+    // a textured one's values there.
+    let mut value = match material.maps {
+        None => local_light(scene, ray, &hit, material, local_weight, rays),
+        Some(_) => local_light(scene, ray, &hit, &material.at(hit.uv), local_weight, rays),
+    };
 
     if depth > 1 {
         if !inside && reflect_weight != 0.0 {
@@ -102,4 +76,49 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
         }
     }
     saturate_finite(value)
+}
+
+/// `Ka + Ke + al0 * (Phong lighting by the lights the hit point sees)`, with the
+/// colours `surface` (one copy per kind of surface, so that untextured materials are
+/// read in place).
+#[inline(always)]
+fn local_light(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    surface: &impl Colours,
+    local_weight: Float,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let mut value = surface.ambient() + surface.emission();
+    if local_weight != 0.0 {
+        let to_eye = -ray.dir;
+        let mut local = Vec3::ZERO;
+        for light in &scene.lights {
+            // A light exactly at the hit point lights it from no direction.
+            let Some(to_light) = try_unit(light.position - hit.p) else {
+                continue;
+            };
+            let cos_light = hit.ns.dot(to_light);
+            let mirrored = 2.0 * cos_light * hit.ns - to_light;
+            let diffuse = surface.diffuse() * cos_light.max(0.0);
+            // Clamped to 1 as well: rounding can push the cosine just past 1, which a
+            // large `Ns` would raise to infinity.
+            let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
+            let specular = surface.specular() * cos_mirror.powf(surface.shininess());
+            let lit = light.intensity * (diffuse + specular);
+            // Shading first, shadow ray second: a light that would add nothing (behind
+            // a diffuse surface, say) needs no visibility test. The image is the same.
+            if lit == Vec3::ZERO {
+                continue;
+            }
+            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+            rays.shadow += 1;
+            if !scene.occluded(&shadow_ray, distance) {
+                local += lit;
+            }
+        }
+        value += local_weight * local;
+    }
+    value
 }

@@ -290,12 +290,14 @@ impl Scene {
                     u: u[lane],
                     v: v[lane],
                 };
-                self.hit_details_inline(
-                    &rays[lane],
-                    id / LANES as u32,
-                    (id % LANES as u32) as usize,
-                    hit,
-                )
+                let (packet, lane_in_packet) = (id / LANES as u32, (id % LANES as u32) as usize);
+                // As `Scene::intersect`: texture coordinates and bumps in textured
+                // scenes only.
+                if self.prim_texcoords.is_empty() {
+                    self.hit_details_inline(&rays[lane], packet, lane_in_packet, hit)
+                } else {
+                    self.textured_hit_details(&rays[lane], packet, lane_in_packet, hit)
+                }
             });
         }
     }
@@ -461,12 +463,8 @@ mod tests {
                     continue;
                 }
                 tested += 1;
-                let got = hits[lane].map(|h| h.t.to_bits());
-                assert_eq!(
-                    got,
-                    single.map(|h| h.t.to_bits()),
-                    "round {round}, lane {lane}"
-                );
+                let bits = |hit: Option<Hit>| hit.map(|h| (h.t.to_bits(), h.uv.to_array()));
+                assert_eq!(bits(hits[lane]), bits(single), "round {round}, lane {lane}");
                 hit += usize::from(single.is_some());
             }
             let t_max: [Float; BATCH] = std::array::from_fn(|_| rng.random_range(0.01..3.0));
@@ -481,6 +479,58 @@ mod tests {
             }
         }
         (tested, hit)
+    }
+
+    /// The Cornell box's walls with texture coordinates and a 2x2 `map_Kd`, written
+    /// to a temporary folder: a textured scene, whose hits carry `uv`.
+    fn textured_box() -> Scene {
+        let folder = tempfile::tempdir().unwrap();
+        let image =
+            image::RgbImage::from_fn(2, 2, |x, y| image::Rgb([40 + 100 * (x ^ y) as u8; 3]));
+        image.save(folder.path().join("checker.png")).unwrap();
+        std::fs::write(
+            folder.path().join("box.mtl"),
+            "newmtl checker\nKd 1 1 1\nmap_Kd checker.png\n",
+        )
+        .unwrap();
+        let mut obj = String::from("mtllib box.mtl\nusemtl checker\n");
+        for [x, y, z] in [
+            [-1, 0, -1],
+            [1, 0, -1],
+            [1, 0, 1],
+            [-1, 0, 1],
+            [-1, 2, -1],
+            [1, 2, -1],
+            [1, 2, 1],
+            [-1, 2, 1],
+        ] {
+            writeln!(obj, "v {x} {y} {z}").unwrap();
+        }
+        obj.push_str("vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n");
+        for [a, b, c, d] in [
+            [1, 4, 3, 2],
+            [5, 6, 7, 8],
+            [1, 2, 6, 5],
+            [1, 5, 8, 4],
+            [2, 3, 7, 6],
+        ] {
+            writeln!(obj, "f {a}/1 {b}/2 {c}/3 {d}/4").unwrap();
+        }
+        obj.push_str("S 0.3 0.4 0.1 0.3\n");
+        let path = folder.path().join("box.obj");
+        std::fs::write(&path, obj).unwrap();
+        Scene::build(formats::load_mesh(&path).unwrap(), &BvhParams::default())
+    }
+
+    #[test]
+    fn batches_find_what_single_rays_find_in_a_textured_scene() {
+        let scene = textured_box();
+        assert!(
+            !scene.prim_texcoords.is_empty(),
+            "the scene is not textured"
+        );
+        let (tested, hit) = check_against_single_rays(&scene, 4, 0.9);
+        assert!(tested > 2_000 && hit * 10 > tested * 8, "{hit} of {tested}");
     }
 
     #[test]

@@ -100,8 +100,8 @@ pub struct Hit {
     pub n: Vec3,
     /// Unit shading normal (interpolated `vn`, or `n`), facing against the ray.
     pub ns: Vec3,
-    /// Texture coordinates (interpolated `vt`); zero where there are none, and in
-    /// scenes without texture maps.
+    /// Texture coordinates (interpolated `vt`); zero where there are none, on
+    /// materials without texture maps, and in scenes without any.
     pub uv: Vec2,
     /// The material.
     pub material: MaterialId,
@@ -206,7 +206,13 @@ impl Scene {
         if order.is_empty() {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
-        let area_lights = collect_area_lights(&positions, &triangles, &spheres, &materials);
+        let area_lights = collect_area_lights(
+            (&positions, &texcoords),
+            &triangles,
+            &triangle_texcoords,
+            &spheres,
+            &materials,
+        );
         // An unlit scene is warned of (and lit) by `SceneDescription::add_default_light`,
         // which knows the mode.
 
@@ -344,6 +350,12 @@ impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let (packet, lane, hit) = self.closest_lane(ray)?;
+        // Texture coordinates and bumps: in textured scenes only, out of line, so
+        // that the hits of other scenes pay one predictable branch for them and are
+        // written in place as before.
+        if !self.prim_texcoords.is_empty() {
+            return Some(self.textured_hit_details(ray, packet, lane, hit));
+        }
         Some(self.hit_details(ray, packet, lane, hit))
     }
 
@@ -579,10 +591,18 @@ impl Scene {
                 }
             }
         }
-        closest.map(|(packet, lane, hit)| self.hit_details(ray, packet, lane, hit))
+        closest.map(|(packet, lane, hit)| {
+            if self.prim_texcoords.is_empty() {
+                self.hit_details(ray, packet, lane, hit)
+            } else {
+                self.textured_hit_details(ray, packet, lane, hit)
+            }
+        })
     }
 
-    /// Second phase of a hit: point, normals and material, for the closest hit only.
+    /// Second phase of a hit: point, normals and material, for the closest hit only
+    /// (texture coordinates and bumps are added, in textured scenes only, by
+    /// [`Scene::textured_hit_details`]).
     fn hit_details(&self, ray: &Ray, packet: u32, lane: usize, hit: PrimHit) -> Hit {
         self.hit_details_inline(ray, packet, lane, hit)
     }
@@ -601,18 +621,7 @@ impl Scene {
             Shape::Triangle(tri) => {
                 // `build` kept only triangles whose normal `try_unit` accepts.
                 let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
-                let ns = match shading.normals {
-                    [NO_NORMALS, ..] => n,
-                    ids => {
-                        let [n0, n1, n2] = ids.map(|i| match self.vertex_normals[i as usize] {
-                            Vec3::ZERO => n,
-                            unit => unit,
-                        });
-                        let w = 1.0 - hit.u - hit.v;
-                        try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
-                    }
-                };
-                (ray.at(hit.t), n, ns)
+                (ray.at(hit.t), n, self.shading_normal(shading, n, &hit))
             }
             Shape::Sphere(s) => {
                 let p = ray.at(hit.t);
@@ -622,76 +631,107 @@ impl Scene {
         };
         let front = n.dot(ray.dir) <= 0.0;
         let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
-        // Texture coordinates and bumps: in textured scenes only, out of line, so
-        // that the hits of other scenes cost what they did.
-        let (uv, bumped) = match shape {
-            Shape::Triangle(triangle) if !self.prim_texcoords.is_empty() => {
-                self.texture_details(ray, prim, &triangle, &hit, shading.material, ns)
-            }
-            _ => (Vec2::ZERO, None),
-        };
         Hit {
             t: hit.t,
             p,
             n: face(n),
-            ns: bumped.unwrap_or_else(|| face(ns)),
-            uv,
+            ns: face(ns),
+            uv: Vec2::ZERO,
             material: shading.material,
             front,
         }
     }
 
-    /// The texture coordinates of a hit on triangle `prim` and, under a bump or
-    /// normal map, its shading normal tilted and turned to face the ray; `ns` is the
-    /// shading normal before it was turned.
+    /// The shading normal of a triangle hit: its interpolated vertex normals, or its
+    /// unit geometric normal `n` (not turned to face the ray).
+    #[inline(always)]
+    fn shading_normal(&self, shading: PrimShading, n: Vec3, hit: &PrimHit) -> Vec3 {
+        match shading.normals {
+            [NO_NORMALS, ..] => n,
+            ids => {
+                let [n0, n1, n2] = ids.map(|i| match self.vertex_normals[i as usize] {
+                    Vec3::ZERO => n,
+                    unit => unit,
+                });
+                let w = 1.0 - hit.u - hit.v;
+                try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
+            }
+        }
+    }
+
+    /// [`Scene::hit_details`] in a textured scene: also the texture coordinates, if
+    /// the primitive is a triangle whose material has maps (the only reader of
+    /// `Hit::uv`), and under a bump or normal map the tilted shading normal (turned to
+    /// face the ray).
     #[inline(never)]
-    fn texture_details(
-        &self,
-        ray: &Ray,
-        prim: u32,
-        triangle: &Triangle,
-        hit: &PrimHit,
-        material: MaterialId,
-        ns: Vec3,
-    ) -> (Vec2, Option<Vec3>) {
+    fn textured_hit_details(&self, ray: &Ray, packet: u32, lane: usize, hit: PrimHit) -> Hit {
+        let mut details = self.hit_details(ray, packet, lane, hit);
+        let packet = &self.packets[packet as usize];
+        let (Some(prim), Some(Shape::Triangle(triangle))) = (packet.prim(lane), packet.shape(lane))
+        else {
+            return details;
+        };
+        let material = details.material;
+        let has_maps = self
+            .materials
+            .get(material.0 as usize)
+            .is_some_and(|m| m.maps.is_some());
+        if !has_maps {
+            return details;
+        }
         let uv = self.uv_at(prim, hit.u, hit.v);
-        let bumped = self.perturbed_normal(prim, triangle, material, uv, ns);
-        // Turned with the normal it perturbs, so that a bump cannot turn the shading
-        // normal to the other side at grazing angles.
-        let facing = |b: Vec3| if ns.dot(ray.dir) > 0.0 { -b } else { b };
-        (uv, bumped.map(facing))
+        details.uv = uv;
+        // The shading normal before `hit_details` turned it.
+        let n = try_unit(triangle.normal()).unwrap_or(-ray.dir);
+        let ns = self.shading_normal(self.shading[prim as usize], n, &hit);
+        if let Some(bumped) = self.perturbed_normal(prim, &triangle, material, uv, ns) {
+            // Turned with the normal it perturbs, so that a bump cannot turn the
+            // shading normal to the other side at grazing angles.
+            details.ns = if ns.dot(ray.dir) > 0.0 {
+                -bumped
+            } else {
+                bumped
+            };
+        }
+        details
     }
 }
 
 /// The emitting triangles and spheres of a description: those whose material has a
-/// `Ke` with a positive mean. Scenes without one (most) cost one pass over the
-/// materials.
+/// `Ke` with a positive mean (and an emission map that is not all black), with their
+/// corners' texture coordinates where the material has an emission map. Scenes without
+/// one (most) cost one pass over the materials.
 fn collect_area_lights(
-    positions: &[Vec3],
+    description: (&[Vec3], &[Vec2]),
     triangles: &[TriangleDesc],
+    triangle_texcoords: &[Option<[u32; 3]>],
     spheres: &[SphereDesc],
     materials: &[Material],
 ) -> AreaLights {
-    let emission = |id: MaterialId| {
-        materials
-            .get(id.0 as usize)
-            .map_or(Vec3::ZERO, |m| m.emission)
-    };
-    let mut lights = AreaLightsBuilder::default();
-    if materials.iter().all(|m| m.emission.max_element() <= 0.0) {
+    let (positions, texcoords) = description;
+    let mut lights = AreaLightsBuilder::new(materials);
+    if !lights.any_emits() {
         return lights.build();
     }
-    for t in triangles {
-        let radiance = emission(t.material);
-        if radiance != Vec3::ZERO {
-            lights.triangle(t.positions.map(|i| positions[i as usize]), radiance);
-        }
+    let mapped = |id: MaterialId| {
+        materials
+            .get(id.0 as usize)
+            .and_then(|m| m.maps.as_ref())
+            .is_some_and(|m| m.emission.is_some())
+    };
+    for (i, t) in triangles.iter().enumerate() {
+        // As `Scene::uv_at` gives them to hits: none (zero) when out of range.
+        let uv = match triangle_texcoords.get(i).copied().flatten() {
+            Some(ids) if mapped(t.material) => match ids.map(|k| texcoords.get(k as usize)) {
+                [Some(&a), Some(&b), Some(&c)] => [a, b, c],
+                _ => [Vec2::ZERO; 3],
+            },
+            _ => [Vec2::ZERO; 3],
+        };
+        lights.triangle(t.positions.map(|i| positions[i as usize]), uv, t.material);
     }
     for s in spheres {
-        let radiance = emission(s.material);
-        if radiance != Vec3::ZERO {
-            lights.sphere(s.center, s.radius, radiance);
-        }
+        lights.sphere(s.center, s.radius, s.material);
     }
     lights.build()
 }

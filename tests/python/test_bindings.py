@@ -205,8 +205,16 @@ def test_bad_arguments_raise_exceptions_not_crashes(tmp_path):
     for exception, message, options in cases:
         with pytest.raises(exception, match=message):
             raytracer.render(CORNELL_OBJ, **{**small, **options})
-    with pytest.raises(TypeError):
-        raytracer.render(CORNELL_OBJ, colour="red")
+    for call in (raytracer.render, raytracer.Scene(CORNELL_OBJ).render):
+        with pytest.raises(TypeError, match="render\\(\\) got an unexpected keyword argument 'colour'"):
+            call(CORNELL_OBJ, colour="red") if call is raytracer.render else call(colour="red")
+    with pytest.raises(TypeError, match="options\\(\\) got an unexpected keyword argument 'tile'"):
+        raytracer.Scene(CORNELL_OBJ).options(tile=(0, 0, 1, 1))
+    # Every option is a keyword of every call; None leaves it to the file or default.
+    scene = raytracer.Scene(CORNELL_OBJ)
+    left_out = {name: None for name in raytracer.OPTIONS}
+    assert scene.options(**left_out) == scene.options()
+    assert np.array_equal(scene.render(**{**left_out, "width": 4}), scene.render(width=4))
     with pytest.raises(TypeError):
         raytracer.render(42)
     with pytest.raises(ValueError, match="shape \\(height, width, 3\\)"):
@@ -248,51 +256,45 @@ def test_images_are_written_atomically_or_not_at_all(tmp_path):
 
 GIL_PROBE = textwrap.dedent(
     """
-    import sys, threading
+    import os, sys, threading, time
     import numpy, raytracer
 
-    big, small = sys.argv[1], sys.argv[2]
-    scene = raytracer.Scene(small)
+    path, gate = sys.argv[1], sys.argv[2]
+    scene = raytracer.Scene(path)
     # Once before: a first call's lazy set-up (numpy's C API) must not be what lets
     # the main thread run.
-    raytracer.render(small, width=2, height=2)
-    started = threading.Event()
-    finished = []
-
-    def work(call):
-        started.set()
-        call()
-        finished.append(True)
-
-    # With a switch interval this long the rendering thread keeps the GIL until it
-    # releases it itself: the main thread runs again before the render ends only if
-    # the render released it.
+    raytracer.render(path, width=2, height=2)
+    # With a switch interval this long a thread keeps the interpreter until it
+    # releases it itself: the main thread runs while a call is under way only if the
+    # call released it.
     sys.setswitchinterval(1000)
-    calls = {
-        "render(path)": lambda: raytracer.render(small, width=800, height=600, spp=4),
-        "Scene.render": lambda: scene.render(width=800, height=600, spp=4),
-        "Scene(path)": lambda: raytracer.Scene(big),
-    }
-    for name, call in calls.items():
-        finished.clear()
-        started.clear()
-        thread = threading.Thread(target=work, args=(call,))
+    calls = [
+        ("render(path)", "RENDER", lambda: raytracer.render(path, width=8, height=6)),
+        ("Scene.render", "RENDER", lambda: scene.render(width=8, height=6)),
+        ("Scene(path)", "LOAD", lambda: raytracer.Scene(path)),
+    ]
+    marker = f"{gate}.{os.getpid()}"
+    for name, stage, call in calls:
+        # The call writes `marker`, then waits (a minute at most) for `gate` to exist.
+        os.environ["RAYTRACER_TEST_GATE_" + stage] = gate
+        finished = []
+        thread = threading.Thread(target=lambda: (call(), finished.append(True)))
         thread.start()
-        started.wait()
-        print(name, "released" if not finished else "held", flush=True)
+        while not os.path.exists(marker) and not finished:
+            time.sleep(0.001)
+        print(name, "held" if finished else "released", flush=True)
+        open(gate, "w").close()
         thread.join()
+        os.remove(gate)
+        os.remove(marker)
+        del os.environ["RAYTRACER_TEST_GATE_" + stage]
     """
 )
 
 
 def test_the_gil_is_released_while_loading_and_rendering(tmp_path):
-    # A scene that takes a moment to read (0.1 s): the Cornell box's triangles, many times.
-    mesh = tmp_path / "many.obj"
-    lines = CORNELL_OBJ.read_text().splitlines()
-    body = "\n".join(line for line in lines if not line.startswith(("mtllib", "usemtl")))
-    mesh.write_text("\n".join([body] * 5000) + "\nP 0 1.5 0 1 1 1\n")
     result = subprocess.run(
-        [sys.executable, "-c", GIL_PROBE, str(mesh), str(CORNELL_OBJ)],
+        [sys.executable, "-c", GIL_PROBE, str(CORNELL_OBJ), str(tmp_path / "gate")],
         capture_output=True,
         text=True,
         timeout=600,
@@ -326,3 +328,22 @@ def test_an_unlit_model_without_a_camera_renders_as_the_command_line_renders_it(
         raytracer.write_image(linear, mine, "full", 0.0)
         assert mine.read_bytes() == out.read_bytes()
         assert linear.max() > 0
+
+
+def test_a_scene_confined_to_a_folder_opens_nothing_outside_it(tmp_path):
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    (tmp_path / "m.mtl").write_text("newmtl m\nKd 1 0 0\n")
+    obj = folder / "a.obj"
+    obj.write_text("mtllib ../m.mtl\nv 0 0 -1\nv 1 0 -1\nv 0 1 -1\nf 1 2 3\n")
+    assert raytracer.Scene(obj).render(width=4, height=3).shape == (3, 4, 3)
+    with pytest.raises(raytracer.SceneError, match=f"{obj}:1: .*outside the scene's folder {folder}"):
+        raytracer.Scene(obj, confined_to=folder)
+    # A texture outside is a warning, and the surface renders without it.
+    (tmp_path / "t.png").write_bytes(b"not read")
+    (folder / "m.mtl").write_text(f"newmtl m\nKd 1 0 0\nmap_Kd {tmp_path / 't.png'}\n")
+    obj.write_text("mtllib m.mtl\nv 0 0 -1\nv 1 0 -1\nv 0 1 -1\nusemtl m\nf 1 2 3\n")
+    warnings = raytracer.Scene(obj, confined_to=folder).warnings
+    assert any(f"{folder / 'm.mtl'}:3: cannot read texture" in w and "outside the scene's folder" in w for w in warnings)
+    with pytest.raises(raytracer.SceneError, match="missing"):
+        raytracer.Scene(obj, confined_to=tmp_path / "missing")

@@ -7,6 +7,8 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -121,7 +123,7 @@ def test_a_scene_the_workers_do_not_see_is_shipped(client, cornell_copy, worker_
     options = dict(width=30, height=20, spp=2)
     expected = raytracer.render(scene, **options)
     # Missing on the workers:
-    assert not rd._workers_share(client, scene, "check-1")
+    assert not rd._workers_share(client, scene, "check-1")[0]
     assert np.array_equal(bits(rd.render(scene, client, tile_size=8, **options)), bits(expected))
     # Different on the workers (another colour in the MTL file), so shipped too:
     for name in ("scene.toml", "scene.obj", "CornellBox-Sphere.mtl"):
@@ -129,28 +131,32 @@ def test_a_scene_the_workers_do_not_see_is_shipped(client, cornell_copy, worker_
     mtl = worker_folder / "CornellBox-Sphere.mtl"
     mtl.write_text(mtl.read_text().replace("Kd 0.3300 0.0650 0.0500", "Kd 0.1 0.7 0.1", 1))
     assert mtl.read_bytes() != (cornell_copy / "CornellBox-Sphere.mtl").read_bytes()
-    assert not rd._workers_share(client, scene, "check-2")
+    assert not rd._workers_share(client, scene, "check-2")[0]
     assert np.array_equal(bits(rd.render(scene, client, tile_size=8, **options)), bits(expected))
     # Told not to ship, the workers read their own files: another image.
     theirs = rd.render(scene, client, ship=False, **options)
     assert not np.array_equal(bits(theirs), bits(expected))
     # The same files: shared.
     mtl.write_bytes((cornell_copy / "CornellBox-Sphere.mtl").read_bytes())
-    assert rd._workers_share(client, scene, "check-3")
+    assert rd._workers_share(client, scene, "check-3")[0]
 
 
 def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_path, cornell_copy):
     scene = cornell_copy / "scene.toml"
     expected = raytracer.render(scene, width=32, height=24)
     assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
-    # Once done, no worker keeps the scene or its copy of the files.
+    # Once forgotten, no worker keeps the scene or its copy of the files.
+    assert sum(client.run(lambda: len(rd._jobs)).values()) >= 1
+    folders = [f for f in client.run(lambda: [j.folder for j in rd._jobs.values()]).values()]
+    rd.forget(client)
     assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
-    # A mesh in another folder, compressed.
-    meshes = tmp_path / "meshes"
+    assert not any(os.path.exists(folder) for folder in sum(folders, []))
+    # A mesh in a folder of its own, compressed.
+    meshes = cornell_copy / "meshes"
     meshes.mkdir()
     (meshes / "box.obj.gz").write_bytes(gzip.compress((cornell_copy / "scene.obj").read_bytes()))
     (meshes / "CornellBox-Sphere.mtl").write_bytes((cornell_copy / "CornellBox-Sphere.mtl").read_bytes())
-    scene.write_text(scene.read_text().replace('file = "scene.obj"', 'file = "../meshes/box.obj.gz"'))
+    scene.write_text(scene.read_text().replace('file = "scene.obj"', 'file = "meshes/box.obj.gz"'))
     assert np.array_equal(bits(rd.render(scene, client, ship=True, width=32, height=24)), bits(expected))
     # Errors name the client's files, not the workers' copies.
     (meshes / "CornellBox-Sphere.mtl").write_text("newmtl x\nKd 1 one 1\n")
@@ -159,34 +165,118 @@ def test_shipped_scenes_render_the_same_and_name_the_clients_files(client, tmp_p
     with pytest.raises(raytracer.SceneError) as remote:
         rd.render(scene, client, ship=True)
     assert str(remote.value) == str(local.value)
-    # A file named by an absolute path would be read on the worker, not shipped.
-    scene.write_text(f'[[mesh]]\nfile = "{meshes / "box.obj.gz"}"\n')
-    with pytest.raises(ValueError, match="by an absolute path"):
-        rd.render(scene, client, ship=True)
 
 
-def test_a_lost_workers_tiles_are_recomputed():
+def write_textured_quad(folder, texture_name):
+    """A quad with a 2x2 checker texture (four colours) named `texture_name` in its MTL
+    file, lit by a point light, in `folder`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "quad.obj").write_text(
+        "mtllib quad.mtl\nv -1 -1 -2\nv 1 -1 -2\nv 1 1 -2\nv -1 1 -2\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl checker\nf 1/1 2/2 3/3 4/4\nP 0 0 0 1 1 1\n"
+    )
+    (folder / "quad.mtl").write_text(f"newmtl checker\nKd 1 1 1\nmap_Kd {texture_name}\n")
+    return folder / "quad.obj"
+
+
+def checker(path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    colours = [[(255, 0, 0), (0, 255, 0)], [(0, 0, 255), (255, 255, 0)]]
+    raytracer.write_png(np.array(colours, dtype=np.uint8), path)
+
+
+def test_shipped_scenes_take_their_textures_and_nothing_outside_their_folder(client, tmp_path):
+    options = dict(width=16, height=12, fov=90)
+    inside = tmp_path / "inside"
+    checker(inside / "textures" / "checker.png")
+    obj = write_textured_quad(inside, "textures/checker.png")
+    expected = raytracer.render(obj, **options)
+    assert len(np.unique(expected.reshape(-1, 3), axis=0)) >= 4, "the texture shows"
+    assert rd.scene_files(obj) == [str(obj), str(inside / "quad.mtl"), str(inside / "textures" / "checker.png")]
+    assert np.array_equal(bits(rd.render(obj, client, ship=True, **options)), bits(expected))
+    # Outside the scene's folder: by `..`, by an absolute path, a mesh, a library.
+    checker(tmp_path / "elsewhere" / "checker.png")
+    outside = tmp_path / "outside"
+    cases = {
+        "../elsewhere/checker.png": "quad.mtl:3",
+        str(tmp_path / "elsewhere" / "checker.png"): "quad.mtl:3",
+    }
+    for name, line in cases.items():
+        obj = write_textured_quad(outside, name)
+        assert raytracer.render(obj, **options).shape == (12, 16, 3)
+        with pytest.raises(ValueError) as error:
+            rd.render(obj, client, ship=True, **options)
+        message = str(error.value)
+        assert f"it reads {tmp_path / 'elsewhere' / 'checker.png'}, outside its folder {outside}" in message
+        assert line in message, message
+    toml = outside / "s.toml"
+    toml.write_text('[[mesh]]\nfile = "../inside/quad.obj"\n')
+    with pytest.raises(ValueError, match=f"it reads {inside / 'quad.obj'}, outside its folder"):
+        rd.render(toml, client, ship=True)
+    (outside / "quad.obj").write_text("mtllib ../inside/quad.mtl\nv 0 0 0\n")
+    with pytest.raises(ValueError, match="quad.obj:1: cannot read material library"):
+        rd.render(outside / "quad.obj", client, ship=True)
+
+
+@pytest.mark.parametrize("ship", [None, True])
+def test_workers_keep_a_scene_until_one_of_its_files_changes(client, cornell_copy, ship):
+    rd.forget(client)
+    scene = cornell_copy / "scene.toml"
+    loads = lambda: sum(client.run(lambda: rd._loads).values())  # noqa: E731
+    before = loads()
+    for look_from in [(0, 0.7, 1.75), (0.3, 0.7, 1.75), (-0.3, 0.9, 1.5)]:
+        options = dict(width=24, height=16, look_from=look_from, look_to=(0, 0.7, 0))
+        expected = raytracer.render(scene, **options)
+        assert np.array_equal(bits(rd.render(scene, client, ship=ship, tile_size=8, **options)), bits(expected))
+    # Read once per worker process that took a task, not once per render.
+    first = loads() - before
+    assert 1 <= first <= 2
+    # A changed MTL file (a new colour) is read again, and shows.
+    mtl = cornell_copy / "CornellBox-Sphere.mtl"
+    mtl.write_text(mtl.read_text().replace("Kd 0.3300 0.0650 0.0500", "Kd 0.1 0.7 0.1", 1))
+    expected = raytracer.render(scene, width=24, height=16)
+    assert np.array_equal(bits(rd.render(scene, client, ship=ship, tile_size=8, width=24, height=16)), bits(expected))
+    assert loads() - before > first
+    rd.forget(client)
+    assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
+
+
+def test_a_lost_workers_tiles_are_recomputed(tmp_path, monkeypatch):
     from distributed import Client
 
     options = dict(width=96, height=72, spp=4, **CAMERA)
     expected = raytracer.render(CORNELL_OBJ, **options)
+    # The workers' tile renders wait at a gate (a test hook of the bindings): each
+    # writes `gate.<pid>` and waits until `gate` exists. A worker killed while it waits
+    # there surely loses the tile it was rendering.
+    gate = tmp_path / "gate"
+    monkeypatch.setenv("RAYTRACER_TEST_GATE_RENDER", str(gate))
     with start_cluster(2) as cluster, Client(cluster) as client:
+        monkeypatch.delenv("RAYTRACER_TEST_GATE_RENDER")
         client.wait_for_workers(2)
-        pids = client.run(os.getpid)
-        killed = []
+        workers = set(client.run(os.getpid).values())
+        result = {}
 
-        def kill_a_busy_worker(done, total):
-            # After the second tile arrives: a deterministic point, mid-render. The
-            # worker killed is rendering a tile then, so that tile is lost with it.
-            if done == 2:
-                busy = {w: keys for w, keys in client.processing().items() if keys}
-                worker, keys = sorted(busy.items())[0]
-                os.kill(pids[worker], signal.SIGKILL)
-                killed.append(keys)
+        def render():
+            try:
+                result["linear"] = rd.render(CORNELL_OBJ, client, tile_size=8, **options)
+            except BaseException as error:  # noqa: BLE001 - reported by the assertion below
+                result["error"] = error
 
-        linear = rd.render(CORNELL_OBJ, client, tile_size=8, on_tile=kill_a_busy_worker, **options)
-        assert len(killed) == 1 and any("-tile-" in str(key) for key in killed[0])
-        assert np.array_equal(bits(linear), bits(expected))
+        thread = threading.Thread(target=render)
+        thread.start()
+        waiting = []
+        for _ in range(120_000):
+            waiting = [int(m.suffix[1:]) for m in tmp_path.glob("gate.*")]
+            if waiting or not thread.is_alive():
+                break
+            time.sleep(0.001)
+        assert len(waiting) >= 1 and set(waiting) <= workers, (waiting, workers, result)
+        os.kill(waiting[0], signal.SIGKILL)
+        gate.touch()
+        thread.join()
+        assert "error" not in result, result
+        assert np.array_equal(bits(result["linear"]), bits(expected))
 
 
 # --- python -m raytracer.distributed ----------------------------------------------------

@@ -14,16 +14,19 @@ the same scene and options. How it works:
    and their MTL libraries) and asks each worker to hash its copies. If all agree the
    workers read the path; otherwise the client *ships* the scene: it reads those files
    and scatters their bytes to every worker, which writes them to a temporary folder
-   (same relative layout) and reads the scene from there. ``ship=True`` or
-   ``ship=False`` skips the check. A shipped scene must name its files by relative
-   paths; the check covers the workers connected when the render starts.
+   (same relative layout) and reads the scene from there, opening no file outside
+   it. ``ship=True`` or ``ship=False`` skips the check. Only files inside the scene's
+   folder are shipped: a scene that reads a file elsewhere (an absolute path, ``..``)
+   cannot be shipped. The check covers the workers connected when the render starts.
 2. **The options** are resolved on a worker, exactly as :func:`raytracer.render`
    resolves them (arguments over the TOML file's values over the defaults).
 3. **Tiles** of ``tile_size`` x ``tile_size`` pixels (narrower at the right and bottom
    edges) are rendered by :meth:`raytracer.Scene.render` with ``tile=``, each worker
-   process reading and building the scene once per call of :func:`render` and keeping
-   it until the render ends. Each tile is copied into the image as soon as it arrives
-   and its result released on the cluster.
+   process reading and building the scene once and keeping it for the next renders of
+   the same files (the last :data:`KEEP_SCENES` scenes, keyed by the digests of every
+   file the scene reads, so that a changed file is read again; :func:`forget` drops
+   them). Each tile is copied into the image as soon as it arrives and its result
+   released on the cluster.
 4. **A lost worker**: Dask recomputes the tiles the worker was rendering, or had
    rendered but not yet sent, on the workers left (up to Dask's
    ``distributed.scheduler.allowed-failures`` times per tile). Tiles are pure
@@ -39,9 +42,9 @@ environment limits them. One worker thread per process (``--nthreads 1``) is eno
 
 from __future__ import annotations
 
-import gzip
 import hashlib
 import os
+import pickle
 import shutil
 import tempfile
 import threading
@@ -53,14 +56,11 @@ import numpy as np
 
 import raytracer
 
-__all__ = ["render", "scene_files", "tiles"]
+__all__ = ["forget", "render", "scene_files", "tiles"]
 
 #: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
-OPTIONS = (
-    "width", "height", "fov", "look_from", "look_to", "up", "mode", "depth", "spp", "exposure", "seed"
-)
+OPTIONS = raytracer.OPTIONS
 
-GZIP_MAGIC = b"\x1f\x8b"
 
 
 def render(
@@ -117,18 +117,28 @@ def _render(
     job = f"raytracer-{uuid.uuid4().hex}"
 
     bundle = None
+    # The workers keep a scene between renders under a key that changes whenever a
+    # file it reads does (its identity); a scene read on the workers' own terms
+    # (`ship=False`) has none the client can vouch for, and is read per render.
+    key = job
     try:
         if ship is None:
-            ship = not _workers_share(client, path, job)
+            shared, identity = _workers_share(client, path, job)
+            ship = not shared
+            if shared and identity is not None:
+                key = f"raytracer-path-{identity}"
         if ship:
+            contents = _bundle(path)
+            key = f"raytracer-shipped-{_identity(contents)}"
             # In a list: a dict would be scattered as one future per value.
-            [bundle] = client.scatter([_bundle(path)], broadcast=True, hash=False)
-        info = client.submit(_prepare, job, path, bundle, given, key=f"{job}-options").result()
+            [bundle] = client.scatter([contents], broadcast=True, hash=False)
+            del contents
+        info = client.submit(_prepare, key, path, bundle, given, key=f"{job}-options").result()
         width, height = info["width"], info["height"]
         parts = tiles(width, height, tile_size)
         keys = [f"{job}-tile-{x}-{y}" for (x, y, _, _) in parts]
         futures = client.map(
-            _render_tile, parts, job=job, path=path, bundle=bundle, options=given, key=keys
+            _render_tile, parts, job=key, path=path, bundle=bundle, options=given, key=keys
         )
         where = dict(zip(keys, parts))
         image = np.empty((height, width, 3), dtype=np.float32)
@@ -151,10 +161,17 @@ def _render(
     finally:
         if bundle is not None:
             bundle.release()
-        try:
-            client.run(_forget, job)
-        except Exception:  # noqa: BLE001 - a worker gone or a closed client: nothing to free
-            pass
+        if key == job:
+            try:
+                client.run(_forget, job)
+            except Exception:  # noqa: BLE001 - a worker gone or a closed client: nothing to free
+                pass
+
+
+def forget(client: Any) -> None:
+    """Drops the scenes the workers of ``client`` keep between renders (at most
+    :data:`KEEP_SCENES` per worker process), and their copies of shipped files."""
+    client.run(_forget_all)
 
 
 def tiles(width: int, height: int, size: int) -> "list[tuple[int, int, int, int]]":
@@ -172,96 +189,40 @@ def tiles(width: int, height: int, size: int) -> "list[tuple[int, int, int, int]
 
 def scene_files(scene: "str | os.PathLike[str]") -> "list[str]":
     """The files a render of ``scene`` reads, as absolute normalized paths, the scene
-    file first: an OBJ file's ``mtllib`` libraries, a TOML file's ``[[mesh]] file``
-    meshes with their own libraries. A PLY file reads nothing else. References are
-    resolved as the library does, relative to the folder of the file naming them.
+    file first: an OBJ file's MTL libraries and their textures, a TOML file's meshes
+    with what they name, a glTF file's buffers and images. Files looked for and not
+    found are among them. The library's own readers tell (the scene is loaded).
 
-    A file that cannot be read or parsed names nothing here: reading the scene reports
-    it. Raises ``OSError`` when the scene file itself cannot be read.
+    Raises ``OSError`` when the scene file itself cannot be read.
     """
-    return [file for file, _, _ in _references(os.path.normpath(os.path.abspath(os.fspath(scene))))]
+    path = os.path.abspath(os.fspath(scene))
+    with open(path, "rb"):
+        pass
+    # Loading the scene to learn its files costs what a render's load does: a render
+    # of the same files again (the frames of an animation) looks them up instead.
+    known = _known_files.get(path)
+    if known is not None and known[0] == _signature(known[1]):
+        return list(known[1])
+    files = [os.fspath(file) for file in raytracer._raytracer._scene_files(path, False)["asked"]]
+    _known_files[path] = (_signature(files), files)
+    return list(files)
 
 
-def _references(scene: str) -> "list[tuple[str, Optional[str], Optional[str]]]":
-    """``(file, naming, name)`` for the scene file (``naming`` and ``name`` ``None``)
-    and every file it reads, named ``name`` in the file ``naming``; each file once."""
-    _read(scene)  # the scene file must be readable; the others may fail later
-    found: "OrderedDict[str, tuple[Optional[str], Optional[str]]]" = OrderedDict()
-    found[scene] = (None, None)
-
-    def add(naming: str, name: str) -> Optional[str]:
-        file = os.path.normpath(os.path.join(os.path.dirname(naming), name))
-        if file in found:
-            return None
-        found[file] = (naming, name)
-        return file
-
-    kind = _kind(scene)
-    if kind == "obj":
-        for name in _mtllibs(scene):
-            add(scene, name)
-    elif kind == "toml":
-        for name in _meshes(scene):
-            mesh = add(scene, name)
-            if mesh is not None and _kind(mesh) == "obj":
-                for library in _mtllibs(mesh):
-                    add(mesh, library)
-    return [(file, naming, name) for file, (naming, name) in found.items()]
+#: The files of the scenes :func:`scene_files` loaded, with their signature then.
+_known_files: "dict[str, tuple[list, list[str]]]" = {}
 
 
-def _kind(path: str) -> Optional[str]:
-    """``obj``, ``ply`` or ``toml`` by the name, ignoring case and a final ``.gz``."""
-    name = os.path.basename(path).lower()
-    if name.endswith(".gz"):
-        name = name[:-3]
-    extension = name.rsplit(".", 1)[-1] if "." in name else ""
-    return extension if extension in ("obj", "ply", "toml") else None
-
-
-def _read(path: str) -> bytes:
-    with open(path, "rb") as file:
-        return file.read()
-
-
-def _text(path: str) -> Optional[bytes]:
-    """The file's contents, decompressed as the library does (a ``.gz`` name or the
-    gzip magic bytes); ``None`` if it cannot be read."""
-    try:
-        data = _read(path)
-        if path.lower().endswith(".gz") or data.startswith(GZIP_MAGIC):
-            data = gzip.decompress(data)
-        return data
-    except (OSError, EOFError, ValueError):
-        return None
-
-
-def _mtllibs(obj: str) -> "list[str]":
-    """The names on the ``mtllib`` lines of an OBJ file, as its reader splits them:
-    comments from ``#``, tokens separated by ASCII white space."""
-    text = _text(obj)
-    names: "list[str]" = []
-    for line in (text or b"").split(b"\n"):
-        tokens = line.split(b"#", 1)[0].split()
-        if tokens and tokens[0] == b"mtllib":
-            names.extend(t.decode("utf-8", "replace") for t in tokens[1:])
-    return names
-
-
-def _meshes(toml: str) -> "list[str]":
-    """The ``file`` of each ``[[mesh]]`` of a TOML scene file."""
-    try:
-        import tomllib
-    except ImportError:  # Python < 3.11
-        import tomli as tomllib
-    text = _text(toml)
-    try:
-        document = tomllib.loads((text or b"").decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return []
-    meshes = document.get("mesh", [])
-    if not isinstance(meshes, list):
-        return []
-    return [m["file"] for m in meshes if isinstance(m, dict) and isinstance(m.get("file"), str)]
+def _signature(files: Iterable[str]) -> list:
+    """Size and modification time of each file (``None`` when missing): a file that
+    changes, appears or disappears changes it."""
+    signature = []
+    for file in files:
+        try:
+            stat = os.stat(file)
+            signature.append((stat.st_size, stat.st_mtime_ns))
+        except OSError:
+            signature.append(None)
+    return signature
 
 
 def _digests(files: Iterable[str]) -> "list[Optional[str]]":
@@ -279,13 +240,14 @@ def _digests(files: Iterable[str]) -> "list[Optional[str]]":
     return digests
 
 
-def _workers_share(client: Any, path: str, job: str) -> bool:
+def _workers_share(client: Any, path: str, job: str) -> "tuple[bool, Optional[str]]":
     """Whether every worker connected now reads the same files at the scene's path as
-    the client. True when the client cannot read the scene: then only the workers can."""
+    the client (true when the client cannot read the scene: then only the workers can),
+    and the identity of those files (``None`` if the client cannot read them)."""
     try:
         files = scene_files(path)
     except OSError:
-        return True
+        return True, None
     local = _digests(files)
     client.wait_for_workers(1)
     workers = list(client.scheduler_info()["workers"])
@@ -293,43 +255,61 @@ def _workers_share(client: Any, path: str, job: str) -> bool:
         client.submit(_digests, files, workers=[w], allow_other_workers=True, key=f"{job}-check-{i}")
         for i, w in enumerate(workers)
     ]
-    return all(remote == local for remote in client.gather(checks))
+    shared = all(remote == local for remote in client.gather(checks))
+    return shared, _identity({"path": path, "files": dict(zip(files, local))})
+
+
+def _identity(value: Any) -> str:
+    """A digest of a scene's files: their names and contents (or their digests)."""
+    digest = hashlib.sha256()
+    digest.update(pickle.dumps(value, protocol=4))
+    return digest.hexdigest()
 
 
 def _bundle(path: str) -> dict:
-    """The bytes of every file the scene reads, by path relative to the folder that
-    holds them all, to be written out on a worker in the same layout."""
-    references = _references(os.path.normpath(path))
-    for _, naming, name in references:
-        if name is not None and os.path.isabs(name):
-            raise ValueError(
-                f"cannot ship {path} to the workers: {naming} names {name} by an absolute "
-                "path; name it relative to that file, or put the scene on a path the "
-                "workers share (ship=False)"
-            )
-    files = [file for file, _, _ in references]
-    root = os.path.dirname(files[0]) if len(files) == 1 else os.path.commonpath(files)
+    """The bytes of every file the scene reads, by path relative to the scene's
+    folder, to be written out on a worker in the same layout. Only files inside that
+    folder go: a scene that reads one outside it (named by an absolute path, by ``..``,
+    or through a link) is a ``ValueError`` naming it."""
+    folder = os.path.dirname(path)
+    found = raytracer._raytracer._scene_files(path, True)
+    outside = [os.fspath(file) for file in found["refused"] if os.path.exists(file)]
+    if outside:
+        said = [
+            line
+            for line in [found["error"] or "", *found["warnings"]]
+            if "outside the scene's folder" in line
+        ]
+        raise ValueError(
+            f"cannot ship {path} to the workers: it reads {outside[0]}, outside its folder "
+            f"{folder}" + "".join(f"\n{line}" for line in said) + "\nPut the files the "
+            "scene reads in its folder, or the scene on a path the workers share (ship=False)"
+        )
     contents = {}
-    for file in files:
-        try:
-            contents[os.path.relpath(file, root)] = _read(file)
-        except OSError:
-            pass  # reading the scene on the worker reports it, naming the file
-    return {"root": root, "main": os.path.relpath(files[0], root), "files": contents}
+    for file in found["asked"]:
+        if os.path.isfile(file):
+            with open(file, "rb") as f:
+                contents[os.path.relpath(file, folder)] = f.read()
+    # A file that cannot be read is not shipped: reading the scene on the worker
+    # reports it, naming the file.
+    return {"root": folder, "main": os.path.basename(path), "files": contents}
 
 
 # --- On the workers -------------------------------------------------------------------
 
 _jobs_lock = threading.Lock()
 _jobs: "OrderedDict[str, _Job]" = OrderedDict()
-#: Renders whose scene a worker process keeps at most, should a client not say that it
-#: is done (a render ended by a lost client): the oldest is dropped.
-KEEP_JOBS = 2
+#: Scenes a worker process keeps: those of the last renders, by the identity of their
+#: files, read again by none of the next renders that read the same files; the oldest
+#: is dropped.
+KEEP_SCENES = 2
+#: How many times this process has read a scene (for the tests).
+_loads = 0
 
 
 class _Job:
-    """One render's scene in a worker process: read once, by the first task that needs
-    it, while the process's other tasks of the same render wait for it."""
+    """A scene in a worker process: read once, by the first task that needs it, while
+    the process's other tasks for the same scene wait for it."""
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
@@ -343,6 +323,8 @@ class _Job:
             return self.scene
 
     def _read(self, path: str, bundle: Optional[dict]) -> raytracer.Scene:
+        global _loads
+        _loads += 1
         if bundle is None:
             return raytracer.Scene(path)
         self.folder = tempfile.mkdtemp(prefix="raytracer-scene-")
@@ -352,7 +334,8 @@ class _Job:
             with open(file, "wb") as f:
                 f.write(data)
         try:
-            return raytracer.Scene(os.path.join(self.folder, bundle["main"]))
+            # Confined: the worker reads nothing of its own on the scene's behalf.
+            return raytracer.Scene(os.path.join(self.folder, bundle["main"]), confined_to=self.folder)
         except raytracer.SceneError as error:
             # Name the client's files, not this worker's copies.
             raise raytracer.SceneError(str(error).replace(self.folder, bundle["root"])) from None
@@ -369,7 +352,7 @@ def _job(job: str) -> _Job:
         entry = _jobs.get(job)
         if entry is None:
             entry = _jobs[job] = _Job()
-            while len(_jobs) > KEEP_JOBS:
+            while len(_jobs) > KEEP_SCENES:
                 _jobs.popitem(last=False)[1].close()
         else:
             _jobs.move_to_end(job)
@@ -390,8 +373,18 @@ def _render_tile(tile: tuple, job: str, path: str, bundle: Optional[dict], optio
 
 
 def _forget(job: str) -> None:
-    """Run on every worker when a render ends: drops its scene and shipped files."""
+    """Run on every worker when a render whose scene is not kept ends: drops its scene
+    and shipped files."""
     with _jobs_lock:
         entry = _jobs.pop(job, None)
     if entry is not None:
+        entry.close()
+
+
+def _forget_all() -> None:
+    """Run on every worker by :func:`forget`."""
+    with _jobs_lock:
+        entries = list(_jobs.values())
+        _jobs.clear()
+    for entry in entries:
         entry.close()

@@ -16,8 +16,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 use rayon::prelude::*;
 
 use super::SceneDescription;
-use crate::description::TriangleDesc;
-use crate::formats::polygon::{self, Triangulation};
+use crate::formats::polygon;
 use crate::math::{Float, Vec3};
 
 /// A smoothing group not set within the chunk: the one in force when the chunk starts,
@@ -121,7 +120,7 @@ pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
             .for_each(|(triangles, mut texcoords, polygons)| {
                 for p in polygons {
                     let range = p.first as usize..p.first as usize + p.corners as usize - 2;
-                    retriangulate(
+                    polygon::recut_fan(
                         positions,
                         &mut triangles[range.clone()],
                         texcoords.as_deref_mut().map(|t| &mut t[range]),
@@ -144,76 +143,6 @@ pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
     }
     if !runs.is_empty() {
         smooth(scene, &runs);
-    }
-}
-
-/// Cuts again, in place, the polygon whose fan is `fan` (with its triangles' texture
-/// coordinate indices, when kept), if it is not convex.
-fn retriangulate(
-    positions: &[Vec3],
-    fan: &mut [TriangleDesc],
-    texcoords: Option<&mut [Option<[u32; 3]>]>,
-) {
-    // Corner k of the polygon is corner 0 of the first triangle (k = 0), corner 1 of
-    // the first (k = 1), and corner 2 of triangle k - 2 (k >= 2).
-    let corner = |k: usize| match k {
-        0 => (0, 0),
-        1 => (0, 1),
-        k => (k - 2, 2),
-    };
-    let count = fan.len() + 2;
-    let point = |k: usize| {
-        let (t, c) = corner(k);
-        positions[fan[t].positions[c] as usize]
-    };
-    // Quads, the common polygon, without an allocation.
-    let triangulation = if count == 4 {
-        polygon::triangulate(&[point(0), point(1), point(2), point(3)])
-    } else {
-        polygon::triangulate(&(0..count).map(point).collect::<Vec<_>>())
-    };
-    let Triangulation::Triangles(triangles) = triangulation else {
-        return;
-    };
-    // A corner's `vn` is known when a triangle of the fan holding it has them all (the
-    // fan gave a triangle normals only when all three corners had one).
-    let mut normals: Vec<Option<u32>> = vec![None; count];
-    for (t, triangle) in fan.iter().enumerate() {
-        if let Some(n) = triangle.normals {
-            for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
-                normals[k] = Some(n[c]);
-            }
-        }
-    }
-    let old: Vec<TriangleDesc> = fan.to_vec();
-    if let Some(texcoords) = texcoords {
-        // As the normals: a corner's `vt` is known from a triangle that has them all.
-        let mut corner_texcoords: Vec<Option<u32>> = vec![None; count];
-        for (t, triangle) in texcoords.iter().enumerate() {
-            if let Some(ids) = triangle {
-                for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
-                    corner_texcoords[k] = Some(ids[c]);
-                }
-            }
-        }
-        for (slot, corners) in texcoords.iter_mut().zip(&triangles) {
-            *slot = match corners.map(|k| corner_texcoords[k as usize]) {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => None,
-            };
-        }
-    }
-    for (slot, corners) in fan.iter_mut().zip(triangles) {
-        let corners = corners.map(|k| k as usize);
-        let at = corners.map(corner);
-        *slot = TriangleDesc {
-            positions: at.map(|(t, c)| old[t].positions[c]),
-            normals: match corners.map(|k| normals[k]) {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => None,
-            },
-            ..old[0]
-        };
     }
 }
 

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use super::header::{Element, Role, Scalar};
 use super::{Body, ElementError, MeshReader, integral};
 use crate::formats::error::ParseErrorKind;
+use crate::formats::polygon::FanPolygon;
 use crate::formats::{SceneDescription, lex};
 use crate::math::Float;
 
@@ -222,17 +223,18 @@ impl MeshReader {
         };
         runs.push(end);
 
-        let empty = MeshReader {
-            scene: SceneDescription::default(),
-            ..*self
-        };
+        let (vertex_count, has_normals, has_texcoords) =
+            (self.vertex_count, self.has_normals, self.has_texcoords);
         let parts: Vec<Result<MeshReader, ElementError>> = runs
             .par_windows(2)
             .map(|run| {
                 let (first, next) = (run[0], run[1]);
                 let mut part = MeshReader {
                     scene: SceneDescription::default(),
-                    ..empty
+                    vertex_count,
+                    has_normals,
+                    has_texcoords,
+                    polygons: Vec::new(),
                 };
                 let elements = next.first_index - first.first_index;
                 match element.name.as_str() {
@@ -254,7 +256,15 @@ impl MeshReader {
             })
             .collect();
         for part in parts {
-            let part = part?.scene;
+            let part = part?;
+            // The part's polygons count their triangles from its first.
+            let base = self.scene.triangles.len() as u32;
+            self.polygons
+                .extend(part.polygons.iter().map(|p| FanPolygon {
+                    first: base.wrapping_add(p.first),
+                    ..*p
+                }));
+            let part = part.scene;
             self.scene.positions.extend_from_slice(&part.positions);
             self.scene.normals.extend_from_slice(&part.normals);
             self.scene.texcoords.extend_from_slice(&part.texcoords);
@@ -363,6 +373,12 @@ mod tests {
             let k = 2.0 * q as f64;
             vec![(u, 4.0), (i, k), (i, k + 2.0), (i, k + 3.0), (i, k + 1.0)]
         }));
+        // One late quad made concave (an arrow head whose fan from its first corner
+        // would cover the notch): it is cut again, in the part that read it.
+        let concave = n - 20;
+        let k = 2 * concave;
+        rows[k + 1][0].1 = (k / 2) as f64 + 0.6;
+        rows[k + 1][1].1 = 0.4;
         let header = format!(
             "element vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\n",
             2 * n,
@@ -380,6 +396,12 @@ mod tests {
         assert_eq!(parallel.normals, serial.normals);
         assert_eq!(parallel.triangles, serial.triangles);
         assert_eq!(parallel.triangles.len(), 2 * (n - 1));
+        // Cut along the diagonal from the notch (vertex k + 1) to the opposite corner
+        // (k + 2), where the fan cuts along the other.
+        let k = k as u32;
+        for t in &triangles(&parallel)[2 * concave..2 * concave + 2] {
+            assert!(t.contains(&(k + 1)) && t.contains(&(k + 2)), "{t:?}");
+        }
         assert_eq!(
             parallel.triangles[2 * (n - 1) - 1].positions,
             [2 * n as u32 - 4, 2 * n as u32 - 1, 2 * n as u32 - 3]

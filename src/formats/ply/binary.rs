@@ -373,6 +373,7 @@ impl MeshReader {
             }
             let first = index(0) as u32;
             let mut previous = index(1) as u32;
+            let first_triangle = self.scene.triangles.len();
             for k in 2..n as usize {
                 let next = index(k) as u32;
                 let positions = [first, previous, next];
@@ -383,6 +384,7 @@ impl MeshReader {
                 });
                 previous = next;
             }
+            self.note_polygon(first_triangle, n as usize);
         }
         Ok(pos)
     }

@@ -4,7 +4,10 @@
 //! From the `vertex` element it takes `x y z`, and when present `nx ny nz` (as vertex
 //! normals) and texture coordinates `u v` (or `s t`, `texture_u texture_v`,
 //! `texture_s texture_t`); from `face` the list `vertex_indices` (or `vertex_index`),
-//! split into triangle fans. Every other element and property is read past and
+//! split into triangles: the fan from the first corner while the body is read (the
+//! positions may come after the faces), then, in [`MeshReader::finish`], polygons
+//! that are not convex in their plane are cut again by ear clipping, as OBJ faces are
+//! ([`polygon::recut_fans`]). Every other element and property is read past and
 //! ignored. PLY has no materials: every triangle gets [`Material::fallback`].
 //!
 //! [`header`] reads the header: its grammar, and what each property means to the
@@ -22,6 +25,7 @@ mod testing;
 use std::path::Path;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
+use super::polygon::{self, FanPolygon};
 use super::{SceneDescription, TriangleDesc, read_file};
 use crate::material::{Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
@@ -145,6 +149,8 @@ struct MeshReader {
     vertex_count: usize,
     has_normals: bool,
     has_texcoords: bool,
+    /// The faces of more than three corners, written as fans, for [`MeshReader::finish`].
+    polygons: Vec<FanPolygon>,
 }
 
 impl MeshReader {
@@ -156,6 +162,7 @@ impl MeshReader {
             vertex_count: vertex.map_or(0, |i| header.elements[i].count),
             has_normals: vertex_roles.contains(&Role::Normal(0)),
             has_texcoords: vertex_roles.contains(&Role::TexCoord(0)),
+            polygons: Vec::new(),
         }
         .with_capacity(header, body_len)
     }
@@ -287,8 +294,9 @@ impl MeshReader {
         Ok(())
     }
 
-    /// Adds the triangle fan of a face of `n` vertices; `index(k)` reads the k-th
-    /// vertex index (called for k = 0, 1, ... in turn).
+    /// Adds the triangle fan of a face of `n` vertices (noting it as a polygon if
+    /// `n > 3`); `index(k)` reads the k-th vertex index (called for k = 0, 1, ... in
+    /// turn).
     #[inline(always)]
     fn add_face(
         &mut self,
@@ -318,6 +326,7 @@ impl MeshReader {
         };
         let first = vertex(0)?;
         let mut previous = vertex(1)?;
+        let first_triangle = self.scene.triangles.len();
         for k in 2..n as usize {
             let next = vertex(k)?;
             let positions = [first, previous, next];
@@ -328,10 +337,33 @@ impl MeshReader {
             });
             previous = next;
         }
+        self.note_polygon(first_triangle, n as usize);
         Ok(())
     }
 
+    /// Notes the face of `corners` corners whose fan starts at triangle `first`, if it
+    /// is a polygon (more than three corners).
+    #[inline(always)]
+    fn note_polygon(&mut self, first: usize, corners: usize) {
+        if corners > 3 {
+            // Both fit: the triangle count is held below `u32::MAX`.
+            self.polygons.push(FanPolygon {
+                first: first as u32,
+                corners: corners as u32,
+            });
+        }
+    }
+
+    /// The description, with the polygons that are not convex cut by ear clipping
+    /// (every position is known now).
     fn finish(mut self) -> SceneDescription {
+        if !self.polygons.is_empty() {
+            polygon::recut_fans(
+                &self.scene.positions,
+                &mut self.scene.triangles,
+                &self.polygons,
+            );
+        }
         if !self.scene.triangles.is_empty() {
             self.scene.materials.push(Material::fallback());
         }
@@ -431,6 +463,70 @@ mod tests {
             assert_eq!(scene.triangles.len(), 1);
             assert_eq!(scene.triangles[0].positions, [0, 1, 2]);
             assert_eq!(scene.triangles[0].normals, Some([0, 1, 2]), "{format}");
+        }
+    }
+
+    #[test]
+    fn concave_faces_are_cut_by_ear_clipping() {
+        // A triangle, then an L of six corners starting next to its notch, so that
+        // the fan from the first corner would cover the notch (the triangle
+        // (2, 1), (1, 1), (1, 2) lies outside the L). Faces come before the vertices:
+        // the positions are known only at the end.
+        let points = [
+            [2.0, 1.0],
+            [1.0, 1.0],
+            [1.0, 2.0],
+            [0.0, 2.0],
+            [0.0, 0.0],
+            [2.0, 0.0],
+        ];
+        let (f, b, i) = (Scalar::F32, Scalar::U8, Scalar::I32);
+        let mut rows = vec![
+            vec![(b, 3.0), (i, 4.0), (i, 5.0), (i, 3.0)],
+            vec![
+                (b, 6.0),
+                (i, 0.0),
+                (i, 1.0),
+                (i, 2.0),
+                (i, 3.0),
+                (i, 4.0),
+                (i, 5.0),
+            ],
+        ];
+        rows.extend(points.iter().map(|p| vec![(f, p[0]), (f, p[1]), (f, 0.5)]));
+        let mesh = Mesh {
+            header: format!("element face 2\nproperty list uchar int vertex_indices\n{VERTS}")
+                .replace("vertex 3", "vertex 6"),
+            rows,
+        };
+        for (format, bytes) in mesh.encodings() {
+            let scene = parse(&bytes).unwrap_or_else(|e| panic!("{format}: {e}"));
+            let t = triangles(&scene);
+            assert_eq!(t.len(), 5, "{format}");
+            assert_eq!(t[0], [4, 5, 3], "{format}");
+            assert_ne!(t[1], [0, 1, 2], "{format}: the fan");
+            let corner = |k: u32| {
+                let p = scene.positions[k as usize];
+                (p.x, p.y)
+            };
+            // The L's triangles turn one way, add up to its area (3), and none
+            // covers the notch at (1.25, 1.25).
+            let mut area = 0.0;
+            for &[a, b, c] in &t[1..] {
+                let [a, b, c] = [a, b, c].map(corner);
+                let cross = |p: (f32, f32), q: (f32, f32), r: (f32, f32)| {
+                    (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0)
+                };
+                let twice = cross(a, b, c);
+                assert!(twice >= 0.0, "{format}: {t:?}");
+                area += twice / 2.0;
+                let notch = (1.25, 1.25);
+                let inside = cross(a, b, notch) > 0.0
+                    && cross(b, c, notch) > 0.0
+                    && cross(c, a, notch) > 0.0;
+                assert!(!inside, "{format}: a triangle covers the notch: {t:?}");
+            }
+            assert_eq!(area, 3.0, "{format}");
         }
     }
 

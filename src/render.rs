@@ -4,12 +4,14 @@ use std::fmt;
 
 use rayon::prelude::*;
 
+use crate::bvh::PACKET_SIZE;
 use crate::camera::Camera;
 use crate::film::Film;
+use crate::integrators::whitted::PacketScratch;
 use crate::integrators::{
     DepthIntegrator, Integrator, NormalIntegrator, PathIntegrator, WhittedIntegrator,
 };
-use crate::math::Vec3;
+use crate::math::{Float, Ray, Vec3};
 use crate::options::{Mode, RenderOptions};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
@@ -134,7 +136,11 @@ fn render_region(
             let whitted = WhittedIntegrator {
                 max_depth: options.depth,
             };
-            render_with(scene, options, &whitted, tile, row_done)
+            if options.samples_per_pixel_in_mode() == 1 {
+                render_whitted_packets(scene, options, &whitted, tile, row_done)
+            } else {
+                render_with(scene, options, &whitted, tile, row_done)
+            }
         }
         Mode::Path => {
             let path = PathIntegrator::new(scene, options.depth, options.default_light);
@@ -170,6 +176,80 @@ fn render_with<I: Integrator>(
                 });
             }
             row_done(row);
+            rays
+        })
+        .reduce(RayCounts::default, |mut a, b| {
+            a += b;
+            a
+        });
+    let film = Film {
+        width: tile.width,
+        height: tile.height,
+        pixels,
+    };
+    (film, rays)
+}
+
+/// Side of the square pixel tiles whose camera rays are traced as one packet.
+const PACKET_TILE: u32 = 4;
+const _: () = assert!((PACKET_TILE * PACKET_TILE) as usize == PACKET_SIZE);
+
+/// [`render_with`] for the Whitted integrator at one sample per pixel: the pixel
+/// centres' camera rays of each 4x4 tile, and their shadow rays, are traced as packets
+/// ([`WhittedIntegrator::radiance_packet`]); the film is bit-identical to
+/// [`render_with`]'s. Bands of four rows are spread over the threads.
+fn render_whitted_packets(
+    scene: &Scene,
+    options: &RenderOptions,
+    integrator: &WhittedIntegrator,
+    tile: Tile,
+    row_done: &(dyn Fn(u32) + Sync),
+) -> (Film, RayCounts) {
+    let camera = Camera::for_options(options);
+    let width = tile.width as usize;
+    let band_pixels = width * PACKET_TILE as usize;
+    let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
+    let rays = pixels
+        .par_chunks_mut(band_pixels)
+        .zip(
+            (tile.y..tile.y + tile.height)
+                .into_par_iter()
+                .step_by(PACKET_TILE as usize),
+        )
+        .map(|(band, top)| {
+            let mut rays = RayCounts::default();
+            let mut scratch = PacketScratch::default();
+            let rows = (band.len() / width) as u32;
+            let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
+            let mut values = [Vec3::ZERO; PACKET_SIZE];
+            for left in (tile.x..tile.x + tile.width).step_by(PACKET_TILE as usize) {
+                let columns = (tile.x + tile.width - left).min(PACKET_TILE);
+                let mut count = 0;
+                for row in top..top + rows {
+                    for column in left..left + columns {
+                        camera_rays[count] = camera.ray(column as Float + 0.5, row as Float + 0.5);
+                        count += 1;
+                    }
+                }
+                rays.primary += count as u64;
+                integrator.radiance_packet(
+                    scene,
+                    &camera_rays[..count],
+                    &mut values[..count],
+                    &mut rays,
+                    &mut scratch,
+                );
+                let mut values = values[..count].iter();
+                for row in 0..rows as usize {
+                    let start = row * width + (left - tile.x) as usize;
+                    for pixel in &mut band[start..start + columns as usize] {
+                        *pixel = *values.next().expect("one value per pixel");
+                    }
+                }
+            }
+            for row in top..top + rows {
+                row_done(row);
+            }
             rays
         })
         .reduce(RayCounts::default, |mut a, b| {
@@ -256,6 +336,53 @@ mod tests {
         }
     }
 
+    /// The packet loop of full mode makes exactly the film of the ray-by-ray loop,
+    /// with the same ray counts, for whole images and for tiles whose edges cut the
+    /// 4x4 packets.
+    #[test]
+    fn whitted_packets_render_exactly_the_single_ray_film() {
+        let scene = crate::scene::packet_tests::generated_scene(60, true, 3);
+        let options = RenderOptions {
+            width: 70,
+            height: 45,
+            look_from: Vec3::new(0.3, 1.2, 1.8),
+            look_to: Vec3::new(0.0, 0.1, 0.0),
+            fov_degrees: 55.0,
+            depth: 4,
+            ..RenderOptions::default()
+        };
+        let whitted = WhittedIntegrator { max_depth: 4 };
+        for tile in [
+            Tile::whole(&options),
+            Tile {
+                x: 3,
+                y: 5,
+                width: 29,
+                height: 18,
+            },
+        ] {
+            let (single, single_rays) = render_with(&scene, &options, &whitted, tile, &|_| {});
+            let (packets, packet_rays) =
+                render_whitted_packets(&scene, &options, &whitted, tile, &|_| {});
+            let bits = |film: &Film| -> Vec<[u32; 3]> {
+                film.pixels
+                    .iter()
+                    .map(|v| v.to_array().map(f32::to_bits))
+                    .collect()
+            };
+            for (i, (a, b)) in bits(&single).iter().zip(&bits(&packets)).enumerate() {
+                assert_eq!(a, b, "{tile}: pixel {i}");
+            }
+            assert_eq!(single_rays, packet_rays, "{tile}");
+            assert!(
+                single_rays.shadow > 200
+                    && single_rays.reflected > 20
+                    && single_rays.refracted > 20,
+                "{single_rays:?}"
+            );
+        }
+    }
+
     #[test]
     fn sample_dimensions_do_not_depend_on_the_thread_count() {
         let options = RenderOptions {
@@ -272,5 +399,76 @@ mod tests {
             pool.install(|| probe(&options, Tile::whole(&options)))
         };
         assert_eq!(on(1), on(3));
+    }
+}
+#[cfg(test)]
+mod dragon_debug {
+    use super::*;
+    #[test]
+    #[ignore]
+    fn dragon_diff() {
+        let d = crate::formats::load(std::path::Path::new("bench/work/dragon-full.obj")).unwrap();
+        let scene = Scene::build(d.description.clone(), &Default::default());
+        let options = RenderOptions {
+            width: 1024,
+            height: 768,
+            fov_degrees: 45.0,
+            look_from: Vec3::new(0.09, 0.21, 0.27),
+            look_to: Vec3::new(-0.005, 0.12, -0.005),
+            depth: 8,
+            ..RenderOptions::default()
+        };
+        let _ = scene.lights.len();
+        let whitted = WhittedIntegrator { max_depth: 8 };
+        let tile = Tile::whole(&options);
+        let (a, ra) = render_with(&scene, &options, &whitted, tile, &|_| {});
+        let (b, rb) = render_whitted_packets(&scene, &options, &whitted, tile, &|_| {});
+        println!("{ra:?} {rb:?}");
+        let mut n = 0;
+        for (i, (x, y)) in a.pixels.iter().zip(&b.pixels).enumerate() {
+            if x.to_array().map(f32::to_bits) != y.to_array().map(f32::to_bits) {
+                n += 1;
+                if n < 10 {
+                    println!("pixel {} ({}, {}): {x} vs {y}", i, i % 1024, i / 1024);
+                }
+            }
+        }
+        println!("{n} differ");
+        let camera = Camera::for_options(&options);
+        let (px, py) = (654u32, 302u32);
+        let (lx, ly) = (px / 4 * 4, py / 4 * 4);
+        let rays: Vec<Ray> = (0..16)
+            .map(|k| camera.ray((lx + k % 4) as f32 + 0.5, (ly + k / 4) as f32 + 0.5))
+            .collect();
+        let k = ((py - ly) * 4 + (px - lx)) as usize;
+        let mut hits = [None; 16];
+        scene.intersect_packet(&rays, &mut hits);
+        println!(
+            "packet {:?}\nsingle {:?}",
+            hits[k],
+            scene.intersect(&rays[k])
+        );
+        for light in &scene.lights {
+            let mut shadow = rays.clone();
+            let mut dist = vec![0.0; 16];
+            let mut active = 0;
+            for (j, h) in hits.iter().enumerate() {
+                if let Some(h) = h {
+                    (shadow[j], dist[j]) = h.spawn_ray_to(light.position);
+                    active |= 1 << j;
+                }
+            }
+            let m = scene.occluded_packet(&shadow, &dist, active);
+            println!(
+                "light {:?}: packet {} single {} ray {:?} {}",
+                light.position,
+                m >> k & 1,
+                scene.occluded(&shadow[k], dist[k]),
+                shadow[k],
+                dist[k]
+            );
+            let m1 = scene.occluded_packet(&shadow[k..k + 1], &dist[k..k + 1], 1);
+            println!("  alone in a packet: {m1}");
+        }
     }
 }

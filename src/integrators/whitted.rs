@@ -2,9 +2,11 @@
 //! reflection and refraction, recursion limited by depth.
 
 use super::Integrator;
-use crate::math::{Ray, Vec3, reflect, refract, saturate_finite, try_unit};
+use crate::bvh::PACKET_SIZE;
+use crate::material::{PointLight, SurfaceValues};
+use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
 use crate::sampler::PixelSample;
-use crate::scene::Scene;
+use crate::scene::{Hit, Scene};
 use crate::stats::RayCounts;
 
 /// SPEC's lighting: deterministic, so it draws no sample dimensions.
@@ -46,6 +48,24 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
     let Some(hit) = scene.intersect(ray) else {
         return Vec3::ZERO;
     };
+    shade(scene, ray, &hit, depth, inside, rays, |surface, rays| {
+        direct_light(scene, ray, &hit, surface, rays)
+    })
+}
+
+/// The value of `ray`'s hit `hit`: emission and ambient, `local(surface, rays)` (the
+/// light of the point lights, [`direct_light`]) weighted by `al0`, then mirror
+/// reflection and refraction traced ray by ray.
+#[inline(always)]
+fn shade(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    depth: u32,
+    inside: bool,
+    rays: &mut RayCounts,
+    local: impl FnOnce(&SurfaceValues, &mut RayCounts) -> Vec3,
+) -> Vec3 {
     let material = &scene.materials[hit.material.0 as usize];
     let [local_weight, reflect_weight, refract_weight] = material.albedo;
     // The colours at the hit: the material's constants, times its maps if it has any.
@@ -53,33 +73,7 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
     let mut value = surface.ambient + surface.emission;
 
     if local_weight != 0.0 {
-        let to_eye = -ray.dir;
-        let mut local = Vec3::ZERO;
-        for light in &scene.lights {
-            // A light exactly at the hit point lights it from no direction.
-            let Some(to_light) = try_unit(light.position - hit.p) else {
-                continue;
-            };
-            let cos_light = hit.ns.dot(to_light);
-            let mirrored = 2.0 * cos_light * hit.ns - to_light;
-            let diffuse = surface.diffuse * cos_light.max(0.0);
-            // Clamped to 1 as well: rounding can push the cosine just past 1, which a
-            // large `Ns` would raise to infinity.
-            let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
-            let specular = surface.specular * cos_mirror.powf(surface.shininess);
-            let lit = light.intensity * (diffuse + specular);
-            // Shading first, shadow ray second: a light that would add nothing (behind
-            // a diffuse surface, say) needs no visibility test. The image is the same.
-            if lit == Vec3::ZERO {
-                continue;
-            }
-            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
-            rays.shadow += 1;
-            if !scene.occluded(&shadow_ray, distance) {
-                local += lit;
-            }
-        }
-        value += local_weight * local;
+        value += local_weight * local(&surface, rays);
     }
 
     if depth > 1 {
@@ -102,4 +96,143 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
         }
     }
     saturate_finite(value)
+}
+
+/// Phong light of every point light at `hit`, a shadow ray per light that adds
+/// something.
+#[inline(always)]
+fn direct_light(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    surface: &SurfaceValues,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let mut local = Vec3::ZERO;
+    for light in &scene.lights {
+        let lit = light_term(ray, hit, surface, light);
+        // Shading first, shadow ray second: a light that would add nothing (behind
+        // a diffuse surface, say) needs no visibility test. The image is the same.
+        if lit == Vec3::ZERO {
+            continue;
+        }
+        let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+        rays.shadow += 1;
+        if !scene.occluded(&shadow_ray, distance) {
+            local += lit;
+        }
+    }
+    local
+}
+
+/// What `light` adds at `hit` if nothing blocks it (zero if nothing).
+#[inline(always)]
+fn light_term(ray: &Ray, hit: &Hit, surface: &SurfaceValues, light: &PointLight) -> Vec3 {
+    // A light exactly at the hit point lights it from no direction.
+    let Some(to_light) = try_unit(light.position - hit.p) else {
+        return Vec3::ZERO;
+    };
+    let to_eye = -ray.dir;
+    let cos_light = hit.ns.dot(to_light);
+    let mirrored = 2.0 * cos_light * hit.ns - to_light;
+    let diffuse = surface.diffuse * cos_light.max(0.0);
+    // Clamped to 1 as well: rounding can push the cosine just past 1, which a
+    // large `Ns` would raise to infinity.
+    let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
+    let specular = surface.specular * cos_mirror.powf(surface.shininess);
+    light.intensity * (diffuse + specular)
+}
+
+/// Room for [`WhittedIntegrator::radiance_packet`]'s intermediate values, made once
+/// per run of tiles so that no packet allocates.
+#[derive(Debug, Default)]
+pub struct PacketScratch {
+    /// `lit[light * PACKET_SIZE + ray]`: what each light adds to each ray's hit.
+    lit: Vec<Vec3>,
+    /// Per light, the rays whose shadow ray towards it is blocked.
+    blocked: Vec<u32>,
+    shadow_rays: Vec<Ray>,
+    distances: Vec<Float>,
+}
+
+impl WhittedIntegrator {
+    /// The values of up to [`PACKET_SIZE`] coherent camera rays (a tile of pixels)
+    /// into `out`: exactly [`Integrator::radiance`] of each, with the camera rays and
+    /// the shadow rays towards each point light traced as packets
+    /// ([`Scene::intersect_packet`], [`Scene::occluded_packet`]); reflected and
+    /// refracted rays are traced one by one.
+    ///
+    /// # Panics
+    /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `out`.
+    pub fn radiance_packet(
+        &self,
+        scene: &Scene,
+        camera_rays: &[Ray],
+        out: &mut [Vec3],
+        rays: &mut RayCounts,
+        scratch: &mut PacketScratch,
+    ) {
+        assert_eq!(camera_rays.len(), out.len(), "one value per ray");
+        let count = camera_rays.len();
+        let mut hits = [None; PACKET_SIZE];
+        let hits = &mut hits[..count];
+        scene.intersect_packet(camera_rays, hits);
+
+        // What each light adds to each hit, and the shadow rays of those it adds to.
+        let lights = &scene.lights;
+        scratch.lit.clear();
+        scratch.lit.resize(lights.len() * PACKET_SIZE, Vec3::ZERO);
+        scratch.blocked.clear();
+        scratch.shadow_rays.clear();
+        scratch.shadow_rays.resize(count, camera_rays[0]);
+        scratch.distances.clear();
+        scratch.distances.resize(count, 0.0);
+        for (index, light) in lights.iter().enumerate() {
+            let mut tested = 0u32;
+            for (r, (ray, hit)) in camera_rays.iter().zip(hits.iter()).enumerate() {
+                let Some(hit) = hit else {
+                    continue;
+                };
+                let material = &scene.materials[hit.material.0 as usize];
+                if material.albedo[0] == 0.0 {
+                    continue;
+                }
+                let lit = light_term(ray, hit, &material.at(hit.uv), light);
+                if lit == Vec3::ZERO {
+                    continue;
+                }
+                scratch.lit[index * PACKET_SIZE + r] = lit;
+                (scratch.shadow_rays[r], scratch.distances[r]) = hit.spawn_ray_to(light.position);
+                tested |= 1 << r;
+            }
+            let blocked = if tested == 0 {
+                0
+            } else {
+                scene.occluded_packet(&scratch.shadow_rays, &scratch.distances, tested)
+            };
+            scratch.blocked.push(blocked);
+        }
+
+        for (r, ((ray, hit), value)) in camera_rays.iter().zip(hits.iter()).zip(out).enumerate() {
+            let Some(hit) = hit else {
+                *value = Vec3::ZERO;
+                continue;
+            };
+            *value = shade(scene, ray, hit, self.max_depth, false, rays, |_, rays| {
+                // The sum of `direct_light`, in the same order, from the packets' answers.
+                let mut local = Vec3::ZERO;
+                for (index, blocked) in scratch.blocked.iter().enumerate() {
+                    let lit = scratch.lit[index * PACKET_SIZE + r];
+                    if lit == Vec3::ZERO {
+                        continue;
+                    }
+                    rays.shadow += 1;
+                    if blocked >> r & 1 == 0 {
+                        local += lit;
+                    }
+                }
+                local
+            });
+        }
+    }
 }

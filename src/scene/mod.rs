@@ -3,6 +3,9 @@
 //! and any-hit queries rays make, and a summary of a description ([`SceneSummary`]).
 
 mod info;
+mod packet;
+#[cfg(test)]
+pub(crate) use packet::tests as packet_tests;
 
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
 

@@ -1,6 +1,7 @@
 //! The parallel pixel loop: the one place the renderer uses threads.
 
 use std::fmt;
+use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
@@ -95,7 +96,31 @@ pub fn render_with_progress(
     options: &RenderOptions,
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts) {
-    render_region(scene, options, Tile::whole(options), row_done)
+    let (film, rays, _) = render_region(scene, options, Tile::whole(options), row_done, false);
+    (film, rays)
+}
+
+/// How the render's time divided between tracing rays and shading, where the two are
+/// separate stages: in full mode at one sample per pixel, where camera and shadow rays
+/// are traced as packets apart from the shading that uses them.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RenderTimes {
+    /// Of the threads' time in the pixel loop, the fraction spent tracing camera and
+    /// shadow ray packets; the rest is shading (with the reflected and refracted rays
+    /// it traces one by one). `None` where tracing and shading are not separate
+    /// stages (a path tracer traces and shades in turn, ray by ray).
+    pub trace_fraction: Option<f64>,
+}
+
+/// [`render_with_progress`], also timing the tracing of ray packets apart from the
+/// shading where the render has them as separate stages ([`RenderTimes`]), for
+/// `--stats`. The clock is read a few times per 4x4 tile, never per ray.
+pub fn render_with_stats(
+    scene: &Scene,
+    options: &RenderOptions,
+    row_done: &(dyn Fn(u32) + Sync),
+) -> (Film, RayCounts, RenderTimes) {
+    render_region(scene, options, Tile::whole(options), row_done, true)
 }
 
 /// The pixels of `tile` of the image `options` describe, as a film of the tile's size:
@@ -119,32 +144,47 @@ pub fn render_tile(scene: &Scene, options: &RenderOptions, tile: Tile) -> Result
             height: options.height,
         });
     }
-    Ok(render_region(scene, options, tile, &|_| {}).0)
+    Ok(render_region(scene, options, tile, &|_| {}, false).0)
 }
 
 /// Chooses the integrator of `options.mode`, once for the whole region.
+/// With `timed`, also measures what [`RenderTimes`] holds.
 fn render_region(
     scene: &Scene,
     options: &RenderOptions,
     tile: Tile,
     row_done: &(dyn Fn(u32) + Sync),
-) -> (Film, RayCounts) {
+    timed: bool,
+) -> (Film, RayCounts, RenderTimes) {
+    let untimed = |(film, rays)| (film, rays, RenderTimes::default());
     match options.mode {
-        Mode::Depth => render_with(scene, options, &DepthIntegrator, tile, row_done),
-        Mode::Normal => render_with(scene, options, &NormalIntegrator, tile, row_done),
+        Mode::Depth => untimed(render_with(
+            scene,
+            options,
+            &DepthIntegrator,
+            tile,
+            row_done,
+        )),
+        Mode::Normal => untimed(render_with(
+            scene,
+            options,
+            &NormalIntegrator,
+            tile,
+            row_done,
+        )),
         Mode::Full => {
             let whitted = WhittedIntegrator {
                 max_depth: options.depth,
             };
             if options.samples_per_pixel_in_mode() == 1 {
-                render_whitted_packets(scene, options, &whitted, tile, row_done)
+                render_whitted_packets(scene, options, &whitted, tile, row_done, timed)
             } else {
-                render_with(scene, options, &whitted, tile, row_done)
+                untimed(render_with(scene, options, &whitted, tile, row_done))
             }
         }
         Mode::Path => {
             let path = PathIntegrator::new(scene, options.depth, options.default_light);
-            render_with(scene, options, &path, tile, row_done)
+            untimed(render_with(scene, options, &path, tile, row_done))
         }
     }
 }
@@ -204,7 +244,8 @@ fn render_whitted_packets(
     integrator: &WhittedIntegrator,
     tile: Tile,
     row_done: &(dyn Fn(u32) + Sync),
-) -> (Film, RayCounts) {
+    timed: bool,
+) -> (Film, RayCounts, RenderTimes) {
     let camera = Camera::for_options(options);
     let width = tile.width as usize;
     let band_pixels = width * PACKET_TILE as usize;
@@ -217,8 +258,10 @@ fn render_whitted_packets(
                 .step_by(PACKET_TILE as usize),
         )
         .map(|(band, top)| {
+            let band_start = timed.then(Instant::now);
             let mut rays = RayCounts::default();
             let mut scratch = PacketScratch::default();
+            scratch.time_tracing(timed);
             let rows = (band.len() / width) as u32;
             let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
             let mut values = [Vec3::ZERO; PACKET_SIZE];
@@ -250,18 +293,27 @@ fn render_whitted_packets(
             for row in top..top + rows {
                 row_done(row);
             }
-            rays
+            let band_time = band_start.map_or(Duration::ZERO, |start| start.elapsed());
+            (rays, scratch.tracing_time(), band_time)
         })
-        .reduce(RayCounts::default, |mut a, b| {
-            a += b;
-            a
-        });
+        .reduce(
+            || (RayCounts::default(), Duration::ZERO, Duration::ZERO),
+            |mut a, b| {
+                a.0 += b.0;
+                (a.0, a.1 + b.1, a.2 + b.2)
+            },
+        );
+    let (rays, tracing, total) = rays;
     let film = Film {
         width: tile.width,
         height: tile.height,
         pixels,
     };
-    (film, rays)
+    let times = RenderTimes {
+        trace_fraction: (timed && !total.is_zero())
+            .then(|| tracing.as_secs_f64() / total.as_secs_f64()),
+    };
+    (film, rays, times)
 }
 
 #[cfg(test)]
@@ -362,8 +414,8 @@ mod tests {
             },
         ] {
             let (single, single_rays) = render_with(&scene, &options, &whitted, tile, &|_| {});
-            let (packets, packet_rays) =
-                render_whitted_packets(&scene, &options, &whitted, tile, &|_| {});
+            let (packets, packet_rays, _) =
+                render_whitted_packets(&scene, &options, &whitted, tile, &|_| {}, false);
             let bits = |film: &Film| -> Vec<[u32; 3]> {
                 film.pixels
                     .iter()
@@ -422,7 +474,7 @@ mod dragon_debug {
         let whitted = WhittedIntegrator { max_depth: 8 };
         let tile = Tile::whole(&options);
         let (a, ra) = render_with(&scene, &options, &whitted, tile, &|_| {});
-        let (b, rb) = render_whitted_packets(&scene, &options, &whitted, tile, &|_| {});
+        let (b, rb, _) = render_whitted_packets(&scene, &options, &whitted, tile, &|_| {}, false);
         println!("{ra:?} {rb:?}");
         let mut n = 0;
         for (i, (x, y)) in a.pixels.iter().zip(&b.pixels).enumerate() {

@@ -283,3 +283,78 @@ fn scene_extensions_are_matched_in_any_case_and_under_gz() {
         );
     }
 }
+
+/// `--stats` names every stage of the pipeline, each on its own line (their times are
+/// not checked): in full mode the traced ray packets apart from the shading, in path
+/// mode tracing and shading together; post-processing and PNG encoding (with the
+/// file's size) apart; EXR encoding without post-processing.
+#[test]
+fn stats_show_every_stage() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = box_scene();
+    let stages = |mode: &str, file: &str| {
+        let out = dir.path().join(file);
+        let output = raytracer(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--mode",
+            mode,
+            "--spp",
+            "1",
+            "--stats",
+        ]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let text = stderr(&output);
+        let starts: Vec<String> = text
+            .lines()
+            .map(|line| {
+                let words: Vec<&str> = line.split_whitespace().collect();
+                let end = words
+                    .iter()
+                    .position(|w| w.parse::<f64>().is_ok())
+                    .unwrap_or(words.len());
+                words[..end].join(" ")
+            })
+            .collect();
+        (text, starts)
+    };
+    let (text, full) = stages("full", "full.png");
+    for stage in [
+        "parse",
+        "BVH build",
+        "trace",
+        "shading",
+        "render total",
+        "post-processing",
+        "PNG encoding",
+        "total",
+    ] {
+        assert!(
+            full.iter().any(|s| s == stage),
+            "no '{stage}' line in:\n{text}"
+        );
+    }
+    assert!(text.contains("kB written"), "{text}");
+    let (text, path) = stages("path", "path.png");
+    for stage in [
+        "parse",
+        "BVH build",
+        "trace + shading",
+        "post-processing",
+        "PNG encoding",
+    ] {
+        assert!(
+            path.iter().any(|s| s == stage),
+            "no '{stage}' line in:\n{text}"
+        );
+    }
+    let (text, exr) = stages("full", "full.exr");
+    assert!(exr.iter().any(|s| s == "EXR encoding"), "{text}");
+    assert!(!exr.iter().any(|s| s == "post-processing"), "{text}");
+}

@@ -1,6 +1,8 @@
 //! SPEC's Whitted-style integrator: Phong lighting with hard shadows, mirror
 //! reflection and refraction, recursion limited by depth.
 
+use std::time::{Duration, Instant};
+
 use super::Integrator;
 use crate::bvh::PACKET_SIZE;
 use crate::material::{PointLight, SurfaceValues};
@@ -153,6 +155,35 @@ pub struct PacketScratch {
     blocked: Vec<u32>,
     shadow_rays: Vec<Ray>,
     distances: Vec<Float>,
+    /// Time spent in packet queries so far, when timed.
+    tracing: Option<Duration>,
+}
+
+impl PacketScratch {
+    /// Starts (or stops) adding up the time spent tracing packets, for `--stats`.
+    pub fn time_tracing(&mut self, timed: bool) {
+        self.tracing = timed.then_some(Duration::ZERO);
+    }
+
+    /// The time spent tracing packets since [`PacketScratch::time_tracing`]; zero
+    /// when not timed.
+    pub fn tracing_time(&self) -> Duration {
+        self.tracing.unwrap_or_default()
+    }
+
+    /// Runs `f`, adding its time to the tracing time if timed.
+    #[inline(always)]
+    fn trace<T>(&mut self, f: impl FnOnce(&mut Self) -> T) -> T {
+        match self.tracing {
+            None => f(self),
+            Some(before) => {
+                let start = Instant::now();
+                let result = f(self);
+                self.tracing = Some(before + start.elapsed());
+                result
+            }
+        }
+    }
 }
 
 impl WhittedIntegrator {
@@ -176,7 +207,7 @@ impl WhittedIntegrator {
         let count = camera_rays.len();
         let mut hits = [None; PACKET_SIZE];
         let hits = &mut hits[..count];
-        scene.intersect_packet(camera_rays, hits);
+        scratch.trace(|_| scene.intersect_packet(camera_rays, hits));
 
         // What each light adds to each hit, and the shadow rays of those it adds to.
         let lights = &scene.lights;
@@ -208,7 +239,7 @@ impl WhittedIntegrator {
             let blocked = if tested == 0 {
                 0
             } else {
-                scene.occluded_packet(&scratch.shadow_rays, &scratch.distances, tested)
+                scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested))
             };
             scratch.blocked.push(blocked);
         }

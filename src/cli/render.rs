@@ -75,26 +75,26 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     };
     let rendered = Instant::now();
     // Post-processing and encoding apart, so that `--stats` shows each.
-    let (processed, file_bytes) = match format {
+    let (processed, encoded) = match format {
         ImageFormat::Png => {
             let image = film.to_image(options);
             let processed = Instant::now();
-            image.write_png(&args.output)?;
-            (
-                processed,
-                std::fs::metadata(&args.output).map(|m| m.len()).ok(),
-            )
+            let bytes = image.encode_png().map_err(|error| output::WriteError {
+                path: args.output.clone(),
+                error,
+            })?;
+            let encoded = Instant::now();
+            output::write_png_bytes(&bytes, &args.output)?;
+            (processed, encoded)
         }
-        // OpenEXR holds the film as rendered: no post-processing.
+        // OpenEXR holds the film as rendered: no post-processing; encoded while written.
         ImageFormat::Exr => {
             film.write(options, format, &args.output)?;
-            (
-                rendered,
-                std::fs::metadata(&args.output).map(|m| m.len()).ok(),
-            )
+            (rendered, Instant::now())
         }
     };
     let written = Instant::now();
+    let file_bytes = std::fs::metadata(&args.output).map(|m| m.len()).ok();
 
     if args.stats {
         let render = (rendered - built).as_secs_f64();
@@ -104,7 +104,8 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
             render,
             trace: times.trace_fraction.map(|f| f * render),
             post: (processed - rendered).as_secs_f64(),
-            encode: (written - processed).as_secs_f64(),
+            encode: (encoded - processed).as_secs_f64(),
+            write: (written - encoded).as_secs_f64(),
         };
         let samples = samples_per_row * u64::from(options.height);
         print_stats(&scene, &stages, &rays, samples, format, file_bytes);
@@ -122,6 +123,8 @@ struct Stages {
     trace: Option<f64>,
     post: f64,
     encode: f64,
+    /// Writing the encoded file: the temporary file, its sync to disk, the rename.
+    write: f64,
 }
 
 /// `samples` is the number of camera samples (paths, in path mode); `file_bytes` the
@@ -189,17 +192,20 @@ fn print_stats(
                 ms(stages.encode),
                 file_size(file_bytes)
             );
+            eprintln!(
+                "file write       {:9.1} ms  temporary file, sync to disk, rename",
+                ms(stages.write)
+            );
         }
         ImageFormat::Exr => eprintln!(
-            "EXR encoding     {:9.1} ms  {} (linear film, no post-processing)",
-            ms(stages.encode),
+            "EXR encoding     {:9.1} ms  {} (linear film, no post-processing; written, synced and renamed)",
+            ms(stages.encode + stages.write),
             file_size(file_bytes)
         ),
     }
-    eprintln!(
-        "total            {:9.1} ms",
-        ms(stages.parse + stages.build + stages.render + stages.post + stages.encode)
-    );
+    let total =
+        stages.parse + stages.build + stages.render + stages.post + stages.encode + stages.write;
+    eprintln!("total            {:9.1} ms", ms(total));
     if let Some(peak) = peak_memory_bytes() {
         eprintln!("peak memory      {:9.1} MB", peak as f64 / 1e6);
     }

@@ -133,7 +133,54 @@ struct PacketEntry {
     child: ChildRef,
     rays: u32,
     t_enter: Float,
-    path_enter: f32x16,
+    /// Unaligned, so that an entry takes 80 bytes rather than 128.
+    path_enter: [Float; PACKET_SIZE],
+}
+
+/// An entry of [`WideBvh::walk_lane`]'s stack: a child, its entry distance and the
+/// ray's greatest entry distance on the way there.
+type LaneEntry = (ChildRef, Float, Float);
+
+/// The traversal stacks of a packet walk: 80 kB, too big to put on the call stack
+/// each time (the probes of a fresh frame cost more than a small packet's walk), so
+/// each thread keeps one and lends it to its walks.
+struct Stacks {
+    packet: Box<[MaybeUninit<PacketEntry>]>,
+    lane: Box<[MaybeUninit<LaneEntry>]>,
+}
+
+thread_local! {
+    static SPARE_STACKS: std::cell::Cell<Option<Box<Stacks>>> = const { std::cell::Cell::new(None) };
+}
+
+/// The thread's stacks, lent for one walk and given back when dropped (a walk inside
+/// a leaf callback finds none spare and makes its own).
+struct LentStacks(Option<Box<Stacks>>);
+
+impl LentStacks {
+    #[inline(always)]
+    fn take() -> LentStacks {
+        let spare = SPARE_STACKS.with(|cell| cell.take());
+        LentStacks(Some(spare.unwrap_or_else(|| {
+            Box::new(Stacks {
+                packet: Box::new_uninit_slice(STACK_SIZE),
+                lane: Box::new_uninit_slice(STACK_SIZE),
+            })
+        })))
+    }
+
+    #[inline(always)]
+    fn stacks(&mut self) -> &mut Stacks {
+        self.0.as_mut().expect("lent until dropped")
+    }
+}
+
+impl Drop for LentStacks {
+    #[inline(always)]
+    fn drop(&mut self) {
+        let stacks = self.0.take();
+        SPARE_STACKS.with(|cell| cell.set(stacks));
+    }
 }
 
 /// The lanes of `mask` as an all-ones/all-zeros vector mask.
@@ -249,7 +296,11 @@ impl WideBvh {
         }
         let margin = f32x16::splat(CLOSEST_CULL_MARGIN);
         let mut live = active;
-        let mut stack = [const { MaybeUninit::<PacketEntry>::uninit() }; STACK_SIZE];
+        let mut lent = LentStacks::take();
+        let Stacks {
+            packet: stack,
+            lane: lane_stack,
+        } = lent.stacks();
         let mut stack_len = 0usize;
         let mut current = PacketEntry {
             child: ChildRef {
@@ -258,7 +309,7 @@ impl WideBvh {
             },
             rays: live,
             t_enter: 0.0,
-            path_enter: f32x16::ZERO,
+            path_enter: [0.0; PACKET_SIZE],
         };
         loop {
             let rays = current.rays & live;
@@ -269,7 +320,7 @@ impl WideBvh {
                         current.child.item_count,
                         rays,
                         t_max,
-                        &current.path_enter,
+                        &f32x16::from(current.path_enter),
                     );
                     finished |= done;
                     live &= !done;
@@ -278,7 +329,7 @@ impl WideBvh {
                     }
                 } else if rays.count_ones() <= SINGLE_RAY_BELOW {
                     // Too few rays left for sixteen lanes: walk this subtree ray by ray.
-                    let path = current.path_enter.as_array();
+                    let path = &current.path_enter;
                     for ray in BitIter(rays) {
                         if live & (1 << ray) == 0 {
                             continue;
@@ -290,6 +341,7 @@ impl WideBvh {
                             path[ray],
                             t_max,
                             &mut leaf,
+                            lane_stack,
                         );
                         finished |= done;
                         live &= !done;
@@ -302,6 +354,7 @@ impl WideBvh {
                     let planes = node.planes.map(|p| p.to_array());
                     let reach = if CLOSEST { *t_max * margin } else { *t_max };
                     let ray_lanes = lane_mask(rays);
+                    let path_enter = f32x16::from(current.path_enter);
                     // Slots in use: an unused slot's box is inverted.
                     let mut used = node.planes[0].simd_le(node.planes[1]).to_bitmask();
                     let run_start = stack_len;
@@ -312,9 +365,8 @@ impl WideBvh {
                         let (hit, t_enter) = packet.hit_child::<CLOSEST>(&slot_planes, reach);
                         let hit = hit & ray_lanes;
                         let hits = hit.to_bitmask();
-                        if hits == 0 {
-                            continue;
-                        }
+                        // Written whether or not a ray hits, and kept only if one does:
+                        // whether a child is hit is too random to branch on.
                         debug_assert!(stack_len < STACK_SIZE);
                         stack[stack_len].write(PacketEntry {
                             child: ChildRef {
@@ -328,12 +380,12 @@ impl WideBvh {
                                 0.0
                             },
                             path_enter: if CLOSEST {
-                                current.path_enter.fast_max(t_enter)
+                                path_enter.fast_max(t_enter).to_array()
                             } else {
-                                f32x16::ZERO
+                                [0.0; PACKET_SIZE]
                             },
                         });
-                        stack_len += 1;
+                        stack_len += usize::from(hits != 0);
                     }
                     if CLOSEST && stack_len > run_start + 1 {
                         // SAFETY: entries `run_start..stack_len` were written just above.
@@ -396,6 +448,7 @@ impl WideBvh {
         path_enter: Float,
         t_max: &mut f32x16,
         leaf: &mut F,
+        stack: &mut [MaybeUninit<LaneEntry>],
     ) -> u32
     where
         F: FnMut(u32, u32, u32, &mut f32x16, &f32x16) -> u32,
@@ -403,7 +456,6 @@ impl WideBvh {
         let bit = 1u32 << lane;
         let ray = LaneRay::new(packet, lane);
         let margin = if CLOSEST { CLOSEST_CULL_MARGIN } else { 1.0 };
-        let mut stack = [const { MaybeUninit::<(ChildRef, Float, Float)>::uninit() }; STACK_SIZE];
         let mut stack_len = 0usize;
         let mut current = (
             ChildRef {
@@ -439,8 +491,7 @@ impl WideBvh {
                 if CLOSEST && stack_len > run_start + 1 {
                     // SAFETY: entries `run_start..stack_len` were written just above.
                     let run = unsafe {
-                        &mut *(&mut stack[run_start..stack_len] as *mut [_]
-                            as *mut [(ChildRef, Float, Float)])
+                        &mut *(&mut stack[run_start..stack_len] as *mut [_] as *mut [LaneEntry])
                     };
                     for i in 1..run.len() {
                         let entry = run[i];

@@ -337,7 +337,7 @@ pub(crate) mod tests {
                     d.triangles.push(TriangleDesc {
                         positions,
                         normals: Some(positions),
-                        material: MaterialId(((i / 3 + j / 5) % 3) as u32),
+                        material: MaterialId((i / 3 + j / 5) % 3),
                     });
                 }
             }

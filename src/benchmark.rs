@@ -354,3 +354,32 @@ fn process_cpu_seconds() -> f64 {
     let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     seconds(usage.ru_utime) + seconds(usage.ru_stime)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bounce directions are unit vectors on the side of the axis, cosine-distributed:
+    /// the mean cosine of a cosine-weighted hemisphere is 2/3.
+    #[test]
+    fn bounces_are_cosine_distributed_about_the_axis() {
+        let sampler = PixelSampler::new(1, 2);
+        for axis in [Vec3::Z, -Vec3::Z, Vec3::new(0.3, -0.8, 0.52).normalize()] {
+            let n = 20_000;
+            let mut sum = 0.0;
+            for i in 0..n {
+                let u = sampler.sample(i, 0).next_2d();
+                let dir = cosine_about(axis, u.x, u.y);
+                assert!((dir.length() - 1.0).abs() < 1e-5, "{dir}");
+                let cos = dir.dot(axis);
+                assert!(cos >= -1e-6, "{dir} leaves {axis}'s side");
+                sum += cos as f64;
+            }
+            let mean = sum / n as f64;
+            assert!(
+                (mean - 2.0 / 3.0).abs() < 0.01,
+                "mean cosine {mean} about {axis}"
+            );
+        }
+    }
+}

@@ -81,6 +81,8 @@ pub use material::{Material, MaterialId, PointLight};
 pub use options::{Mode, RenderOptions};
 pub use output::ImageFormat;
 pub use postprocess::Image;
-pub use render::{Tile, TileError, render, render_tile, render_with_progress};
+pub use render::{
+    RenderTimes, Tile, TileError, render, render_tile, render_with_progress, render_with_stats,
+};
 pub use sampler::{PixelSample, PixelSampler};
 pub use scene::{Hit, Scene};

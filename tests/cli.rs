@@ -283,3 +283,139 @@ fn scene_extensions_are_matched_in_any_case_and_under_gz() {
         );
     }
 }
+
+/// `--stats` names every stage of the pipeline, each on its own line (their times are
+/// not checked): in full mode the traced ray packets apart from the shading, in path
+/// mode tracing and shading together; post-processing and PNG encoding (with the
+/// file's size) apart; EXR encoding without post-processing.
+#[test]
+fn stats_show_every_stage() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = box_scene();
+    let stages = |mode: &str, file: &str| {
+        let out = dir.path().join(file);
+        let output = raytracer(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--mode",
+            mode,
+            "--spp",
+            "1",
+            "--stats",
+        ]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let text = stderr(&output);
+        let starts: Vec<String> = text
+            .lines()
+            .map(|line| {
+                let words: Vec<&str> = line.split_whitespace().collect();
+                let end = words
+                    .iter()
+                    .position(|w| w.parse::<f64>().is_ok())
+                    .unwrap_or(words.len());
+                words[..end].join(" ")
+            })
+            .collect();
+        (text, starts)
+    };
+    let (text, full) = stages("full", "full.png");
+    for stage in [
+        "parse",
+        "BVH build",
+        "trace",
+        "shading",
+        "render total",
+        "post-processing",
+        "PNG encoding",
+        "total",
+    ] {
+        assert!(
+            full.iter().any(|s| s == stage),
+            "no '{stage}' line in:\n{text}"
+        );
+    }
+    assert!(text.contains("kB written"), "{text}");
+    let (text, path) = stages("path", "path.png");
+    for stage in [
+        "parse",
+        "BVH build",
+        "trace + shading",
+        "post-processing",
+        "PNG encoding",
+    ] {
+        assert!(
+            path.iter().any(|s| s == stage),
+            "no '{stage}' line in:\n{text}"
+        );
+    }
+    let (text, exr) = stages("full", "full.exr");
+    assert!(exr.iter().any(|s| s == "EXR encoding"), "{text}");
+    assert!(!exr.iter().any(|s| s == "post-processing"), "{text}");
+}
+
+/// `raytracer bench` reports incoherent bounce rays (one per primary hit) and the
+/// primary and shadow rays in packets, with the same hit counts as ray by ray; and
+/// `--dump-rays` writes the triangles and every ray for the Embree benchmark.
+#[test]
+fn bench_reports_incoherent_rays_and_packets_and_dumps_the_rays() {
+    let dir = tempfile::tempdir().unwrap();
+    let rays = dir.path().join("rays.bin");
+    let scene = box_scene();
+    let output = raytracer(&[
+        "bench",
+        scene.to_str().unwrap(),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--look-from",
+        "-0.5,0.7,1.75",
+        "--look-to=0,0.7,0",
+        "--repeat",
+        "1",
+        "--dump-rays",
+        rays.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json = String::from_utf8(output.stdout).unwrap();
+    let number = |key: &str| -> f64 {
+        let start = json
+            .find(&format!("\"{key}\": "))
+            .unwrap_or_else(|| panic!("no {key} in {json}"))
+            + key.len()
+            + 4;
+        let end = json[start..].find([',', '}']).unwrap() + start;
+        json[start..end].trim().parse().unwrap()
+    };
+    let hits = number("primary_hits");
+    assert!(hits > 100.0, "{json}");
+    assert_eq!(
+        number("incoherent_rays"),
+        hits,
+        "one bounce per primary hit"
+    );
+    assert!(number("incoherent_hits") > 0.0, "{json}");
+    for key in [
+        "incoherent_mrays_per_s",
+        "primary_packet_mrays_per_s",
+        "shadow_packet_mrays_per_s",
+        "primary_mrays_per_cpu_s",
+    ] {
+        assert!(number(key) > 0.0, "{key}: {json}");
+    }
+    // The file: header, vertices, triangles, then the primary rays (one per pixel).
+    let bytes = std::fs::read(&rays).unwrap();
+    assert_eq!(&bytes[..8], b"RTBENCH1");
+    let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let vertices = u32_at(8);
+    let triangles = u32_at(12 + 12 * vertices);
+    let primary = u32_at(16 + 12 * vertices + 12 * triangles);
+    assert!(vertices > 0 && triangles > 0);
+    assert_eq!(primary, 32 * 24);
+}

@@ -8,10 +8,12 @@
 
 mod build;
 mod node;
+mod packet;
 mod wide;
 
 pub use build::BvhParams;
 pub use node::BvhNode;
+pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket};
 pub use wide::{RayQuery, WideBvh, WideNode};
 
 use crate::math::Aabb;

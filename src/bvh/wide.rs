@@ -21,7 +21,7 @@ pub const WIDTH: usize = 8;
 
 /// Slack on the exit distance of the slab test so that rounding in `(min - o) / d`
 /// never culls a box the ray grazes: pbrt's `1 + 2 * gamma(3)`.
-const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.5);
+pub(super) const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.5);
 
 /// One node: eight child boxes as planes `[min x, max x, min y, max y, min z, max z]`
 /// of eight lanes each, then what each child is. 256 bytes, four cache lines.
@@ -88,13 +88,13 @@ pub struct WideBvh {
 
 /// Most entries the traversal stack can hold: at most `WIDTH - 1` pending siblings per
 /// level, and the wide tree is no deeper than the binary one it came from.
-const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+pub(super) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
 /// What a slot or stack entry points at: a node (`item_count == 0`) or a leaf's items.
 #[derive(Clone, Copy, Debug)]
-struct ChildRef {
-    index: u32,
-    item_count: u32,
+pub(super) struct ChildRef {
+    pub(super) index: u32,
+    pub(super) item_count: u32,
 }
 
 impl WideBvh {
@@ -412,7 +412,7 @@ fn sort_far_to_near(run: &mut [(ChildRef, Float)]) {
 /// give an infinite reciprocal and `0 * inf = NaN` for a ray lying in a slab's plane;
 /// with this floor the product is 0 and such a ray counts as inside the (closed) box,
 /// as it should (obvhs's `safe_inverse` does the same).
-const MIN_DIR_COMPONENT: Float = 1e-30;
+pub(super) const MIN_DIR_COMPONENT: Float = 1e-30;
 
 /// A ray prepared for box tests: origin and the reciprocal of its direction,
 /// computed once per ray.

@@ -41,6 +41,10 @@ pub struct BenchArgs {
     /// Runs per measurement; the median is reported.
     #[arg(long, default_value_t = 5, value_name = "N")]
     pub repeat: usize,
+    /// Also write the scene's triangles and the benchmark's rays to this file, for
+    /// the Embree benchmark in bench/embree/ to trace the same rays.
+    #[arg(long, value_name = "FILE")]
+    pub dump_rays: Option<PathBuf>,
 }
 
 /// Flags of `render`.

@@ -1,8 +1,11 @@
-//! `raytracer bench`: medians of parse, build, primary-ray and shadow-ray times on
-//! one scene, printed as one JSON object for `bench/run.sh`.
+//! `raytracer bench`: medians of parse, build, primary-ray, shadow-ray and
+//! incoherent-ray times (ray by ray, and primary and shadow rays also as 4x4 packets)
+//! on one scene, printed as one JSON object for `bench/run.sh`.
 
+use anyhow::Context;
 use raytracer::benchmark::{
-    RayWorkload, count_occluded, median_time, median_time_with, trace_closest_primitives,
+    RayWorkload, Times, count_occluded, count_occluded_packets, median_time, median_times,
+    median_times_with, trace_closest_primitives, trace_closest_primitives_packets,
 };
 use raytracer::{BvhParams, Scene, render};
 
@@ -19,49 +22,99 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let params = BvhParams::default();
     // The copy of the description each build consumes is made outside the clock: a
     // render builds from the one it read.
-    let (scene, build_s) = median_time_with(
+    let (scene, build) = median_times_with(
         args.repeat,
         || description.clone(),
         |d| Scene::build(d, &params),
     );
     let workload = RayWorkload::new(&scene, options);
-    let (ids, primary_s) = median_time(args.repeat, || {
+    let (ids, primary) = median_times(args.repeat, || {
         trace_closest_primitives(&scene, &workload.primary)
     });
     anyhow::ensure!(
         ids.iter().filter(|&&id| id != u32::MAX).count() == workload.primary_hits,
         "closest-hit runs disagree on the number of hits"
     );
-    let (occluded, shadow_s) =
-        median_time(args.repeat, || count_occluded(&scene, &workload.shadow));
-    let (_, render_s) = median_time(args.repeat, || render(&scene, options));
-    let mrays = |n: usize, s: f64| n as f64 / s / 1e6;
-    println!(
-        concat!(
-            "{{\"file_bytes\": {}, \"triangles\": {}, \"parse_ms\": {:.2}, \"parse_mb_per_s\": {:.1}, ",
-            "\"build_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, \"wide_nodes\": {}, \"packets\": {}, ",
-            "\"primary_rays\": {}, \"primary_hits\": {}, \"primary_ms\": {:.2}, \"primary_mrays_per_s\": {:.2}, ",
-            "\"shadow_rays\": {}, \"shadow_occluded\": {}, \"shadow_ms\": {:.2}, \"shadow_mrays_per_s\": {:.2}, ",
-            "\"render_ms\": {:.2}}}"
-        ),
-        file_bytes,
-        triangles,
-        parse_s * 1e3,
-        file_bytes as f64 / parse_s / 1e6,
-        build_s * 1e3,
-        scene.bvh_summary().nodes,
-        scene.bvh_summary().sah_cost,
-        scene.bvh_summary().wide_nodes,
-        scene.bvh_summary().packets,
-        workload.primary.len(),
-        workload.primary_hits,
-        primary_s * 1e3,
-        mrays(workload.primary.len(), primary_s),
-        workload.shadow.len(),
-        occluded,
-        shadow_s * 1e3,
-        mrays(workload.shadow.len(), shadow_s),
-        render_s * 1e3,
+    let (packet_ids, primary_packet) = median_times(args.repeat, || {
+        trace_closest_primitives_packets(&scene, &workload.primary_tiled, &workload.primary_packets)
+    });
+    anyhow::ensure!(
+        packet_ids.iter().filter(|&&id| id != u32::MAX).count() == workload.primary_hits,
+        "packets and single rays disagree on the number of hits"
     );
+    let (occluded, shadow) = median_times(args.repeat, || count_occluded(&scene, &workload.shadow));
+    let (packet_occluded, shadow_packet) = median_times(args.repeat, || {
+        count_occluded_packets(&scene, &workload.shadow_tiled, &workload.shadow_packets)
+    });
+    anyhow::ensure!(
+        packet_occluded == occluded,
+        "packets and single rays disagree on the number of blocked shadow rays"
+    );
+    let (incoherent_ids, incoherent) = median_times(args.repeat, || {
+        trace_closest_primitives(&scene, &workload.incoherent)
+    });
+    let incoherent_hits = incoherent_ids.iter().filter(|&&id| id != u32::MAX).count();
+    let (_, render) = median_times(args.repeat, || render(&scene, options));
+    if let Some(path) = &args.dump_rays {
+        let triangles: Vec<[u32; 3]> = description.triangles.iter().map(|t| t.positions).collect();
+        workload
+            .dump(&description.positions, &triangles, path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    let summary = scene.bvh_summary();
+    // Rays per second of wall time, and per second of CPU time (all threads): the
+    // second is steadier on a shared machine.
+    let rate = |name: &str, n: usize, t: &Times| {
+        format!(
+            "\"{name}_ms\": {:.2}, \"{name}_cpu_ms\": {:.2}, \"{name}_mrays_per_s\": {:.2}, \"{name}_mrays_per_cpu_s\": {:.2}",
+            t.wall * 1e3,
+            t.cpu * 1e3,
+            n as f64 / t.wall / 1e6,
+            n as f64 / t.cpu / 1e6
+        )
+    };
+    let fields = [
+        format!("\"file_bytes\": {file_bytes}, \"triangles\": {triangles}"),
+        format!(
+            "\"parse_ms\": {:.2}, \"parse_mb_per_s\": {:.1}",
+            parse_s * 1e3,
+            file_bytes as f64 / parse_s / 1e6
+        ),
+        format!(
+            "\"build_ms\": {:.2}, \"build_cpu_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, \"wide_nodes\": {}, \"packets\": {}",
+            build.wall * 1e3,
+            build.cpu * 1e3,
+            summary.nodes,
+            summary.sah_cost,
+            summary.wide_nodes,
+            summary.packets
+        ),
+        format!(
+            "\"primary_rays\": {}, \"primary_hits\": {}, {}, {}",
+            workload.primary.len(),
+            workload.primary_hits,
+            rate("primary", workload.primary.len(), &primary),
+            rate("primary_packet", workload.primary.len(), &primary_packet)
+        ),
+        format!(
+            "\"shadow_rays\": {}, \"shadow_occluded\": {}, {}, {}",
+            workload.shadow.len(),
+            occluded,
+            rate("shadow", workload.shadow.len(), &shadow),
+            rate("shadow_packet", workload.shadow.len(), &shadow_packet)
+        ),
+        format!(
+            "\"incoherent_rays\": {}, \"incoherent_hits\": {}, {}",
+            workload.incoherent.len(),
+            incoherent_hits,
+            rate("incoherent", workload.incoherent.len(), &incoherent)
+        ),
+        format!(
+            "\"render_ms\": {:.2}, \"render_cpu_ms\": {:.2}",
+            render.wall * 1e3,
+            render.cpu * 1e3
+        ),
+    ];
+    println!("{{{}}}", fields.join(", "));
     Ok(())
 }

@@ -1,8 +1,11 @@
 //! SPEC's Whitted-style integrator: Phong lighting with hard shadows, mirror
 //! reflection and refraction, recursion limited by depth.
 
+use std::time::{Duration, Instant};
+
 use super::Integrator;
-use crate::material::Colours;
+use crate::bvh::PACKET_SIZE;
+use crate::material::{Colours, PointLight};
 use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
 use crate::sampler::PixelSample;
 use crate::scene::{Hit, Scene};
@@ -47,13 +50,55 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
     let Some(hit) = scene.intersect(ray) else {
         return Vec3::ZERO;
     };
+    let shadows = ShadowRays {
+        scene,
+        ray,
+        hit: &hit,
+    };
+    shade(scene, ray, &hit, depth, inside, rays, shadows)
+}
+
+/// Where the point lights' part of a hit's value comes from: shadow rays traced one by
+/// one ([`ShadowRays`]) or a packet's answers ([`PacketAnswers`]).
+trait DirectLight {
+    /// The light of the point lights at the hit, for its colours `surface`.
+    fn light(self, surface: &impl Colours, rays: &mut RayCounts) -> Vec3;
+}
+
+/// [`direct_light`] at `hit`.
+struct ShadowRays<'a> {
+    scene: &'a Scene,
+    ray: &'a Ray,
+    hit: &'a Hit,
+}
+
+impl DirectLight for ShadowRays<'_> {
+    #[inline(always)]
+    fn light(self, surface: &impl Colours, rays: &mut RayCounts) -> Vec3 {
+        direct_light(self.scene, self.ray, self.hit, surface, rays)
+    }
+}
+
+/// The value of `ray`'s hit `hit`: emission and ambient, the light of the point lights
+/// (`direct`) weighted by `al0`, then mirror reflection and refraction traced ray by
+/// ray.
+#[inline(always)]
+fn shade(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    depth: u32,
+    inside: bool,
+    rays: &mut RayCounts,
+    direct: impl DirectLight,
+) -> Vec3 {
     let material = &scene.materials[hit.material.0 as usize];
     let [local_weight, reflect_weight, refract_weight] = material.albedo;
     // The colours at the hit: an untextured material's constants, read in place, or
     // a textured one's values there.
     let mut value = match material.maps {
-        None => local_light(scene, ray, &hit, material, local_weight, rays),
-        Some(_) => local_light(scene, ray, &hit, &material.at(hit.uv), local_weight, rays),
+        None => local_light(material, local_weight, rays, direct),
+        Some(_) => local_light(&material.at(hit.uv), local_weight, rays, direct),
     };
 
     if depth > 1 {
@@ -78,47 +123,201 @@ fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCount
     saturate_finite(value)
 }
 
-/// `Ka + Ke + al0 * (Phong lighting by the lights the hit point sees)`, with the
-/// colours `surface` (one copy per kind of surface, so that untextured materials are
-/// read in place).
+/// `Ka + Ke + al0 * direct light`, with the colours `surface` (one copy per kind of
+/// surface, so that untextured materials are read in place).
 #[inline(always)]
 fn local_light(
+    surface: &impl Colours,
+    local_weight: Float,
+    rays: &mut RayCounts,
+    direct: impl DirectLight,
+) -> Vec3 {
+    let mut value = surface.ambient() + surface.emission();
+    if local_weight != 0.0 {
+        value += local_weight * direct.light(surface, rays);
+    }
+    value
+}
+
+/// Phong light of every point light at `hit`, a shadow ray per light that adds
+/// something.
+#[inline(always)]
+fn direct_light(
     scene: &Scene,
     ray: &Ray,
     hit: &Hit,
     surface: &impl Colours,
-    local_weight: Float,
     rays: &mut RayCounts,
 ) -> Vec3 {
-    let mut value = surface.ambient() + surface.emission();
-    if local_weight != 0.0 {
-        let to_eye = -ray.dir;
-        let mut local = Vec3::ZERO;
-        for light in &scene.lights {
-            // A light exactly at the hit point lights it from no direction.
-            let Some(to_light) = try_unit(light.position - hit.p) else {
+    let mut local = Vec3::ZERO;
+    for light in &scene.lights {
+        let lit = light_term(ray, hit, surface, light);
+        // Shading first, shadow ray second: a light that would add nothing (behind
+        // a diffuse surface, say) needs no visibility test. The image is the same.
+        if lit == Vec3::ZERO {
+            continue;
+        }
+        let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
+        rays.shadow += 1;
+        if !scene.occluded(&shadow_ray, distance) {
+            local += lit;
+        }
+    }
+    local
+}
+
+/// What `light` adds at `hit` if nothing blocks it (zero if nothing).
+#[inline(always)]
+fn light_term(ray: &Ray, hit: &Hit, surface: &impl Colours, light: &PointLight) -> Vec3 {
+    // A light exactly at the hit point lights it from no direction.
+    let Some(to_light) = try_unit(light.position - hit.p) else {
+        return Vec3::ZERO;
+    };
+    let to_eye = -ray.dir;
+    let cos_light = hit.ns.dot(to_light);
+    let mirrored = 2.0 * cos_light * hit.ns - to_light;
+    let diffuse = surface.diffuse() * cos_light.max(0.0);
+    // Clamped to 1 as well: rounding can push the cosine just past 1, which a
+    // large `Ns` would raise to infinity.
+    let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
+    let specular = surface.specular() * cos_mirror.powf(surface.shininess());
+    light.intensity * (diffuse + specular)
+}
+
+/// Room for [`WhittedIntegrator::radiance_packet`]'s intermediate values, made once
+/// per run of tiles so that no packet allocates.
+#[derive(Debug, Default)]
+pub struct PacketScratch {
+    /// `lit[light * PACKET_SIZE + ray]`: what each light adds to each ray's hit.
+    lit: Vec<Vec3>,
+    /// Per light, the rays whose shadow ray towards it is blocked.
+    blocked: Vec<u32>,
+    shadow_rays: Vec<Ray>,
+    distances: Vec<Float>,
+    /// Time spent in packet queries so far, when timed.
+    tracing: Option<Duration>,
+}
+
+impl PacketScratch {
+    /// Starts (or stops) adding up the time spent tracing packets, for `--stats`.
+    pub fn time_tracing(&mut self, timed: bool) {
+        self.tracing = timed.then_some(Duration::ZERO);
+    }
+
+    /// The time spent tracing packets since [`PacketScratch::time_tracing`]; zero
+    /// when not timed.
+    pub fn tracing_time(&self) -> Duration {
+        self.tracing.unwrap_or_default()
+    }
+
+    /// Runs `f`, adding its time to the tracing time if timed.
+    #[inline(always)]
+    fn trace<T>(&mut self, f: impl FnOnce(&mut Self) -> T) -> T {
+        match self.tracing {
+            None => f(self),
+            Some(before) => {
+                let start = Instant::now();
+                let result = f(self);
+                self.tracing = Some(before + start.elapsed());
+                result
+            }
+        }
+    }
+}
+
+impl WhittedIntegrator {
+    /// The values of up to [`PACKET_SIZE`] coherent camera rays (a tile of pixels)
+    /// into `out`: exactly [`Integrator::radiance`] of each, with the camera rays and
+    /// the shadow rays towards each point light traced as packets
+    /// ([`Scene::intersect_packet`], [`Scene::occluded_packet`]); reflected and
+    /// refracted rays are traced one by one.
+    ///
+    /// # Panics
+    /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `out`.
+    pub fn radiance_packet(
+        &self,
+        scene: &Scene,
+        camera_rays: &[Ray],
+        out: &mut [Vec3],
+        rays: &mut RayCounts,
+        scratch: &mut PacketScratch,
+    ) {
+        assert_eq!(camera_rays.len(), out.len(), "one value per ray");
+        let count = camera_rays.len();
+        let mut hits = [None; PACKET_SIZE];
+        let hits = &mut hits[..count];
+        scratch.trace(|_| scene.intersect_packet(camera_rays, hits));
+
+        // What each light adds to each hit, and the shadow rays of those it adds to.
+        let lights = &scene.lights;
+        scratch.lit.clear();
+        scratch.lit.resize(lights.len() * PACKET_SIZE, Vec3::ZERO);
+        scratch.blocked.clear();
+        scratch.shadow_rays.clear();
+        scratch.shadow_rays.resize(count, camera_rays[0]);
+        scratch.distances.clear();
+        scratch.distances.resize(count, 0.0);
+        for (index, light) in lights.iter().enumerate() {
+            let mut tested = 0u32;
+            for (r, (ray, hit)) in camera_rays.iter().zip(hits.iter()).enumerate() {
+                let Some(hit) = hit else {
+                    continue;
+                };
+                let material = &scene.materials[hit.material.0 as usize];
+                if material.albedo[0] == 0.0 {
+                    continue;
+                }
+                let lit = match material.maps {
+                    None => light_term(ray, hit, material, light),
+                    Some(_) => light_term(ray, hit, &material.at(hit.uv), light),
+                };
+                if lit == Vec3::ZERO {
+                    continue;
+                }
+                scratch.lit[index * PACKET_SIZE + r] = lit;
+                (scratch.shadow_rays[r], scratch.distances[r]) = hit.spawn_ray_to(light.position);
+                tested |= 1 << r;
+            }
+            let blocked = if tested == 0 {
+                0
+            } else {
+                scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested))
+            };
+            scratch.blocked.push(blocked);
+        }
+
+        for (r, ((ray, hit), value)) in camera_rays.iter().zip(hits.iter()).zip(out).enumerate() {
+            let Some(hit) = hit else {
+                *value = Vec3::ZERO;
                 continue;
             };
-            let cos_light = hit.ns.dot(to_light);
-            let mirrored = 2.0 * cos_light * hit.ns - to_light;
-            let diffuse = surface.diffuse() * cos_light.max(0.0);
-            // Clamped to 1 as well: rounding can push the cosine just past 1, which a
-            // large `Ns` would raise to infinity.
-            let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
-            let specular = surface.specular() * cos_mirror.powf(surface.shininess());
-            let lit = light.intensity * (diffuse + specular);
-            // Shading first, shadow ray second: a light that would add nothing (behind
-            // a diffuse surface, say) needs no visibility test. The image is the same.
+            let answers = PacketAnswers { scratch, ray: r };
+            *value = shade(scene, ray, hit, self.max_depth, false, rays, answers);
+        }
+    }
+}
+
+/// The light of the point lights at the hit of ray `ray` of a packet, from the
+/// packet's answers: the sum of [`direct_light`], in the same order.
+struct PacketAnswers<'a> {
+    scratch: &'a PacketScratch,
+    ray: usize,
+}
+
+impl DirectLight for PacketAnswers<'_> {
+    #[inline(always)]
+    fn light(self, _: &impl Colours, rays: &mut RayCounts) -> Vec3 {
+        let mut local = Vec3::ZERO;
+        for (index, blocked) in self.scratch.blocked.iter().enumerate() {
+            let lit = self.scratch.lit[index * PACKET_SIZE + self.ray];
             if lit == Vec3::ZERO {
                 continue;
             }
-            let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
             rays.shadow += 1;
-            if !scene.occluded(&shadow_ray, distance) {
+            if blocked >> self.ray & 1 == 0 {
                 local += lit;
             }
         }
-        value += local_weight * local;
+        local
     }
-    value
 }

@@ -22,6 +22,7 @@ mod atomic;
 mod png;
 
 pub use atomic::{Commits, WriteError, check_output, lock_commits, remove_temp_files};
+pub use png::write_png_bytes;
 
 use crate::film::Film;
 use crate::options::Mode;

@@ -15,20 +15,45 @@ impl Image {
     /// # Errors
     /// As [`super::check_output`], or the disk is full.
     pub fn write_png(&self, path: &Path) -> Result<(), WriteError> {
-        write_atomically(path, "png", |file| {
-            let mut writer = BufWriter::new(file);
-            let mut encoder = png::Encoder::new(&mut writer, self.width, self.height);
-            encoder.set_color(png::ColorType::Rgb);
-            // fdeflate: several times faster than zlib level 6 on renders, for files
-            // a few percent larger.
-            encoder.set_compression(png::Compression::Fast);
-            encoder.set_depth(png::BitDepth::Eight);
-            let mut png_writer = encoder.write_header().map_err(io::Error::other)?;
-            png_writer
-                .write_image_data(&self.rgb)
-                .map_err(io::Error::other)?;
-            png_writer.finish().map_err(io::Error::other)?;
-            writer.flush()
-        })
+        let bytes = self.encode_png().map_err(|error| WriteError {
+            path: path.to_path_buf(),
+            error,
+        })?;
+        write_png_bytes(&bytes, path)
     }
+
+    /// The image as the bytes of an 8-bit RGB PNG file, encoded in memory (a render's
+    /// PNG is a few hundred kilobytes), so that encoding and writing can be timed
+    /// apart.
+    ///
+    /// # Errors
+    /// The encoder refused the image (it has no pixels).
+    pub fn encode_png(&self) -> io::Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        let mut encoder = png::Encoder::new(&mut bytes, self.width, self.height);
+        encoder.set_color(png::ColorType::Rgb);
+        // fdeflate with adaptive filters: on the dragon render 1.6 ms for 268 kB,
+        // where zlib's level 6 (`Balanced`) takes 26 ms for 225 kB.
+        encoder.set_compression(png::Compression::Fast);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut png_writer = encoder.write_header().map_err(io::Error::other)?;
+        png_writer
+            .write_image_data(&self.rgb)
+            .map_err(io::Error::other)?;
+        png_writer.finish().map_err(io::Error::other)?;
+        Ok(bytes)
+    }
+}
+
+/// Writes the bytes of a PNG file (from [`Image::encode_png`]) to `path` atomically,
+/// as [`Image::write_png`] does.
+///
+/// # Errors
+/// As [`Image::write_png`].
+pub fn write_png_bytes(bytes: &[u8], path: &Path) -> Result<(), WriteError> {
+    write_atomically(path, "png", |file| {
+        let mut writer = BufWriter::new(file);
+        writer.write_all(bytes)?;
+        writer.flush()
+    })
 }

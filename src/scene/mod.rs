@@ -4,6 +4,9 @@
 
 mod batch;
 mod info;
+mod packet;
+#[cfg(test)]
+pub(crate) use packet::tests as packet_tests;
 
 pub use batch::{BATCH, lanes_of};
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};

@@ -4,10 +4,12 @@
 //! hit ([`PrimHit`]); points, normals and materials are rebuilt once, for the closest
 //! hit, by the scene (two-phase hits, as pbrt's `TriangleIntersection`).
 
+mod across;
 mod packet;
 mod sphere;
 mod triangle;
 
+pub use across::triangle_across_rays;
 pub use packet::{LANES, MAX_PRIM, PacketRay, TrianglePacket};
 pub use sphere::Sphere;
 pub(crate) use triangle::EDGE_SLACK;

@@ -1,0 +1,100 @@
+#!/usr/bin/env python3
+"""Ours against Embree 3 on the same rays, in one run: `raytracer bench` and
+`bench/embree/embree_bench` alternate RUNS times (each run itself a median of
+--repeat), and the medians of the runs are printed side by side as a markdown table.
+
+    python3 bench/embree/compare.py [--runs 3] [--repeat 3] [--threads 2] [SCENE]
+
+SCENE defaults to bench/work/dragon-full.obj with the camera of bench/README.md.
+Needs target/release/raytracer (cargo build --release) and libembree-dev; builds
+bench/work/embree_bench with bench/embree/build.sh when it is missing or older than its
+source. The rays are written once by `raytracer bench --dump-rays` and read by both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+CAMERA = [
+    "--width", "1024", "--height", "768", "--fov", "45",
+    "--look-from", "0.09,0.21,0.27", "--look-to=-0.005,0.12,-0.005", "--depth", "8",
+]
+# (label, our key, Embree's key, unit); rates are per second of wall time and of CPU
+# time (all threads), the second steadier on a shared machine.
+ROWS = [
+    ("BVH build (wall)", "build_ms", "build_ms", "ms"),
+    ("BVH build (CPU)", "build_cpu_ms", "build_cpu_ms", "ms"),
+]
+for kind, label in [
+    ("primary", "primary rays, single"),
+    ("primary_packet", "primary rays, 4x4 packets"),
+    ("shadow", "shadow rays, single"),
+    ("shadow_packet", "shadow rays, 4x4 packets"),
+    ("incoherent", "incoherent rays, single"),
+]:
+    ROWS.append((f"{label} (wall)", f"{kind}_mrays_per_s", f"{kind}_mrays_per_s", "Mrays/s"))
+    ROWS.append((f"{label} (CPU)", f"{kind}_mrays_per_cpu_s", f"{kind}_mrays_per_cpu_s", "Mrays/CPU-s"))
+
+
+def run_json(command: list[str]) -> dict:
+    done = subprocess.run(command, check=True, capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scene", nargs="?", default=str(ROOT / "bench/work/dragon-full.obj"))
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    ours_bin = ROOT / "target/release/raytracer"
+    if not ours_bin.exists():
+        sys.exit("compare.py: error: build target/release/raytracer first (cargo build --release)")
+    embree_bin = ROOT / "bench/work/embree_bench"
+    source = ROOT / "bench/embree/embree_bench.c"
+    if not embree_bin.exists() or embree_bin.stat().st_mtime < source.stat().st_mtime:
+        subprocess.run([str(ROOT / "bench/embree/build.sh"), str(embree_bin)], check=True)
+    rays = ROOT / "bench/work/rays.bin"
+    ours_cmd = [str(ours_bin), "bench", args.scene, *CAMERA, "--threads", str(args.threads),
+                "--repeat", str(args.repeat)]
+    embree_cmd = [str(embree_bin), str(rays), "--repeat", str(args.repeat),
+                  "--threads", str(args.threads)]
+    run_json(ours_cmd[:2] + ours_cmd[2:] + ["--dump-rays", str(rays)])
+    ours, theirs = [], []
+    for _ in range(args.runs):
+        ours.append(run_json(ours_cmd))
+        theirs.append(run_json(embree_cmd))
+    for key in ("primary_hits", "shadow_occluded", "incoherent_hits"):
+        a, b = ours[0][key], theirs[0][key]
+        if a != b:
+            print(f"warning: {key}: ours {a}, Embree {b}", file=sys.stderr)
+    med = lambda runs, key: statistics.median(r[key] for r in runs)  # noqa: E731
+    load = os.getloadavg()[0]
+    print(f"{args.runs} alternating runs, each a median of {args.repeat}; {args.threads} threads; "
+          f"load average {load:.1f} at the end; {theirs[0]['version']}")
+    print()
+    print("| figure | ours | Embree | ours faster by |")
+    print("|---|---|---|---|")
+    for label, ours_key, their_key, unit in ROWS:
+        a, b = med(ours, ours_key), med(theirs, their_key)
+        # Above 1: ours faster (Embree / ours for times, ours / Embree for rates).
+        ratio = b / a if unit == "ms" else a / b
+        print(f"| {label} | {a:.1f} {unit} | {b:.1f} {unit} | {ratio:.2f}x |")
+    print()
+    print(f"same work: primary hits {ours[0]['primary_hits']:,} (Embree {theirs[0]['primary_hits']:,}), "
+          f"shadow rays blocked {ours[0]['shadow_occluded']:,} (Embree {theirs[0]['shadow_occluded']:,}), "
+          f"incoherent hits {ours[0]['incoherent_hits']:,} (Embree {theirs[0]['incoherent_hits']:,}); "
+          f"our SAH cost {ours[0]['sah_cost']}")
+    print(json.dumps({"ours": ours, "embree": theirs}), file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,314 @@
+/*
+ * Embree 3 (Debian's libembree-dev) on exactly the rays of `raytracer bench`:
+ *
+ *   raytracer bench SCENE [camera flags] --dump-rays rays.bin
+ *   bench/embree/embree_bench rays.bin [--repeat N] [--threads T]
+ *
+ * Builds the scene's triangles into an Embree scene (RTC_BUILD_QUALITY_MEDIUM, the
+ * default; all of Embree's TBB threads, limited to T), then traces, on T OpenMP
+ * threads, the primary rays (closest hit), the shadow rays (any hit) and the
+ * incoherent bounce rays (closest hit), one ray at a time (rtcIntersect1 /
+ * rtcOccluded1) and, for primary and shadow rays, in the 4x4-tile packets the file
+ * groups them in (rtcIntersect16 / rtcOccluded16 with a valid mask). Prints one JSON
+ * object of medians: wall and CPU milliseconds and Mrays/s, with hit counts to check
+ * that both tracers did the same work.
+ *
+ * The file (written by `RayWorkload::dump` in src/benchmark.rs), little-endian:
+ *   "RTBENCH1"
+ *   u32 vertex count,   f32 x, y, z per vertex
+ *   u32 triangle count, u32 a, b, c per triangle
+ *   u32 n, n primary rays (f32 ox, oy, oz, dx, dy, dz, tmax), tile by tile
+ *   u32 m, m primary packets (u32 first, count)
+ *   u32 n, n shadow rays, by tile and light
+ *   u32 m, m shadow packets (u32 first, count)
+ *   u32 n, n incoherent rays
+ *
+ * Build: cc -O3 -march=native -fopenmp embree_bench.c -lembree3 -o embree_bench
+ * (bench/embree/build.sh).
+ */
+#include <embree3/rtcore.h>
+#include <math.h>
+#include <omp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+typedef struct {
+    float o[3], d[3], tmax;
+} Ray;
+
+typedef struct {
+    uint32_t first, count;
+} Packet;
+
+static void die(const char *message) {
+    fprintf(stderr, "embree_bench: error: %s\n", message);
+    exit(2);
+}
+
+static FILE *input;
+
+static void read_exact(void *to, size_t bytes) {
+    if (fread(to, 1, bytes, input) != bytes) die("the rays file is truncated");
+}
+
+static uint32_t read_u32(void) {
+    uint32_t v;
+    read_exact(&v, 4);
+    return v;
+}
+
+static void *read_array(uint32_t count, size_t size, size_t padding) {
+    void *data = aligned_alloc(64, ((size_t)count * size + padding + 63) / 64 * 64);
+    if (!data) die("out of memory");
+    read_exact(data, (size_t)count * size);
+    return data;
+}
+
+static double now(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+static double cpu_now(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+static int compare(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(double *values, int n) {
+    qsort(values, n, sizeof(double), compare);
+    return values[n / 2];
+}
+
+/* Globals of one run. */
+static RTCScene scene;
+static uint32_t n_primary, n_primary_packets, n_shadow, n_shadow_packets, n_incoherent;
+static Ray *primary, *shadow, *incoherent;
+static Packet *primary_packets, *shadow_packets;
+
+static void set_ray(struct RTCRay *r, const Ray *from) {
+    r->org_x = from->o[0];
+    r->org_y = from->o[1];
+    r->org_z = from->o[2];
+    r->dir_x = from->d[0];
+    r->dir_y = from->d[1];
+    r->dir_z = from->d[2];
+    r->tnear = 0.0f;
+    r->tfar = from->tmax;
+    r->time = 0.0f;
+    r->mask = 0xFFFFFFFF;
+    r->id = 0;
+    r->flags = 0;
+}
+
+static long closest_single(const Ray *rays, uint32_t n) {
+    long hits = 0;
+#pragma omp parallel for schedule(dynamic, 1024) reduction(+ : hits)
+    for (long i = 0; i < (long)n; i++) {
+        struct RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        struct RTCRayHit rh;
+        set_ray(&rh.ray, &rays[i]);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &context, &rh);
+        hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    return hits;
+}
+
+static long occluded_single(const Ray *rays, uint32_t n) {
+    long blocked = 0;
+#pragma omp parallel for schedule(dynamic, 1024) reduction(+ : blocked)
+    for (long i = 0; i < (long)n; i++) {
+        struct RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        struct RTCRay r;
+        set_ray(&r, &rays[i]);
+        rtcOccluded1(scene, &context, &r);
+        blocked += r.tfar < 0.0f; /* set to -inf when blocked */
+    }
+    return blocked;
+}
+
+static void set_ray16(struct RTCRay16 *r, int lane, const Ray *from) {
+    r->org_x[lane] = from->o[0];
+    r->org_y[lane] = from->o[1];
+    r->org_z[lane] = from->o[2];
+    r->dir_x[lane] = from->d[0];
+    r->dir_y[lane] = from->d[1];
+    r->dir_z[lane] = from->d[2];
+    r->tnear[lane] = 0.0f;
+    r->tfar[lane] = from->tmax;
+    r->time[lane] = 0.0f;
+    r->mask[lane] = 0xFFFFFFFF;
+    r->id[lane] = lane;
+    r->flags[lane] = 0;
+}
+
+static long closest_packets(const Ray *rays, const Packet *packets, uint32_t m) {
+    long hits = 0;
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : hits)
+    for (long p = 0; p < (long)m; p++) {
+        struct RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        RTC_ALIGN(64) struct RTCRayHit16 rh;
+        RTC_ALIGN(64) int valid[16];
+        for (int lane = 0; lane < 16; lane++) {
+            int used = lane < (int)packets[p].count;
+            valid[lane] = used ? -1 : 0;
+            set_ray16(&rh.ray, lane, &rays[packets[p].first + (used ? lane : 0)]);
+            rh.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, scene, &context, &rh);
+        for (int lane = 0; lane < (int)packets[p].count; lane++)
+            hits += rh.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
+    }
+    return hits;
+}
+
+static long occluded_packets(const Ray *rays, const Packet *packets, uint32_t m) {
+    long blocked = 0;
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : blocked)
+    for (long p = 0; p < (long)m; p++) {
+        struct RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        RTC_ALIGN(64) struct RTCRay16 r;
+        RTC_ALIGN(64) int valid[16];
+        for (int lane = 0; lane < 16; lane++) {
+            int used = lane < (int)packets[p].count;
+            valid[lane] = used ? -1 : 0;
+            set_ray16(&r, lane, &rays[packets[p].first + (used ? lane : 0)]);
+        }
+        rtcOccluded16(valid, scene, &context, &r);
+        for (int lane = 0; lane < (int)packets[p].count; lane++) blocked += r.tfar[lane] < 0.0f;
+    }
+    return blocked;
+}
+
+#define MAX_REPEAT 100
+
+/* Times `call` `repeat` times: medians of wall and CPU seconds into `wall`, `cpu`. */
+#define TIME(repeat, result, wall, cpu, call)                                  \
+    do {                                                                       \
+        double walls[MAX_REPEAT], cpus[MAX_REPEAT];                            \
+        for (int run = 0; run < (repeat); run++) {                             \
+            double w0 = now(), c0 = cpu_now();                                 \
+            result = (call);                                                   \
+            walls[run] = now() - w0;                                           \
+            cpus[run] = cpu_now() - c0;                                        \
+        }                                                                      \
+        wall = median(walls, repeat);                                          \
+        cpu = median(cpus, repeat);                                            \
+    } while (0)
+
+static void print_rate(const char *name, uint32_t n, double wall, double cpu) {
+    printf(", \"%s_ms\": %.2f, \"%s_cpu_ms\": %.2f, \"%s_mrays_per_s\": %.2f, "
+           "\"%s_mrays_per_cpu_s\": %.2f",
+           name, wall * 1e3, name, cpu * 1e3, name, n / wall / 1e6, name, n / cpu / 1e6);
+}
+
+int main(int argc, char **argv) {
+    const char *path = NULL;
+    int repeat = 5, threads = 2;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--repeat") && i + 1 < argc)
+            repeat = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--threads") && i + 1 < argc)
+            threads = atoi(argv[++i]);
+        else if (argv[i][0] != '-' && !path)
+            path = argv[i];
+        else
+            die("usage: embree_bench RAYS.bin [--repeat N] [--threads T]");
+    }
+    if (!path) die("usage: embree_bench RAYS.bin [--repeat N] [--threads T]");
+    if (repeat < 1 || repeat > MAX_REPEAT) die("--repeat takes 1 to 100");
+    if (threads < 1) die("--threads takes a positive number");
+    input = fopen(path, "rb");
+    if (!input) die("cannot open the rays file");
+    char magic[8];
+    read_exact(magic, 8);
+    if (memcmp(magic, "RTBENCH1", 8)) die("not a rays file of raytracer bench --dump-rays");
+    uint32_t n_vertices = read_u32();
+    /* Embree reads vertex buffers 16 bytes at a time: pad the last vertex. */
+    float *vertices = read_array(n_vertices, 12, 16);
+    uint32_t n_triangles = read_u32();
+    uint32_t *triangles = read_array(n_triangles, 12, 0);
+    n_primary = read_u32();
+    primary = read_array(n_primary, sizeof(Ray), 0);
+    n_primary_packets = read_u32();
+    primary_packets = read_array(n_primary_packets, sizeof(Packet), 0);
+    n_shadow = read_u32();
+    shadow = read_array(n_shadow, sizeof(Ray), 0);
+    n_shadow_packets = read_u32();
+    shadow_packets = read_array(n_shadow_packets, sizeof(Packet), 0);
+    n_incoherent = read_u32();
+    incoherent = read_array(n_incoherent, sizeof(Ray), 0);
+    fclose(input);
+    omp_set_num_threads(threads);
+
+    char config[64];
+    snprintf(config, sizeof config, "threads=%d", threads);
+    RTCDevice device = rtcNewDevice(config);
+    if (!device) die("rtcNewDevice failed");
+    long ray16 = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED);
+
+    /* Build: a new scene each time; only the commit is timed. */
+    double builds[MAX_REPEAT], build_cpus[MAX_REPEAT];
+    for (int run = 0; run < repeat; run++) {
+        if (scene) rtcReleaseScene(scene);
+        scene = rtcNewScene(device);
+        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
+        RTCGeometry mesh = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        rtcSetSharedGeometryBuffer(mesh, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices, 0,
+                                   12, n_vertices);
+        rtcSetSharedGeometryBuffer(mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, triangles, 0,
+                                   12, n_triangles);
+        rtcCommitGeometry(mesh);
+        rtcAttachGeometry(scene, mesh);
+        rtcReleaseGeometry(mesh);
+        double w0 = now(), c0 = cpu_now();
+        rtcCommitScene(scene);
+        builds[run] = now() - w0;
+        build_cpus[run] = cpu_now() - c0;
+    }
+    double build = median(builds, repeat), build_cpu = median(build_cpus, repeat);
+
+    long primary_hits, primary_packet_hits, occluded, packet_occluded, incoherent_hits;
+    double w, c;
+    printf("{\"peer\": \"embree\", \"version\": \"Embree %d.%d.%d (libembree-dev)\", "
+           "\"native_ray16\": %ld, \"threads\": %d, \"triangles\": %u",
+           RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH, ray16, threads, n_triangles);
+    printf(", \"build_ms\": %.2f, \"build_cpu_ms\": %.2f", build * 1e3, build_cpu * 1e3);
+    TIME(repeat, primary_hits, w, c, closest_single(primary, n_primary));
+    printf(", \"primary_rays\": %u, \"primary_hits\": %ld", n_primary, primary_hits);
+    print_rate("primary", n_primary, w, c);
+    TIME(repeat, primary_packet_hits, w, c,
+         closest_packets(primary, primary_packets, n_primary_packets));
+    printf(", \"primary_packet_hits\": %ld", primary_packet_hits);
+    print_rate("primary_packet", n_primary, w, c);
+    TIME(repeat, occluded, w, c, occluded_single(shadow, n_shadow));
+    printf(", \"shadow_rays\": %u, \"shadow_occluded\": %ld", n_shadow, occluded);
+    print_rate("shadow", n_shadow, w, c);
+    TIME(repeat, packet_occluded, w, c, occluded_packets(shadow, shadow_packets, n_shadow_packets));
+    printf(", \"shadow_packet_occluded\": %ld", packet_occluded);
+    print_rate("shadow_packet", n_shadow, w, c);
+    TIME(repeat, incoherent_hits, w, c, closest_single(incoherent, n_incoherent));
+    printf(", \"incoherent_rays\": %u, \"incoherent_hits\": %ld", n_incoherent, incoherent_hits);
+    print_rate("incoherent", n_incoherent, w, c);
+    printf("}\n");
+    rtcReleaseScene(scene);
+    rtcReleaseDevice(device);
+    return 0;
+}

@@ -1,0 +1,588 @@
+//! Traversal of the [`WideBvh`] by packets of up to sixteen coherent rays (a 4x4 tile
+//! of camera rays, or the shadow rays of such a tile towards one light), the
+//! technique of Embree's `rtcIntersect16` and of Wald et al., "Interactive Rendering
+//! with Coherent Ray Tracing" (2001): each node is fetched once for the whole packet
+//! and each child box is tested against the sixteen rays in one AVX-512 pass (SIMD
+//! across rays), a child none of the packet's rays meets is dropped for all of them at
+//! once, and a pending child is dropped without a test when it starts beyond every
+//! active ray's current `t_max`.
+//!
+//! Each lane performs exactly the slab test of [`WideBvh::walk_ordered`] for its own
+//! ray (same operations on the same values, the near plane chosen by the sign of each
+//! ray's direction), so:
+//!
+//! - an any-hit walk ([`WideBvh::walk_packet_any`]) visits, for each ray, exactly the
+//!   leaves single-ray any-hit traversal visits (its `t_max` does not change, so the
+//!   order does not matter);
+//! - a closest-hit walk ([`WideBvh::walk_packet_closest`]) visits every leaf whose box a
+//!   ray enters at or somewhat past its current `t_max` ([`CLOSEST_CULL_MARGIN`]), and
+//!   tells the leaf callback each ray's greatest entry distance along the way, so the
+//!   caller can see the hits whose fate in single-ray traversal depends on its visiting
+//!   order (a hit before the computed entry of a box around it, or two hits at exactly
+//!   the same distance) and re-trace those rays one by one.
+//!
+//! As [`WideBvh`], this knows no geometry: leaves are handed to a closure with the
+//! mask of the rays that reached them.
+
+use std::mem::MaybeUninit;
+
+use wide::{f32x8, f32x16, u32x16};
+
+use super::wide::{ChildRef, MIN_DIR_COMPONENT, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH};
+use super::{WideBvh, WideNode};
+use crate::math::{Float, Ray};
+
+/// Rays per packet: one AVX-512 register of `f32` per coordinate.
+pub const PACKET_SIZE: usize = 16;
+
+/// Up to [`PACKET_SIZE`] rays in structure-of-arrays form: origins, directions and
+/// the reciprocal directions of [`super::RayQuery::new`], lane `i` holding ray `i`. Lanes past
+/// the rays given repeat the first ray; callers pass masks that leave them out.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPacket {
+    /// Origin coordinates.
+    pub origin: [f32x16; 3],
+    /// Unit direction coordinates.
+    pub dir: [f32x16; 3],
+    /// `1 / dir` per coordinate, exactly as [`super::RayQuery::new`] computes it.
+    pub inv_dir: [f32x16; 3],
+    /// Number of rays given.
+    len: usize,
+}
+
+impl RayPacket {
+    /// Packs `rays` (1 to [`PACKET_SIZE`] of them).
+    ///
+    /// # Panics
+    /// If `rays` is empty or longer than [`PACKET_SIZE`].
+    #[inline]
+    pub fn new(rays: &[Ray]) -> RayPacket {
+        assert!(
+            (1..=PACKET_SIZE).contains(&rays.len()),
+            "a packet holds 1 to {PACKET_SIZE} rays"
+        );
+        let mut origin = [[0.0; PACKET_SIZE]; 3];
+        let mut dir = [[0.0; PACKET_SIZE]; 3];
+        for lane in 0..PACKET_SIZE {
+            let ray = &rays[if lane < rays.len() { lane } else { 0 }];
+            for axis in 0..3 {
+                origin[axis][lane] = ray.origin[axis];
+                dir[axis][lane] = ray.dir[axis];
+            }
+        }
+        let dir = dir.map(f32x16::from);
+        // `RayQuery::new`'s reciprocal, lane by lane: tiny components floored in
+        // magnitude, then `1 / d`.
+        let floor = f32x16::splat(MIN_DIR_COMPONENT);
+        let inv_dir = dir.map(|d| {
+            let safe = d.abs().simd_lt(floor).bitselect(floor.copysign(d), d);
+            f32x16::ONE / safe
+        });
+        RayPacket {
+            origin: origin.map(f32x16::from),
+            dir,
+            inv_dir,
+            len: rays.len(),
+        }
+    }
+
+    /// The mask of the rays given: bit `i` for ray `i`.
+    #[inline]
+    pub fn all(&self) -> u32 {
+        (1u32 << self.len) - 1
+    }
+
+    /// All-ones in lane `i` if ray `i` meets the box with planes `planes` with an entry
+    /// distance `<= reach[i]` (`< reach[i]` unless `INCLUSIVE`), and each ray's entry
+    /// distance. Lane by lane the operations of the single-ray slab test.
+    #[inline(always)]
+    fn hit_child<const INCLUSIVE: bool>(
+        &self,
+        planes: &[Float; 6],
+        reach: f32x16,
+    ) -> (f32x16, f32x16) {
+        let mut t_enter = f32x16::ZERO;
+        let mut t_exit = f32x16::splat(Float::INFINITY);
+        for axis in 0..3 {
+            let low = (f32x16::splat(planes[2 * axis]) - self.origin[axis]) * self.inv_dir[axis];
+            let high =
+                (f32x16::splat(planes[2 * axis + 1]) - self.origin[axis]) * self.inv_dir[axis];
+            // For a box in use (min <= max), rounding keeps `low <= high` when the
+            // reciprocal is positive and `high <= low` when negative, so min and max
+            // pick exactly the planes the single-ray test picks by sign.
+            let t_near = low.fast_min(high);
+            let t_far = low.fast_max(high);
+            t_enter = t_enter.fast_max(t_near);
+            t_exit = t_exit.fast_min(t_far);
+        }
+        let t_exit = t_exit * f32x16::splat(SLAB_EXIT_SLACK);
+        let within = if INCLUSIVE {
+            t_enter.simd_le(reach)
+        } else {
+            t_enter.simd_lt(reach)
+        };
+        (t_enter.simd_le(t_exit) & within, t_enter)
+    }
+}
+
+/// A pending child of a packet walk: what it is, which rays go there, the least
+/// entry distance among them and, for closest-hit walks, each ray's greatest entry
+/// distance into the boxes on the way (this one included).
+#[derive(Clone, Copy, Debug)]
+struct PacketEntry {
+    child: ChildRef,
+    rays: u32,
+    t_enter: Float,
+    /// Unaligned, so that an entry takes 80 bytes rather than 128.
+    path_enter: [Float; PACKET_SIZE],
+}
+
+/// An entry of [`WideBvh::walk_lane`]'s stack: a child, its entry distance and the
+/// ray's greatest entry distance on the way there.
+type LaneEntry = (ChildRef, Float, Float);
+
+/// The traversal stacks of a packet walk: 80 kB, too big to put on the call stack
+/// each time (the probes of a fresh frame cost more than a small packet's walk), so
+/// each thread keeps one and lends it to its walks.
+struct Stacks {
+    packet: Box<[MaybeUninit<PacketEntry>]>,
+    lane: Box<[MaybeUninit<LaneEntry>]>,
+}
+
+thread_local! {
+    static SPARE_STACKS: std::cell::Cell<Option<Box<Stacks>>> = const { std::cell::Cell::new(None) };
+}
+
+/// The thread's stacks, lent for one walk and given back when dropped (a walk inside
+/// a leaf callback finds none spare and makes its own).
+struct LentStacks(Option<Box<Stacks>>);
+
+impl LentStacks {
+    #[inline(always)]
+    fn take() -> LentStacks {
+        let spare = SPARE_STACKS.with(|cell| cell.take());
+        LentStacks(Some(spare.unwrap_or_else(|| {
+            Box::new(Stacks {
+                packet: Box::new_uninit_slice(STACK_SIZE),
+                lane: Box::new_uninit_slice(STACK_SIZE),
+            })
+        })))
+    }
+
+    #[inline(always)]
+    fn stacks(&mut self) -> &mut Stacks {
+        self.0.as_mut().expect("lent until dropped")
+    }
+}
+
+impl Drop for LentStacks {
+    #[inline(always)]
+    fn drop(&mut self) {
+        let stacks = self.0.take();
+        SPARE_STACKS.with(|cell| cell.set(stacks));
+    }
+}
+
+/// The lanes of `mask` as an all-ones/all-zeros vector mask.
+#[inline(always)]
+fn lane_mask(mask: u32) -> f32x16 {
+    const BITS: [u32; PACKET_SIZE] = {
+        let mut bits = [0; PACKET_SIZE];
+        let mut i = 0;
+        while i < PACKET_SIZE {
+            bits[i] = 1 << i;
+            i += 1;
+        }
+        bits
+    };
+    let selected = u32x16::splat(mask) & u32x16::from(BITS);
+    f32x16::from_bits(selected.simd_eq(u32x16::ZERO)).bitselect(f32x16::ZERO, ALL_ONES)
+}
+
+const ALL_ONES: f32x16 = f32x16::from_bits(u32x16::MAX);
+
+/// The smallest lane of `values`.
+#[inline(always)]
+fn reduce_min(values: f32x16) -> Float {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    {
+        use std::arch::x86_64::{__m512, _mm512_reduce_min_ps};
+        // SAFETY: `f32x16` is sixteen `f32` in one 64-byte vector, as `__m512`; the
+        // instruction set is enabled at compile time.
+        unsafe { _mm512_reduce_min_ps(std::mem::transmute::<f32x16, __m512>(values)) }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+    values
+        .to_array()
+        .into_iter()
+        .fold(Float::INFINITY, Float::min)
+}
+
+/// The largest lane of `values`.
+#[inline(always)]
+fn reduce_max(values: f32x16) -> Float {
+    -reduce_min(-values)
+}
+
+/// How far past a ray's `t_max` a closest-hit packet walk still enters boxes,
+/// relative to `t_max`. A box's computed entry distance can exceed the computed
+/// distance of a hit inside it by a rounding error; single-ray traversal, which
+/// culls by `entry < t_max` in its own order, then keeps or loses that hit depending
+/// on when it got there. Entering a little further makes the packet walk see every hit
+/// single-ray traversal can see, unless the kernel's distance falls short of the box
+/// by more than this (a hit at a grazing angle of about 1e-4 radians or less).
+pub const CLOSEST_CULL_MARGIN: Float = 1.0 + 1.0 / 1024.0;
+
+impl WideBvh {
+    /// Visits, for the rays of `packet` in `active`, every leaf each of them may hit
+    /// within its `t_max` (entry distance `<= t_max * `[`CLOSEST_CULL_MARGIN`]),
+    /// roughly nearest first. `leaf(first_item, item_count, rays, t_max, path_enter)`
+    /// is called with the mask of the rays that reached the leaf and, per ray, the
+    /// greatest entry distance into the boxes on the way there: a hit nearer than
+    /// that lies before a box that single-ray traversal may have culled. It may lower
+    /// the rays' `t_max`.
+    #[inline(always)]
+    pub fn walk_packet_closest<F>(
+        &self,
+        packet: &RayPacket,
+        active: u32,
+        t_max: &mut f32x16,
+        mut leaf: F,
+    ) where
+        F: FnMut(u32, u32, u32, &mut f32x16, &f32x16),
+    {
+        self.walk_packet::<true, _>(packet, active, t_max, |first, count, rays, t_max, path| {
+            leaf(first, count, rays, t_max, path);
+            0
+        });
+    }
+
+    /// Visits, for the rays of `packet` in `active`, every leaf each of them may hit
+    /// within its `t_max`, exactly the leaves single-ray any-hit traversal
+    /// ([`WideBvh::walk_any`]) visits for it (entry distance `< t_max`), until each is
+    /// finished. `leaf(first_item, item_count, rays, t_max)` is called with the mask of
+    /// the rays that reached the leaf and returns those it finished (found blocked),
+    /// which the walk then drops. Returns the finished rays.
+    #[inline(always)]
+    pub fn walk_packet_any<F>(
+        &self,
+        packet: &RayPacket,
+        active: u32,
+        t_max: &mut f32x16,
+        mut leaf: F,
+    ) -> u32
+    where
+        F: FnMut(u32, u32, u32, &f32x16) -> u32,
+    {
+        self.walk_packet::<false, _>(packet, active, t_max, |first, count, rays, t_max, _| {
+            leaf(first, count, rays, t_max)
+        })
+    }
+
+    #[inline(always)]
+    fn walk_packet<const CLOSEST: bool, F>(
+        &self,
+        packet: &RayPacket,
+        active: u32,
+        t_max: &mut f32x16,
+        mut leaf: F,
+    ) -> u32
+    where
+        F: FnMut(u32, u32, u32, &mut f32x16, &f32x16) -> u32,
+    {
+        let mut finished = 0u32;
+        if self.nodes.is_empty() || active == 0 {
+            return finished;
+        }
+        let margin = f32x16::splat(CLOSEST_CULL_MARGIN);
+        let mut live = active;
+        let mut lent = LentStacks::take();
+        let Stacks {
+            packet: stack,
+            lane: lane_stack,
+        } = lent.stacks();
+        let mut stack_len = 0usize;
+        let mut current = PacketEntry {
+            child: ChildRef {
+                index: 0,
+                item_count: 0,
+            },
+            rays: live,
+            t_enter: 0.0,
+            path_enter: [0.0; PACKET_SIZE],
+        };
+        loop {
+            let rays = current.rays & live;
+            if rays != 0 {
+                if current.child.item_count > 0 {
+                    let done = leaf(
+                        current.child.index,
+                        current.child.item_count,
+                        rays,
+                        t_max,
+                        &f32x16::from(current.path_enter),
+                    );
+                    finished |= done;
+                    live &= !done;
+                    if live == 0 {
+                        return finished;
+                    }
+                } else if rays.count_ones() <= SINGLE_RAY_BELOW {
+                    // Too few rays left for sixteen lanes: walk this subtree ray by ray.
+                    let path = &current.path_enter;
+                    for ray in BitIter(rays) {
+                        if live & (1 << ray) == 0 {
+                            continue;
+                        }
+                        let done = self.walk_lane::<CLOSEST, F>(
+                            packet,
+                            ray,
+                            (current.child.index, path[ray]),
+                            t_max,
+                            &mut leaf,
+                            lane_stack,
+                        );
+                        finished |= done;
+                        live &= !done;
+                    }
+                    if live == 0 {
+                        return finished;
+                    }
+                } else {
+                    let node = &self.nodes[current.child.index as usize];
+                    let planes = node.planes.map(|p| p.to_array());
+                    let reach = if CLOSEST { *t_max * margin } else { *t_max };
+                    let ray_lanes = lane_mask(rays);
+                    let path_enter = f32x16::from(current.path_enter);
+                    // Slots in use: an unused slot's box is inverted.
+                    let mut used = node.planes[0].simd_le(node.planes[1]).to_bitmask();
+                    let run_start = stack_len;
+                    while used != 0 {
+                        let slot = used.trailing_zeros() as usize;
+                        used &= used - 1;
+                        let slot_planes = [0, 1, 2, 3, 4, 5].map(|p| planes[p][slot]);
+                        let (hit, t_enter) = packet.hit_child::<CLOSEST>(&slot_planes, reach);
+                        let hit = hit & ray_lanes;
+                        let hits = hit.to_bitmask();
+                        // Written whether or not a ray hits, and kept only if one does:
+                        // whether a child is hit is too random to branch on.
+                        debug_assert!(stack_len < STACK_SIZE);
+                        stack[stack_len].write(PacketEntry {
+                            child: ChildRef {
+                                index: node.child[slot],
+                                item_count: node.item_count[slot],
+                            },
+                            rays: hits,
+                            t_enter: if CLOSEST {
+                                reduce_min(hit.bitselect(t_enter, f32x16::splat(Float::INFINITY)))
+                            } else {
+                                0.0
+                            },
+                            path_enter: if CLOSEST {
+                                path_enter.fast_max(t_enter).to_array()
+                            } else {
+                                [0.0; PACKET_SIZE]
+                            },
+                        });
+                        stack_len += usize::from(hits != 0);
+                    }
+                    if CLOSEST && stack_len > run_start + 1 {
+                        // SAFETY: entries `run_start..stack_len` were written just above.
+                        let run = unsafe {
+                            &mut *(&mut stack[run_start..stack_len] as *mut [_]
+                                as *mut [PacketEntry])
+                        };
+                        // Nearest on top, so that closest hits shrink `t_max` early.
+                        for i in 1..run.len() {
+                            let entry = run[i];
+                            let mut j = i;
+                            while j > 0 && run[j - 1].t_enter < entry.t_enter {
+                                run[j] = run[j - 1];
+                                j -= 1;
+                            }
+                            run[j] = entry;
+                        }
+                    }
+                }
+            }
+            // Pop the next pending child that some active ray can still reach.
+            loop {
+                if stack_len == 0 {
+                    return finished;
+                }
+                stack_len -= 1;
+                // SAFETY: every entry below `stack_len` was written before.
+                let entry = unsafe { stack[stack_len].assume_init() };
+                let rays = entry.rays & live;
+                if rays == 0 {
+                    continue;
+                }
+                // Whole-packet rejection: the box starts beyond every ray's reach.
+                if CLOSEST
+                    && entry.t_enter
+                        > reduce_max(
+                            lane_mask(rays)
+                                .bitselect(*t_max * margin, f32x16::splat(Float::NEG_INFINITY)),
+                        )
+                {
+                    continue;
+                }
+                current = entry;
+                break;
+            }
+        }
+    }
+
+    /// The subtree of node `root` for ray `lane` of `packet` alone, one node's eight
+    /// boxes at a time (SIMD across children, as single-ray traversal), with the
+    /// culling rule and leaf calls of [`WideBvh::walk_packet`]; `path_enter` is the
+    /// ray's greatest entry distance on the way to `root`. Returns the ray's bit if the
+    /// leaf callback finished it.
+    #[inline(always)]
+    fn walk_lane<const CLOSEST: bool, F>(
+        &self,
+        packet: &RayPacket,
+        lane: usize,
+        (root, path_enter): (u32, Float),
+        t_max: &mut f32x16,
+        leaf: &mut F,
+        stack: &mut [MaybeUninit<LaneEntry>],
+    ) -> u32
+    where
+        F: FnMut(u32, u32, u32, &mut f32x16, &f32x16) -> u32,
+    {
+        let bit = 1u32 << lane;
+        let ray = LaneRay::new(packet, lane);
+        let margin = if CLOSEST { CLOSEST_CULL_MARGIN } else { 1.0 };
+        let mut stack_len = 0usize;
+        let mut current = (
+            ChildRef {
+                index: root,
+                item_count: 0,
+            },
+            path_enter,
+        );
+        loop {
+            let (child, path) = current;
+            if child.item_count > 0 {
+                let path = f32x16::splat(path);
+                if leaf(child.index, child.item_count, bit, t_max, &path) != 0 {
+                    return bit;
+                }
+            } else {
+                let node = &self.nodes[child.index as usize];
+                let reach = t_max.as_array()[lane] * margin;
+                let (mut hits, t_enter) = ray.hit_children::<CLOSEST>(node, reach);
+                let t_enter = t_enter.as_array();
+                let run_start = stack_len;
+                while hits != 0 {
+                    let slot = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    debug_assert!(stack_len < STACK_SIZE);
+                    let entry = ChildRef {
+                        index: node.child[slot],
+                        item_count: node.item_count[slot],
+                    };
+                    stack[stack_len].write((entry, t_enter[slot], path.max(t_enter[slot])));
+                    stack_len += 1;
+                }
+                if CLOSEST && stack_len > run_start + 1 {
+                    // SAFETY: entries `run_start..stack_len` were written just above.
+                    let run = unsafe {
+                        &mut *(&mut stack[run_start..stack_len] as *mut [_] as *mut [LaneEntry])
+                    };
+                    for i in 1..run.len() {
+                        let entry = run[i];
+                        let mut j = i;
+                        while j > 0 && run[j - 1].1 < entry.1 {
+                            run[j] = run[j - 1];
+                            j -= 1;
+                        }
+                        run[j] = entry;
+                    }
+                }
+            }
+            loop {
+                if stack_len == 0 {
+                    return 0;
+                }
+                stack_len -= 1;
+                // SAFETY: every entry below `stack_len` was written before.
+                let (next, t_enter, path) = unsafe { stack[stack_len].assume_init() };
+                if !CLOSEST || t_enter <= t_max.as_array()[lane] * margin {
+                    current = (next, path);
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// Up to how many rays a packet walk still takes through a node together; fewer go
+/// on one by one ([`WideBvh::walk_lane`]), where eight boxes per test beat sixteen
+/// mostly idle lanes (as Embree's hybrid packet traversal switches to single rays).
+const SINGLE_RAY_BELOW: u32 = 2;
+
+/// One lane of a [`RayPacket`] set up for eight-box slab tests, as the single-ray
+/// traversal's own.
+struct LaneRay {
+    origin: [f32x8; 3],
+    inv_dir: [f32x8; 3],
+    near_plane: [usize; 3],
+}
+
+impl LaneRay {
+    #[inline(always)]
+    fn new(packet: &RayPacket, lane: usize) -> LaneRay {
+        let origin = packet.origin.map(|o| o.as_array()[lane]);
+        let inv_dir = packet.inv_dir.map(|d| d.as_array()[lane]);
+        LaneRay {
+            origin: origin.map(f32x8::splat),
+            inv_dir: inv_dir.map(f32x8::splat),
+            near_plane: [0, 1, 2].map(|a| 2 * a + usize::from(inv_dir[a] < 0.0)),
+        }
+    }
+
+    /// Bit `i` set if the ray meets child `i`'s box with an entry distance `<= reach`
+    /// (`< reach` unless `INCLUSIVE`), and the entry distances: the single-ray slab
+    /// test's operations.
+    #[inline(always)]
+    fn hit_children<const INCLUSIVE: bool>(&self, node: &WideNode, reach: Float) -> (u32, f32x8) {
+        let mut t_enter = f32x8::ZERO;
+        let mut t_exit = f32x8::splat(Float::INFINITY);
+        for axis in 0..3 {
+            let near = self.near_plane[axis];
+            let far = near ^ 1;
+            let t_near = (node.planes[near] - self.origin[axis]) * self.inv_dir[axis];
+            let t_far = (node.planes[far] - self.origin[axis]) * self.inv_dir[axis];
+            t_enter = t_enter.fast_max(t_near);
+            t_exit = t_exit.fast_min(t_far);
+        }
+        let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
+        let reach = f32x8::splat(reach);
+        let within = if INCLUSIVE {
+            t_enter.simd_le(reach)
+        } else {
+            t_enter.simd_lt(reach)
+        };
+        ((t_enter.simd_le(t_exit) & within).to_bitmask(), t_enter)
+    }
+}
+
+/// Iterates over the set bits of a mask, lowest first.
+struct BitIter(u32);
+
+impl Iterator for BitIter {
+    type Item = usize;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<usize> {
+        (self.0 != 0).then(|| {
+            let bit = self.0.trailing_zeros() as usize;
+            self.0 &= self.0 - 1;
+            bit
+        })
+    }
+}
+
+const _: () = assert!(PACKET_SIZE <= 32 && WIDTH <= 32);

@@ -1,0 +1,482 @@
+//! Closest-hit and any-hit queries for packets of up to [`PACKET_SIZE`] coherent rays
+//! (camera rays of a 4x4 tile, the shadow rays of such a tile towards one light),
+//! through [`WideBvh::walk_packet`](crate::bvh::WideBvh::walk_packet) and the
+//! sixteen-ray triangle kernel. The answers are those of [`Scene::intersect`] and
+//! [`Scene::occluded`] for each ray, bit for bit:
+//!
+//! - any-hit: whether some primitive blocks a ray does not depend on the order in
+//!   which primitives are tested, and the packet walk visits every box the
+//!   single-ray walk visits;
+//! - closest hit: each lane computes the single-ray kernel's `t`; what single-ray
+//!   traversal returns depends on its visiting order only where two primitives lie at
+//!   *exactly* the same distance, or where rounding puts a hit before the entry
+//!   distance of a box around it (it may then cull the box). The packet query notices
+//!   both (it tests hits at `t <= t_max`, and compares each hit with the greatest box
+//!   entry on its way) and re-traces those rays one by one.
+//!
+//! Scenes with cutout materials take the single-ray queries throughout.
+
+use wide::f32x16;
+
+use super::{Hit, Scene};
+use crate::bvh::{PACKET_SIZE, RayPacket};
+use crate::math::{Float, Ray};
+use crate::shapes::{LANES, PacketRay, PrimHit, Shape, TrianglePacket, triangle_across_rays};
+
+/// Up to how many rays reaching a leaf are tested ray by ray, four triangles at once
+/// (the single-ray kernel), rather than sixteen rays at once per triangle: with few
+/// rays, most of the sixteen lanes would be idle.
+const FEW_RAYS: u32 = 3;
+
+/// The closest hit of one ray as the packet and lane of its primitive.
+type LaneHit = Option<(u32, usize, PrimHit)>;
+
+/// Iterates over the set bits of a mask, lowest first.
+#[inline(always)]
+fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let bit = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            bit
+        })
+    })
+}
+
+impl Scene {
+    /// The closest hit of each of `rays` (at most [`PACKET_SIZE`]) into `hits`, as
+    /// [`Scene::intersect`] finds it, bit for bit; fastest when the rays are coherent
+    /// (neighbouring camera rays).
+    ///
+    /// # Panics
+    /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `hits`.
+    pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        let found = self.closest_lanes_packet(rays);
+        for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
+            // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
+            *hit = found.map(|(packet, lane, prim)| {
+                if self.prim_texcoords.is_empty() {
+                    self.hit_details(ray, packet, lane, prim)
+                } else {
+                    self.textured_hit_details(ray, packet, lane, prim)
+                }
+            });
+        }
+    }
+
+    /// [`Scene::intersect_primitive`] for each of `rays` (at most [`PACKET_SIZE`]):
+    /// the primitive hit first, or `u32::MAX` for a miss, into `ids`.
+    ///
+    /// # Panics
+    /// As [`Scene::intersect_packet`].
+    pub fn intersect_primitive_packet(&self, rays: &[Ray], ids: &mut [u32]) {
+        assert_eq!(rays.len(), ids.len(), "one id per ray");
+        let found = self.closest_lanes_packet(rays);
+        for (id, found) in ids.iter_mut().zip(found) {
+            *id = found
+                .and_then(|(packet, lane, _)| self.packets[packet as usize].prim(lane))
+                .unwrap_or(u32::MAX);
+        }
+    }
+
+    /// Which of `rays` (at most [`PACKET_SIZE`]) in the mask `active` something
+    /// blocks before its distance in `t_max`, as [`Scene::occluded`] answers, as a
+    /// mask. Rays outside `active` are not traced (their `t_max` is not read).
+    ///
+    /// # Panics
+    /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `t_max`.
+    pub fn occluded_packet(&self, rays: &[Ray], t_max: &[Float], active: u32) -> u32 {
+        assert_eq!(rays.len(), t_max.len(), "one distance per ray");
+        let active = active & ((1u32 << rays.len()) - 1);
+        if self.has_cutouts {
+            return bits(active)
+                .filter(|&r| self.occluded(&rays[r], t_max[r]))
+                .fold(0, |mask, r| mask | 1 << r);
+        }
+        let packet = RayPacket::new(rays);
+        let mut limits = [0.0; PACKET_SIZE];
+        limits[..rays.len()].copy_from_slice(t_max);
+        let mut limits = f32x16::from(limits);
+        self.wide.walk_packet_any(
+            &packet,
+            active,
+            &mut limits,
+            |first, count, reached, t_max| {
+                let mut blocked = 0u32;
+                for packet_index in first..first + count {
+                    let prims = &self.packets[packet_index as usize];
+                    let open = reached & !blocked;
+                    if prims.holds_spheres() {
+                        blocked |= sphere_blockers(prims, rays, open, t_max);
+                    } else if open.count_ones() <= FEW_RAYS {
+                        let limits = t_max.as_array();
+                        for ray in bits(open) {
+                            if prims.occludes(&PacketRay::new(&rays[ray]), limits[ray]) {
+                                blocked |= 1 << ray;
+                            }
+                        }
+                    } else {
+                        for lane in 0..LANES {
+                            let Some(Shape::Triangle(triangle)) = prims.shape(lane) else {
+                                break;
+                            };
+                            let (valid, t, _, _) =
+                                triangle_across_rays(&triangle, &packet.origin, &packet.dir);
+                            blocked |= (valid & t.simd_lt(*t_max)).to_bitmask() & open;
+                        }
+                    }
+                    if blocked == reached {
+                        break;
+                    }
+                }
+                blocked
+            },
+        )
+    }
+
+    /// The closest hit of each ray, packet and lane, as [`Scene::closest_lane`].
+    fn closest_lanes_packet(&self, rays: &[Ray]) -> [LaneHit; PACKET_SIZE] {
+        let mut best: [LaneHit; PACKET_SIZE] = [None; PACKET_SIZE];
+        if self.has_cutouts {
+            for (best, ray) in best.iter_mut().zip(rays) {
+                *best = self.closest_lane(ray);
+            }
+            return best;
+        }
+        let packet = RayPacket::new(rays);
+        let mut t_max = f32x16::splat(Float::INFINITY);
+        // Rays whose answer in single-ray traversal depends on its visiting order: they
+        // met two primitives at exactly the same distance, or a hit before the entry
+        // distance of a box around it.
+        let mut ties = 0u32;
+        let walk = |first: u32, count: u32, reached: u32, t_max: &mut f32x16, path: &f32x16| {
+            for packet_index in first..first + count {
+                let prims = &self.packets[packet_index as usize];
+                if prims.holds_spheres() {
+                    ties |=
+                        nearest_spheres(prims, packet_index, rays, reached, t_max, path, &mut best);
+                    continue;
+                }
+                if reached.count_ones() <= FEW_RAYS {
+                    ties |= nearest_triangles_ray_by_ray(
+                        prims,
+                        packet_index,
+                        rays,
+                        reached,
+                        t_max,
+                        path,
+                        &mut best,
+                    );
+                    continue;
+                }
+                for lane in 0..LANES {
+                    let Some(Shape::Triangle(triangle)) = prims.shape(lane) else {
+                        break;
+                    };
+                    let (valid, t, u, v) =
+                        triangle_across_rays(&triangle, &packet.origin, &packet.dir);
+                    let within = (valid & t.simd_le(*t_max)).to_bitmask() & reached;
+                    if within == 0 {
+                        continue;
+                    }
+                    let closer = t.simd_lt(*t_max).to_bitmask() & within;
+                    ties |= within & !closer;
+                    ties |= t.simd_lt(*path).to_bitmask() & closer;
+                    let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
+                    let limits = t_max.as_mut_array();
+                    for ray in bits(closer) {
+                        limits[ray] = t[ray];
+                        best[ray] = Some((
+                            packet_index,
+                            lane,
+                            PrimHit {
+                                t: t[ray],
+                                u: u[ray],
+                                v: v[ray],
+                            },
+                        ));
+                    }
+                }
+            }
+        };
+        self.wide
+            .walk_packet_closest(&packet, packet.all(), &mut t_max, walk);
+        for ray in bits(ties) {
+            best[ray] = self.closest_lane(&rays[ray]);
+        }
+        best
+    }
+}
+
+/// The sphere packet `prims` (index `packet_index`) for the rays of `reached`, one by
+/// one as single-ray traversal tests spheres: lowers `t_max` and records closer hits
+/// in `best`; returns the rays whose answer depends on the visiting order (a sphere at
+/// exactly their `t_max`, or a hit before `path`, their greatest box entry).
+#[inline(never)]
+fn nearest_spheres(
+    prims: &TrianglePacket,
+    packet_index: u32,
+    rays: &[Ray],
+    reached: u32,
+    t_max: &mut f32x16,
+    path: &f32x16,
+    best: &mut [LaneHit; PACKET_SIZE],
+) -> u32 {
+    let mut ties = 0;
+    let path = path.as_array();
+    let limits = t_max.as_mut_array();
+    for ray in bits(reached) {
+        for lane in 0..LANES {
+            let Some(shape) = prims.shape(lane) else {
+                break;
+            };
+            // `next_up`: also report a hit at exactly `t_max`, a tie.
+            if let Some(hit) = shape.intersect(&rays[ray], limits[ray].next_up()) {
+                if hit.t < limits[ray] {
+                    if hit.t < path[ray] {
+                        ties |= 1 << ray;
+                    }
+                    limits[ray] = hit.t;
+                    best[ray] = Some((packet_index, lane, hit));
+                } else {
+                    ties |= 1 << ray;
+                }
+            }
+        }
+    }
+    ties
+}
+
+/// The triangle packet `prims` (index `packet_index`) for the rays of `reached`, one
+/// ray at a time with the four-lane kernel, lanes in order as the sixteen-ray path
+/// takes them: lowers `t_max` and records closer hits in `best`; returns the rays
+/// whose answer depends on the visiting order (a hit at exactly their `t_max`, or one
+/// before `path`, their greatest box entry).
+#[inline(always)]
+fn nearest_triangles_ray_by_ray(
+    prims: &TrianglePacket,
+    packet_index: u32,
+    rays: &[Ray],
+    reached: u32,
+    t_max: &mut f32x16,
+    path: &f32x16,
+    best: &mut [LaneHit; PACKET_SIZE],
+) -> u32 {
+    let mut ties = 0;
+    let path = path.as_array();
+    let limits = t_max.as_mut_array();
+    for ray in bits(reached) {
+        // `next_up`: also report hits at exactly `t_max`, ties.
+        let (hits, t, u, v) = prims.hits(&PacketRay::new(&rays[ray]), limits[ray].next_up());
+        for lane in bits(hits) {
+            if t[lane] < limits[ray] {
+                if t[lane] < path[ray] {
+                    ties |= 1 << ray;
+                }
+                limits[ray] = t[lane];
+                best[ray] = Some((
+                    packet_index,
+                    lane,
+                    PrimHit {
+                        t: t[lane],
+                        u: u[lane],
+                        v: v[lane],
+                    },
+                ));
+            } else if t[lane] == limits[ray] {
+                ties |= 1 << ray;
+            }
+        }
+    }
+    ties
+}
+
+/// The rays of `open` that a sphere of `prims` blocks before their `t_max`.
+#[inline(never)]
+fn sphere_blockers(prims: &TrianglePacket, rays: &[Ray], open: u32, t_max: &f32x16) -> u32 {
+    let limits = t_max.as_array();
+    bits(open)
+        .filter(|&ray| {
+            (0..LANES)
+                .map_while(|lane| prims.shape(lane))
+                .any(|shape| shape.intersect(&rays[ray], limits[ray]).is_some())
+        })
+        .fold(0, |mask, ray| mask | 1 << ray)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
+    use crate::material::{Material, MaterialId, PointLight};
+    use crate::math::Vec3;
+    use crate::{BvhParams, Camera};
+    use rand::{Rng, SeedableRng};
+
+    /// A generated test scene: a bumpy height field of `n x n` quads (a mesh whose
+    /// rays often cross shared edges and vertices, where two triangles tie), with
+    /// vertex normals; a cloud of random triangles above it; optionally spheres; two
+    /// point lights; a mirror and a glass material besides a diffuse one.
+    pub(crate) fn generated_scene(n: u32, with_spheres: bool, seed: u64) -> Scene {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut d = SceneDescription::default();
+        let height = |x: f32, z: f32| 0.1 * (3.0 * x).sin() * (2.0 * z).cos();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, z) = (
+                    2.0 * i as f32 / n as f32 - 1.0,
+                    2.0 * j as f32 / n as f32 - 1.0,
+                );
+                d.positions.push(Vec3::new(x, height(x, z), z));
+                d.normals.push(Vec3::new(
+                    -0.3 * (3.0 * x).cos(),
+                    1.0,
+                    0.2 * (2.0 * z).sin(),
+                ));
+            }
+        }
+        let at = |i: u32, j: u32| j * (n + 1) + i;
+        for j in 0..n {
+            for i in 0..n {
+                let quad = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                for positions in [[quad[0], quad[2], quad[1]], [quad[0], quad[3], quad[2]]] {
+                    d.triangles.push(TriangleDesc {
+                        positions,
+                        normals: Some(positions),
+                        material: MaterialId((i / 3 + j / 5) % 3),
+                    });
+                }
+            }
+        }
+        for _ in 0..300 {
+            let centre = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(0.1..0.8),
+                rng.random_range(-1.0..1.0),
+            );
+            let first = d.positions.len() as u32;
+            for _ in 0..3 {
+                let offset = Vec3::new(
+                    rng.random_range(-0.08..0.08),
+                    rng.random_range(-0.08..0.08),
+                    rng.random_range(-0.08..0.08),
+                );
+                d.positions.push(centre + offset);
+            }
+            d.triangles.push(TriangleDesc {
+                positions: [first, first + 1, first + 2],
+                normals: None,
+                material: MaterialId(0),
+            });
+        }
+        if with_spheres {
+            for k in 0..6 {
+                d.spheres.push(SphereDesc {
+                    center: Vec3::new(-0.75 + 0.3 * k as f32, 0.25, 0.1 * k as f32 - 0.3),
+                    radius: 0.12,
+                    material: MaterialId((k % 3) as u32),
+                });
+            }
+        }
+        let mut diffuse = Material::named("diffuse");
+        diffuse.diffuse = Vec3::new(0.7, 0.6, 0.5);
+        diffuse.specular = Vec3::splat(0.3);
+        diffuse.shininess = 20.0;
+        diffuse.ambient = Vec3::splat(0.05);
+        let mut mirror = diffuse.clone();
+        mirror.albedo = [0.5, 0.5, 0.0];
+        let mut glass = diffuse.clone();
+        glass.albedo = [0.2, 0.2, 0.6];
+        glass.ior = 1.5;
+        d.materials = vec![diffuse, mirror, glass];
+        d.lights = vec![
+            PointLight {
+                position: Vec3::new(0.5, 2.0, 0.5),
+                intensity: Vec3::splat(0.8),
+            },
+            PointLight {
+                position: Vec3::new(-1.5, 1.0, -0.2),
+                intensity: Vec3::new(0.3, 0.4, 0.5),
+            },
+        ];
+        Scene::build(d, &BvhParams::default())
+    }
+
+    /// Bits of everything a hit holds, so that equality is bitwise.
+    fn hit_bits(hit: &Option<Hit>) -> String {
+        format!("{hit:?}")
+    }
+
+    /// Packet hits and single-ray hits agree exactly on camera rays of 4x4 tiles, and
+    /// packet and single-ray shadow rays agree on which are blocked.
+    fn check_agreement(scene: &Scene, look_from: Vec3) {
+        let camera = Camera::new(look_from, Vec3::new(0.0, 0.1, 0.0), 50.0, 96, 64);
+        let (mut checked, mut shadow_checked, mut blocked) = (0, 0, 0);
+        for top in (0..64).step_by(4) {
+            for left in (0..96).step_by(4) {
+                let rays: Vec<Ray> = (0..16)
+                    .map(|k| camera.pixel_ray(left + k % 4, top + k / 4))
+                    .collect();
+                let mut hits = [None; PACKET_SIZE];
+                scene.intersect_packet(&rays, &mut hits);
+                let mut ids = [0; PACKET_SIZE];
+                scene.intersect_primitive_packet(&rays, &mut ids);
+                for (k, ray) in rays.iter().enumerate() {
+                    let single = scene.intersect(ray);
+                    assert_eq!(
+                        hit_bits(&hits[k]),
+                        hit_bits(&single),
+                        "ray {k} at ({left}, {top})"
+                    );
+                    let id = scene.intersect_primitive(ray).map_or(u32::MAX, |(p, _)| p);
+                    assert_eq!(ids[k], id);
+                    checked += usize::from(single.is_some());
+                }
+                for light in &scene.lights {
+                    let mut shadow = rays.clone();
+                    let mut distances = vec![0.0; 16];
+                    let mut active = 0;
+                    for (k, hit) in hits.iter().enumerate() {
+                        if let Some(hit) = hit {
+                            (shadow[k], distances[k]) = hit.spawn_ray_to(light.position);
+                            active |= 1 << k;
+                        }
+                    }
+                    let mask = scene.occluded_packet(&shadow, &distances, active);
+                    for k in bits(active) {
+                        let single = scene.occluded(&shadow[k], distances[k]);
+                        assert_eq!(
+                            mask >> k & 1 == 1,
+                            single,
+                            "shadow ray {k} at ({left}, {top})"
+                        );
+                        shadow_checked += 1;
+                        blocked += usize::from(single);
+                    }
+                    assert_eq!(mask & !active, 0, "inactive rays are never blocked");
+                }
+            }
+        }
+        assert!(checked > 1500, "{checked} hits");
+        assert!(
+            blocked > 100 && blocked < shadow_checked,
+            "{blocked} of {shadow_checked} blocked"
+        );
+    }
+
+    #[test]
+    fn packet_queries_agree_exactly_with_single_rays() {
+        for (n, spheres, seed) in [(40, false, 1), (97, true, 2)] {
+            let scene = generated_scene(n, spheres, seed);
+            for look_from in [
+                Vec3::new(0.0, 1.5, 2.0),
+                Vec3::new(1.7, 0.4, -1.1),
+                // Straight down onto the grid: rays through shared vertices and edges.
+                Vec3::new(0.0, 3.0, 0.0001),
+            ] {
+                check_agreement(&scene, look_from);
+            }
+        }
+    }
+}

@@ -167,7 +167,9 @@ const LINE_READ_BYTES: usize = 256;
 /// Room kept in a piece for its last line.
 const LINE_SLACK_BYTES: usize = 4096;
 
-fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
+/// Reads a whole regular file as it is (no decompression), refusing anything else
+/// (a folder, a device, a FIFO) before reading a byte.
+pub(crate) fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
     let (mut file, size) = open_regular_file(path)?;
     let mut text = Vec::new();
     // Asked for up front, so that a file beyond memory fails here with a message

@@ -88,7 +88,10 @@ pub fn check_toml(data: &[u8], dir: &Path) {
     check_description(&loaded.description);
     if let Ok((description, options)) = loaded.resolve(Default::default()) {
         check_description(&description);
-        assert!(options.validate().is_ok(), "resolved options fail validation");
+        assert!(
+            options.validate().is_ok(),
+            "resolved options fail validation"
+        );
     }
 }
 
@@ -154,7 +157,10 @@ pub fn check_textures(data: &[u8], dir: &Path) {
                 check_maps(material);
             }
             for warning in &library.warnings {
-                assert!(warning.starts_with(&path.display().to_string()), "{warning}");
+                assert!(
+                    warning.starts_with(&path.display().to_string()),
+                    "{warning}"
+                );
             }
         }
         Err(err) => check_error(&err, mtl, &path),
@@ -178,8 +184,16 @@ fn check_maps(m: &Material) {
     for (u, v) in points {
         let uv = raytracer::math::Vec2::new(u, v);
         let values = m.at(uv);
-        let colours = [values.ambient, values.diffuse, values.specular, values.emission];
-        assert!(colours.iter().all(|c| !c.is_nan()), "{m:?} at {uv}: {values:?}");
+        let colours = [
+            values.ambient,
+            values.diffuse,
+            values.specular,
+            values.emission,
+        ];
+        assert!(
+            colours.iter().all(|c| !c.is_nan()),
+            "{m:?} at {uv}: {values:?}"
+        );
         assert!(!values.shininess.is_nan(), "{m:?} at {uv}: {values:?}");
         if let Some(maps) = &m.maps
             && let Some(n) = maps.tangent_normal(uv)

@@ -513,3 +513,83 @@ fn gltf_buffers_and_images_that_are_not_files_are_reported() {
         64,
     );
 }
+
+// ---------------------------------------------------------------------------------
+// Geometry that was slow: huge polygons, piles of copies.
+
+#[cfg(target_os = "linux")]
+#[test]
+fn faces_of_200000_corners_are_triangulated_and_rendered() {
+    use std::f64::consts::TAU;
+    use std::fmt::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let n = 200_000;
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut random = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let shapes: [(&str, Box<dyn FnMut(usize) -> (f64, f64)>); 4] = [
+        (
+            "convex",
+            Box::new(|k| {
+                (
+                    (TAU * k as f64 / n as f64).cos(),
+                    (TAU * k as f64 / n as f64).sin(),
+                )
+            }),
+        ),
+        (
+            "star",
+            Box::new(|k| {
+                let (a, r) = (
+                    TAU * k as f64 / n as f64,
+                    if k % 2 == 0 { 1.0 } else { 0.5 },
+                );
+                (r * a.cos(), r * a.sin())
+            }),
+        ),
+        ("random", Box::new(move |_| (random(), random()))),
+        (
+            "wound",
+            Box::new(|k| {
+                let a = TAU * 0.4 * k as f64 + 1e-6 * k as f64;
+                (a.cos(), a.sin())
+            }),
+        ),
+    ];
+    for (name, mut corner) in shapes {
+        let mut text = String::new();
+        for k in 0..n {
+            let (x, y) = corner(k);
+            writeln!(text, "v {x:.6} {y:.6} -3").unwrap();
+        }
+        text.push('f');
+        for k in 1..=n {
+            write!(text, " {k}").unwrap();
+        }
+        text.push('\n');
+        let path = dir.path().join(format!("{name}.obj"));
+        std::fs::write(&path, text).unwrap();
+        let outcome = render(&path);
+        assert_eq!(outcome.code, Some(0), "{name}: {}", outcome.stderr);
+        assert!(
+            outcome.peak < 512 << 20,
+            "{name}: {} MiB",
+            outcome.peak >> 20
+        );
+    }
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn two_hundred_thousand_copies_of_a_triangle_render_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("copies.obj");
+    let mut text = String::from("v -1 -1 -3\nv 1 -1 -3\nv 0 1 -3\n");
+    text.push_str(&"f 1 2 3\n".repeat(200_000));
+    std::fs::write(&path, text).unwrap();
+    assert_warned(&render(&path), &["skipped 199999 duplicate shapes"], 256);
+}

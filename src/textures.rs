@@ -512,7 +512,16 @@ static CACHE: Mutex<Option<HashMap<CacheKey, Weak<Texture>>>> = Mutex::new(None)
 /// The file cannot be read or decoded; the message does not repeat the path.
 pub fn load_texture(path: &Path) -> Result<Arc<Texture>, String> {
     let canonical = std::fs::canonicalize(path).map_err(|e| e.to_string())?;
-    let mut file = std::fs::File::open(&canonical).map_err(|e| e.to_string())?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    // Opening a FIFO would wait for a writer, maybe forever, before its type could be
+    // checked; on a regular file the flag changes nothing.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let mut file = options.open(&canonical).map_err(|e| e.to_string())?;
     // Of the file opened, so that it cannot be swapped between the check and the read.
     let metadata = file.metadata().map_err(|e| e.to_string())?;
     if metadata.is_dir() {

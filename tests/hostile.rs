@@ -220,7 +220,12 @@ fn textures_that_are_not_image_files_are_warnings() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir(dir.path().join("folder.png")).unwrap();
     std::fs::write(dir.path().join("text.png"), "not an image\n").unwrap();
+    let fifo = dir.path().join("pipe.png");
+    let name = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: `mkfifo` reads the NUL-terminated path it is given.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
     for (texture, reason) in [
+        ("pipe.png", "not a regular file"),
         ("/dev/zero", "not a regular file"),
         ("/dev/urandom", "not a regular file"),
         ("folder.png", "folder"),
@@ -488,7 +493,11 @@ fn glb_files_cut_short_are_errors() {
 fn gltf_buffers_and_images_that_are_not_files_are_reported() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir(dir.path().join("folder.bin")).unwrap();
-    for uri in ["/dev/zero", "/dev/urandom", "folder.bin"] {
+    let fifo = dir.path().join("pipe.bin");
+    let name = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: `mkfifo` reads the NUL-terminated path it is given.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+    for uri in ["/dev/zero", "/dev/urandom", "folder.bin", "pipe.bin"] {
         let path = gltf_scene(dir.path(), r#"[{"mesh":0}]"#, None, uri);
         let outcome = render(&path);
         assert_refused(&outcome, &path, 64);
@@ -592,4 +601,25 @@ fn two_hundred_thousand_copies_of_a_triangle_render_once() {
     text.push_str(&"f 1 2 3\n".repeat(200_000));
     std::fs::write(&path, text).unwrap();
     assert_warned(&render(&path), &["skipped 199999 duplicate shapes"], 256);
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn scenes_and_meshes_that_are_fifos_or_folders_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    // A FIFO no one writes to: opening it for reading would block forever.
+    let fifo = dir.path().join("pipe.obj");
+    let name = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: `mkfifo` reads the NUL-terminated path it is given.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+    std::fs::create_dir(dir.path().join("folder.ply")).unwrap();
+    for mesh in ["pipe.obj", "folder.ply"] {
+        let scene = dir.path().join(format!("{mesh}.toml"));
+        std::fs::write(&scene, format!("[[mesh]]\nfile = \"{mesh}\"\n")).unwrap();
+        let outcome = render(&scene);
+        assert_refused(&outcome, &scene, 64);
+        assert!(outcome.stderr.contains(mesh), "{}", outcome.stderr);
+        let path = dir.path().join(mesh);
+        assert_refused(&render(&path), &path, 64);
+    }
 }

@@ -182,7 +182,7 @@ pub(crate) fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
 /// Opens a regular file and checks that its size (returned) could be held in
 /// memory.
 fn open_regular_file(path: &Path) -> io::Result<(File, usize)> {
-    let file = File::open(path)?;
+    let file = open_without_blocking(path)?;
     let metadata = file.metadata()?;
     if metadata.is_dir() {
         return Err(io::Error::new(
@@ -198,6 +198,20 @@ fn open_regular_file(path: &Path) -> io::Result<(File, usize)> {
     }
     let size = usize::try_from(metadata.len()).map_err(|_| too_large(metadata.len()))?;
     Ok((file, size))
+}
+
+/// Opens `path` for reading without waiting for a writer: opening a FIFO blocks until
+/// one comes, which may be never, before its type can even be checked. (On a regular
+/// file the flag changes nothing.)
+pub(crate) fn open_without_blocking(path: &Path) -> io::Result<File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    options.open(path)
 }
 
 fn too_large(size: impl std::fmt::Display) -> io::Error {

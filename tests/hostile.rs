@@ -25,6 +25,8 @@ const WATCHDOG: Duration = Duration::from_secs(120);
 
 /// Runs `raytracer ARGS`, waiting for this child alone, with its resource usage.
 #[cfg(target_os = "linux")]
+// Reaped by `wait4`, which also gives this child's own resource usage.
+#[allow(clippy::zombie_processes)]
 fn run<S: AsRef<OsStr>>(args: &[S]) -> Outcome {
     let mut child = Command::new(env!("CARGO_BIN_EXE_raytracer"))
         .args(args)
@@ -434,13 +436,10 @@ fn accessors_outside_their_views_and_views_outside_their_buffers_are_errors() {
     }
     // A view longer than its buffer.
     let path = gltf_scene(dir.path(), r#"[{"mesh":0}]"#, None, "tri.bin");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace(
-            r#""byteOffset":36,"byteLength":6"#,
-            r#""byteOffset":36,"byteLength":600"#,
-        )
-        .replace(r#""byteLength":44"#, r#""byteLength":44"#);
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        r#""byteOffset":36,"byteLength":6"#,
+        r#""byteOffset":36,"byteLength":600"#,
+    );
     std::fs::write(&path, text).unwrap();
     let outcome = render(&path);
     assert_refused(&outcome, &path, 64);
@@ -462,7 +461,7 @@ fn glb_files_cut_short_are_errors() {
         "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],
         "buffers":[{"byteLength":44}]}"#;
     let mut json = json.to_vec();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let bin = triangle_buffer();
@@ -540,7 +539,8 @@ fn faces_of_200000_corners_are_triangulated_and_rendered() {
         seed ^= seed << 17;
         (seed >> 11) as f64 / (1u64 << 53) as f64
     };
-    let shapes: [(&str, Box<dyn FnMut(usize) -> (f64, f64)>); 4] = [
+    type Corner<'a> = Box<dyn FnMut(usize) -> (f64, f64) + 'a>;
+    let shapes: [(&str, Corner); 4] = [
         (
             "convex",
             Box::new(|k| {

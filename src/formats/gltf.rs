@@ -601,6 +601,38 @@ impl Reader<'_> {
                     "{name}: index {bad} out of range ({count} vertices)"
                 ));
             }
+            // Placed in the world, every value must be finite: a buffer may hold NaN,
+            // and a huge transform may overflow.
+            let positions: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| world.transform_point3(p))
+                .collect();
+            if let Some(bad) = positions.iter().position(|p| !p.is_finite()) {
+                self.warn(format!(
+                    "{name}: vertex {bad} has a position that is not finite (in the file or once placed); skipped"
+                ));
+                continue;
+            }
+            let normals: Option<Vec<Vec3>> =
+                normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect());
+            let normals = match normals {
+                Some(n) if n.iter().any(|n| !n.is_finite()) => {
+                    self.warn(format!(
+                        "{name}: normals that are not finite (in the file or once placed); ignored"
+                    ));
+                    None
+                }
+                other => other,
+            };
+            let texcoords = match texcoords {
+                Some(t) if t.iter().any(|t| !t.is_finite()) => {
+                    self.warn(format!(
+                        "{name}: texture coordinates that are not finite; ignored"
+                    ));
+                    None
+                }
+                other => other,
+            };
             let material = self.material(primitive.material());
             let base = |len: usize| -> Result<u32, String> {
                 u32::try_from(len + count)
@@ -611,14 +643,10 @@ impl Reader<'_> {
             let normal_base = base(self.scene.normals.len())?;
             let texcoord_base = base(self.scene.texcoords.len())?;
             let scene = &mut self.scene;
-            scene
-                .positions
-                .extend(positions.iter().map(|&p| world.transform_point3(p)));
+            scene.positions.extend(positions);
             let has_normals = normals.is_some();
             if let Some(normals) = normals {
-                scene
-                    .normals
-                    .extend(normals.iter().map(|&n| normal_matrix * n));
+                scene.normals.extend(normals);
             }
             let has_texcoords = texcoords.is_some();
             if let Some(texcoords) = texcoords {

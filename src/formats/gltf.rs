@@ -898,6 +898,15 @@ impl Reader<'_> {
             self.path.file_name().unwrap_or_default().to_string_lossy(),
             image.index()
         ));
+        // `Image::source` unwraps a missing `uri` (with no `bufferView`) and a missing
+        // `mimeType` (with one): the format is guessed from the bytes anyway.
+        let json = &self.document.as_json().images[image.index()];
+        if json.uri.is_none() && json.buffer_view.is_none() {
+            return Err("names neither a file nor a buffer view".into());
+        }
+        if json.buffer_view.is_some() && json.mime_type.is_none() {
+            return Err("has a buffer view but no mimeType".into());
+        }
         match image.source() {
             gltf::image::Source::View { view, .. } => {
                 let buffer = &self.buffers[view.buffer().index()];

@@ -37,3 +37,12 @@ pub fn single_thread() -> &'static rayon::ThreadPool {
             .expect("cannot start a worker thread")
     })
 }
+
+/// The private folder with the meshes and materials of `fuzz_checks::TOML_MESHES`.
+#[allow(dead_code)]
+pub fn with_toml_meshes() -> &'static Path {
+    static READY: OnceLock<()> = OnceLock::new();
+    let dir = private();
+    READY.get_or_init(|| super::fuzz_checks::write_toml_meshes(dir));
+    dir
+}

@@ -23,3 +23,4 @@ for obj in "$scenes"/*/*.obj; do
         cat "$mtl"
     } > "corpus/pipeline/$name"
 done
+./seed_readers.py

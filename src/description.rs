@@ -148,9 +148,17 @@ impl SceneDescription {
         let forward = try_unit(to_target).unwrap_or(Vec3::NEG_Z);
         let right = try_unit(forward.cross(options.up)).unwrap_or(Vec3::X);
         let up = right.cross(forward);
-        let distance = to_target.length();
+        let offset = 0.5 * up - 0.5 * right;
+        let mut key = eye + to_target.length() * offset;
+        if !key.is_finite() {
+            // The squared distance of a camera 1e20 away overflows `f32` (an infinite
+            // light makes every pixel NaN): again in f64. Where even the position
+            // does not fit, the key light sits at the eye with the fill light.
+            let distance = to_target.as_dvec3().length();
+            key = (eye.as_dvec3() + distance * offset.as_dvec3()).as_vec3();
+        }
         self.lights.push(PointLight {
-            position: eye + distance * (0.5 * up - 0.5 * right),
+            position: if key.is_finite() { key } else { eye },
             intensity: Vec3::splat(rig.key),
         });
         self.lights.push(PointLight {

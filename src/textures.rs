@@ -26,8 +26,11 @@ use crate::math::{Float, Vec2, Vec3};
 /// warning rather than decoded (a corrupt header may claim billions).
 pub const MAX_TEXTURE_SIZE: u32 = 32_768;
 
-/// Most bytes decoding one texture may allocate.
-const MAX_TEXTURE_BYTES: u64 = 2 << 30;
+/// Most bytes decoding one texture may allocate, and most bytes its file and its
+/// texels (after conversion to `f32`, for deep images) may each take: an 8192 x 8192
+/// RGBA image fits. With the file, the decoded image and the converted texels alive
+/// at once, loading one texture stays under 768 MiB whatever its header claims.
+pub const MAX_TEXTURE_BYTES: u64 = 256 << 20;
 
 /// The texels of a decoded image.
 #[derive(Clone)]
@@ -351,7 +354,21 @@ impl Texture {
         limits.max_image_height = Some(MAX_TEXTURE_SIZE);
         limits.max_alloc = Some(MAX_TEXTURE_BYTES);
         reader.limits(limits);
-        let image = reader.decode().map_err(|e| e.to_string())?;
+        let image = reader.decode().map_err(|e| match e {
+            // Say what the header claims: a corrupt or hostile one, most likely.
+            image::ImageError::Limits(_) => match image::ImageReader::new(Cursor::new(bytes))
+                .with_guessed_format()
+                .ok()
+                .and_then(|r| r.into_dimensions().ok())
+            {
+                Some((w, h)) => format!(
+                    "its header claims {w}x{h} texels, more than a texture may have (at most {MAX_TEXTURE_SIZE} on a side and {} MiB decoded)",
+                    MAX_TEXTURE_BYTES >> 20
+                ),
+                None => e.to_string(),
+            },
+            _ => e.to_string(),
+        })?;
         let (width, height) = (image.width(), image.height());
         if width == 0 || height == 0 {
             return Err("the image is empty".into());
@@ -364,6 +381,15 @@ impl Texture {
             D::ImageRgba8(i) => (4, Texels::U8(i.into_raw())),
             other => {
                 let channels = u32::from(other.color().channel_count());
+                let bytes =
+                    u64::from(width) * u64::from(height) * u64::from(channels.clamp(1, 4)) * 4;
+                if bytes > MAX_TEXTURE_BYTES {
+                    return Err(format!(
+                        "{width}x{height} texels of {channels} channels take {} MiB as floats, more than the {} MiB a texture may",
+                        bytes >> 20,
+                        MAX_TEXTURE_BYTES >> 20
+                    ));
+                }
                 let texels = match channels {
                     1 | 2 => {
                         let grey = other.to_luma_alpha32f();
@@ -564,9 +590,31 @@ static CACHE: Mutex<Option<HashMap<CacheKey, Weak<Texture>>>> = Mutex::new(None)
 /// The file cannot be read or decoded; the message does not repeat the path.
 pub fn load_texture(path: &Path) -> Result<Arc<Texture>, String> {
     let canonical = std::fs::canonicalize(path).map_err(|e| e.to_string())?;
-    let metadata = std::fs::metadata(&canonical).map_err(|e| e.to_string())?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    // Opening a FIFO would wait for a writer, maybe forever, before its type could be
+    // checked; on a regular file the flag changes nothing.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let mut file = options.open(&canonical).map_err(|e| e.to_string())?;
+    // Of the file opened, so that it cannot be swapped between the check and the read.
+    let metadata = file.metadata().map_err(|e| e.to_string())?;
     if metadata.is_dir() {
-        return Err("is a directory".into());
+        return Err("is a folder, not an image".into());
+    }
+    // A device (`/dev/zero`, `/dev/urandom`) or a FIFO would be read forever.
+    if !metadata.is_file() {
+        return Err("is not a regular file".into());
+    }
+    if metadata.len() > MAX_TEXTURE_BYTES {
+        return Err(format!(
+            "is too large for a texture ({} MiB; at most {} MiB)",
+            metadata.len() >> 20,
+            MAX_TEXTURE_BYTES >> 20
+        ));
     }
     let key = (canonical, metadata.len(), metadata.modified().ok());
     let cached = |key: &CacheKey| {
@@ -579,8 +627,15 @@ pub fn load_texture(path: &Path) -> Result<Arc<Texture>, String> {
     if let Some(texture) = cached(&key) {
         return Ok(texture);
     }
-    let bytes = std::fs::read(&key.0).map_err(|e| e.to_string())?;
+    let mut bytes = Vec::with_capacity(metadata.len() as usize);
+    // No more than the size checked, should the file grow meanwhile.
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(&mut file, MAX_TEXTURE_BYTES),
+        &mut bytes,
+    )
+    .map_err(|e| e.to_string())?;
     let texture = Arc::new(Texture::decode(&bytes, path)?);
+    drop(bytes);
     let mut cache = CACHE.lock().unwrap_or_else(PoisonError::into_inner);
     let cache = cache.get_or_insert_with(HashMap::new);
     // Forget textures no scene holds any more, so the map does not grow forever.

@@ -303,3 +303,36 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn piles_of_coinciding_centroids_are_reported_as_ranges() {
+    let unit = Aabb {
+        min: Vec3::ZERO,
+        max: Vec3::ONE,
+    };
+    let params = BvhParams::default();
+    // More than a leaf holds: one range over all of them, none nested in it.
+    let (bvh, _) = Bvh::build(&[unit; 20], &params);
+    assert_eq!(bvh.coincident, vec![0..20]);
+    // A leaf's worth: no range.
+    let (bvh, _) = Bvh::build(&[unit; 8], &params);
+    assert!(bvh.coincident.is_empty());
+    // A big pile beside other boxes, built in parallel: the pile's range.
+    let mut boxes = vec![unit; 100_000];
+    boxes.extend((1..=50).map(|k| Aabb {
+        min: Vec3::splat(k as f32 * 2.0),
+        max: Vec3::splat(k as f32 * 2.0 + 1.0),
+    }));
+    let (bvh, order) = Bvh::build(&boxes, &params);
+    assert_eq!(bvh.coincident.len(), 1, "{:?}", bvh.coincident);
+    let range = bvh.coincident[0].clone();
+    assert_eq!(range.len(), 100_000);
+    assert!(
+        order[range.start as usize..range.end as usize]
+            .iter()
+            .all(|&i| i < 100_000)
+    );
+    // Distinct boxes: none.
+    let (bvh, _) = Bvh::build(&boxes[100_000..], &params);
+    assert!(bvh.coincident.is_empty());
+}

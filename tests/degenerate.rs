@@ -116,3 +116,63 @@ fn info_and_render_agree_at_every_scale() {
         assert_eq!(info_count(&d), render_count(&d), "scale {scale:e}");
     }
 }
+
+#[test]
+fn copies_of_a_triangle_are_rendered_once() {
+    let v = Vec3::new;
+    let corners = [v(0.0, 0.0, -2.0), v(1.0, 0.0, -2.0), v(0.0, 1.0, -2.0)];
+    let mut d = description(&[corners, corners]);
+    d.materials.push(Material::named("other"));
+    // 200,000 copies: by index, and by value (corners of their own).
+    let copy = d.triangles[0];
+    d.triangles.extend(std::iter::repeat_n(copy, 199_998));
+    // The same corners with another material, and one corner a float step away:
+    // not copies.
+    d.triangles.push(TriangleDesc {
+        material: MaterialId(1),
+        ..copy
+    });
+    let base = d.positions.len() as u32;
+    d.positions
+        .extend([corners[0], corners[1], v(0.0, 1.0f32.next_up(), -2.0)]);
+    d.triangles.push(TriangleDesc {
+        positions: [base, base + 1, base + 2],
+        ..copy
+    });
+    let scene = Scene::build(d, &BvhParams::default());
+    assert_eq!(scene.prim_count(), 3);
+    assert!(
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.starts_with("skipped 199999 duplicate shapes")),
+        "{:?}",
+        scene.warnings
+    );
+    scene.validate().unwrap();
+    let hit = scene
+        .intersect(&Ray::new(v(0.25, 0.25, 0.0), -Vec3::Z))
+        .expect("the triangle is hit");
+    assert_eq!(hit.t, 2.0);
+}
+
+#[test]
+fn scenes_without_copies_keep_every_shape() {
+    // Boxes (so centroids) that coincide, more than a leaf holds, without copies:
+    // triangles from one corner of a square to points on its far sides.
+    let v = Vec3::new;
+    let triangles: Vec<[Vec3; 3]> = (1..=20)
+        .map(|k| {
+            let f = k as f32 / 21.0;
+            [v(0.0, 0.0, -2.0), v(1.0, f, -2.0), v(1.0 - f, 1.0, -2.0)]
+        })
+        .collect();
+    let d = description(&triangles);
+    let scene = Scene::build(d, &BvhParams::default());
+    assert_eq!(scene.prim_count(), 20);
+    assert!(
+        !scene.warnings.iter().any(|w| w.contains("duplicate")),
+        "{:?}",
+        scene.warnings
+    );
+}

@@ -65,3 +65,33 @@ fn pipeline_regressions_and_corpus_pass() {
     });
     assert!(count > 0, "no pipeline inputs found");
 }
+
+#[test]
+fn ply_regressions_and_corpus_pass() {
+    let count = replay("ply", fuzz_checks::check_ply);
+    assert!(count > 0, "no ply inputs found");
+}
+
+#[test]
+fn toml_regressions_and_corpus_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    fuzz_checks::write_toml_meshes(dir.path());
+    let count = replay("toml", |data| fuzz_checks::check_toml(data, dir.path()));
+    assert!(count > 0, "no toml inputs found");
+}
+
+#[test]
+fn gltf_regressions_and_corpus_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let count = replay("gltf", |data| fuzz_checks::check_gltf(data, dir.path()));
+    assert!(count > 0, "no gltf inputs found");
+}
+
+#[test]
+fn textures_regressions_and_corpus_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let count = replay("textures", |data| {
+        fuzz_checks::check_textures(data, dir.path())
+    });
+    assert!(count > 0, "no textures inputs found");
+}

@@ -25,6 +25,12 @@ pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     /// Greatest depth of the tree, the root being depth 0.
     pub max_depth: usize,
+    /// Ranges of the leaf order holding more than `max_leaf_size` primitives whose
+    /// centroids all coincide (the largest such subtrees): no plane separates them,
+    /// so every ray that reaches one tests them all. Copies of one primitive pile up
+    /// here, and only here, so a caller can look for duplicates in these ranges
+    /// alone. Empty for almost every scene.
+    pub coincident: Vec<std::ops::Range<u32>>,
 }
 
 /// Deepest tree the traversal stack can hold. The builder switches to median splits

@@ -167,7 +167,9 @@ const LINE_READ_BYTES: usize = 256;
 /// Room kept in a piece for its last line.
 const LINE_SLACK_BYTES: usize = 4096;
 
-fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
+/// Reads a whole regular file as it is (no decompression), refusing anything else
+/// (a folder, a device, a FIFO) before reading a byte.
+pub(crate) fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
     let (mut file, size) = open_regular_file(path)?;
     let mut text = Vec::new();
     // Asked for up front, so that a file beyond memory fails here with a message
@@ -180,7 +182,7 @@ fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
 /// Opens a regular file and checks that its size (returned) could be held in
 /// memory.
 fn open_regular_file(path: &Path) -> io::Result<(File, usize)> {
-    let file = File::open(path)?;
+    let file = open_without_blocking(path)?;
     let metadata = file.metadata()?;
     if metadata.is_dir() {
         return Err(io::Error::new(
@@ -196,6 +198,20 @@ fn open_regular_file(path: &Path) -> io::Result<(File, usize)> {
     }
     let size = usize::try_from(metadata.len()).map_err(|_| too_large(metadata.len()))?;
     Ok((file, size))
+}
+
+/// Opens `path` for reading without waiting for a writer: opening a FIFO blocks until
+/// one comes, which may be never, before its type can even be checked. (On a regular
+/// file the flag changes nothing.)
+pub(crate) fn open_without_blocking(path: &Path) -> io::Result<File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    options.open(path)
 }
 
 fn too_large(size: impl std::fmt::Display) -> io::Error {

@@ -17,15 +17,12 @@ use glam::{Mat3, Mat4};
 use gltf::Document;
 
 use super::error::SceneError;
+use super::file::read_regular_file;
 use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
 use crate::material::{Cutout, Material, MaterialId, MaterialMaps, PointLight};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, RenderOptions, Sourced};
 use crate::textures::{Channel, Texture, TextureMap, TextureOptions, Wrap, load_texture};
-
-/// Nodes deeper than this are not followed: glTF node trees are shallow, and a
-/// malformed file must not exhaust the stack.
-const MAX_NODE_DEPTH: usize = 256;
 
 /// The smallest roughness the Phong mapping takes: a smoother surface's exponent
 /// would exceed [`MAX_SHININESS`] anyway.
@@ -74,8 +71,14 @@ pub fn parse_gltf_with(
         path: path.to_path_buf(),
         message,
     };
+    let invalid = |e: gltf::Error| fail(format!("not a valid glTF file: {e}"));
     let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(bytes).map_err(|e| fail(format!("not a valid glTF file: {e}")))?;
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(invalid)?;
+    // The crate's validation indexes the POSITION accessor before checking that it
+    // exists: check first.
+    check_attribute_indices(document.as_json()).map_err(fail)?;
+    let document = Document::from_json(document.into_json()).map_err(invalid)?;
+    check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let buffers = read_buffers(&document, blob, &folder, access).map_err(fail)?;
     let mut reader = Reader {
@@ -143,10 +146,237 @@ fn read_uri(uri: &str, folder: &Path, access: &FileAccess) -> Result<Vec<u8>, St
     }
     let file = file_of_uri(uri)?;
     let path = folder.join(&file);
+    // Regular files only: `/dev/zero` or a FIFO would be read forever.
     access
         .admit(&path)
-        .and_then(|()| std::fs::read(&path))
+        .and_then(|()| read_regular_file(&path))
         .map_err(|e| format!("cannot read {}: {e}", file.display()))
+}
+
+/// Every attribute and index accessor of every primitive exists.
+fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), String> {
+    let count = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let indices = primitive.indices.iter();
+            for accessor in primitive.attributes.values().chain(indices) {
+                if accessor.value() >= count {
+                    return Err(format!(
+                        "mesh {m} primitive {p}: accessor {} does not exist ({count} accessors)",
+                        accessor.value()
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The node hierarchy has no cycle (checked over every node, without recursion).
+///
+/// # Errors
+/// Names a node that is its own descendant.
+fn check_node_cycles(document: &Document) -> Result<(), String> {
+    const NEW: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const DONE: u8 = 2;
+    let nodes: Vec<gltf::Node<'_>> = document.nodes().collect();
+    let mut state = vec![NEW; nodes.len()];
+    // (node, how many of its children have been looked at)
+    let mut path: Vec<(usize, usize)> = Vec::new();
+    for start in 0..nodes.len() {
+        if state[start] != NEW {
+            continue;
+        }
+        state[start] = ON_PATH;
+        path.push((start, 0));
+        while let Some((node, next)) = path.last_mut() {
+            let node = *node;
+            match nodes[node].children().nth(*next) {
+                Some(child) => {
+                    *next += 1;
+                    let child = child.index();
+                    match state[child] {
+                        NEW => {
+                            state[child] = ON_PATH;
+                            path.push((child, 0));
+                        }
+                        ON_PATH => {
+                            return Err(format!(
+                                "{} is its own descendant: the node hierarchy has a cycle",
+                                describe_node(&nodes[child])
+                            ));
+                        }
+                        _ => {}
+                    }
+                }
+                None => {
+                    state[node] = DONE;
+                    path.pop();
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `node 3` or `node 3 ('Arm')`, for messages.
+fn describe_node(node: &gltf::Node<'_>) -> String {
+    match node.name() {
+        Some(name) => format!("node {} ('{}')", node.index(), shorten(name)),
+        None => format!("node {}", node.index()),
+    }
+}
+
+/// What a primitive may hold in an accessor: the component types and the shape.
+struct Expected {
+    what: &'static str,
+    types: &'static [gltf::accessor::DataType],
+    dimensions: gltf::accessor::Dimensions,
+}
+
+const POSITIONS: Expected = Expected {
+    what: "POSITION",
+    types: &[gltf::accessor::DataType::F32],
+    dimensions: gltf::accessor::Dimensions::Vec3,
+};
+const NORMALS: Expected = Expected {
+    what: "NORMAL",
+    types: &[gltf::accessor::DataType::F32],
+    dimensions: gltf::accessor::Dimensions::Vec3,
+};
+const TEXCOORDS: Expected = Expected {
+    what: "TEXCOORD_0",
+    types: &[
+        gltf::accessor::DataType::U8,
+        gltf::accessor::DataType::U16,
+        gltf::accessor::DataType::F32,
+    ],
+    dimensions: gltf::accessor::Dimensions::Vec2,
+};
+const INDICES: Expected = Expected {
+    what: "indices",
+    types: &[
+        gltf::accessor::DataType::U8,
+        gltf::accessor::DataType::U16,
+        gltf::accessor::DataType::U32,
+    ],
+    dimensions: gltf::accessor::Dimensions::Scalar,
+};
+
+/// Why an accessor cannot be read as `expected`.
+enum AccessorProblem {
+    /// Another component type or shape: the reader can skip the attribute.
+    Type(String),
+    /// Its data lies outside its view or buffer, or it has no data: the file is broken.
+    Bounds(String),
+}
+
+/// Checks an accessor against `expected`, and its data against its buffer view and
+/// the view against its buffer (as the `gltf` crate's reader does not: it would
+/// panic or wrap around on a count of zero or one that overflows), before any of it
+/// is read or anything is allocated for it.
+fn check_accessor(
+    accessor: &gltf::Accessor<'_>,
+    expected: &Expected,
+    buffers: &[Vec<u8>],
+) -> Result<(), AccessorProblem> {
+    let name = format!("accessor {} ({})", accessor.index(), expected.what);
+    if !expected.types.contains(&accessor.data_type())
+        || accessor.dimensions() != expected.dimensions
+    {
+        return Err(AccessorProblem::Type(format!(
+            "{name}: {:?} {:?} components, expected {:?} of {:?}",
+            accessor.dimensions(),
+            accessor.data_type(),
+            expected.dimensions,
+            expected.types
+        )));
+    }
+    let bounds = |message: String| AccessorProblem::Bounds(format!("{name}: {message}"));
+    let count = accessor.count();
+    if count == 0 {
+        return Err(bounds("a count of 0".into()));
+    }
+    let element = accessor.size();
+    match accessor.view() {
+        Some(view) => {
+            let stride = view.stride().unwrap_or(element);
+            if stride < element {
+                return Err(bounds(format!(
+                    "a byte stride of {stride}, less than its elements' {element} bytes"
+                )));
+            }
+            check_span(&view, accessor.offset(), count, stride, element, buffers)
+                .map_err(bounds)?;
+        }
+        None => {
+            // Zeros, then the sparse values: no bigger than the file's buffers (or
+            // 1 MiB), so that a small file cannot ask for gigabytes of zeros.
+            let held = buffers.iter().map(Vec::len).sum::<usize>().max(1 << 20);
+            if count.checked_mul(element).is_none_or(|bytes| bytes > held) {
+                return Err(bounds(format!(
+                    "{count} elements without a buffer view, more than the file's buffers hold"
+                )));
+            }
+        }
+    }
+    if let Some(sparse) = accessor.sparse() {
+        let n = sparse.count();
+        if n == 0 || n > count {
+            return Err(bounds(format!("{n} sparse values for {count} elements")));
+        }
+        let indices = sparse.indices();
+        let index_size = match indices.index_type() {
+            gltf::accessor::sparse::IndexType::U8 => 1,
+            gltf::accessor::sparse::IndexType::U16 => 2,
+            gltf::accessor::sparse::IndexType::U32 => 4,
+        };
+        let view = indices.view();
+        let stride = view.stride().unwrap_or(index_size).max(index_size);
+        check_span(&view, indices.offset(), n, stride, index_size, buffers)
+            .map_err(|e| bounds(format!("sparse indices: {e}")))?;
+        let values = sparse.values();
+        let view = values.view();
+        let stride = view.stride().unwrap_or(element).max(element);
+        check_span(&view, values.offset(), n, stride, element, buffers)
+            .map_err(|e| bounds(format!("sparse values: {e}")))?;
+    }
+    Ok(())
+}
+
+/// Checks that `count` elements of `element` bytes, `stride` apart from `offset` in
+/// `view`, lie inside the view, and the view inside its buffer.
+fn check_span(
+    view: &gltf::buffer::View<'_>,
+    offset: usize,
+    count: usize,
+    stride: usize,
+    element: usize,
+    buffers: &[Vec<u8>],
+) -> Result<(), String> {
+    let buffer = buffers.get(view.buffer().index()).map_or(0, Vec::len);
+    let view_end = view.offset().checked_add(view.length());
+    if view_end.is_none_or(|end| end > buffer) {
+        return Err(format!(
+            "buffer view {} ({} bytes from byte {}) lies outside its buffer of {buffer} bytes",
+            view.index(),
+            view.length(),
+            view.offset()
+        ));
+    }
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|span| span.checked_add(offset))
+        .and_then(|span| span.checked_add(element));
+    if end.is_none_or(|end| end > view.length()) {
+        return Err(format!(
+            "{count} elements from byte {offset} do not fit in buffer view {} of {} bytes",
+            view.index(),
+            view.length()
+        ));
+    }
+    Ok(())
 }
 
 /// The relative path a (non-data) URI names.
@@ -277,14 +507,15 @@ impl Reader<'_> {
             }
         };
         let mut visited = vec![false; document.nodes().len()];
-        let mut pending: Vec<(gltf::Node<'_>, Mat4, usize)> = roots
+        // An explicit stack, not recursion: a hierarchy may be 100,000 levels deep.
+        let mut pending: Vec<(gltf::Node<'_>, Mat4)> = roots
             .into_iter()
             .rev()
-            .map(|node| (node, Mat4::IDENTITY, 0))
+            .map(|node| (node, Mat4::IDENTITY))
             .collect();
-        while let Some((node, parent, depth)) = pending.pop() {
-            // Node graphs must be trees; a node reached twice (a cycle, or a node
-            // with two parents) is read the first time only.
+        while let Some((node, parent)) = pending.pop() {
+            // Node graphs must be trees (cycles were refused); a node with two
+            // parents is read the first time only.
             if std::mem::replace(&mut visited[node.index()], true) {
                 self.warn_once(
                     "node twice",
@@ -312,16 +543,9 @@ impl Reader<'_> {
             if let Some(light) = node.light() {
                 self.add_light(&light, &world);
             }
-            if depth < MAX_NODE_DEPTH {
-                for child in node.children().collect::<Vec<_>>().into_iter().rev() {
-                    pending.push((child, world, depth + 1));
-                }
-            } else if node.children().next().is_some() {
-                self.warn_once(
-                    "deep",
-                    format!("nodes deeper than {MAX_NODE_DEPTH} levels are skipped"),
-                );
-            }
+            let first_child = pending.len();
+            pending.extend(node.children().map(|child| (child, world)));
+            pending[first_child..].reverse();
         }
         Ok(())
     }
@@ -346,20 +570,46 @@ impl Reader<'_> {
                 );
                 continue;
             }
+            // The accessors are checked before the crate's reader touches them.
+            let checked = |expected: &Expected, accessor: Option<gltf::Accessor<'_>>| match accessor
+                .map(|a| check_accessor(&a, expected, &self.buffers))
+            {
+                None | Some(Ok(())) => Ok(None),
+                Some(Err(AccessorProblem::Type(message))) => Ok(Some(message)),
+                Some(Err(AccessorProblem::Bounds(message))) => Err(format!("{name}: {message}")),
+            };
+            let position_type = checked(&POSITIONS, primitive.get(&gltf::Semantic::Positions))?;
+            let normal_type = checked(&NORMALS, primitive.get(&gltf::Semantic::Normals))?;
+            let texcoord_type = checked(&TEXCOORDS, primitive.get(&gltf::Semantic::TexCoords(0)))?;
+            if let Some(message) = checked(&INDICES, primitive.indices())? {
+                return Err(format!("{name}: {message}"));
+            }
+            for message in [&position_type, &normal_type, &texcoord_type]
+                .into_iter()
+                .flatten()
+            {
+                self.warn(format!("{name}: {message}; ignored"));
+            }
             let buffers = &self.buffers;
             let reader = primitive.reader(|buffer| buffers.get(buffer.index()).map(Vec::as_slice));
-            let Some(positions) = reader.read_positions() else {
+            let positions = match position_type {
+                None => reader.read_positions(),
+                Some(_) => None,
+            };
+            let Some(positions) = positions else {
                 self.warn(format!("{name}: no readable POSITION; skipped"));
                 continue;
             };
             let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
             let count = positions.len();
-            let normals: Option<Vec<Vec3>> = reader
-                .read_normals()
+            let normals: Option<Vec<Vec3>> = (normal_type.is_none())
+                .then(|| reader.read_normals())
+                .flatten()
                 .map(|n| n.map(Vec3::from).collect::<Vec<_>>())
                 .filter(|n| n.len() == count);
-            let texcoords: Option<Vec<Vec2>> = reader
-                .read_tex_coords(0)
+            let texcoords: Option<Vec<Vec2>> = (texcoord_type.is_none())
+                .then(|| reader.read_tex_coords(0))
+                .flatten()
                 .map(|t| {
                     // glTF's v runs down the image; this renderer's runs up.
                     t.into_f32()
@@ -383,6 +633,47 @@ impl Reader<'_> {
                 .read_colors(0)
                 .map(|c| c.into_rgb_f32().map(Vec3::from).collect::<Vec<_>>())
                 .filter(|c| c.len() == count);
+            // Placed in the world, every value must be finite: a buffer may hold NaN,
+            // and a huge transform may overflow.
+            let positions: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| world.transform_point3(p))
+                .collect();
+            if let Some(bad) = positions.iter().position(|p| !p.is_finite()) {
+                self.warn(format!(
+                    "{name}: vertex {bad} has a position that is not finite (in the file or once placed); skipped"
+                ));
+                continue;
+            }
+            let normals: Option<Vec<Vec3>> =
+                normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect());
+            let normals = match normals {
+                Some(n) if n.iter().any(|n| !n.is_finite()) => {
+                    self.warn(format!(
+                        "{name}: normals that are not finite (in the file or once placed); ignored"
+                    ));
+                    None
+                }
+                other => other,
+            };
+            let texcoords = match texcoords {
+                Some(t) if t.iter().any(|t| !t.is_finite()) => {
+                    self.warn(format!(
+                        "{name}: texture coordinates that are not finite; ignored"
+                    ));
+                    None
+                }
+                other => other,
+            };
+            let colours = match colours {
+                Some(c) if c.iter().any(|c| !c.is_finite()) => {
+                    self.warn(format!(
+                        "{name}: vertex colours that are not finite; ignored"
+                    ));
+                    None
+                }
+                other => other,
+            };
             let mut material = self.material(primitive.material());
             let triangles = triangles(mode, &indices);
             // Vertex colours become a texture of their own (see `vertex_colour_atlas`).
@@ -409,14 +700,10 @@ impl Reader<'_> {
             let normal_base = base(self.scene.normals.len())?;
             let texcoord_base = base(self.scene.texcoords.len())?;
             let scene = &mut self.scene;
-            scene
-                .positions
-                .extend(positions.iter().map(|&p| world.transform_point3(p)));
+            scene.positions.extend(positions);
             let has_normals = normals.is_some();
             if let Some(normals) = normals {
-                scene
-                    .normals
-                    .extend(normals.iter().map(|&n| normal_matrix * n));
+                scene.normals.extend(normals);
             }
             let has_texcoords = texcoords.is_some();
             if let Some(texcoords) = texcoords {
@@ -757,6 +1044,15 @@ impl Reader<'_> {
             self.path.file_name().unwrap_or_default().to_string_lossy(),
             image.index()
         ));
+        // `Image::source` unwraps a missing `uri` (with no `bufferView`) and a missing
+        // `mimeType` (with one): the format is guessed from the bytes anyway.
+        let json = &self.document.as_json().images[image.index()];
+        if json.uri.is_none() && json.buffer_view.is_none() {
+            return Err("names neither a file nor a buffer view".into());
+        }
+        if json.buffer_view.is_some() && json.mime_type.is_none() {
+            return Err("has a buffer view but no mimeType".into());
+        }
         match image.source() {
             gltf::image::Source::View { view, .. } => {
                 let buffer = &self.buffers[view.buffer().index()];

@@ -156,10 +156,94 @@ impl Hit {
     }
 }
 
+/// What makes a primitive render exactly as another: its kind, material, and the
+/// bits of its corners, normals and texture coordinates (or of its centre and radius).
+type PrimKey = [u32; 29];
+
+fn prim_key(
+    i: usize,
+    triangles: &[TriangleDesc],
+    triangle_texcoords: &[Option<[u32; 3]>],
+    spheres: &[SphereDesc],
+    positions: &[Vec3],
+    normals: &[Vec3],
+    texcoords: &[Vec2],
+) -> PrimKey {
+    fn put(key: &mut PrimKey, at: usize, values: &[Float]) {
+        for (k, v) in values.iter().enumerate() {
+            key[at + k] = v.to_bits();
+        }
+    }
+    let mut key = [0; 29];
+    let Some(t) = triangles.get(i) else {
+        let s = &spheres[i - triangles.len()];
+        put(&mut key, 2, &[s.center.x, s.center.y, s.center.z, s.radius]);
+        key[0] = 1;
+        key[1] = s.material.0;
+        return key;
+    };
+    // An index outside its array (a description not made by a reader) stands for
+    // itself, as NaN bits no value has.
+    let vec3 = |array: &[Vec3], index: u32| {
+        array
+            .get(index as usize)
+            .map_or([Float::from_bits(0x7fc0_0000 | index), 0.0, 0.0], |v| {
+                v.to_array()
+            })
+    };
+    for (k, &p) in t.positions.iter().enumerate() {
+        put(&mut key, 2 + 3 * k, &vec3(positions, p));
+    }
+    if let Some(ns) = t.normals {
+        for (k, &n) in ns.iter().enumerate() {
+            put(&mut key, 11 + 3 * k, &vec3(normals, n));
+        }
+        key[20] = 1;
+    }
+    if let Some(Some(ts)) = triangle_texcoords.get(i) {
+        for (k, &t) in ts.iter().enumerate() {
+            let uv = texcoords
+                .get(t as usize)
+                .map_or([Float::from_bits(0x7fc0_0000 | t), 0.0], |v| v.to_array());
+            put(&mut key, 21 + 2 * k, &uv);
+        }
+        key[27] = 1;
+    }
+    key[0] = 0;
+    key[1] = t.material.0;
+    key
+}
+
+/// The primitives (original indices) in `ranges` of the leaf order `order` whose key
+/// equals that of a primitive of lower index in the same range.
+fn duplicates_in(
+    ranges: &[std::ops::Range<u32>],
+    order: &[u32],
+    key: impl Fn(u32) -> PrimKey + Sync,
+) -> Vec<u32> {
+    ranges
+        .par_iter()
+        .flat_map_iter(|range| {
+            let mut keyed: Vec<(PrimKey, u32)> = order[range.start as usize..range.end as usize]
+                .iter()
+                .map(|&i| (key(i), i))
+                .collect();
+            keyed.sort_unstable();
+            let copies: Vec<u32> = keyed
+                .windows(2)
+                .filter(|w| w[0].0 == w[1].0)
+                .map(|w| w[1].1)
+                .collect();
+            copies
+        })
+        .collect()
+}
+
 impl Scene {
     /// Builds the scene: drops degenerate triangles ([`Triangle::is_degenerate`], with
-    /// one warning that counts them), builds the BVH and stores primitives in its leaf
-    /// order.
+    /// one warning that counts them) and copies of a primitive (which the BVH finds
+    /// for free: see [`Bvh::coincident`]), builds the BVH and stores primitives in its
+    /// leaf order.
     pub fn build(description: SceneDescription, params: &BvhParams) -> Scene {
         let SceneDescription {
             positions,
@@ -184,22 +268,54 @@ impl Scene {
             radius: s.radius,
         };
         let triangle_count = triangles.len();
-        let (bvh, order) = Bvh::build_filtered(
-            triangle_count + spheres.len(),
-            |i| match triangles.get(i) {
-                Some(t) => {
-                    let [a, b, c] = corners(t);
-                    let triangle = Triangle::new(a, b, c);
-                    // The box is that of the stored form (v0 and edges), whose rounded
-                    // corners the kernel intersects, not of the file's corners.
-                    (!triangle.is_degenerate()).then(|| triangle.bounds())
+        let bounds_of = |i: usize| match triangles.get(i) {
+            Some(t) => {
+                let [a, b, c] = corners(t);
+                let triangle = Triangle::new(a, b, c);
+                // The box is that of the stored form (v0 and edges), whose rounded
+                // corners the kernel intersects, not of the file's corners.
+                (!triangle.is_degenerate()).then(|| triangle.bounds())
+            }
+            None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
+        };
+        let (mut bvh, mut order) =
+            Bvh::build_filtered(triangle_count + spheres.len(), bounds_of, params);
+        // Copies of one primitive pile up in the BVH's coincident ranges, where every
+        // ray would test each copy (200,000 copies of a triangle took minutes to
+        // render): drop all but the first of each, and build again without them.
+        let mut duplicates = 0;
+        if !bvh.coincident.is_empty() {
+            let key = |i: u32| {
+                prim_key(
+                    i as usize,
+                    &triangles,
+                    &triangle_texcoords,
+                    &spheres,
+                    &positions,
+                    &normals,
+                    &texcoords,
+                )
+            };
+            let copies = duplicates_in(&bvh.coincident, &order, key);
+            if !copies.is_empty() {
+                duplicates = copies.len();
+                let mut dropped = vec![false; triangle_count + spheres.len()];
+                for i in copies {
+                    dropped[i as usize] = true;
                 }
-                None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
-            },
-            params,
-        );
+                (bvh, order) = Bvh::build_filtered(
+                    triangle_count + spheres.len(),
+                    |i| if dropped[i] { None } else { bounds_of(i) },
+                    params,
+                );
+                warnings.push(format!(
+                    "skipped {duplicates} duplicate shape{} (the same corners, normals, texture coordinates and material as another)",
+                    if duplicates == 1 { "" } else { "s" }
+                ));
+            }
+        }
 
-        let degenerate = triangle_count + spheres.len() - order.len();
+        let degenerate = triangle_count + spheres.len() - order.len() - duplicates;
         if degenerate > 0 {
             warnings.push(format!(
                 "skipped {degenerate} degenerate (zero-area) triangle{}",

@@ -45,6 +45,167 @@ pub fn check_mtl(data: &[u8]) {
     }
 }
 
+/// Parses `data` as a PLY file and checks the result.
+pub fn check_ply(data: &[u8]) {
+    let path = Path::new("fuzz.ply");
+    match formats::parse_ply(data, path) {
+        Ok(description) => check_description(&description),
+        Err(err) => check_error(&err, data, path),
+    }
+}
+
+/// The mesh files that the `toml` check places beside the scene file, for its
+/// `[[mesh]]` tables to name: [`MTL_NAME`] (holding [`FIXED_MTL`]) and these.
+pub const TOML_MESHES: [(&str, &str); 2] = [
+    (
+        "a.obj",
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl matte\nf 1 2 3\nusemtl glow\nsphere 0 0 -2 0.5\n",
+    ),
+    (
+        "b.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+    ),
+];
+
+/// Writes [`TOML_MESHES`] and `m.mtl` into `dir`.
+pub fn write_toml_meshes(dir: &Path) {
+    std::fs::write(dir.join(MTL_NAME), FIXED_MTL).expect("cannot write the fuzz MTL file");
+    for (name, text) in TOML_MESHES {
+        std::fs::write(dir.join(name), text).expect("cannot write a fuzz mesh");
+    }
+}
+
+/// Parses `data` as the scene file `dir/scene.toml` (with the files of
+/// [`write_toml_meshes`] beside it), checks the description, and resolves the
+/// options as the command line does: either is an error naming a file, or a
+/// description the builder can take and options in range.
+pub fn check_toml(data: &[u8], dir: &Path) {
+    let path = dir.join("scene.toml");
+    let loaded = match formats::parse_toml(data, &path) {
+        Ok(loaded) => loaded,
+        Err(err) => return check_error(&err, data, &path),
+    };
+    check_description(&loaded.description);
+    if let Ok((description, options)) = loaded.resolve(Default::default()) {
+        check_description(&description);
+        assert!(
+            options.validate().is_ok(),
+            "resolved options fail validation"
+        );
+    }
+}
+
+/// In a `gltf` input, the glTF (JSON or GLB) comes first; after the first byte of
+/// this value, if any, come the bytes of `b.bin` and after the next one those of
+/// `t.png`, the files its buffers and images may name.
+pub const GLTF_SEPARATOR: &[u8] = b"\n#FILE#\n";
+
+/// Parses the glTF part of `data` as `dir/scene.gltf`, with its other parts as
+/// `dir/b.bin` and `dir/t.png`, and checks the description and its textures.
+pub fn check_gltf(data: &[u8], dir: &Path) {
+    let mut parts = split_on(data, GLTF_SEPARATOR);
+    let gltf = parts.next().unwrap_or_default();
+    for name in ["b.bin", "t.png"] {
+        let bytes = parts.next().unwrap_or_default();
+        std::fs::write(dir.join(name), bytes).expect("cannot write a fuzz file");
+    }
+    let path = dir.join("scene.gltf");
+    match formats::parse_gltf(gltf, &path) {
+        Ok(loaded) => {
+            check_description(&loaded.description);
+            loaded.description.materials.iter().for_each(check_maps);
+        }
+        Err(err) => check_error(&err, gltf, &path),
+    }
+}
+
+/// The pieces of `data` between occurrences of `separator`.
+fn split_on<'a>(data: &'a [u8], separator: &'a [u8]) -> impl Iterator<Item = &'a [u8]> {
+    let mut rest = Some(data);
+    std::iter::from_fn(move || {
+        let text = rest?;
+        match text.windows(separator.len()).position(|w| w == separator) {
+            Some(i) => {
+                rest = Some(&text[i + separator.len()..]);
+                Some(&text[..i])
+            }
+            None => {
+                rest = None;
+                Some(text)
+            }
+        }
+    })
+}
+
+/// The image file that a `textures` input's MTL part may name.
+pub const TEXTURE_NAME: &str = "t.png";
+
+/// MTL text, then a NUL byte, then the bytes of `t.png`: parses the MTL as
+/// `dir/m.mtl`, decoding the image for every map that names it, and samples every
+/// material's maps.
+pub fn check_textures(data: &[u8], dir: &Path) {
+    let (mtl, image) = match data.iter().position(|&b| b == MTL_SEPARATOR) {
+        Some(i) => (&data[..i], &data[i + 1..]),
+        None => (data, &[][..]),
+    };
+    std::fs::write(dir.join(TEXTURE_NAME), image).expect("cannot write the fuzz image");
+    let path = dir.join(MTL_NAME);
+    match formats::parse_mtl(mtl, &path) {
+        Ok(library) => {
+            for material in &library.materials {
+                check_material(material);
+                check_maps(material);
+            }
+            for warning in &library.warnings {
+                assert!(
+                    warning.starts_with(&path.display().to_string()),
+                    "{warning}"
+                );
+            }
+        }
+        Err(err) => check_error(&err, mtl, &path),
+    }
+}
+
+/// Samples a material's maps at a few points, inside and outside `[0, 1]`: values
+/// are never NaN, shading normals are unit vectors.
+fn check_maps(m: &Material) {
+    if m.maps.is_none() {
+        return;
+    }
+    let points = [
+        (0.0, 0.0),
+        (0.5, 0.5),
+        (0.999, 0.001),
+        (1.0, 1.0),
+        (-3.25, 7.5),
+        (1e30, -1e30),
+    ];
+    for (u, v) in points {
+        let uv = raytracer::math::Vec2::new(u, v);
+        let values = m.at(uv);
+        let colours = [
+            values.ambient,
+            values.diffuse,
+            values.specular,
+            values.emission,
+        ];
+        assert!(
+            colours.iter().all(|c| !c.is_nan()),
+            "{m:?} at {uv}: {values:?}"
+        );
+        assert!(!values.shininess.is_nan(), "{m:?} at {uv}: {values:?}");
+        if let Some(maps) = &m.maps
+            && let Some(n) = maps.tangent_normal(uv)
+        {
+            assert!((n.length() - 1.0).abs() < 1e-3, "{m:?} at {uv}: normal {n}");
+        }
+        if let Some(cutout) = m.cutout() {
+            cutout.keeps(uv);
+        }
+    }
+}
+
 /// Parses the OBJ part of `data` (with its MTL part as `dir/m.mtl`), builds the
 /// scene and renders it in every mode from two cameras, checking the BVH, the film
 /// and the 8-bit values.
@@ -168,8 +329,13 @@ fn check_error(err: &SceneError, data: &[u8], path: &Path) {
             assert!(message.starts_with(&prefix), "'{message}' lacks '{prefix}'");
             at
         }
-        SceneError::Io { path: at, .. } => {
+        SceneError::Io { path: at, .. } | SceneError::Gltf { path: at, .. } => {
             let prefix = format!("{}: ", at.display());
+            assert!(message.starts_with(&prefix), "'{message}' lacks '{prefix}'");
+            at
+        }
+        SceneError::Element { path: at, .. } | SceneError::Included { path: at, .. } => {
+            let prefix = format!("{}:", at.display());
             assert!(message.starts_with(&prefix), "'{message}' lacks '{prefix}'");
             at
         }

@@ -86,6 +86,14 @@ struct Task<'a> {
     /// Bounds of the doubled centroids.
     centroids: Bounds,
     depth: usize,
+    /// Whether an ancestor's centroids already coincided (see [`Bvh::coincident`]).
+    coincident: bool,
+}
+
+/// Whether a node of `n` primitives with these centroid bounds starts a range of
+/// [`Bvh::coincident`] (`inside`: an ancestor already did).
+fn starts_coincident(centroids: &Bounds, n: usize, inside: bool, params: &BvhParams) -> bool {
+    !inside && n > params.max_leaf_size && (centroids.max - centroids.min).max_element() <= 0.0
 }
 
 impl Bvh {
@@ -150,15 +158,24 @@ impl Bvh {
             bounds,
             centroids,
             depth: 0,
+            coincident: false,
         };
-        let (segments, max_depth) = build_subtree(task, root, rest, 1, params);
+        let (segments, max_depth, mut coincident) = build_subtree(task, root, rest, 1, params);
+        coincident.sort_by_key(|r| r.start);
         let mut order = Vec::with_capacity(n);
         refs.par_iter()
             .map(PrimRef::index)
             .collect_into_vec(&mut order);
         drop(refs);
         close_gaps(&mut nodes, &segments);
-        (Bvh { nodes, max_depth }, order)
+        (
+            Bvh {
+                nodes,
+                max_depth,
+                coincident,
+            },
+            order,
+        )
     }
 }
 
@@ -199,25 +216,33 @@ where
 
 /// Builds the subtree of `task`: its root into `root`, the rest into `slots` (at
 /// least `2m - 2` of them for `m` primitives), which start at index `base` of the
-/// node array. Returns the filled runs of slots in order, and the subtree's depth.
+/// node array. Returns the filled runs of slots in order, the subtree's depth, and
+/// its ranges of [`Bvh::coincident`].
 fn build_subtree(
     task: Task<'_>,
     root: &mut Slot,
     slots: &mut [Slot],
     base: u32,
     params: &BvhParams,
-) -> (Vec<Segment>, usize) {
+) -> (Vec<Segment>, usize, Vec<std::ops::Range<u32>>) {
     let n = task.refs.len();
     if n <= params.parallel_threshold {
-        let (used, depth) = build_sequential(task, root, slots, base, params);
+        let (used, depth, coincident) = build_sequential(task, root, slots, base, params);
         let segment = Segment {
             start: base,
             len: used as u32,
             joined: false,
         };
-        return (Vec::from_iter((used > 0).then_some(segment)), depth);
+        return (
+            Vec::from_iter((used > 0).then_some(segment)),
+            depth,
+            coincident,
+        );
     }
     let depth = task.depth;
+    let starts = starts_coincident(&task.centroids, n, task.coincident, params);
+    let mut coincident = Vec::from_iter(starts.then(|| task.offset..task.offset + n as u32));
+    let inside = task.coincident || starts;
     let mut bins = [AxisBins::EMPTY; 3];
     match split_node(
         task.refs,
@@ -229,7 +254,7 @@ fn build_subtree(
     ) {
         Split::Leaf => {
             root.write(node(task.bounds, task.offset, n));
-            (Vec::new(), depth)
+            (Vec::new(), depth, coincident)
         }
         Split::At {
             mid,
@@ -250,6 +275,7 @@ fn build_subtree(
                 bounds: bounds[0],
                 centroids: centroids[0],
                 depth: depth + 1,
+                coincident: inside,
             };
             let right = Task {
                 refs: right_refs,
@@ -257,9 +283,13 @@ fn build_subtree(
                 bounds: bounds[1],
                 centroids: centroids[1],
                 depth: depth + 1,
+                coincident: inside,
             };
             let right_base = base + 2 * mid as u32;
-            let ((left_segments, left_depth), (right_segments, right_depth)) = rayon::join(
+            let (
+                (left_segments, left_depth, left_coincident),
+                (right_segments, right_depth, right_coincident),
+            ) = rayon::join(
                 || build_subtree(left, left_root, left_slots, base + 2, params),
                 || build_subtree(right, right_root, right_slots, right_base, params),
             );
@@ -270,30 +300,48 @@ fn build_subtree(
             }];
             segments.extend(left_segments);
             segments.extend(right_segments);
-            (segments, left_depth.max(right_depth))
+            coincident.extend(left_coincident);
+            coincident.extend(right_coincident);
+            (segments, left_depth.max(right_depth), coincident)
         }
     }
 }
 
 /// The single-threaded builder: an explicit work stack, children allocated as
-/// adjacent pairs from the start of `slots`. Returns the slots used and the depth.
+/// adjacent pairs from the start of `slots`. Returns the slots used, the depth and
+/// the ranges of [`Bvh::coincident`].
 fn build_sequential(
     task: Task<'_>,
     root: &mut Slot,
     slots: &mut [Slot],
     base: u32,
     params: &BvhParams,
-) -> (usize, usize) {
+) -> (usize, usize, Vec<std::ops::Range<u32>>) {
     const ROOT: usize = usize::MAX;
     let refs = task.refs;
     let mut used = 0;
     let mut max_depth = 0;
-    // (slot, start, end relative to `refs`, bounds, centroid bounds, depth)
+    let mut coincident = Vec::new();
+    // (slot, start, end relative to `refs`, bounds, centroid bounds, depth, inside a
+    // coincident range)
     let mut work = Vec::with_capacity(64);
     let mut bins = [AxisBins::EMPTY; 3];
-    work.push((ROOT, 0, refs.len(), task.bounds, task.centroids, task.depth));
-    while let Some((slot, start, end, bounds, centroids, depth)) = work.pop() {
+    work.push((
+        ROOT,
+        0,
+        refs.len(),
+        task.bounds,
+        task.centroids,
+        task.depth,
+        task.coincident,
+    ));
+    while let Some((slot, start, end, bounds, centroids, depth, inside)) = work.pop() {
         max_depth = max_depth.max(depth);
+        let starts = starts_coincident(&centroids, end - start, inside, params);
+        if starts {
+            coincident.push(task.offset + start as u32..task.offset + end as u32);
+        }
+        let inside = inside || starts;
         let split = split_node(
             &mut refs[start..end],
             bounds,
@@ -319,8 +367,17 @@ fn build_sequential(
                     child_bounds[1],
                     centroids[1],
                     depth + 1,
+                    inside,
                 ));
-                work.push((left, start, split, child_bounds[0], centroids[0], depth + 1));
+                work.push((
+                    left,
+                    start,
+                    split,
+                    child_bounds[0],
+                    centroids[0],
+                    depth + 1,
+                    inside,
+                ));
                 node(bounds, base + left as u32, 0)
             }
         };
@@ -330,5 +387,5 @@ fn build_sequential(
             slots[slot].write(written);
         }
     }
-    (used, max_depth)
+    (used, max_depth, coincident)
 }

@@ -173,7 +173,9 @@ pub(super) fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
                             format!("invalid element count '{}'", lex::show(count)),
                         )
                     })?;
-                let name = String::from_utf8_lossy(name).into_owned();
+                // Cut as tokens are (`lex::show`): names reach messages, and the
+                // names the reader knows are all short.
+                let name = lex::show(name);
                 if elements.iter().any(|e| e.name == name) {
                     return Err(header_error(
                         line_number,
@@ -222,7 +224,7 @@ pub(super) fn parse_header(bytes: &[u8]) -> Result<Header, HeaderError> {
                     }
                 };
                 element.properties.push(Property {
-                    name: String::from_utf8_lossy(name).into_owned(),
+                    name: lex::show(name),
                     ty,
                     line: line_number,
                 });

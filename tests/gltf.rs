@@ -511,3 +511,30 @@ fn a_texture_transform_that_overflows_is_a_warning_and_is_ignored() {
         plain.materials[0].at(uv)
     );
 }
+
+#[test]
+fn vertex_colours_that_are_not_finite_are_a_warning_and_are_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = vertex_coloured_triangle(dir.path(), false);
+    // The green corner's red channel (the second colour's first float) becomes NaN.
+    let bin = dir.path().join("t.bin");
+    let mut bytes = std::fs::read(&bin).unwrap();
+    bytes[48..52].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(&bin, bytes).unwrap();
+    let loaded = formats::load(&path).unwrap();
+    assert_eq!(
+        loaded.description.warnings,
+        [format!(
+            "{}: mesh 0 primitive 0: vertex colours that are not finite; ignored",
+            path.display()
+        )]
+    );
+    // The triangle keeps the renderer's grey, untextured.
+    assert!(
+        loaded
+            .description
+            .materials
+            .iter()
+            .all(|m| m.maps.is_none())
+    );
+}

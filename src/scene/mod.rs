@@ -245,10 +245,16 @@ impl Scene {
             }
         };
         let is_sphere = |prim: u32| order[prim as usize] as usize >= triangle_count;
+        // Collapsing is one sequential walk: the SAH cost, another pass over the
+        // binary nodes, is taken meanwhile on another thread. Then the binary BVH goes.
+        let (wide, sah_cost) = rayon::join(
+            || WideBvh::collapse(&bvh, 2 * LANES as u32),
+            || bvh.sah_cost(params),
+        );
         let mut summary = BvhSummary {
             nodes: bvh.nodes.len(),
             max_depth: bvh.max_depth,
-            sah_cost: bvh.sah_cost(params),
+            sah_cost,
             wide_nodes: 0,
             packets: 0,
             bounds: bvh
@@ -256,11 +262,12 @@ impl Scene {
                 .first()
                 .map_or(Aabb::default(), |root| root.bounds()),
         };
+        drop(bvh);
         let Packetized {
             wide,
             packets,
             shading,
-        } = packetize(bvh, order.len(), is_sphere, prim_of);
+        } = packetize(wide, order.len(), is_sphere, prim_of);
         summary.wide_nodes = wide.nodes.len();
         summary.packets = packets.len();
 
@@ -752,14 +759,14 @@ struct Packetized {
     shading: Vec<PrimShading>,
 }
 
-/// Collapses `bvh` (dropped as soon as it is collapsed) into the wide BVH whose
-/// leaves are ranges of packets, and makes the packets of each leaf from its
+/// Points the leaves of `wide` (collapsed from the binary BVH, its leaves still
+/// primitive ranges) at ranges of packets, and makes the packets of each leaf from its
 /// primitives (`prim_of(prim)`, leaf order): triangles four by four, spheres apart.
 /// The shading data `prim_of` gives is stored in the same pass, so the description
 /// is gathered once. Leaves are filled in parallel, each into its own slices of the
 /// packet and shading arrays; `is_sphere` counts a leaf's packets without making
 /// its shapes.
-fn packetize<S, F>(bvh: Bvh, prim_count: usize, is_sphere: S, prim_of: F) -> Packetized
+fn packetize<S, F>(mut wide: WideBvh, prim_count: usize, is_sphere: S, prim_of: F) -> Packetized
 where
     S: Fn(u32) -> bool + Sync,
     F: Fn(u32) -> (Shape, PrimShading) + Sync,
@@ -768,8 +775,6 @@ where
         prim_count <= MAX_PRIM as usize + 1,
         "too many primitives for packet indices"
     );
-    let mut wide = WideBvh::collapse(&bvh, 2 * LANES as u32);
-    drop(bvh);
     let leaves = wide.leaf_items();
     let packet_counts: Vec<u32> = leaves
         .par_iter()

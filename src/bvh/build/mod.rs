@@ -152,12 +152,18 @@ impl Bvh {
             depth: 0,
         };
         let (segments, max_depth) = build_subtree(task, root, rest, 1, params);
+        // Closing the gaps is one sequential pass over the nodes; the leaf order is
+        // read out of the references meanwhile, on the other threads.
         let mut order = Vec::with_capacity(n);
-        refs.par_iter()
-            .map(PrimRef::index)
-            .collect_into_vec(&mut order);
-        drop(refs);
-        close_gaps(&mut nodes, &segments);
+        rayon::join(
+            || close_gaps(&mut nodes, &segments),
+            || {
+                refs.par_iter()
+                    .map(PrimRef::index)
+                    .collect_into_vec(&mut order);
+                drop(refs);
+            },
+        );
         (Bvh { nodes, max_depth }, order)
     }
 }

@@ -805,29 +805,33 @@ where
     }
     // Leaves list their primitive ranges in node order, not in primitive order: the
     // shading array is cut in primitive order, then its slices are handed to the
-    // leaves that own them. The ranges tile `0..prim_count` (collapse puts every
-    // primitive in one leaf), which the cutting checks.
+    // leaves that own them. The leaf starting at each primitive is found through a
+    // table by first primitive (one bucket per primitive, cheaper than sorting the
+    // leaves); the ranges must tile `0..prim_count` (collapse puts every primitive in
+    // one leaf), which the walk checks.
+    const NO_LEAF: u32 = u32::MAX;
+    let mut leaf_at = vec![NO_LEAF; prim_count];
+    for (leaf, &(first, _)) in leaves.iter().enumerate() {
+        leaf_at[first as usize] = leaf as u32;
+    }
     let mut shading: Vec<PrimShading> = Vec::with_capacity(prim_count);
     memory::advise_huge_pages(&shading);
-    let mut by_first: Vec<u32> = (0..leaves.len() as u32).collect();
-    by_first.par_sort_unstable_by_key(|&leaf| leaves[leaf as usize].0);
     let mut shading_slices: Vec<&mut [MaybeUninit<PrimShading>]> = Vec::with_capacity(leaves.len());
     shading_slices.resize_with(leaves.len(), Default::default);
     let mut unwritten = &mut shading.spare_capacity_mut()[..prim_count];
-    let mut next = 0;
-    for &leaf in &by_first {
-        let (first, count) = leaves[leaf as usize];
-        assert_eq!(first, next, "leaves do not tile the primitives");
-        let (slice, rest) = unwritten.split_at_mut(count as usize);
+    let (mut next, mut visited) = (0, 0);
+    while next < prim_count {
+        let leaf = leaf_at[next];
+        assert_ne!(leaf, NO_LEAF, "leaves do not tile the primitives");
+        let count = leaves[leaf as usize].1 as usize;
+        let (slice, rest) = unwritten.split_at_mut(count);
         shading_slices[leaf as usize] = slice;
         unwritten = rest;
-        next = first + count;
+        next += count;
+        visited += 1;
     }
-    assert_eq!(
-        next as usize, prim_count,
-        "leaves do not tile the primitives"
-    );
-    drop(by_first);
+    assert_eq!(visited, leaves.len(), "leaves do not tile the primitives");
+    drop(leaf_at);
     packet_slices
         .into_par_iter()
         .zip(shading_slices)

@@ -155,6 +155,7 @@ impl Bvh {
         // Closing the gaps is one sequential pass over the nodes; the leaf order is
         // read out of the references meanwhile, on the other threads.
         let mut order = Vec::with_capacity(n);
+        memory::advise_huge_pages(&order);
         rayon::join(
             || close_gaps(&mut nodes, &segments),
             || {

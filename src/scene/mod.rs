@@ -824,6 +824,7 @@ where
         let leaf = leaf_at[next];
         assert_ne!(leaf, NO_LEAF, "leaves do not tile the primitives");
         let count = leaves[leaf as usize].1 as usize;
+        assert!(count > 0, "leaf {leaf} holds no primitives");
         let (slice, rest) = unwritten.split_at_mut(count);
         shading_slices[leaf as usize] = slice;
         unwritten = rest;
@@ -912,4 +913,81 @@ fn write_leaf<F>(
         emit(TrianglePacket::spheres(&spheres[..sphere_count]));
     }
     assert_eq!(written, out.len(), "packet count of a leaf");
+}
+
+#[cfg(test)]
+mod build_tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use std::collections::HashMap;
+
+    /// The shading data is written leaf by leaf beside the packets, into slices cut
+    /// in primitive order and handed to leaves listed in node order: every primitive
+    /// must get the material and normals of the shape its packet lane holds. Each
+    /// triangle and sphere here has a material (and a triangle its normals) of its
+    /// own, found again through its first corner or centre.
+    #[test]
+    fn shading_data_belongs_to_the_primitive_of_its_lane() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(14);
+        let mut d = SceneDescription::default();
+        let triangles = 3000;
+        let spheres = 60;
+        let mut material_of_corner = HashMap::new();
+        for t in 0..triangles {
+            let a = Vec3::new(rng.random(), rng.random(), rng.random()) * 10.0;
+            let corners = [
+                a,
+                a + Vec3::new(0.1, 0.0, 0.0),
+                a + Vec3::new(0.0, 0.1, 0.05),
+            ];
+            let first = d.positions.len() as u32;
+            d.positions.extend(corners);
+            d.normals.extend([Vec3::Y; 3]);
+            let material = MaterialId(t);
+            material_of_corner.insert(a.to_array().map(f32::to_bits), (material, first));
+            d.triangles.push(TriangleDesc {
+                positions: [first, first + 1, first + 2],
+                normals: Some([first, first + 1, first + 2]),
+                material,
+            });
+        }
+        let mut material_of_centre = HashMap::new();
+        for s in 0..spheres {
+            let center = Vec3::new(rng.random(), rng.random(), rng.random()) * 10.0;
+            let material = MaterialId(triangles + s);
+            material_of_centre.insert(center.to_array().map(f32::to_bits), material);
+            d.spheres.push(SphereDesc {
+                center,
+                radius: 0.05,
+                material,
+            });
+        }
+        d.materials = vec![Material::fallback(); (triangles + spheres) as usize];
+        let scene = Scene::build(d, &BvhParams::default());
+        scene.validate().unwrap();
+        let mut checked = 0;
+        for packet in &scene.packets {
+            for lane in 0..LANES {
+                let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
+                    continue;
+                };
+                let shading = scene.shading[prim as usize];
+                match shape {
+                    Shape::Triangle(t) => {
+                        let (material, first) =
+                            material_of_corner[&t.v0.to_array().map(f32::to_bits)];
+                        assert_eq!(shading.material, material);
+                        assert_eq!(shading.normals, [first, first + 1, first + 2]);
+                    }
+                    Shape::Sphere(s) => {
+                        let material = material_of_centre[&s.center.to_array().map(f32::to_bits)];
+                        assert_eq!(shading.material, material);
+                        assert_eq!(shading.normals, [NO_NORMALS; 3]);
+                    }
+                }
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, triangles + spheres);
+    }
 }

@@ -20,6 +20,7 @@ use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::{AreaLights, AreaLightsBuilder};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
+use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
@@ -335,21 +336,41 @@ impl Scene {
         // An unlit scene is warned of (and lit) by `SceneDescription::add_default_light`,
         // which knows the mode.
 
-        // Step 2: the wide BVH and its packets; then the binary BVH can go.
-        let shape_of = |prim: u32| {
+        // Step 2: the wide BVH, its packets and the shading data in leaf order, in one
+        // pass over the description (each primitive's description is read once, at a
+        // random place); then the binary BVH can go.
+        let prim_of = |prim: u32| {
             let i = order[prim as usize] as usize;
             match triangles.get(i) {
                 Some(t) => {
                     let [a, b, c] = corners(t);
-                    Shape::Triangle(Triangle::new(a, b, c))
+                    let shading = PrimShading {
+                        material: t.material,
+                        normals: t.normals.unwrap_or([NO_NORMALS; 3]),
+                    };
+                    (Shape::Triangle(Triangle::new(a, b, c)), shading)
                 }
-                None => Shape::Sphere(sphere_shape(&spheres[i - triangle_count])),
+                None => {
+                    let s = &spheres[i - triangle_count];
+                    let shading = PrimShading {
+                        material: s.material,
+                        normals: [NO_NORMALS; 3],
+                    };
+                    (Shape::Sphere(sphere_shape(s)), shading)
+                }
             }
         };
+        let is_sphere = |prim: u32| order[prim as usize] as usize >= triangle_count;
+        // Collapsing is one sequential walk: the SAH cost, another pass over the
+        // binary nodes, is taken meanwhile on another thread. Then the binary BVH goes.
+        let (wide, sah_cost) = rayon::join(
+            || WideBvh::collapse(&bvh, 2 * LANES as u32),
+            || bvh.sah_cost(params),
+        );
         let mut summary = BvhSummary {
             nodes: bvh.nodes.len(),
             max_depth: bvh.max_depth,
-            sah_cost: bvh.sah_cost(params),
+            sah_cost,
             wide_nodes: 0,
             packets: 0,
             bounds: bvh
@@ -357,24 +378,15 @@ impl Scene {
                 .first()
                 .map_or(Aabb::default(), |root| root.bounds()),
         };
-        let (wide, packets) = packetize(bvh, order.len(), shape_of);
+        drop(bvh);
+        let Packetized {
+            wide,
+            packets,
+            shading,
+        } = packetize(wide, order.len(), is_sphere, prim_of);
         summary.wide_nodes = wide.nodes.len();
         summary.packets = packets.len();
 
-        // Step 3: shading data in leaf order.
-        let shading = order
-            .par_iter()
-            .map(|&i| match triangles.get(i as usize) {
-                Some(t) => PrimShading {
-                    material: t.material,
-                    normals: t.normals.unwrap_or([NO_NORMALS; 3]),
-                },
-                None => PrimShading {
-                    material: spheres[i as usize - triangle_count].material,
-                    normals: [NO_NORMALS; 3],
-                },
-            })
-            .collect();
         // Texture coordinates only where a material can use them. An index out of
         // range (a description not made by a reader) counts as none.
         let textured = materials.iter().any(|m| m.maps.is_some())
@@ -855,26 +867,36 @@ fn collect_area_lights(
     lights.build()
 }
 
-/// Collapses `bvh` (dropped as soon as it is collapsed) into the wide BVH whose
-/// leaves are ranges of packets, and makes the packets of each leaf from its
-/// primitives (`shape_of(prim)`, leaf order): triangles four by four, spheres apart.
-/// Leaves are filled in parallel, each into its own slice of the packet array.
-fn packetize<F>(bvh: Bvh, prim_count: usize, shape_of: F) -> (WideBvh, Vec<TrianglePacket>)
+/// What [`packetize`] makes: the wide BVH, its packets, and the shading data of
+/// every primitive in leaf order.
+struct Packetized {
+    wide: WideBvh,
+    packets: Vec<TrianglePacket>,
+    shading: Vec<PrimShading>,
+}
+
+/// Points the leaves of `wide` (collapsed from the binary BVH, its leaves still
+/// primitive ranges) at ranges of packets, and makes the packets of each leaf from its
+/// primitives (`prim_of(prim)`, leaf order): triangles four by four, spheres apart.
+/// The shading data `prim_of` gives is stored in the same pass, so the description
+/// is gathered once. Leaves are filled in parallel, each into its own slices of the
+/// packet and shading arrays; `is_sphere` counts a leaf's packets without making
+/// its shapes.
+fn packetize<S, F>(mut wide: WideBvh, prim_count: usize, is_sphere: S, prim_of: F) -> Packetized
 where
-    F: Fn(u32) -> Shape + Sync,
+    S: Fn(u32) -> bool + Sync,
+    F: Fn(u32) -> (Shape, PrimShading) + Sync,
 {
     assert!(
         prim_count <= MAX_PRIM as usize + 1,
         "too many primitives for packet indices"
     );
-    let mut wide = WideBvh::collapse(&bvh, 2 * LANES as u32);
-    drop(bvh);
     let leaves = wide.leaf_items();
     let packet_counts: Vec<u32> = leaves
         .par_iter()
         .map(|&(first, count)| {
             let spheres = (first..first + count)
-                .filter(|&prim| matches!(shape_of(prim), Shape::Sphere(_)))
+                .filter(|&prim| is_sphere(prim))
                 .count();
             ((count as usize - spheres).div_ceil(LANES) + spheres.div_ceil(LANES)) as u32
         })
@@ -886,37 +908,82 @@ where
     }
     let total = *first_packets.last().unwrap() as usize;
 
-    // Each leaf writes its own slice, so the writes (and the page faults of the fresh
-    // array) are spread over all threads.
+    // Each leaf writes its own slices, so the writes (and the page faults of the
+    // fresh arrays, on huge pages where Linux gives them) are spread over all threads.
     let mut packets: Vec<TrianglePacket> = Vec::with_capacity(total);
+    memory::advise_huge_pages(&packets);
     let mut unwritten = &mut packets.spare_capacity_mut()[..total];
-    let mut slices = Vec::with_capacity(leaves.len());
+    let mut packet_slices = Vec::with_capacity(leaves.len());
     for &count in &packet_counts {
         let (slice, rest) = unwritten.split_at_mut(count as usize);
-        slices.push(slice);
+        packet_slices.push(slice);
         unwritten = rest;
     }
-    slices
+    // Leaves list their primitive ranges in node order, not in primitive order: the
+    // shading array is cut in primitive order, then its slices are handed to the
+    // leaves that own them. The leaf starting at each primitive is found through a
+    // table by first primitive (one bucket per primitive, cheaper than sorting the
+    // leaves); the ranges must tile `0..prim_count` (collapse puts every primitive in
+    // one leaf), which the walk checks.
+    const NO_LEAF: u32 = u32::MAX;
+    let mut leaf_at = vec![NO_LEAF; prim_count];
+    for (leaf, &(first, _)) in leaves.iter().enumerate() {
+        leaf_at[first as usize] = leaf as u32;
+    }
+    let mut shading: Vec<PrimShading> = Vec::with_capacity(prim_count);
+    memory::advise_huge_pages(&shading);
+    let mut shading_slices: Vec<&mut [MaybeUninit<PrimShading>]> = Vec::with_capacity(leaves.len());
+    shading_slices.resize_with(leaves.len(), Default::default);
+    let mut unwritten = &mut shading.spare_capacity_mut()[..prim_count];
+    let (mut next, mut visited) = (0, 0);
+    while next < prim_count {
+        let leaf = leaf_at[next];
+        assert_ne!(leaf, NO_LEAF, "leaves do not tile the primitives");
+        let count = leaves[leaf as usize].1 as usize;
+        assert!(count > 0, "leaf {leaf} holds no primitives");
+        let (slice, rest) = unwritten.split_at_mut(count);
+        shading_slices[leaf as usize] = slice;
+        unwritten = rest;
+        next += count;
+        visited += 1;
+    }
+    assert_eq!(visited, leaves.len(), "leaves do not tile the primitives");
+    drop(leaf_at);
+    packet_slices
         .into_par_iter()
+        .zip(shading_slices)
         .zip(&leaves)
-        .for_each(|(slice, &(first, count))| write_leaf_packets(first, count, &shape_of, slice));
-    // SAFETY: the slices cover `0..total` exactly and `write_leaf_packets` wrote every
-    // element of its slice (it asserts so).
-    unsafe { packets.set_len(total) };
+        .for_each(|((packets, shading), &(first, count))| {
+            write_leaf(first, count, &prim_of, packets, shading);
+        });
+    // SAFETY: the packet slices cover `0..total` exactly, the shading slices
+    // `0..prim_count`, and `write_leaf` wrote every element of its slices (it
+    // asserts so).
+    unsafe {
+        packets.set_len(total);
+        shading.set_len(prim_count);
+    }
     wide.assign_leaf_items(&first_packets);
-    (wide, packets)
+    Packetized {
+        wide,
+        packets,
+        shading,
+    }
 }
 
 /// Writes the packets of the leaf holding primitives `first..first + count` into
-/// `out`, which must have room for exactly as many as it needs.
-fn write_leaf_packets<F>(
+/// `out`, which must have room for exactly as many as it needs, and their shading
+/// data into `shading` (one per primitive).
+fn write_leaf<F>(
     first: u32,
     count: u32,
-    shape_of: &F,
+    prim_of: &F,
     out: &mut [MaybeUninit<TrianglePacket>],
+    shading: &mut [MaybeUninit<PrimShading>],
 ) where
-    F: Fn(u32) -> Shape,
+    F: Fn(u32) -> (Shape, PrimShading),
 {
+    assert_eq!(shading.len(), count as usize, "shading slots of a leaf");
     let mut written = 0;
     let mut emit = |packet: TrianglePacket| {
         out[written].write(packet);
@@ -933,8 +1000,10 @@ fn write_leaf_packets<F>(
         },
     ); LANES];
     let mut sphere_count = 0;
-    for prim in first..first + count {
-        match shape_of(prim) {
+    for (prim, slot) in (first..first + count).zip(shading) {
+        let (shape, prim_shading) = prim_of(prim);
+        slot.write(prim_shading);
+        match shape {
             Shape::Triangle(tri) => {
                 triangles[triangle_count] = (prim, tri);
                 triangle_count += 1;
@@ -960,4 +1029,81 @@ fn write_leaf_packets<F>(
         emit(TrianglePacket::spheres(&spheres[..sphere_count]));
     }
     assert_eq!(written, out.len(), "packet count of a leaf");
+}
+
+#[cfg(test)]
+mod build_tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use std::collections::HashMap;
+
+    /// The shading data is written leaf by leaf beside the packets, into slices cut
+    /// in primitive order and handed to leaves listed in node order: every primitive
+    /// must get the material and normals of the shape its packet lane holds. Each
+    /// triangle and sphere here has a material (and a triangle its normals) of its
+    /// own, found again through its first corner or centre.
+    #[test]
+    fn shading_data_belongs_to_the_primitive_of_its_lane() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(14);
+        let mut d = SceneDescription::default();
+        let triangles = 3000;
+        let spheres = 60;
+        let mut material_of_corner = HashMap::new();
+        for t in 0..triangles {
+            let a = Vec3::new(rng.random(), rng.random(), rng.random()) * 10.0;
+            let corners = [
+                a,
+                a + Vec3::new(0.1, 0.0, 0.0),
+                a + Vec3::new(0.0, 0.1, 0.05),
+            ];
+            let first = d.positions.len() as u32;
+            d.positions.extend(corners);
+            d.normals.extend([Vec3::Y; 3]);
+            let material = MaterialId(t);
+            material_of_corner.insert(a.to_array().map(f32::to_bits), (material, first));
+            d.triangles.push(TriangleDesc {
+                positions: [first, first + 1, first + 2],
+                normals: Some([first, first + 1, first + 2]),
+                material,
+            });
+        }
+        let mut material_of_centre = HashMap::new();
+        for s in 0..spheres {
+            let center = Vec3::new(rng.random(), rng.random(), rng.random()) * 10.0;
+            let material = MaterialId(triangles + s);
+            material_of_centre.insert(center.to_array().map(f32::to_bits), material);
+            d.spheres.push(SphereDesc {
+                center,
+                radius: 0.05,
+                material,
+            });
+        }
+        d.materials = vec![Material::fallback(); (triangles + spheres) as usize];
+        let scene = Scene::build(d, &BvhParams::default());
+        scene.validate().unwrap();
+        let mut checked = 0;
+        for packet in &scene.packets {
+            for lane in 0..LANES {
+                let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
+                    continue;
+                };
+                let shading = scene.shading[prim as usize];
+                match shape {
+                    Shape::Triangle(t) => {
+                        let (material, first) =
+                            material_of_corner[&t.v0.to_array().map(f32::to_bits)];
+                        assert_eq!(shading.material, material);
+                        assert_eq!(shading.normals, [first, first + 1, first + 2]);
+                    }
+                    Shape::Sphere(s) => {
+                        let material = material_of_centre[&s.center.to_array().map(f32::to_bits)];
+                        assert_eq!(shading.material, material);
+                        assert_eq!(shading.normals, [NO_NORMALS; 3]);
+                    }
+                }
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, triangles + spheres);
+    }
 }

@@ -162,12 +162,19 @@ impl Bvh {
         };
         let (segments, max_depth, mut coincident) = build_subtree(task, root, rest, 1, params);
         coincident.sort_by_key(|r| r.start);
+        // Closing the gaps is one sequential pass over the nodes; the leaf order is
+        // read out of the references meanwhile, on the other threads.
         let mut order = Vec::with_capacity(n);
-        refs.par_iter()
-            .map(PrimRef::index)
-            .collect_into_vec(&mut order);
-        drop(refs);
-        close_gaps(&mut nodes, &segments);
+        memory::advise_huge_pages(&order);
+        rayon::join(
+            || close_gaps(&mut nodes, &segments),
+            || {
+                refs.par_iter()
+                    .map(PrimRef::index)
+                    .collect_into_vec(&mut order);
+                drop(refs);
+            },
+        );
         (
             Bvh {
                 nodes,

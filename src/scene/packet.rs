@@ -18,6 +18,7 @@
 
 use wide::f32x16;
 
+use super::batch::lanes_of;
 use super::{Hit, Scene};
 use crate::bvh::{PACKET_SIZE, RayPacket};
 use crate::math::{Float, Ray};
@@ -30,18 +31,6 @@ const FEW_RAYS: u32 = 3;
 
 /// The closest hit of one ray as the packet and lane of its primitive.
 type LaneHit = Option<(u32, usize, PrimHit)>;
-
-/// Iterates over the set bits of a mask, lowest first.
-#[inline(always)]
-fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let bit = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            bit
-        })
-    })
-}
 
 impl Scene {
     /// The closest hit of each of `rays` (at most [`PACKET_SIZE`]) into `hits`, as
@@ -90,7 +79,7 @@ impl Scene {
         assert_eq!(rays.len(), t_max.len(), "one distance per ray");
         let active = active & ((1u32 << rays.len()) - 1);
         if self.has_cutouts {
-            return bits(active)
+            return lanes_of(active)
                 .filter(|&r| self.occluded(&rays[r], t_max[r]))
                 .fold(0, |mask, r| mask | 1 << r);
         }
@@ -111,7 +100,7 @@ impl Scene {
                         blocked |= sphere_blockers(prims, rays, open, t_max);
                     } else if open.count_ones() <= FEW_RAYS {
                         let limits = t_max.as_array();
-                        for ray in bits(open) {
+                        for ray in lanes_of(open) {
                             if prims.occludes(&PacketRay::new(&rays[ray]), limits[ray]) {
                                 blocked |= 1 << ray;
                             }
@@ -185,7 +174,7 @@ impl Scene {
                     ties |= t.simd_lt(*path).to_bitmask() & closer;
                     let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
                     let limits = t_max.as_mut_array();
-                    for ray in bits(closer) {
+                    for ray in lanes_of(closer) {
                         limits[ray] = t[ray];
                         best[ray] = Some((
                             packet_index,
@@ -202,7 +191,7 @@ impl Scene {
         };
         self.wide
             .walk_packet_closest(&packet, packet.all(), &mut t_max, walk);
-        for ray in bits(ties) {
+        for ray in lanes_of(ties) {
             best[ray] = self.closest_lane(&rays[ray]);
         }
         best
@@ -226,7 +215,7 @@ fn nearest_spheres(
     let mut ties = 0;
     let path = path.as_array();
     let limits = t_max.as_mut_array();
-    for ray in bits(reached) {
+    for ray in lanes_of(reached) {
         for lane in 0..LANES {
             let Some(shape) = prims.shape(lane) else {
                 break;
@@ -266,10 +255,10 @@ fn nearest_triangles_ray_by_ray(
     let mut ties = 0;
     let path = path.as_array();
     let limits = t_max.as_mut_array();
-    for ray in bits(reached) {
+    for ray in lanes_of(reached) {
         // `next_up`: also report hits at exactly `t_max`, ties.
         let (hits, t, u, v) = prims.hits(&PacketRay::new(&rays[ray]), limits[ray].next_up());
-        for lane in bits(hits) {
+        for lane in lanes_of(hits) {
             if t[lane] < limits[ray] {
                 if t[lane] < path[ray] {
                     ties |= 1 << ray;
@@ -296,7 +285,7 @@ fn nearest_triangles_ray_by_ray(
 #[inline(never)]
 fn sphere_blockers(prims: &TrianglePacket, rays: &[Ray], open: u32, t_max: &f32x16) -> u32 {
     let limits = t_max.as_array();
-    bits(open)
+    lanes_of(open)
         .filter(|&ray| {
             (0..LANES)
                 .map_while(|lane| prims.shape(lane))
@@ -444,7 +433,7 @@ pub(crate) mod tests {
                         }
                     }
                     let mask = scene.occluded_packet(&shadow, &distances, active);
-                    for k in bits(active) {
+                    for k in lanes_of(active) {
                         let single = scene.occluded(&shadow[k], distances[k]);
                         assert_eq!(
                             mask >> k & 1 == 1,

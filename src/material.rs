@@ -119,52 +119,37 @@ pub trait Colours {
     fn shininess(&self) -> Float;
 }
 
-/// The constants, whatever the maps: for materials without maps.
-impl Colours for Material {
-    #[inline(always)]
-    fn ambient(&self) -> Vec3 {
-        self.ambient
-    }
-    #[inline(always)]
-    fn diffuse(&self) -> Vec3 {
-        self.diffuse
-    }
-    #[inline(always)]
-    fn specular(&self) -> Vec3 {
-        self.specular
-    }
-    #[inline(always)]
-    fn emission(&self) -> Vec3 {
-        self.emission
-    }
-    #[inline(always)]
-    fn shininess(&self) -> Float {
-        self.shininess
-    }
+/// `Colours` read from the fields of the same names, which [`Material`] (its
+/// constants, whatever the maps: for materials without maps) and [`SurfaceValues`]
+/// both have.
+macro_rules! colours_from_fields {
+    ($($kind:ty),*) => {$(
+        impl Colours for $kind {
+            #[inline(always)]
+            fn ambient(&self) -> Vec3 {
+                self.ambient
+            }
+            #[inline(always)]
+            fn diffuse(&self) -> Vec3 {
+                self.diffuse
+            }
+            #[inline(always)]
+            fn specular(&self) -> Vec3 {
+                self.specular
+            }
+            #[inline(always)]
+            fn emission(&self) -> Vec3 {
+                self.emission
+            }
+            #[inline(always)]
+            fn shininess(&self) -> Float {
+                self.shininess
+            }
+        }
+    )*};
 }
 
-impl Colours for SurfaceValues {
-    #[inline(always)]
-    fn ambient(&self) -> Vec3 {
-        self.ambient
-    }
-    #[inline(always)]
-    fn diffuse(&self) -> Vec3 {
-        self.diffuse
-    }
-    #[inline(always)]
-    fn specular(&self) -> Vec3 {
-        self.specular
-    }
-    #[inline(always)]
-    fn emission(&self) -> Vec3 {
-        self.emission
-    }
-    #[inline(always)]
-    fn shininess(&self) -> Float {
-        self.shininess
-    }
-}
+colours_from_fields!(Material, SurfaceValues);
 
 impl Material {
     /// A material with MTL defaults and the given name.

@@ -33,6 +33,14 @@ const FEW_RAYS: u32 = 3;
 type LaneHit = Option<(u32, usize, PrimHit)>;
 
 impl Scene {
+    /// Asks the cache for the triangle packets `first..first + count` of a leaf.
+    #[inline(always)]
+    fn prefetch_packets(&self, first: u32, count: u32) {
+        for packet in &self.packets[first as usize..(first + count) as usize] {
+            crate::bvh::prefetch_lines(packet);
+        }
+    }
+
     /// The closest hit of each of `rays` (at most [`PACKET_SIZE`]) into `hits`, as
     /// [`Scene::intersect`] finds it, bit for bit; fastest when the rays are coherent
     /// (neighbouring camera rays).
@@ -121,6 +129,7 @@ impl Scene {
                 }
                 blocked
             },
+            |first, count| self.prefetch_packets(first, count),
         )
     }
 
@@ -190,7 +199,9 @@ impl Scene {
             }
         };
         self.wide
-            .walk_packet_closest(&packet, packet.all(), &mut t_max, walk);
+            .walk_packet_closest(&packet, packet.all(), &mut t_max, walk, |first, count| {
+                self.prefetch_packets(first, count)
+            });
         for ray in lanes_of(ties) {
             best[ray] = self.closest_lane(&rays[ray]);
         }

@@ -4,7 +4,10 @@ use std::time::Instant;
 
 use raytracer::integrators::path::material_warnings;
 use raytracer::stats::{RayCounts, peak_memory_bytes};
-use raytracer::{BvhParams, ImageFormat, Mode, Scene, output, render_with_stats};
+use raytracer::{
+    BvhParams, ImageFormat, Mode, RenderTimes, Scene, output, render_with_progress,
+    render_with_stats,
+};
 
 use super::args::RenderArgs;
 use super::interrupt;
@@ -60,7 +63,13 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         samples_per_row,
         !quiet,
     );
-    let (film, rays, times) = render_with_stats(&scene, options, &|_row| rendering.inc());
+    // Timing the tracing apart reads the clock a few times per tile: only when asked.
+    let (film, rays, times) = if args.stats {
+        render_with_stats(&scene, options, &|_row| rendering.inc())
+    } else {
+        let (film, rays) = render_with_progress(&scene, options, &|_row| rendering.inc());
+        (film, rays, RenderTimes::default())
+    };
     drop(rendering);
     let film = match (args.denoise, options.mode) {
         (true, Mode::Path) => film.denoised()?,

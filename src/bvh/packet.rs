@@ -129,15 +129,16 @@ impl RayPacket {
 }
 
 /// A pending child of a packet walk: what it is, which rays go there, the least
-/// entry distance among them and, for closest-hit walks, each ray's greatest entry
-/// distance into the boxes on the way (this one included).
+/// entry distance among them, and where its box is (slot `slot` of node `parent`), so
+/// that a closest-hit walk can test a leaf's box again, with the rays' `t_max` of
+/// the time it gets there, rather than keep sixteen entry distances per entry.
 #[derive(Clone, Copy, Debug)]
 struct PacketEntry {
     child: ChildRef,
     rays: u32,
     t_enter: Float,
-    /// Unaligned, so that an entry takes 80 bytes rather than 128.
-    path_enter: [Float; PACKET_SIZE],
+    parent: u32,
+    slot: u32,
 }
 
 /// An entry of [`WideBvh::walk_lane`]'s stack: a child, its entry distance and the
@@ -328,10 +329,24 @@ impl WideBvh {
             },
             rays: live,
             t_enter: 0.0,
-            path_enter: [0.0; PACKET_SIZE],
+            parent: 0,
+            slot: 0,
         };
         loop {
-            let rays = current.rays & live;
+            let mut rays = current.rays & live;
+            // A leaf's box met again, for the rays still in reach (closest hit only:
+            // an any-hit walk's reach does not change). Every box on the way there
+            // contains it, and rounding is monotonic, so a ray's entry into it is the
+            // greatest entry on the ray's way, and a ray that meets it met them all.
+            let mut path_enter = f32x16::ZERO;
+            if CLOSEST && rays != 0 && current.child.item_count > 0 {
+                let parent = &self.nodes[current.parent as usize];
+                let planes =
+                    [0, 1, 2, 3, 4, 5].map(|p| parent.planes[p].as_array()[current.slot as usize]);
+                let (hit, t_enter) = packet.hit_child::<true>(&planes, *t_max * margin);
+                rays &= hit.to_bitmask();
+                path_enter = t_enter;
+            }
             if rays != 0 {
                 if current.child.item_count > 0 {
                     let done = leaf(
@@ -339,7 +354,7 @@ impl WideBvh {
                         current.child.item_count,
                         rays,
                         t_max,
-                        &f32x16::from(current.path_enter),
+                        &path_enter,
                     );
                     finished |= done;
                     live &= !done;
@@ -347,8 +362,8 @@ impl WideBvh {
                         return finished;
                     }
                 } else if rays.count_ones() <= SINGLE_RAY_BELOW {
-                    // Too few rays left for sixteen lanes: walk this subtree ray by ray.
-                    let path = &current.path_enter;
+                    // Too few rays left for sixteen lanes: walk this subtree ray by ray
+                    // (its leaves' own entries are the greatest on the way).
                     for ray in BitIter(rays) {
                         if live & (1 << ray) == 0 {
                             continue;
@@ -356,7 +371,7 @@ impl WideBvh {
                         let done = self.walk_lane::<CLOSEST, F>(
                             packet,
                             ray,
-                            (current.child.index, path[ray]),
+                            (current.child.index, 0.0),
                             t_max,
                             &mut leaf,
                             lane_stack,
@@ -372,7 +387,6 @@ impl WideBvh {
                     let planes = node.planes.map(|p| p.to_array());
                     let reach = if CLOSEST { *t_max * margin } else { *t_max };
                     let ray_lanes = lane_mask(rays);
-                    let path_enter = f32x16::from(current.path_enter);
                     // Slots some ray may meet: one test for the whole packet first.
                     if frustum_rays != live {
                         frustum = Frustum::new(packet, live);
@@ -403,11 +417,8 @@ impl WideBvh {
                             } else {
                                 0.0
                             },
-                            path_enter: if CLOSEST {
-                                path_enter.fast_max(t_enter).to_array()
-                            } else {
-                                [0.0; PACKET_SIZE]
-                            },
+                            parent: current.child.index,
+                            slot: slot as u32,
                         });
                         if hits != 0 {
                             if node.item_count[slot] > 0 {
@@ -467,9 +478,10 @@ impl WideBvh {
 
     /// The subtree of node `root` for ray `lane` of `packet` alone, one node's eight
     /// boxes at a time (SIMD across children, as single-ray traversal), with the
-    /// culling rule and leaf calls of [`WideBvh::walk_packet`]; `path_enter` is the
-    /// ray's greatest entry distance on the way to `root`. Returns the ray's bit if the
-    /// leaf callback finished it.
+    /// culling rule and leaf calls of [`WideBvh::walk_packet`]; `path_enter` is a lower
+    /// bound of the ray's entry distances on the way to `root` (0 will do: a leaf's own
+    /// entry is the greatest on the way). Returns the ray's bit if the leaf callback
+    /// finished it.
     #[inline(always)]
     fn walk_lane<const CLOSEST: bool, F>(
         &self,

@@ -233,19 +233,31 @@ fn nearest_spheres(
             };
             // `next_up`: also report a hit at exactly `t_max`, a tie.
             if let Some(hit) = shape.intersect(&rays[ray], limits[ray].next_up()) {
-                if hit.t < limits[ray] {
-                    if hit.t < path[ray] {
-                        ties |= 1 << ray;
-                    }
-                    limits[ray] = hit.t;
-                    best[ray] = Some((packet_index, lane, hit));
-                } else {
-                    ties |= 1 << ray;
-                }
+                ties |= offer(ray, (packet_index, lane, hit), limits, path, best);
             }
         }
     }
     ties
+}
+
+/// Offers ray `ray` a hit at most its limit in `limits`, which becomes its best when
+/// nearer; returns the ray's bit when its answer depends on the visiting order (a hit
+/// at exactly its limit, or a nearer one before `path`, its greatest box entry).
+#[inline(always)]
+fn offer(
+    ray: usize,
+    (packet_index, lane, hit): (u32, usize, PrimHit),
+    limits: &mut [Float; PACKET_SIZE],
+    path: &[Float; PACKET_SIZE],
+    best: &mut [LaneHit; PACKET_SIZE],
+) -> u32 {
+    if hit.t < limits[ray] {
+        limits[ray] = hit.t;
+        best[ray] = Some((packet_index, lane, hit));
+        u32::from(hit.t < path[ray]) << ray
+    } else {
+        u32::from(hit.t == limits[ray]) << ray
+    }
 }
 
 /// The triangle packet `prims` (index `packet_index`) for the rays of `reached`, one
@@ -270,23 +282,12 @@ fn nearest_triangles_ray_by_ray(
         // `next_up`: also report hits at exactly `t_max`, ties.
         let (hits, t, u, v) = prims.hits(&PacketRay::new(&rays[ray]), limits[ray].next_up());
         for lane in lanes_of(hits) {
-            if t[lane] < limits[ray] {
-                if t[lane] < path[ray] {
-                    ties |= 1 << ray;
-                }
-                limits[ray] = t[lane];
-                best[ray] = Some((
-                    packet_index,
-                    lane,
-                    PrimHit {
-                        t: t[lane],
-                        u: u[lane],
-                        v: v[lane],
-                    },
-                ));
-            } else if t[lane] == limits[ray] {
-                ties |= 1 << ray;
-            }
+            let hit = PrimHit {
+                t: t[lane],
+                u: u[lane],
+                v: v[lane],
+            };
+            ties |= offer(ray, (packet_index, lane, hit), limits, path, best);
         }
     }
     ties

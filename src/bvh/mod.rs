@@ -14,7 +14,7 @@ mod wide;
 pub use build::BvhParams;
 pub use node::BvhNode;
 pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket};
-pub use wide::{RayQuery, WideBvh, WideNode, prefetch_lines};
+pub use wide::{RayQuery, WideBvh, WideNode};
 
 use crate::math::Aabb;
 

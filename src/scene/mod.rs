@@ -15,7 +15,7 @@ use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
-use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh, prefetch_lines};
+use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::{AreaLights, AreaLightsBuilder};
 use crate::material::{Material, MaterialId, PointLight};
@@ -500,18 +500,6 @@ impl Scene {
         Some((self.packets[packet as usize].prim(lane)?, hit))
     }
 
-    /// What the single-ray walks do with a leaf they put aside: ask for its first
-    /// packets' cache lines (a leaf holds at most two packets of triangles).
-    #[inline(always)]
-    fn prefetch_packets(&self) -> impl FnMut(u32, u32) + '_ {
-        |first, count| {
-            if let Some(packet) = self.packets.get(first as usize) {
-                let bytes = count.min(2) as usize * std::mem::size_of::<TrianglePacket>();
-                prefetch_lines(packet, bytes);
-            }
-        }
-    }
-
     /// The closest hit as the packet and lane that hold its primitive.
     #[inline(always)]
     fn closest_lane(&self, ray: &Ray) -> Option<(u32, usize, PrimHit)> {
@@ -522,11 +510,8 @@ impl Scene {
         let lanes = PacketRay::new(ray);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
-        self.wide.walk_ordered(
-            &query,
-            &mut t_max,
-            self.prefetch_packets(),
-            |first, count, t_max| {
+        self.wide
+            .walk_ordered(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 for index in first..first + count {
                     let packet = &self.packets[index as usize];
                     if let Some((lane, hit)) = packet.intersect_any_kind(&lanes, *t_max) {
@@ -535,8 +520,7 @@ impl Scene {
                     }
                 }
                 false
-            },
-        );
+            });
         closest
     }
 
@@ -549,11 +533,8 @@ impl Scene {
         let lanes = PacketRay::new(ray);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
-        self.wide.walk_ordered(
-            &query,
-            &mut t_max,
-            self.prefetch_packets(),
-            |first, count, t_max| {
+        self.wide
+            .walk_ordered(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 for index in first..first + count {
                     let packet = &self.packets[index as usize];
                     let found = if packet.holds_spheres() {
@@ -567,8 +548,7 @@ impl Scene {
                     }
                 }
                 false
-            },
-        );
+            });
         closest
     }
 
@@ -682,16 +662,12 @@ impl Scene {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
-        self.wide.walk_any(
-            &query,
-            &mut t_max,
-            self.prefetch_packets(),
-            |first, count, t_max| {
+        self.wide
+            .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
                     .any(|packet| packet.occludes_any_kind(&lanes, *t_max))
-            },
-        )
+            })
     }
 
     /// [`Scene::occluded`] for scenes with cutouts: a lane blocks the ray only where
@@ -701,11 +677,8 @@ impl Scene {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
-        self.wide.walk_any(
-            &query,
-            &mut t_max,
-            self.prefetch_packets(),
-            |first, count, t_max| {
+        self.wide
+            .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
                     .any(|packet| {
@@ -725,8 +698,7 @@ impl Scene {
                         }
                         false
                     })
-            },
-        )
+            })
     }
 
     /// The closest hit by testing every primitive with the scalar kernels: the slow

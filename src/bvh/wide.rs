@@ -11,7 +11,7 @@
 use std::mem::MaybeUninit;
 
 use glam::Vec4;
-use wide::f32x8;
+use wide::{f32x8, u32x8};
 
 use super::{Bvh, BvhInvariantError, MAX_DEPTH};
 use crate::math::{Aabb, Float, Ray, Vec3};
@@ -62,6 +62,13 @@ impl WideNode {
             min: Vec3::new(plane(0), plane(2), plane(4)),
             max: Vec3::new(plane(1), plane(3), plane(5)),
         }
+    }
+
+    /// Bit `i` set if slot `i` is a leaf.
+    #[inline(always)]
+    fn leaf_slots(&self) -> u32 {
+        let interior = u32x8::from(self.item_count).simd_eq(u32x8::ZERO);
+        !interior.to_bitmask() & ((1 << WIDTH) - 1)
     }
 
     fn set_child_bounds(&mut self, slot: usize, bounds: Aabb) {
@@ -281,27 +288,55 @@ impl WideBvh {
     /// Visits the leaves the ray may hit within `t_max`, nearest box first (by entry
     /// distance), skipping any whose box starts beyond the current `t_max`.
     /// `leaf(first_item, item_count, t_max)` may shrink `t_max` and returns `true`
-    /// to stop the walk; returns whether it stopped.
+    /// to stop the walk; returns whether it stopped. `items` are what the leaves'
+    /// item ranges index: the walk reads none of them, but asks the processor for
+    /// the first item of every leaf the ray meets as soon as the leaf's parent is
+    /// tested, and for every node it puts on the stack, so that large scenes, whose
+    /// nodes and leaves do not fit in the caches, wait less for memory (incoherent
+    /// rays on the dragon: 1.09x, one thread).
     #[inline(always)]
-    pub fn walk_ordered<F>(&self, ray: &RayQuery, t_max: &mut Float, leaf: F) -> bool
+    pub fn walk_ordered<T, F>(
+        &self,
+        ray: &RayQuery,
+        t_max: &mut Float,
+        items: &[T],
+        leaf: F,
+    ) -> bool
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
-        self.walk::<true, F>(ray, t_max, leaf)
+        self.walk::<true, T, F>(ray, t_max, items, leaf)
     }
 
     /// As [`WideBvh::walk_ordered`] in no particular order, for any-hit queries, where
     /// the first blocker found ends the walk and sorting would be wasted.
     #[inline(always)]
-    pub fn walk_any<F>(&self, ray: &RayQuery, t_max: &mut Float, leaf: F) -> bool
+    pub fn walk_any<T, F>(&self, ray: &RayQuery, t_max: &mut Float, items: &[T], leaf: F) -> bool
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
-        self.walk::<false, F>(ray, t_max, leaf)
+        self.walk::<false, T, F>(ray, t_max, items, leaf)
+    }
+
+    /// Asks for the memory of a child put on the stack, if it is a node, so that it
+    /// is on its way while the walk goes down its nearer siblings (a leaf's items
+    /// were asked for already). Without a branch, as whether a child is a leaf is
+    /// as good as random: a leaf's slot points at the node of the same index, which
+    /// is fetched for nothing. Large scenes' nodes do not fit in the caches, and an
+    /// incoherent ray's next node is otherwise a cache miss the walk waits for.
+    #[inline(always)]
+    fn prefetch_node(&self, child: ChildRef) {
+        prefetch_lines(self.nodes.as_ptr().wrapping_add(child.index as usize));
     }
 
     #[inline(always)]
-    fn walk<const ORDERED: bool, F>(&self, ray: &RayQuery, t_max: &mut Float, mut leaf: F) -> bool
+    fn walk<const ORDERED: bool, T, F>(
+        &self,
+        ray: &RayQuery,
+        t_max: &mut Float,
+        items: &[T],
+        mut leaf: F,
+    ) -> bool
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
@@ -329,6 +364,15 @@ impl WideBvh {
                         index: node.child[slot],
                         item_count: node.item_count[slot],
                     };
+                    // The items of every leaf hit are asked for at once, the nearest's
+                    // too: they are on their way together rather than one cache miss
+                    // after another as the leaf test reads them.
+                    let mut leaves = hits & node.leaf_slots();
+                    while leaves != 0 {
+                        let slot = leaves.trailing_zeros() as usize;
+                        leaves &= leaves - 1;
+                        prefetch_lines(items.as_ptr().wrapping_add(node.child[slot] as usize));
+                    }
                     let first = hits.trailing_zeros() as usize;
                     hits &= hits - 1;
                     if hits == 0 {
@@ -346,6 +390,7 @@ impl WideBvh {
                             (second, first)
                         };
                         debug_assert!(stack_len < STACK_SIZE);
+                        self.prefetch_node(child(far));
                         stack[stack_len].write((child(far), t_enter[far]));
                         stack_len += 1;
                         current = child(near);
@@ -359,6 +404,7 @@ impl WideBvh {
                         let slot = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
                         debug_assert!(stack_len < STACK_SIZE);
+                        self.prefetch_node(child(slot));
                         stack[stack_len].write((child(slot), t_enter[slot]));
                         stack_len += 1;
                     }
@@ -391,6 +437,31 @@ impl WideBvh {
             }
         }
     }
+}
+
+/// Lines [`prefetch_lines`] asks for: a node's four, or all of a 160-byte packet of
+/// triangles (the first of a leaf's one or two; three to five lines were measured
+/// alike on the dragon).
+const PREFETCH_LINES: usize = 4;
+
+/// Asks the processor to bring [`PREFETCH_LINES`] cache lines, from the one holding
+/// `address` on, into the caches: a hint, which never faults and changes no result.
+#[inline(always)]
+fn prefetch_lines<T>(address: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let start = (address as usize & !63) as *const i8;
+        for line in 0..PREFETCH_LINES {
+            // SAFETY: prefetching is a hint that never faults, whatever the address.
+            unsafe {
+                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                    start.wrapping_add(64 * line),
+                );
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = address;
 }
 
 /// Insertion sort by decreasing entry distance: at most eight entries, mostly two or

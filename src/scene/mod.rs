@@ -511,7 +511,7 @@ impl Scene {
         let mut closest = None;
         let mut t_max = Float::INFINITY;
         self.wide
-            .walk_ordered(&query, &mut t_max, |first, count, t_max| {
+            .walk_ordered(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 for index in first..first + count {
                     let packet = &self.packets[index as usize];
                     if let Some((lane, hit)) = packet.intersect_any_kind(&lanes, *t_max) {
@@ -534,7 +534,7 @@ impl Scene {
         let mut closest = None;
         let mut t_max = Float::INFINITY;
         self.wide
-            .walk_ordered(&query, &mut t_max, |first, count, t_max| {
+            .walk_ordered(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 for index in first..first + count {
                     let packet = &self.packets[index as usize];
                     let found = if packet.holds_spheres() {
@@ -663,7 +663,7 @@ impl Scene {
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
         self.wide
-            .walk_any(&query, &mut t_max, |first, count, t_max| {
+            .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
                     .any(|packet| packet.occludes_any_kind(&lanes, *t_max))
@@ -678,7 +678,7 @@ impl Scene {
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
         self.wide
-            .walk_any(&query, &mut t_max, |first, count, t_max| {
+            .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
                     .any(|packet| {

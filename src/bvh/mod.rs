@@ -13,8 +13,10 @@ mod wide;
 
 pub use build::BvhParams;
 pub use node::BvhNode;
-pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, prefetch_lines};
-pub use wide::{RayQuery, WideBvh, WideNode};
+pub(crate) use packet::lane_mask;
+pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of, prefetch_lines};
+pub(crate) use wide::STACK_SIZE;
+pub use wide::{RayQuery, WIDTH, WideBvh, WideNode};
 
 use crate::math::Aabb;
 

@@ -31,7 +31,7 @@ use std::mem::MaybeUninit;
 
 use wide::{f32x8, f32x16, u32x16};
 
-use super::wide::{ChildRef, MIN_DIR_COMPONENT, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH};
+use super::wide::{ChildRef, MIN_DIR_COMPONENT, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH, WideRay};
 use super::{WideBvh, WideNode};
 use crate::math::{Float, Ray};
 
@@ -99,7 +99,7 @@ impl RayPacket {
     /// distance `<= reach[i]` (`< reach[i]` unless `INCLUSIVE`), and each ray's entry
     /// distance. Lane by lane the operations of the single-ray slab test.
     #[inline(always)]
-    fn hit_child<const INCLUSIVE: bool>(
+    pub(crate) fn hit_child<const INCLUSIVE: bool>(
         &self,
         planes: &[Float; 6],
         reach: f32x16,
@@ -189,7 +189,7 @@ impl Drop for LentStacks {
 
 /// The lanes of `mask` as an all-ones/all-zeros vector mask.
 #[inline(always)]
-fn lane_mask(mask: u32) -> f32x16 {
+pub(crate) fn lane_mask(mask: u32) -> f32x16 {
     const BITS: [u32; PACKET_SIZE] = {
         let mut bits = [0; PACKET_SIZE];
         let mut i = 0;
@@ -364,7 +364,7 @@ impl WideBvh {
                 } else if rays.count_ones() <= SINGLE_RAY_BELOW {
                     // Too few rays left for sixteen lanes: walk this subtree ray by ray
                     // (its leaves' own entries are the greatest on the way).
-                    for ray in BitIter(rays) {
+                    for ray in lanes_of(rays) {
                         if live & (1 << ray) == 0 {
                             continue;
                         }
@@ -496,7 +496,10 @@ impl WideBvh {
         F: FnMut(u32, u32, u32, &mut f32x16, &f32x16) -> u32,
     {
         let bit = 1u32 << lane;
-        let ray = LaneRay::new(packet, lane);
+        let ray = WideRay::from_parts(
+            packet.origin.map(|o| o.as_array()[lane]),
+            packet.inv_dir.map(|d| d.as_array()[lane]),
+        );
         let margin = if CLOSEST { CLOSEST_CULL_MARGIN } else { 1.0 };
         let mut stack_len = 0usize;
         let mut current = (
@@ -567,66 +570,16 @@ impl WideBvh {
 /// mostly idle lanes (as Embree's hybrid packet traversal switches to single rays).
 const SINGLE_RAY_BELOW: u32 = 2;
 
-/// One lane of a [`RayPacket`] set up for eight-box slab tests, as the single-ray
-/// traversal's own.
-struct LaneRay {
-    origin: [f32x8; 3],
-    inv_dir: [f32x8; 3],
-    near_plane: [usize; 3],
-}
-
-impl LaneRay {
-    #[inline(always)]
-    fn new(packet: &RayPacket, lane: usize) -> LaneRay {
-        let origin = packet.origin.map(|o| o.as_array()[lane]);
-        let inv_dir = packet.inv_dir.map(|d| d.as_array()[lane]);
-        LaneRay {
-            origin: origin.map(f32x8::splat),
-            inv_dir: inv_dir.map(f32x8::splat),
-            near_plane: [0, 1, 2].map(|a| 2 * a + usize::from(inv_dir[a] < 0.0)),
-        }
-    }
-
-    /// Bit `i` set if the ray meets child `i`'s box with an entry distance `<= reach`
-    /// (`< reach` unless `INCLUSIVE`), and the entry distances: the single-ray slab
-    /// test's operations.
-    #[inline(always)]
-    fn hit_children<const INCLUSIVE: bool>(&self, node: &WideNode, reach: Float) -> (u32, f32x8) {
-        let mut t_enter = f32x8::ZERO;
-        let mut t_exit = f32x8::splat(Float::INFINITY);
-        for axis in 0..3 {
-            let near = self.near_plane[axis];
-            let far = near ^ 1;
-            let t_near = (node.planes[near] - self.origin[axis]) * self.inv_dir[axis];
-            let t_far = (node.planes[far] - self.origin[axis]) * self.inv_dir[axis];
-            t_enter = t_enter.fast_max(t_near);
-            t_exit = t_exit.fast_min(t_far);
-        }
-        let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
-        let reach = f32x8::splat(reach);
-        let within = if INCLUSIVE {
-            t_enter.simd_le(reach)
-        } else {
-            t_enter.simd_lt(reach)
-        };
-        ((t_enter.simd_le(t_exit) & within).to_bitmask(), t_enter)
-    }
-}
-
-/// Iterates over the set bits of a mask, lowest first.
-struct BitIter(u32);
-
-impl Iterator for BitIter {
-    type Item = usize;
-
-    #[inline(always)]
-    fn next(&mut self) -> Option<usize> {
-        (self.0 != 0).then(|| {
-            let bit = self.0.trailing_zeros() as usize;
-            self.0 &= self.0 - 1;
-            bit
+/// The set bits of `mask`, lowest first: the lanes of a ray mask.
+#[inline(always)]
+pub fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            lane
         })
-    }
+    })
 }
 
 const _: () = assert!(PACKET_SIZE <= 32 && WIDTH <= 32);
@@ -851,7 +804,7 @@ mod tests {
                 let hit = hit.to_bitmask() & rays;
                 if hit != 0 {
                     assert!(passed & 1 << slot != 0, "round {round}: slot {slot} culled");
-                    for ray in BitIter(hit) {
+                    for ray in lanes_of(hit) {
                         assert!(bound <= t_enter.as_array()[ray], "round {round}");
                     }
                     accepted += 1;

@@ -95,7 +95,7 @@ pub struct WideBvh {
 
 /// Most entries the traversal stack can hold: at most `WIDTH - 1` pending siblings per
 /// level, and the wide tree is no deeper than the binary one it came from.
-pub(super) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+pub(crate) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
 /// What a slot or stack entry points at: a node (`item_count == 0`) or a leaf's items.
 #[derive(Clone, Copy, Debug)]
@@ -358,7 +358,7 @@ impl WideBvh {
                 }
             } else {
                 let node = &self.nodes[current.index as usize];
-                let (mut hits, t_enter) = slabs.hit_children(node, *t_max);
+                let (mut hits, t_enter) = slabs.hit_children::<false>(node, *t_max);
                 if hits != 0 {
                     let child = |slot: usize| ChildRef {
                         index: node.child[slot],
@@ -514,7 +514,7 @@ impl RayQuery {
 
 /// A ray set up for eight-box slab tests: origin and reciprocal direction in every
 /// lane, and for each axis which plane the ray meets first.
-struct WideRay {
+pub(super) struct WideRay {
     origin: [f32x8; 3],
     inv_dir: [f32x8; 3],
     /// Index into [`WideNode::planes`] of the near plane of each axis (the far plane
@@ -525,8 +525,15 @@ struct WideRay {
 impl WideRay {
     #[inline(always)]
     fn new(ray: &RayQuery) -> WideRay {
-        let origin = ray.origin.to_array();
-        let inv_dir = ray.inv_dir.to_array();
+        let [x, y, z, _] = ray.origin.to_array();
+        let [u, v, w, _] = ray.inv_dir.to_array();
+        WideRay::from_parts([x, y, z], [u, v, w])
+    }
+
+    /// From a ray's origin and the reciprocal of its direction, as [`RayQuery::new`]
+    /// computes it.
+    #[inline(always)]
+    pub(super) fn from_parts(origin: [Float; 3], inv_dir: [Float; 3]) -> WideRay {
         WideRay {
             origin: [0, 1, 2].map(|a| f32x8::splat(origin[a])),
             inv_dir: [0, 1, 2].map(|a| f32x8::splat(inv_dir[a])),
@@ -534,11 +541,16 @@ impl WideRay {
         }
     }
 
-    /// Bit `i` set if the ray meets child `i`'s box within `[0, t_max)`, and each
-    /// child's entry distance. Taking each axis's near plane by the sign of the
-    /// direction (rather than min/max of both) makes inverted boxes miss.
+    /// Bit `i` set if the ray meets child `i`'s box with an entry distance `< reach`
+    /// (`<= reach` if `INCLUSIVE`), and each child's entry distance. Taking each
+    /// axis's near plane by the sign of the direction (rather than min/max of both)
+    /// makes inverted boxes miss.
     #[inline(always)]
-    fn hit_children(&self, node: &WideNode, t_max: Float) -> (u32, f32x8) {
+    pub(super) fn hit_children<const INCLUSIVE: bool>(
+        &self,
+        node: &WideNode,
+        reach: Float,
+    ) -> (u32, f32x8) {
         let mut t_enter = f32x8::ZERO;
         let mut t_exit = f32x8::splat(Float::INFINITY);
         for axis in 0..3 {
@@ -553,8 +565,13 @@ impl WideRay {
             t_exit = t_exit.fast_min(t_far);
         }
         let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
-        let hit = t_enter.simd_le(t_exit) & t_enter.simd_lt(f32x8::splat(t_max));
-        (hit.to_bitmask(), t_enter)
+        let reach = f32x8::splat(reach);
+        let within = if INCLUSIVE {
+            t_enter.simd_le(reach)
+        } else {
+            t_enter.simd_lt(reach)
+        };
+        ((t_enter.simd_le(t_exit) & within).to_bitmask(), t_enter)
     }
 }
 
@@ -643,7 +660,11 @@ mod tests {
         ] {
             let ray = crate::math::Ray::new(Vec3::ZERO, dir.normalize());
             let slabs = WideRay::new(&RayQuery::new(&ray));
-            assert_eq!(slabs.hit_children(&node, Float::INFINITY).0, 0, "{dir:?}");
+            assert_eq!(
+                slabs.hit_children::<false>(&node, Float::INFINITY).0,
+                0,
+                "{dir:?}"
+            );
         }
     }
 }

@@ -20,11 +20,12 @@
 
 use super::Integrator;
 use crate::bsdf::ScatteringParams;
+use crate::bvh::lanes_of;
 use crate::camera::Camera;
 use crate::material::Material;
 use crate::math::{Float, Ray, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
-use crate::scene::{BATCH, Hit, Scene, lanes_of};
+use crate::scene::{BATCH, Hit, Scene};
 use crate::stats::RayCounts;
 
 /// Depth (in scattering events) from which Russian roulette may end a path, as

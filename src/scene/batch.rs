@@ -23,154 +23,43 @@ use std::mem::MaybeUninit;
 use wide::f32x16;
 
 use super::{Hit, Scene};
-use crate::bvh::MAX_DEPTH;
+use crate::bvh::{PACKET_SIZE, RayPacket, STACK_SIZE, WIDTH, WideNode, lane_mask, lanes_of};
 use crate::math::{Float, Ray};
-use crate::shapes::{EDGE_SLACK, LANES, PrimHit, Shape, Sphere, Triangle};
+use crate::shapes::{LANES, PrimHit, Shape, sphere_across_rays, triangle_across_rays};
 
 /// Rays per batch: one AVX-512 register of `f32` per coordinate.
-pub const BATCH: usize = 16;
+pub const BATCH: usize = PACKET_SIZE;
 
 /// At a node met by this many rays or fewer, those rays are traced one by one: a
 /// batch tests a node's eight boxes for sixteen lanes at about the cost of one ray's
 /// test, so it pays from two rays on.
 const FEW_RAYS: u32 = 1;
 
-/// Smallest direction component divided by, as in single-ray traversal.
-const MIN_DIR_COMPONENT: Float = 1e-30;
-
-/// Slack on the exit distance of the slab test, as in single-ray traversal.
-const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.5);
-
-/// Children per wide node.
-const WIDTH: usize = 8;
-
-/// Most entries the batch's stack holds, as single-ray traversal's.
-const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
-
-/// The set bits of `mask`, lowest first.
+/// All-ones in the lanes of the rays of `batch` that hit `shape` with `0 < t <
+/// t_max`, and their `t`, `u`, `v` (zero for spheres): lane by lane the single-ray
+/// kernels' operations.
 #[inline(always)]
-pub fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let lane = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            lane
-        })
-    })
+fn shape_across(
+    batch: &RayPacket,
+    shape: &Shape,
+    t_max: f32x16,
+) -> (f32x16, f32x16, f32x16, f32x16) {
+    let (valid, t, u, v) = match shape {
+        Shape::Triangle(triangle) => triangle_across_rays(triangle, &batch.origin, &batch.dir),
+        Shape::Sphere(sphere) => {
+            let (valid, t) = sphere_across_rays(sphere, &batch.origin, &batch.dir);
+            (valid, t, f32x16::ZERO, f32x16::ZERO)
+        }
+    };
+    (valid & t.simd_lt(t_max), t, u, v)
 }
 
-/// Up to sixteen rays in structure-of-arrays form.
-struct RayBatch {
-    origin: [f32x16; 3],
-    dir: [f32x16; 3],
-    inv_dir: [f32x16; 3],
-    /// All-ones where `inv_dir` is negative: that ray meets a box's max plane first.
-    negative: [f32x16; 3],
-}
-
-impl RayBatch {
-    #[inline(always)]
-    fn new(rays: &[Ray; BATCH]) -> RayBatch {
-        let mut origin = [[0.0; BATCH]; 3];
-        let mut dir = [[0.0; BATCH]; 3];
-        for (lane, ray) in rays.iter().enumerate() {
-            for axis in 0..3 {
-                origin[axis][lane] = ray.origin[axis];
-                dir[axis][lane] = ray.dir[axis];
-            }
-        }
-        let dir = dir.map(f32x16::from);
-        let floor = f32x16::splat(MIN_DIR_COMPONENT);
-        let inv_dir = dir.map(|d| {
-            let safe = d.abs().simd_lt(floor).select(floor.copysign(d), d);
-            f32x16::ONE / safe
-        });
-        RayBatch {
-            origin: origin.map(f32x16::from),
-            dir,
-            inv_dir,
-            negative: inv_dir.map(|inv| inv.simd_lt(f32x16::ZERO)),
-        }
-    }
-
-    /// The rays that meet the box `[min, max]` with an entry distance below their
-    /// `t_max`, as a bit mask.
-    #[inline(always)]
-    fn meets_box(&self, min: [Float; 3], max: [Float; 3], t_max: f32x16) -> u32 {
-        let mut t_enter = f32x16::ZERO;
-        let mut t_exit = f32x16::splat(Float::INFINITY);
-        for axis in 0..3 {
-            let low = (f32x16::splat(min[axis]) - self.origin[axis]) * self.inv_dir[axis];
-            let high = (f32x16::splat(max[axis]) - self.origin[axis]) * self.inv_dir[axis];
-            let negative = self.negative[axis];
-            t_enter = t_enter.fast_max(negative.select(high, low));
-            t_exit = t_exit.fast_min(negative.select(low, high));
-        }
-        let t_exit = t_exit * f32x16::splat(SLAB_EXIT_SLACK);
-        (t_enter.simd_le(t_exit) & t_enter.simd_lt(t_max)).to_bitmask()
-    }
-
-    /// Möller–Trumbore for `triangle` against every ray: all-ones in the lanes of
-    /// the rays that hit it with `0 < t < t_max`, and their `t`, `u`, `v` (the
-    /// operations of [`Triangle::intersect`], lane by lane).
-    #[inline(always)]
-    fn triangle(&self, triangle: &Triangle, t_max: f32x16) -> (f32x16, f32x16, f32x16, f32x16) {
-        let [dx, dy, dz] = self.dir;
-        let splat = |v: crate::math::Vec3| [v.x, v.y, v.z].map(f32x16::splat);
-        let [e1x, e1y, e1z] = splat(triangle.e1);
-        let [e2x, e2y, e2z] = splat(triangle.e2);
-        let [v0x, v0y, v0z] = splat(triangle.v0);
-        let px = dy * e2z - e2y * dz;
-        let py = dz * e2x - e2z * dx;
-        let pz = dx * e2y - e2x * dy;
-        let det = e1x * px + e1y * py + e1z * pz;
-        let inv_det = f32x16::ONE / det;
-        let sx = self.origin[0] - v0x;
-        let sy = self.origin[1] - v0y;
-        let sz = self.origin[2] - v0z;
-        let u = (sx * px + sy * py + sz * pz) * inv_det;
-        let qx = sy * e1z - e1y * sz;
-        let qy = sz * e1x - e1z * sx;
-        let qz = sx * e1y - e1x * sy;
-        let v = (dx * qx + dy * qy + dz * qz) * inv_det;
-        let t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
-        let low = f32x16::splat(-EDGE_SLACK);
-        let high = f32x16::splat(1.0 + EDGE_SLACK);
-        let valid = det.simd_ne(f32x16::ZERO)
-            & u.simd_ge(low)
-            & u.simd_le(high)
-            & v.simd_ge(low)
-            & (u + v).simd_le(high)
-            & t.simd_gt(f32x16::ZERO)
-            & t.simd_lt(t_max);
-        (valid, t, u, v)
-    }
-
-    /// [`Sphere::intersect`] against every ray: all-ones in the lanes of the rays
-    /// that hit `sphere` with `0 < t < t_max`, and their `t`.
-    #[inline(always)]
-    fn sphere(&self, sphere: &Sphere, t_max: f32x16) -> (f32x16, f32x16) {
-        let [dx, dy, dz] = self.dir;
-        let ocx = self.origin[0] - f32x16::splat(sphere.center.x);
-        let ocy = self.origin[1] - f32x16::splat(sphere.center.y);
-        let ocz = self.origin[2] - f32x16::splat(sphere.center.z);
-        let b = ocx * dx + ocy * dy + ocz * dz;
-        let (px, py, pz) = (ocx - b * dx, ocy - b * dy, ocz - b * dz);
-        let r2 = f32x16::splat(sphere.radius * sphere.radius);
-        let root = (r2 - (px * px + py * py + pz * pz)).sqrt();
-        let (near, far) = (-b - root, -b + root);
-        let t = near.simd_gt(f32x16::ZERO).select(near, far);
-        let valid = t.simd_gt(f32x16::ZERO) & t.simd_lt(t_max);
-        (valid, t)
-    }
-}
-
-/// The all-ones lanes of `mask`'s bits.
+/// The rays of `batch` that meet the box of slot `slot` of `node` with an entry
+/// distance below their `t_max`, as a bit mask (the slot must be in use).
 #[inline(always)]
-fn lane_mask(mask: u32) -> f32x16 {
-    let bits: [Float; BATCH] =
-        std::array::from_fn(|lane| Float::from_bits(if mask >> lane & 1 != 0 { !0 } else { 0 }));
-    f32x16::from(bits)
+fn meets_child(batch: &RayPacket, node: &WideNode, slot: usize, t_max: f32x16) -> u32 {
+    let planes = [0, 1, 2, 3, 4, 5].map(|p| node.planes[p].as_array()[slot]);
+    batch.hit_child::<false>(&planes, t_max).0.to_bitmask()
 }
 
 /// What the stack of a batch walk holds: a node or a leaf's packets, and the rays
@@ -197,7 +86,7 @@ impl Scene {
             }
             return;
         }
-        let batch = RayBatch::new(rays);
+        let batch = RayPacket::new(rays);
         let mut t_best = f32x16::splat(Float::INFINITY);
         let mut u_best = f32x16::ZERO;
         let mut v_best = f32x16::ZERO;
@@ -238,13 +127,7 @@ impl Scene {
                         let Some(shape) = packet.shape(lane) else {
                             break;
                         };
-                        let (valid, t, u, v) = match shape {
-                            Shape::Triangle(triangle) => batch.triangle(&triangle, t_best),
-                            Shape::Sphere(sphere) => {
-                                let (valid, t) = batch.sphere(&sphere, t_best);
-                                (valid, t, f32x16::ZERO, f32x16::ZERO)
-                            }
-                        };
+                        let (valid, t, u, v) = shape_across(&batch, &shape, t_best);
                         // Rays outside this leaf's box may be tested too (the
                         // lanes cost nothing more): any hit found is a true one.
                         let closer = valid & open;
@@ -259,12 +142,10 @@ impl Scene {
             }
             let node = &self.wide.nodes[pending.index as usize];
             for slot in 0..WIDTH {
-                let bounds = node.child_bounds(slot);
-                if bounds.min.x > bounds.max.x {
+                if node.child_bounds(slot).min.x > node.child_bounds(slot).max.x {
                     continue;
                 }
-                let met =
-                    batch.meets_box(bounds.min.to_array(), bounds.max.to_array(), t_best) & reached;
+                let met = meets_child(&batch, node, slot, t_best) & reached;
                 if met != 0 {
                     debug_assert!(stack_len < STACK_SIZE);
                     stack[stack_len].write(Pending {
@@ -310,7 +191,7 @@ impl Scene {
                 .filter(|&lane| self.occluded(&rays[lane], t_max[lane]))
                 .fold(0, |mask, lane| mask | 1 << lane);
         }
-        let batch = RayBatch::new(rays);
+        let batch = RayPacket::new(rays);
         let limit = f32x16::from(*t_max);
         let mut blocked = 0u32;
         let mut stack = [const { MaybeUninit::<Pending>::uninit() }; STACK_SIZE];
@@ -349,10 +230,7 @@ impl Scene {
                         let Some(shape) = packet.shape(lane) else {
                             break;
                         };
-                        let valid = match shape {
-                            Shape::Triangle(triangle) => batch.triangle(&triangle, limit).0,
-                            Shape::Sphere(sphere) => batch.sphere(&sphere, limit).0,
-                        };
+                        let valid = shape_across(&batch, &shape, limit).0;
                         blocked |= valid.to_bitmask() & open;
                         if open & !blocked == 0 {
                             break 'packets;
@@ -363,12 +241,10 @@ impl Scene {
             }
             let node = &self.wide.nodes[pending.index as usize];
             for slot in 0..WIDTH {
-                let bounds = node.child_bounds(slot);
-                if bounds.min.x > bounds.max.x {
+                if node.child_bounds(slot).min.x > node.child_bounds(slot).max.x {
                     continue;
                 }
-                let met =
-                    batch.meets_box(bounds.min.to_array(), bounds.max.to_array(), limit) & open;
+                let met = meets_child(&batch, node, slot, limit) & open;
                 if met != 0 {
                     debug_assert!(stack_len < STACK_SIZE);
                     stack[stack_len].write(Pending {

@@ -8,7 +8,7 @@ mod packet;
 #[cfg(test)]
 pub(crate) use packet::tests as packet_tests;
 
-pub use batch::{BATCH, lanes_of};
+pub use batch::BATCH;
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
 
 use std::mem::MaybeUninit;

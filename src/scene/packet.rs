@@ -18,8 +18,8 @@
 
 use wide::f32x16;
 
-use super::batch::lanes_of;
 use super::{Hit, Scene};
+use crate::bvh::lanes_of;
 use crate::bvh::{PACKET_SIZE, RayPacket};
 use crate::math::{Float, Ray};
 use crate::shapes::{LANES, PacketRay, PrimHit, Shape, TrianglePacket, triangle_across_rays};

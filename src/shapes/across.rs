@@ -1,12 +1,12 @@
-//! One triangle against sixteen rays at once (SIMD across rays), for packet
-//! traversal ([`crate::bvh::RayPacket`]). Each lane performs exactly the operations of
+//! One triangle or sphere against sixteen rays at once (SIMD across rays), for
+//! packets and batches ([`crate::bvh::RayPacket`]). Each lane performs exactly the operations of
 //! [`Triangle::intersect`] and of the four-lane packet kernel, in the same order and
 //! without fused multiply-adds, so a lane's hit is bitwise the single-ray hit.
 
 use wide::f32x16;
 
-use super::Triangle;
 use super::triangle::EDGE_SLACK;
+use super::{Sphere, Triangle};
 
 /// Möller–Trumbore of `triangle` against the rays with origins `origin` and
 /// directions `dir`: which lanes hit with `t > 0` (all-ones lanes; the caller compares
@@ -54,6 +54,29 @@ pub fn triangle_across_rays(
         & (u + v).simd_le(high)
         & t.simd_gt(f32x16::ZERO);
     (valid, t, u, v)
+}
+
+/// [`Sphere::intersect`] of `sphere` against the rays with origins `origin` and
+/// directions `dir` (unit length), lane by lane the same operations: which lanes hit
+/// with `t > 0` (all-ones lanes; the caller compares `t` with its own `t_max`), and
+/// each lane's `t`.
+#[inline(always)]
+pub fn sphere_across_rays(
+    sphere: &Sphere,
+    origin: &[f32x16; 3],
+    dir: &[f32x16; 3],
+) -> (f32x16, f32x16) {
+    let [dx, dy, dz] = *dir;
+    let ocx = origin[0] - f32x16::splat(sphere.center.x);
+    let ocy = origin[1] - f32x16::splat(sphere.center.y);
+    let ocz = origin[2] - f32x16::splat(sphere.center.z);
+    let b = ocx * dx + ocy * dy + ocz * dz;
+    let (px, py, pz) = (ocx - b * dx, ocy - b * dy, ocz - b * dz);
+    let r2 = f32x16::splat(sphere.radius * sphere.radius);
+    let root = (r2 - (px * px + py * py + pz * pz)).sqrt();
+    let (near, far) = (-b - root, -b + root);
+    let t = near.simd_gt(f32x16::ZERO).select(near, far);
+    (t.simd_gt(f32x16::ZERO), t)
 }
 
 #[cfg(test)]

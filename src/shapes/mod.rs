@@ -9,10 +9,9 @@ mod packet;
 mod sphere;
 mod triangle;
 
-pub use across::triangle_across_rays;
+pub use across::{sphere_across_rays, triangle_across_rays};
 pub use packet::{LANES, MAX_PRIM, PacketRay, TrianglePacket};
 pub use sphere::Sphere;
-pub(crate) use triangle::EDGE_SLACK;
 pub use triangle::Triangle;
 
 use crate::math::{Aabb, Float, Ray};

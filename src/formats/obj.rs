@@ -71,7 +71,7 @@ pub fn load_obj_with(path: &Path, access: &FileAccess) -> Result<SceneDescriptio
         file::read_in_pieces(path, CHUNK_BYTES, &mut buffer, |index, chunk| {
             let read = &read;
             scope.spawn_fifo(move |_| {
-                let survey = survey::survey(&chunk);
+                let survey = survey::survey(chunk);
                 let mut read = read.lock().unwrap_or_else(PoisonError::into_inner);
                 read.push((index, chunk, survey));
             });

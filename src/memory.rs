@@ -102,7 +102,7 @@ const CACHED_BLOCKS: usize = 8;
 /// and only while no request takes them.
 ///
 /// Big blocks are whole 2 MiB pages mapped by `mmap` at 2 MiB boundaries (so that
-/// [`advise_huge_pages`] covers all of them), split when a request needs less than
+/// the advice to use huge pages covers all of them), split when a request needs less than
 /// a kept block holds; everything else goes to the system allocator. Outside Linux
 /// this is the system allocator.
 pub struct RecyclingAllocator {

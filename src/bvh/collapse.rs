@@ -323,7 +323,6 @@ mod tests {
         // Primitive range of every binary subtree. The builder appends children after
         // their parent and partitions primitives in place, so a backwards sweep sees
         // children first and every subtree's primitives are contiguous.
-        crate::lap("collapse start");
         let mut ranges = vec![(0u32, 0u32); binary.len()];
         for index in (0..binary.len()).rev() {
             let node = &binary[index];
@@ -336,7 +335,6 @@ mod tests {
                 (left.0, left.1 + right.1)
             };
         }
-        crate::lap("ranges");
         let becomes_leaf =
             |index: usize| binary[index].is_leaf() || ranges[index].1 <= max_leaf_prims;
         let area = |index: usize| binary[index].bounds().half_area();
@@ -382,7 +380,6 @@ mod tests {
                 }
             }
         }
-        crate::lap("expand");
         WideBvh { nodes }
     }
 

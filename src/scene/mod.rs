@@ -362,8 +362,7 @@ impl Scene {
         };
         // Triangle meshes (most big scenes) count their packets without a look.
         let has_spheres = !spheres.is_empty();
-        let is_sphere =
-            |prim: u32| has_spheres && order[prim as usize] as usize >= triangle_count;
+        let is_sphere = |prim: u32| has_spheres && order[prim as usize] as usize >= triangle_count;
         // What `prim_of` reads, asked for ahead: the description (at a random place
         // in a big array), then the corners it names.
         let fetch = |prim: u32, corners: bool| {

@@ -141,7 +141,11 @@ impl<'a> Binary<'a> {
     /// The sequential walk from interior binary node `root`: its wide node first,
     /// then its descendants in walk order, child indices counted from the first.
     fn collapse_from(&self, root: usize) -> Vec<WideNode> {
-        let mut nodes = vec![WideNode::EMPTY];
+        // Room for the usual number of nodes (the dragon has a wide node per 19
+        // primitives), so that the array seldom grows and copies itself.
+        let usual = self.range(root).1 as usize / 16 + 1;
+        let mut nodes = Vec::with_capacity(usual);
+        nodes.push(WideNode::EMPTY);
         let mut pending = vec![(root, 0usize)];
         let mut interior = Vec::with_capacity(WIDTH);
         while let Some((index, wide_index)) = pending.pop() {

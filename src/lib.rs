@@ -60,7 +60,7 @@ pub mod integrators;
 pub mod lights;
 pub mod material;
 pub mod math;
-mod memory;
+pub mod memory;
 pub mod options;
 pub mod output;
 pub mod postprocess;

@@ -5,6 +5,12 @@ mod cli;
 
 use std::process::ExitCode;
 
+/// Big freed buffers are reused rather than given back and asked for afresh (see
+/// [`RecyclingAllocator`]); 64 MiB kept at most.
+#[global_allocator]
+static ALLOCATOR: raytracer::memory::RecyclingAllocator =
+    raytracer::memory::RecyclingAllocator::new(64 << 20);
+
 fn main() -> ExitCode {
     return_large_blocks_to_the_system();
     let args = cli::parse();

@@ -7,6 +7,7 @@
 //! closure that intersects a leaf's items (as obvhs and the `bvh` crate do).
 
 mod build;
+mod collapse;
 mod node;
 mod packet;
 mod wide;

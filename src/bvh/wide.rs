@@ -4,7 +4,7 @@
 //! obvhs's `Bvh8`/tinybvh's `BVH8_CPU`, built the same way: by pulling the largest
 //! grandchildren of a binary node up into it).
 //!
-//! Like [`Bvh`], the wide BVH knows nothing of geometry: a leaf is a range of "items"
+//! Like [`Bvh`](super::Bvh), the wide BVH knows nothing of geometry: a leaf is a range of "items"
 //! that the caller created for a range of primitives (the scene turns them into SIMD
 //! triangle packets), and traversal hands that range to a closure.
 
@@ -13,7 +13,7 @@ use std::mem::MaybeUninit;
 use glam::Vec4;
 use wide::{f32x8, u32x8};
 
-use super::{Bvh, BvhInvariantError, MAX_DEPTH};
+use super::{BvhInvariantError, MAX_DEPTH};
 use crate::math::{Aabb, Float, Ray, Vec3};
 
 /// Children per node: one 256-bit AVX register of `f32`.
@@ -42,7 +42,7 @@ pub struct WideNode {
 const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 
 impl WideNode {
-    const EMPTY: WideNode = WideNode {
+    pub(super) const EMPTY: WideNode = WideNode {
         planes: [
             f32x8::splat(Float::INFINITY),
             f32x8::splat(Float::NEG_INFINITY),
@@ -71,7 +71,7 @@ impl WideNode {
         !interior.to_bitmask() & ((1 << WIDTH) - 1)
     }
 
-    fn set_child_bounds(&mut self, slot: usize, bounds: Aabb) {
+    pub(super) fn set_child_bounds(&mut self, slot: usize, bounds: Aabb) {
         let values = [
             bounds.min.x,
             bounds.max.x,
@@ -105,79 +105,6 @@ pub(super) struct ChildRef {
 }
 
 impl WideBvh {
-    /// Collapses `bvh` into a wide BVH. Every binary subtree of at most
-    /// `max_leaf_prims` primitives, and every binary leaf, becomes one wide leaf,
-    /// which at first refers to its primitive range (leaf order) as its items; the
-    /// caller then makes its own items per leaf and points the leaves at them with
-    /// [`WideBvh::assign_leaf_items`].
-    pub fn collapse(bvh: &Bvh, max_leaf_prims: u32) -> WideBvh {
-        let binary = &bvh.nodes;
-        let Some(root) = binary.first() else {
-            return WideBvh::default();
-        };
-        // Primitive range of every binary subtree. The builder appends children after
-        // their parent and partitions primitives in place, so a backwards sweep sees
-        // children first and every subtree's primitives are contiguous.
-        let mut ranges = vec![(0u32, 0u32); binary.len()];
-        for index in (0..binary.len()).rev() {
-            let node = &binary[index];
-            ranges[index] = if node.is_leaf() {
-                (node.first_index, node.prim_count)
-            } else {
-                let first = node.first_index as usize;
-                let (left, right) = (ranges[first], ranges[first + 1]);
-                debug_assert_eq!(left.0 + left.1, right.0, "subtree ranges not contiguous");
-                (left.0, left.1 + right.1)
-            };
-        }
-        let becomes_leaf =
-            |index: usize| binary[index].is_leaf() || ranges[index].1 <= max_leaf_prims;
-        let area = |index: usize| binary[index].bounds().half_area();
-
-        let mut nodes = Vec::with_capacity(binary.len() / (2 * WIDTH));
-        nodes.push(WideNode::EMPTY);
-        if becomes_leaf(0) {
-            (nodes[0].child[0], nodes[0].item_count[0]) = ranges[0];
-            nodes[0].set_child_bounds(0, root.bounds());
-            return WideBvh { nodes };
-        }
-        // (binary interior node, wide node to fill from it)
-        let mut pending = vec![(0usize, 0usize)];
-        let mut slots: Vec<usize> = Vec::with_capacity(WIDTH);
-        while let Some((binary_index, wide_index)) = pending.pop() {
-            // Open the binary node, then keep opening the largest opened child that
-            // is still interior until eight slots are used.
-            let first = binary[binary_index].first_index as usize;
-            slots.clear();
-            slots.extend([first, first + 1]);
-            while slots.len() < WIDTH {
-                let widest = (0..slots.len())
-                    .filter(|&position| !becomes_leaf(slots[position]))
-                    .max_by(|&a, &b| area(slots[a]).total_cmp(&area(slots[b])));
-                let Some(position) = widest else {
-                    break;
-                };
-                let opened = slots.swap_remove(position);
-                let first = binary[opened].first_index as usize;
-                slots.extend([first, first + 1]);
-            }
-            for (slot, &child) in slots.iter().enumerate() {
-                nodes[wide_index].set_child_bounds(slot, binary[child].bounds());
-                if becomes_leaf(child) {
-                    (
-                        nodes[wide_index].child[slot],
-                        nodes[wide_index].item_count[slot],
-                    ) = ranges[child];
-                } else {
-                    nodes[wide_index].child[slot] = nodes.len() as u32;
-                    pending.push((child, nodes.len()));
-                    nodes.push(WideNode::EMPTY);
-                }
-            }
-        }
-        WideBvh { nodes }
-    }
-
     /// The `(first, count)` item range of every leaf, in node and slot order: the
     /// order [`WideBvh::assign_leaf_items`] expects.
     pub fn leaf_items(&self) -> Vec<(u32, u32)> {
@@ -578,6 +505,7 @@ impl WideRay {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::Bvh;
     use crate::bvh::BvhParams;
     use rand::{Rng, SeedableRng};
 
@@ -672,6 +600,7 @@ mod tests {
 #[cfg(test)]
 mod validate_tests {
     use super::*;
+    use crate::bvh::Bvh;
     use crate::bvh::BvhParams;
 
     #[test]

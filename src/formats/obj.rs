@@ -65,12 +65,13 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// texture it refuses a warning.
 pub fn load_obj_with(path: &Path, access: &FileAccess) -> Result<SceneDescription, SceneError> {
     super::admit(path, access)?;
+    let mut buffer = Vec::new();
     let read = Mutex::new(Vec::new());
     let whole = rayon::in_place_scope_fifo(|scope| {
-        file::read_in_pieces(path, CHUNK_BYTES, |index, chunk| {
+        file::read_in_pieces(path, CHUNK_BYTES, &mut buffer, |index, chunk| {
             let read = &read;
             scope.spawn_fifo(move |_| {
-                let survey = survey::survey(&chunk);
+                let survey = survey::survey(chunk);
                 let mut read = read.lock().unwrap_or_else(PoisonError::into_inner);
                 read.push((index, chunk, survey));
             });
@@ -81,11 +82,10 @@ pub fn load_obj_with(path: &Path, access: &FileAccess) -> Result<SceneDescriptio
     }
     let mut read = read.into_inner().unwrap_or_else(PoisonError::into_inner);
     read.sort_unstable_by_key(|&(index, ..)| index);
-    let (texts, surveys): (Vec<Vec<u8>>, Vec<Survey>) = read
+    let (chunks, surveys): (Vec<&[u8]>, Vec<Survey>) = read
         .into_iter()
         .map(|(_, text, survey)| (text, survey))
         .unzip();
-    let chunks: Vec<&[u8]> = texts.iter().map(Vec::as_slice).collect();
     parse_surveyed(&chunks, surveys, path, access)
 }
 
@@ -1239,7 +1239,8 @@ mod tests {
             std::fs::write(&path, text).unwrap();
             for size in [1, 5, 64, 300, 1000, 1 << 20] {
                 let mut pieces = Vec::new();
-                let whole = file::read_in_pieces(&path, size, |index, piece| {
+                let mut buffer = Vec::new();
+                let whole = file::read_in_pieces(&path, size, &mut buffer, |index, piece| {
                     assert_eq!(index, pieces.len());
                     pieces.push(piece);
                 })
@@ -1254,8 +1255,25 @@ mod tests {
         let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         encoder.write_all(texts[4].as_bytes()).unwrap();
         std::fs::write(&path, encoder.finish().unwrap()).unwrap();
-        let whole = file::read_in_pieces(&path, 64, |_, _| panic!("a piece of a gzip file"));
+        let whole = file::read_in_pieces(&path, 64, &mut Vec::new(), |_, _| {
+            panic!("a piece of a gzip file")
+        });
         assert_eq!(whole.unwrap().unwrap(), texts[4].as_bytes());
+    }
+
+    /// A file that holds more than its size said when it was opened (it grew while
+    /// read; `/proc` files say 0) is read again whole, not cut short.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_file_longer_than_its_size_is_read_whole() {
+        let path = Path::new("/proc/self/status");
+        let whole = file::read_in_pieces(path, 64, &mut Vec::new(), |_, _| {}).unwrap();
+        let text = whole.expect("read again whole");
+        assert!(
+            text.starts_with(b"Name:"),
+            "{}",
+            String::from_utf8_lossy(&text)
+        );
     }
 
     /// Random OBJ documents: mostly the forms mesh files use, some rarer ones, and

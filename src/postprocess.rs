@@ -3,6 +3,8 @@
 //! `n / 2 + 1/2` in normal mode, an exposure and the sRGB curve in path mode).
 //! Encoding to a file is [`crate::output`]'s job.
 
+mod gamma;
+
 use rayon::prelude::*;
 
 use crate::film::Film;
@@ -66,7 +68,7 @@ impl Film {
             .zip(self.pixels.par_chunks(CHUNK))
             .for_each(|(bytes, pixels)| {
                 for (rgb, &v) in bytes.chunks_exact_mut(3).zip(pixels) {
-                    rgb.copy_from_slice(&encoding.apply(v).to_array().map(to_byte));
+                    rgb.copy_from_slice(&encoding.bytes(v));
                 }
             });
         Image {
@@ -188,6 +190,18 @@ enum Encoding {
 }
 
 impl Encoding {
+    /// The bytes of [`Encoding::apply`]'s value: in full mode, with the gamma curve
+    /// and rounding by table ([`gamma::gamma_byte`]), bit for bit the same.
+    #[inline]
+    fn bytes(self, v: Vec3) -> [u8; 3] {
+        match self {
+            Encoding::Full { brightest } => {
+                tone_map(v, brightest).to_array().map(gamma::gamma_byte)
+            }
+            _ => self.apply(v).to_array().map(to_byte),
+        }
+    }
+
     #[inline]
     fn apply(self, v: Vec3) -> Vec3 {
         match self {

@@ -75,19 +75,28 @@ pub(crate) fn release_spare_capacity<T>(v: &Vec<T>) {
     let _ = v;
 }
 
-/// Asks for the cache line holding `value` to be loaded, without waiting for it: for
-/// gathers from random places whose next addresses are known ahead.
+/// Asks the processor to bring `lines` cache lines, from the one holding `address`
+/// on, into the caches without waiting for them: for reads from random places whose
+/// addresses are known ahead (a traversal's next nodes and leaves, a gather's next
+/// elements). A hint, which never faults, whatever the address, and changes no
+/// result.
 #[inline(always)]
-pub(crate) fn prefetch<T>(value: &T) {
+pub(crate) fn prefetch_lines<T>(address: *const T, lines: usize) {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults and changes no memory; SSE is part of the
-    // x86_64 baseline.
-    unsafe {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        _mm_prefetch::<_MM_HINT_T0>((value as *const T).cast());
+    {
+        let start = (address as usize & !63) as *const i8;
+        for line in 0..lines {
+            // SAFETY: prefetching is a hint that never faults; SSE is part of the
+            // x86_64 baseline.
+            unsafe {
+                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                    start.wrapping_add(64 * line),
+                );
+            }
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
+    let _ = (address, lines);
 }
 
 /// Requests of at least this many bytes are served by [`RecyclingAllocator`] from

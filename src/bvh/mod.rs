@@ -15,8 +15,8 @@ mod wide;
 pub use build::BvhParams;
 pub use node::BvhNode;
 pub(crate) use packet::lane_mask;
-pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of, prefetch_lines};
-pub(crate) use wide::STACK_SIZE;
+pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of};
+pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE};
 pub use wide::{RayQuery, WIDTH, WideBvh, WideNode};
 
 use crate::math::Aabb;

@@ -31,9 +31,12 @@ use std::mem::MaybeUninit;
 
 use wide::{f32x8, f32x16, u32x16};
 
-use super::wide::{ChildRef, MIN_DIR_COMPONENT, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH, WideRay};
+use super::wide::{
+    ChildRef, MIN_DIR_COMPONENT, PREFETCH_LINES, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH, WideRay,
+};
 use super::{WideBvh, WideNode};
 use crate::math::{Float, Ray};
+use crate::memory::prefetch_lines;
 
 /// Rays per packet: one AVX-512 register of `f32` per coordinate.
 pub const PACKET_SIZE: usize = 16;
@@ -424,7 +427,10 @@ impl WideBvh {
                             if node.item_count[slot] > 0 {
                                 prefetch_leaf(node.child[slot], node.item_count[slot]);
                             } else {
-                                prefetch_lines(&self.nodes[node.child[slot] as usize]);
+                                prefetch_lines(
+                                    self.nodes.as_ptr().wrapping_add(node.child[slot] as usize),
+                                    PREFETCH_LINES,
+                                );
                             }
                         }
                         stack_len += usize::from(hits != 0);
@@ -686,22 +692,6 @@ impl Frustum {
             t_enter,
         )
     }
-}
-
-/// Asks the cache for the lines of `value`, without waiting for them.
-#[inline(always)]
-pub fn prefetch_lines<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let start = (value as *const T).cast::<i8>();
-        for offset in (0..size_of::<T>()).step_by(64) {
-            // SAFETY: a prefetch only hints the cache; the address lies inside `value`.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ use wide::{f32x8, u32x8};
 
 use super::{BvhInvariantError, MAX_DEPTH};
 use crate::math::{Aabb, Float, Ray, Vec3};
+use crate::memory::prefetch_lines;
 
 /// Children per node: one 256-bit AVX register of `f32`.
 pub const WIDTH: usize = 8;
@@ -253,7 +254,10 @@ impl WideBvh {
     /// incoherent ray's next node is otherwise a cache miss the walk waits for.
     #[inline(always)]
     fn prefetch_node(&self, child: ChildRef) {
-        prefetch_lines(self.nodes.as_ptr().wrapping_add(child.index as usize));
+        prefetch_lines(
+            self.nodes.as_ptr().wrapping_add(child.index as usize),
+            PREFETCH_LINES,
+        );
     }
 
     #[inline(always)]
@@ -298,7 +302,10 @@ impl WideBvh {
                     while leaves != 0 {
                         let slot = leaves.trailing_zeros() as usize;
                         leaves &= leaves - 1;
-                        prefetch_lines(items.as_ptr().wrapping_add(node.child[slot] as usize));
+                        prefetch_lines(
+                            items.as_ptr().wrapping_add(node.child[slot] as usize),
+                            PREFETCH_LINES,
+                        );
                     }
                     let first = hits.trailing_zeros() as usize;
                     hits &= hits - 1;
@@ -366,30 +373,10 @@ impl WideBvh {
     }
 }
 
-/// Lines [`prefetch_lines`] asks for: a node's four, or all of a 160-byte packet of
+/// Lines a walk asks for ahead: a node's four, or all of a 160-byte packet of
 /// triangles (the first of a leaf's one or two; three to five lines were measured
 /// alike on the dragon).
-const PREFETCH_LINES: usize = 4;
-
-/// Asks the processor to bring [`PREFETCH_LINES`] cache lines, from the one holding
-/// `address` on, into the caches: a hint, which never faults and changes no result.
-#[inline(always)]
-fn prefetch_lines<T>(address: *const T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let start = (address as usize & !63) as *const i8;
-        for line in 0..PREFETCH_LINES {
-            // SAFETY: prefetching is a hint that never faults, whatever the address.
-            unsafe {
-                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                    start.wrapping_add(64 * line),
-                );
-            }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = address;
-}
+pub(crate) const PREFETCH_LINES: usize = 4;
 
 /// Insertion sort by decreasing entry distance: at most eight entries, mostly two or
 /// three, where it beats any general sort.

@@ -371,11 +371,11 @@ impl Scene {
                 if corners {
                     for &p in &t.positions {
                         if let Some(p) = positions.get(p as usize) {
-                            memory::prefetch(p);
+                            memory::prefetch_lines(p, 1);
                         }
                     }
                 } else {
-                    memory::prefetch(t);
+                    memory::prefetch_lines(t, 1);
                 }
             }
         };

@@ -37,7 +37,7 @@ impl Scene {
     #[inline(always)]
     fn prefetch_packets(&self, first: u32, count: u32) {
         for packet in &self.packets[first as usize..(first + count) as usize] {
-            crate::bvh::prefetch_lines(packet);
+            crate::memory::prefetch_lines(packet, crate::bvh::PREFETCH_LINES);
         }
     }
 

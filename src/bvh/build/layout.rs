@@ -53,18 +53,8 @@ pub(super) fn close_gaps(nodes: &mut Vec<BvhNode>, segments: &[Segment]) {
         *nodes = copy;
         return;
     }
-    let mut new_starts = Vec::with_capacity(segments.len());
-    let mut count = 1;
-    for s in segments {
-        new_starts.push(count as u32);
-        count += s.len as usize;
-    }
-    // Children of a joined pair (or of the root) start a segment.
-    let moved = |old_start: u32| -> u32 {
-        let at = segments.partition_point(|s| s.start < old_start);
-        debug_assert_eq!(segments[at].start, old_start);
-        new_starts[at]
-    };
+    let (new_starts, count) = closed_starts(segments);
+    let moved = |old_start| moved(segments, &new_starts, old_start);
     let slots = nodes.spare_capacity_mut();
     // SAFETY (for every `assume_init_read` below): the builder wrote the root and
     // every slot of every segment, and segments only move towards the front, in
@@ -96,19 +86,30 @@ pub(super) fn close_gaps(nodes: &mut Vec<BvhNode>, segments: &[Segment]) {
     memory::release_spare_capacity(nodes);
 }
 
-/// [`close_gaps`] into `out` (called with each node in order) rather than in place.
-fn gather_segments(slots: &[Slot], segments: &[Segment], mut out: impl FnMut(BvhNode)) {
+/// Where each segment starts once the gaps are closed (after the root), and the
+/// number of nodes then.
+fn closed_starts(segments: &[Segment]) -> (Vec<u32>, usize) {
     let mut new_starts = Vec::with_capacity(segments.len());
     let mut count = 1;
     for s in segments {
         new_starts.push(count as u32);
         count += s.len as usize;
     }
-    let moved = |old_start: u32| -> u32 {
-        let at = segments.partition_point(|s| s.start < old_start);
-        debug_assert_eq!(segments[at].start, old_start);
-        new_starts[at]
-    };
+    (new_starts, count)
+}
+
+/// The new index of the child pair that started at slot `old_start`: children of a
+/// joined pair (or of the root) start a segment.
+fn moved(segments: &[Segment], new_starts: &[u32], old_start: u32) -> u32 {
+    let at = segments.partition_point(|s| s.start < old_start);
+    debug_assert_eq!(segments[at].start, old_start);
+    new_starts[at]
+}
+
+/// [`close_gaps`] into `out` (called with each node in order) rather than in place.
+fn gather_segments(slots: &[Slot], segments: &[Segment], mut out: impl FnMut(BvhNode)) {
+    let (new_starts, _) = closed_starts(segments);
+    let moved = |old_start| moved(segments, &new_starts, old_start);
     // SAFETY: the builder wrote the root and every slot of every segment's
     // in-array part.
     let read = |slot: &Slot| unsafe { slot.assume_init_read() };

@@ -379,8 +379,8 @@ impl Scene {
                 }
             }
         };
-        // Collapsing is one sequential walk: the SAH cost, another pass over the
-        // binary nodes, is taken meanwhile on another thread. Then the binary BVH goes.
+        // The SAH cost, another pass over the binary nodes, is taken beside the
+        // collapse (whose subtrees are tasks too). Then the binary BVH goes.
         let (wide, sah_cost) = rayon::join(
             || WideBvh::collapse(&bvh, 2 * LANES as u32),
             || bvh.sah_cost(params),

@@ -23,7 +23,7 @@ use std::mem::MaybeUninit;
 use wide::f32x16;
 
 use super::{Hit, Scene};
-use crate::bvh::{PACKET_SIZE, RayPacket, STACK_SIZE, WIDTH, WideNode, lane_mask, lanes_of};
+use crate::bvh::{PACKET_SIZE, RayPacket, STACK_SIZE, WideNode, lane_mask, lanes_of};
 use crate::math::{Float, Ray};
 use crate::shapes::{LANES, PrimHit, Shape, sphere_across_rays, triangle_across_rays};
 
@@ -54,12 +54,32 @@ fn shape_across(
     (valid & t.simd_lt(t_max), t, u, v)
 }
 
-/// The rays of `batch` that meet the box of slot `slot` of `node` with an entry
-/// distance below their `t_max`, as a bit mask (the slot must be in use).
+/// Pushes onto `stack` each child of `node` that some ray of `rays` in `batch` meets
+/// with an entry distance below its `t_max`, with the mask of those rays.
 #[inline(always)]
-fn meets_child(batch: &RayPacket, node: &WideNode, slot: usize, t_max: f32x16) -> u32 {
-    let planes = [0, 1, 2, 3, 4, 5].map(|p| node.planes[p].as_array()[slot]);
-    batch.hit_child::<false>(&planes, t_max).0.to_bitmask()
+fn push_met_children(
+    batch: &RayPacket,
+    node: &WideNode,
+    t_max: f32x16,
+    rays: u32,
+    stack: &mut [MaybeUninit<Pending>],
+    stack_len: &mut usize,
+) {
+    // Slots in use: an unused slot's box is inverted.
+    let used = node.planes[0].simd_le(node.planes[1]).to_bitmask();
+    for slot in lanes_of(used) {
+        let planes = [0, 1, 2, 3, 4, 5].map(|p| node.planes[p].as_array()[slot]);
+        let met = batch.hit_child::<false>(&planes, t_max).0.to_bitmask() & rays;
+        if met != 0 {
+            debug_assert!(*stack_len < STACK_SIZE);
+            stack[*stack_len].write(Pending {
+                index: node.child[slot],
+                item_count: node.item_count[slot],
+                rays: met,
+            });
+            *stack_len += 1;
+        }
+    }
 }
 
 /// What the stack of a batch walk holds: a node or a leaf's packets, and the rays
@@ -141,21 +161,7 @@ impl Scene {
                 continue;
             }
             let node = &self.wide.nodes[pending.index as usize];
-            for slot in 0..WIDTH {
-                if node.child_bounds(slot).min.x > node.child_bounds(slot).max.x {
-                    continue;
-                }
-                let met = meets_child(&batch, node, slot, t_best) & reached;
-                if met != 0 {
-                    debug_assert!(stack_len < STACK_SIZE);
-                    stack[stack_len].write(Pending {
-                        index: node.child[slot],
-                        item_count: node.item_count[slot],
-                        rays: met,
-                    });
-                    stack_len += 1;
-                }
-            }
+            push_met_children(&batch, node, t_best, reached, &mut stack, &mut stack_len);
         }
         let (t, u, v, id) = (
             t_best.to_array(),
@@ -240,21 +246,7 @@ impl Scene {
                 continue;
             }
             let node = &self.wide.nodes[pending.index as usize];
-            for slot in 0..WIDTH {
-                if node.child_bounds(slot).min.x > node.child_bounds(slot).max.x {
-                    continue;
-                }
-                let met = meets_child(&batch, node, slot, limit) & open;
-                if met != 0 {
-                    debug_assert!(stack_len < STACK_SIZE);
-                    stack[stack_len].write(Pending {
-                        index: node.child[slot],
-                        item_count: node.item_count[slot],
-                        rays: met,
-                    });
-                    stack_len += 1;
-                }
-            }
+            push_met_children(&batch, node, limit, open, &mut stack, &mut stack_len);
         }
         blocked & active
     }

@@ -2,6 +2,7 @@
 //! original index), and boxes kept in SIMD registers for the inner loops.
 
 use glam::{BVec4A, Vec3A, Vec4};
+use wide::f32x8;
 
 use crate::math::{Aabb, Float};
 
@@ -16,6 +17,8 @@ pub(super) struct PrimRef {
 
 // SAFETY: `PrimRef` is plain `f32` lanes, for which all-zero bits are 0.0.
 unsafe impl bytemuck::Zeroable for PrimRef {}
+// SAFETY: two `Vec4`s of `f32`, `repr(C)`, no padding; any bits are valid.
+unsafe impl bytemuck::Pod for PrimRef {}
 
 /// Keeps x, y, z and clears w. The index bits in `min_and_index.w` read as a
 /// denormal float, and arithmetic on denormals takes a microcode assist on x86 (over
@@ -40,6 +43,17 @@ impl PrimRef {
     #[inline(always)]
     pub(super) fn index(&self) -> u32 {
         self.min_and_index.w.to_bits()
+    }
+    /// The box as eight lanes: `min` x, y, z, 0, then `max` x, y, z negated, 0,
+    /// the bins' form (see `bins::AxisBins`). One load, one `and`, one `xor`.
+    #[inline(always)]
+    pub(super) fn lanes(&self) -> f32x8 {
+        // Clears the index bits of lane 3, flips the sign of lanes 4 to 6.
+        const KEEP: [u32; 8] = [!0, !0, !0, 0, !0, !0, !0, !0];
+        const FLIP: [u32; 8] = [0, 0, 0, 0, 1 << 31, 1 << 31, 1 << 31, 0];
+        let lanes: [f32; 8] = bytemuck::cast(*self);
+        let bits = |mask: [u32; 8]| f32x8::new(mask.map(f32::from_bits));
+        (f32x8::new(lanes) & bits(KEEP)) ^ bits(FLIP)
     }
     /// Twice the centroid: the factor 1/2 cancels in every comparison.
     #[inline(always)]

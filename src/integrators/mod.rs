@@ -7,6 +7,7 @@
 //! inlined. A new mode adds a struct here and one arm to that match.
 
 pub mod debug;
+mod phong_lanes;
 pub mod path;
 pub mod whitted;
 

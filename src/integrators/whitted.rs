@@ -3,7 +3,10 @@
 
 use std::time::{Duration, Instant};
 
+use wide::f32x16;
+
 use super::Integrator;
+use super::phong_lanes::HitLanes;
 use crate::bvh::PACKET_SIZE;
 use crate::material::{Colours, PointLight};
 use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
@@ -184,14 +187,10 @@ fn light_term(ray: &Ray, hit: &Hit, surface: &impl Colours, light: &PointLight) 
     light.intensity * (diffuse + specular)
 }
 
-/// Room for [`WhittedIntegrator::radiance_packet`]'s intermediate values, made once
-/// per run of tiles so that no packet allocates.
+/// Room for [`WhittedIntegrator::radiance_packet`]'s shadow rays, made once per run of
+/// tiles so that no packet allocates.
 #[derive(Debug, Default)]
 pub struct PacketScratch {
-    /// `lit[light * PACKET_SIZE + ray]`: what each light adds to each ray's hit.
-    lit: Vec<Vec3>,
-    /// Per light, the rays whose shadow ray towards it is blocked.
-    blocked: Vec<u32>,
     shadow_rays: Vec<Ray>,
     distances: Vec<Float>,
     /// Time spent in packet queries so far, when timed.
@@ -248,76 +247,73 @@ impl WhittedIntegrator {
         let hits = &mut hits[..count];
         scratch.trace(|_| scene.intersect_packet(camera_rays, hits));
 
-        // What each light adds to each hit, and the shadow rays of those it adds to.
-        let lights = &scene.lights;
-        scratch.lit.clear();
-        scratch.lit.resize(lights.len() * PACKET_SIZE, Vec3::ZERO);
-        scratch.blocked.clear();
+        // The hits the point lights shade (those of materials with `al0 != 0`), with
+        // their colours there, as lanes.
+        let mut lanes = HitLanes::new();
+        for (r, (ray, hit)) in camera_rays.iter().zip(hits.iter()).enumerate() {
+            let Some(hit) = hit else {
+                continue;
+            };
+            let material = &scene.materials[hit.material.0 as usize];
+            if material.albedo[0] == 0.0 {
+                continue;
+            }
+            match material.maps {
+                None => lanes.set(r, ray, hit, material),
+                Some(_) => lanes.set(r, ray, hit, &material.at(hit.uv)),
+            }
+        }
+
+        // Light by light, as `direct_light`: what it adds to each hit, the shadow
+        // rays of those it adds to, traced as a packet, and the sum of the unblocked
+        // (adding a zero leaves a sum as it was: sums start at +0).
+        let mut direct = [f32x16::ZERO; 3];
         scratch.shadow_rays.clear();
         scratch.shadow_rays.resize(count, camera_rays[0]);
         scratch.distances.clear();
         scratch.distances.resize(count, 0.0);
-        for (index, light) in lights.iter().enumerate() {
-            let mut tested = 0u32;
-            for (r, (ray, hit)) in camera_rays.iter().zip(hits.iter()).enumerate() {
-                let Some(hit) = hit else {
-                    continue;
-                };
-                let material = &scene.materials[hit.material.0 as usize];
-                if material.albedo[0] == 0.0 {
+        if lanes.lanes() != 0 {
+            for light in &scene.lights {
+                let (lit, tested) =
+                    lanes.light(light, &mut scratch.shadow_rays, &mut scratch.distances);
+                if tested == 0 {
                     continue;
                 }
-                let lit = match material.maps {
-                    None => light_term(ray, hit, material, light),
-                    Some(_) => light_term(ray, hit, &material.at(hit.uv), light),
-                };
-                if lit == Vec3::ZERO {
-                    continue;
+                rays.shadow += u64::from(tested.count_ones());
+                let blocked =
+                    scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested));
+                let adds = f32x16::from(lane_mask(tested & !blocked));
+                for (sum, lit) in direct.iter_mut().zip(lit) {
+                    *sum += adds.select(lit, f32x16::ZERO);
                 }
-                scratch.lit[index * PACKET_SIZE + r] = lit;
-                (scratch.shadow_rays[r], scratch.distances[r]) = hit.spawn_ray_to(light.position);
-                tested |= 1 << r;
             }
-            let blocked = if tested == 0 {
-                0
-            } else {
-                scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested))
-            };
-            scratch.blocked.push(blocked);
         }
 
+        let direct = direct.map(|sum| sum.to_array());
         for (r, ((ray, hit), value)) in camera_rays.iter().zip(hits.iter()).zip(out).enumerate() {
             let Some(hit) = hit else {
                 *value = Vec3::ZERO;
                 continue;
             };
-            let answers = PacketAnswers { scratch, ray: r };
-            *value = shade(scene, ray, hit, self.max_depth, false, rays, answers);
+            let light = PacketLight(Vec3::new(direct[0][r], direct[1][r], direct[2][r]));
+            *value = shade(scene, ray, hit, self.max_depth, false, rays, light);
         }
     }
 }
 
-/// The light of the point lights at the hit of ray `ray` of a packet, from the
-/// packet's answers: the sum of [`direct_light`], in the same order.
-struct PacketAnswers<'a> {
-    scratch: &'a PacketScratch,
-    ray: usize,
+/// All ones in the lanes of `mask` (as `f32` bits), zeros elsewhere.
+#[inline(always)]
+fn lane_mask(mask: u32) -> [Float; PACKET_SIZE] {
+    std::array::from_fn(|lane| Float::from_bits(if mask >> lane & 1 == 1 { !0 } else { 0 }))
 }
 
-impl DirectLight for PacketAnswers<'_> {
+/// The light of the point lights at a hit of a packet, summed by
+/// [`WhittedIntegrator::radiance_packet`] (its shadow rays counted there).
+struct PacketLight(Vec3);
+
+impl DirectLight for PacketLight {
     #[inline(always)]
-    fn light(self, _: &impl Colours, rays: &mut RayCounts) -> Vec3 {
-        let mut local = Vec3::ZERO;
-        for (index, blocked) in self.scratch.blocked.iter().enumerate() {
-            let lit = self.scratch.lit[index * PACKET_SIZE + self.ray];
-            if lit == Vec3::ZERO {
-                continue;
-            }
-            rays.shadow += 1;
-            if blocked >> self.ray & 1 == 0 {
-                local += lit;
-            }
-        }
-        local
+    fn light(self, _: &impl Colours, _: &mut RayCounts) -> Vec3 {
+        self.0
     }
 }

@@ -7,8 +7,8 @@
 //! inlined. A new mode adds a struct here and one arm to that match.
 
 pub mod debug;
-mod phong_lanes;
 pub mod path;
+mod phong_lanes;
 pub mod whitted;
 
 pub use debug::{DepthIntegrator, NormalIntegrator};

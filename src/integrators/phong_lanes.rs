@@ -118,10 +118,8 @@ impl HitLanes {
         let largest = greater(ax, greater(ay, az));
         let scaled = v.map(|c| c / largest);
         let rcp = one / dot(scaled, scaled).sqrt();
-        let valid = largest.simd_gt(zero)
-            & largest.is_finite()
-            & rcp.is_finite()
-            & rcp.simd_gt(zero);
+        let valid =
+            largest.simd_gt(zero) & largest.is_finite() & rcp.is_finite() & rcp.simd_gt(zero);
         let to_light = scaled.map(|c| c * rcp);
 
         let cos_light = dot(ns, to_light);
@@ -149,8 +147,12 @@ impl HitLanes {
         let power = f32x16::from(power);
         let intensity = light.intensity.to_array().map(f32x16::splat);
         let specular = load(&self.specular);
-        let lit = [0, 1, 2]
-            .map(|axis| valid.select(intensity[axis] * (diffuse[axis] + specular[axis] * power), zero));
+        let lit = [0, 1, 2].map(|axis| {
+            valid.select(
+                intensity[axis] * (diffuse[axis] + specular[axis] * power),
+                zero,
+            )
+        });
         let lit_lanes = (lit[0].simd_ne(zero) | lit[1].simd_ne(zero) | lit[2].simd_ne(zero))
             .to_bitmask()
             & shaded;

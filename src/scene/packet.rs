@@ -320,6 +320,14 @@ pub(crate) mod tests {
     /// vertex normals; a cloud of random triangles above it; optionally spheres; two
     /// point lights; a mirror and a glass material besides a diffuse one.
     pub(crate) fn generated_scene(n: u32, with_spheres: bool, seed: u64) -> Scene {
+        Scene::build(
+            generated_description(n, with_spheres, seed),
+            &BvhParams::default(),
+        )
+    }
+
+    /// The description [`generated_scene`] builds.
+    pub(crate) fn generated_description(n: u32, with_spheres: bool, seed: u64) -> SceneDescription {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let mut d = SceneDescription::default();
         let height = |x: f32, z: f32| 0.1 * (3.0 * x).sin() * (2.0 * z).cos();
@@ -401,7 +409,7 @@ pub(crate) mod tests {
                 intensity: Vec3::new(0.3, 0.4, 0.5),
             },
         ];
-        Scene::build(d, &BvhParams::default())
+        d
     }
 
     /// Bits of everything a hit holds, so that equality is bitwise.

@@ -50,15 +50,20 @@ impl Scene {
     pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         let found = self.closest_lanes_packet(rays);
-        for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
-            // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
-            *hit = found.map(|(packet, lane, prim)| {
-                if self.prim_texcoords.is_empty() {
-                    self.hit_details(ray, packet, lane, prim)
-                } else {
-                    self.textured_hit_details(ray, packet, lane, prim)
-                }
-            });
+        let answers = hits.iter_mut().zip(rays).zip(found);
+        // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
+        // One loop for each, so that an untextured hit is built in place: built on
+        // the stack in pieces and then copied whole, it stalls the copy's loads.
+        if self.prim_texcoords.is_empty() {
+            for ((hit, ray), found) in answers {
+                *hit = found
+                    .map(|(packet, lane, prim)| self.hit_details_inline(ray, packet, lane, prim));
+            }
+        } else {
+            for ((hit, ray), found) in answers {
+                *hit = found
+                    .map(|(packet, lane, prim)| self.textured_hit_details(ray, packet, lane, prim));
+            }
         }
     }
 

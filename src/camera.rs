@@ -250,17 +250,13 @@ mod tests {
                     let (columns, rows) =
                         ((camera.width - left).min(4), (camera.height - top).min(4));
                     camera.tile_rays(left, top, columns, rows, &mut rays);
-                    for k in 0..(columns * rows) as usize {
+                    for (k, ray) in rays[..(columns * rows) as usize].iter().enumerate() {
                         let expected =
                             camera.pixel_ray(left + k as u32 % columns, top + k as u32 / columns);
                         let bits = |r: &Ray| {
                             [r.origin.to_array(), r.dir.to_array()].map(|v| v.map(Float::to_bits))
                         };
-                        assert_eq!(
-                            bits(&rays[k]),
-                            bits(&expected),
-                            "pixel {k} of ({left}, {top})"
-                        );
+                        assert_eq!(bits(ray), bits(&expected), "pixel {k} of ({left}, {top})");
                     }
                 }
             }

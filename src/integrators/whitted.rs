@@ -228,8 +228,9 @@ impl WhittedIntegrator {
     /// The values of up to [`PACKET_SIZE`] coherent camera rays (a tile of pixels)
     /// into `out`: exactly [`Integrator::radiance`] of each, with the camera rays and
     /// the shadow rays towards each point light traced as packets
-    /// ([`Scene::intersect_packet`], [`Scene::occluded_packet`]); reflected and
-    /// refracted rays are traced one by one.
+    /// ([`Scene::intersect_packet`], [`Scene::occluded_packet`]), and the point
+    /// lights' terms computed for all the hits at once in SIMD lanes
+    /// (`integrators::phong_lanes`); reflected and refracted rays are traced one by one.
     ///
     /// # Panics
     /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `out`.

@@ -1,6 +1,9 @@
 //! The pinhole LookAt camera of SPEC: focal length 1, vertical field of view, square
 //! pixels, rays through pixel centres, row 0 at the top.
 
+use wide::f32x16;
+
+use crate::bvh::PACKET_SIZE;
 use crate::math::{Float, Ray, Vec3, try_unit};
 use crate::options::RenderOptions;
 
@@ -100,6 +103,50 @@ impl Camera {
     pub fn pixel_ray(&self, column: u32, row: u32) -> Ray {
         self.ray(column as Float + 0.5, row as Float + 0.5)
     }
+
+    /// The rays through the pixel centres of the `columns` x `rows` tile (at most 4 x 4)
+    /// whose top left pixel is (`left`, `top`), row by row, into `rays`: bit for bit [`Camera::pixel_ray`] of each, with each column's and each
+    /// row's offset computed once and the sixteen directions normalized in SIMD lanes
+    /// (the same operations: glam's `normalize` multiplies by `1 / sqrt(dot)`).
+    ///
+    /// # Panics
+    /// If the tile is wider or taller than 4 pixels, or `rays` is shorter than the tile.
+    #[inline]
+    pub fn tile_rays(&self, left: u32, top: u32, columns: u32, rows: u32, rays: &mut [Ray]) {
+        let count = (columns * rows) as usize;
+        assert!(
+            columns <= 4 && rows <= 4 && rays.len() >= count,
+            "a tile of at most 4 x 4 pixels"
+        );
+        let offset = |pixel: u32, size: u32| 2.0 * (pixel as Float + 0.5) / size as Float;
+        let sx: [Float; 4] =
+            std::array::from_fn(|c| (offset(left + c as u32, self.width) - 1.0) * self.half_width);
+        let sy: [Float; 4] =
+            std::array::from_fn(|r| (1.0 - offset(top + r as u32, self.height)) * self.half_height);
+        let (mut x, mut y) = ([0.0; PACKET_SIZE], [0.0; PACKET_SIZE]);
+        for k in 0..count {
+            x[k] = sx[k % columns as usize];
+            y[k] = sy[k / columns as usize];
+        }
+        let (x, y) = (f32x16::from(x), f32x16::from(y));
+        let [rx, ry, rz] = self.right.to_array().map(f32x16::splat);
+        let [ux, uy, uz] = self.up.to_array().map(f32x16::splat);
+        let [bx, by, bz] = self.backward.to_array().map(f32x16::splat);
+        // `right * sx + up * sy - backward`, then `Ray::new`'s `normalize`.
+        let dir = [
+            rx * x + ux * y - bx,
+            ry * x + uy * y - by,
+            rz * x + uz * y - bz,
+        ];
+        let recip = f32x16::ONE / (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        let [dx, dy, dz] = dir.map(|c| (c * recip).to_array());
+        for (k, ray) in rays[..count].iter_mut().enumerate() {
+            *ray = Ray {
+                origin: self.origin,
+                dir: Vec3::new(dx[k], dy[k], dz[k]),
+            };
+        }
+    }
 }
 
 #[cfg(test)]
@@ -167,6 +214,52 @@ mod tests {
             let centre = cam.ray(5.0, 5.0).dir;
             assert!((centre + from.normalize()).length() < 1e-6);
             assert!(corner.dot(centre) < 0.99);
+        }
+    }
+
+    #[test]
+    fn tile_rays_are_the_pixel_rays_bit_for_bit() {
+        let cameras = [
+            Camera::new(
+                Vec3::new(0.09, 0.21, 0.27),
+                Vec3::new(-0.005, 0.12, -0.005),
+                45.0,
+                37,
+                23,
+            ),
+            Camera::new(
+                Vec3::new(3.0, -2.0, 1e4),
+                Vec3::new(0.5, 7.0, -3.0),
+                120.0,
+                19,
+                41,
+            ),
+            Camera::with_up(
+                Vec3::ONE,
+                Vec3::ZERO,
+                Vec3::new(0.3, 0.1, 1.0),
+                10.0,
+                1021,
+                7,
+            ),
+        ];
+        for camera in cameras {
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
+            for top in (0..camera.height).step_by(4) {
+                for left in (0..camera.width).step_by(4) {
+                    let (columns, rows) =
+                        ((camera.width - left).min(4), (camera.height - top).min(4));
+                    camera.tile_rays(left, top, columns, rows, &mut rays);
+                    for (k, ray) in rays[..(columns * rows) as usize].iter().enumerate() {
+                        let expected =
+                            camera.pixel_ray(left + k as u32 % columns, top + k as u32 / columns);
+                        let bits = |r: &Ray| {
+                            [r.origin.to_array(), r.dir.to_array()].map(|v| v.map(Float::to_bits))
+                        };
+                        assert_eq!(bits(ray), bits(&expected), "pixel {k} of ({left}, {top})");
+                    }
+                }
+            }
         }
     }
 }

@@ -12,7 +12,7 @@ use crate::integrators::whitted::PacketScratch;
 use crate::integrators::{
     DepthIntegrator, Integrator, NormalIntegrator, PathIntegrator, WhittedIntegrator,
 };
-use crate::math::{Float, Ray, Vec3};
+use crate::math::{Ray, Vec3};
 use crate::options::{Mode, RenderOptions};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
@@ -270,13 +270,8 @@ fn render_whitted_packets(
             let mut values = [Vec3::ZERO; PACKET_SIZE];
             for left in (tile.x..tile.x + tile.width).step_by(PACKET_TILE as usize) {
                 let columns = (tile.x + tile.width - left).min(PACKET_TILE);
-                let mut count = 0;
-                for row in top..top + rows {
-                    for column in left..left + columns {
-                        camera_rays[count] = camera.ray(column as Float + 0.5, row as Float + 0.5);
-                        count += 1;
-                    }
-                }
+                camera.tile_rays(left, top, columns, rows, &mut camera_rays);
+                let count = (columns * rows) as usize;
                 rays.primary += count as u64;
                 integrator.radiance_packet(
                     scene,

@@ -8,6 +8,7 @@
 
 pub mod debug;
 pub mod path;
+mod phong_lanes;
 pub mod whitted;
 
 pub use debug::{DepthIntegrator, NormalIntegrator};

@@ -3,7 +3,10 @@
 
 use std::time::{Duration, Instant};
 
+use wide::f32x16;
+
 use super::Integrator;
+use super::phong_lanes::HitLanes;
 use crate::bvh::PACKET_SIZE;
 use crate::material::{Colours, PointLight};
 use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
@@ -184,14 +187,10 @@ fn light_term(ray: &Ray, hit: &Hit, surface: &impl Colours, light: &PointLight) 
     light.intensity * (diffuse + specular)
 }
 
-/// Room for [`WhittedIntegrator::radiance_packet`]'s intermediate values, made once
-/// per run of tiles so that no packet allocates.
+/// Room for [`WhittedIntegrator::radiance_packet`]'s shadow rays, made once per run of
+/// tiles so that no packet allocates.
 #[derive(Debug, Default)]
 pub struct PacketScratch {
-    /// `lit[light * PACKET_SIZE + ray]`: what each light adds to each ray's hit.
-    lit: Vec<Vec3>,
-    /// Per light, the rays whose shadow ray towards it is blocked.
-    blocked: Vec<u32>,
     shadow_rays: Vec<Ray>,
     distances: Vec<Float>,
     /// Time spent in packet queries so far, when timed.
@@ -229,8 +228,9 @@ impl WhittedIntegrator {
     /// The values of up to [`PACKET_SIZE`] coherent camera rays (a tile of pixels)
     /// into `out`: exactly [`Integrator::radiance`] of each, with the camera rays and
     /// the shadow rays towards each point light traced as packets
-    /// ([`Scene::intersect_packet`], [`Scene::occluded_packet`]); reflected and
-    /// refracted rays are traced one by one.
+    /// ([`Scene::intersect_packet`], [`Scene::occluded_packet`]), and the point
+    /// lights' terms computed for all the hits at once in SIMD lanes
+    /// (`integrators::phong_lanes`); reflected and refracted rays are traced one by one.
     ///
     /// # Panics
     /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `out`.
@@ -248,76 +248,334 @@ impl WhittedIntegrator {
         let hits = &mut hits[..count];
         scratch.trace(|_| scene.intersect_packet(camera_rays, hits));
 
-        // What each light adds to each hit, and the shadow rays of those it adds to.
-        let lights = &scene.lights;
-        scratch.lit.clear();
-        scratch.lit.resize(lights.len() * PACKET_SIZE, Vec3::ZERO);
-        scratch.blocked.clear();
+        // The hits the point lights shade (those of materials with `al0 != 0`), with
+        // their colours there, as lanes.
+        let mut lanes = HitLanes::new();
+        for (r, (ray, hit)) in camera_rays.iter().zip(hits.iter()).enumerate() {
+            let Some(hit) = hit else {
+                continue;
+            };
+            let material = &scene.materials[hit.material.0 as usize];
+            if material.albedo[0] == 0.0 {
+                continue;
+            }
+            match material.maps {
+                None => lanes.set(r, ray, hit, material),
+                Some(_) => lanes.set(r, ray, hit, &material.at(hit.uv)),
+            }
+        }
+
+        // Light by light, as `direct_light`: what it adds to each hit, the shadow
+        // rays of those it adds to, traced as a packet, and the sum of the unblocked
+        // (adding a zero leaves a sum as it was: sums start at +0).
+        let mut direct = [f32x16::ZERO; 3];
         scratch.shadow_rays.clear();
         scratch.shadow_rays.resize(count, camera_rays[0]);
         scratch.distances.clear();
         scratch.distances.resize(count, 0.0);
-        for (index, light) in lights.iter().enumerate() {
-            let mut tested = 0u32;
-            for (r, (ray, hit)) in camera_rays.iter().zip(hits.iter()).enumerate() {
-                let Some(hit) = hit else {
-                    continue;
-                };
-                let material = &scene.materials[hit.material.0 as usize];
-                if material.albedo[0] == 0.0 {
+        if lanes.lanes() != 0 {
+            for light in &scene.lights {
+                let (lit, tested) =
+                    lanes.light(light, &mut scratch.shadow_rays, &mut scratch.distances);
+                if tested == 0 {
                     continue;
                 }
-                let lit = match material.maps {
-                    None => light_term(ray, hit, material, light),
-                    Some(_) => light_term(ray, hit, &material.at(hit.uv), light),
-                };
-                if lit == Vec3::ZERO {
-                    continue;
+                rays.shadow += u64::from(tested.count_ones());
+                let blocked =
+                    scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested));
+                let adds = f32x16::from(lane_mask(tested & !blocked));
+                for (sum, lit) in direct.iter_mut().zip(lit) {
+                    *sum += adds.select(lit, f32x16::ZERO);
                 }
-                scratch.lit[index * PACKET_SIZE + r] = lit;
-                (scratch.shadow_rays[r], scratch.distances[r]) = hit.spawn_ray_to(light.position);
-                tested |= 1 << r;
             }
-            let blocked = if tested == 0 {
-                0
-            } else {
-                scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested))
-            };
-            scratch.blocked.push(blocked);
         }
 
+        let direct = direct.map(|sum| sum.to_array());
         for (r, ((ray, hit), value)) in camera_rays.iter().zip(hits.iter()).zip(out).enumerate() {
             let Some(hit) = hit else {
                 *value = Vec3::ZERO;
                 continue;
             };
-            let answers = PacketAnswers { scratch, ray: r };
-            *value = shade(scene, ray, hit, self.max_depth, false, rays, answers);
+            let light = PacketLight(Vec3::new(direct[0][r], direct[1][r], direct[2][r]));
+            *value = shade(scene, ray, hit, self.max_depth, false, rays, light);
         }
     }
 }
 
-/// The light of the point lights at the hit of ray `ray` of a packet, from the
-/// packet's answers: the sum of [`direct_light`], in the same order.
-struct PacketAnswers<'a> {
-    scratch: &'a PacketScratch,
-    ray: usize,
+/// All ones in the lanes of `mask` (as `f32` bits), zeros elsewhere.
+#[inline(always)]
+fn lane_mask(mask: u32) -> [Float; PACKET_SIZE] {
+    std::array::from_fn(|lane| Float::from_bits(if mask >> lane & 1 == 1 { !0 } else { 0 }))
 }
 
-impl DirectLight for PacketAnswers<'_> {
+/// The light of the point lights at a hit of a packet, summed by
+/// [`WhittedIntegrator::radiance_packet`] (its shadow rays counted there).
+struct PacketLight(Vec3);
+
+impl DirectLight for PacketLight {
     #[inline(always)]
-    fn light(self, _: &impl Colours, rays: &mut RayCounts) -> Vec3 {
-        let mut local = Vec3::ZERO;
-        for (index, blocked) in self.scratch.blocked.iter().enumerate() {
-            let lit = self.scratch.lit[index * PACKET_SIZE + self.ray];
-            if lit == Vec3::ZERO {
-                continue;
-            }
-            rays.shadow += 1;
-            if blocked >> self.ray & 1 == 0 {
-                local += lit;
+    fn light(self, _: &impl Colours, _: &mut RayCounts) -> Vec3 {
+        self.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::material::{MaterialId, MaterialMaps};
+    use crate::math::Vec2;
+    use crate::sampler::PixelSampler;
+    use crate::scene::packet_tests::generated_description;
+    use crate::textures::{Texture, TextureMap};
+    use crate::{BvhParams, Camera};
+
+    /// A 4 x 4 RGB checkerboard map.
+    fn checker_map() -> Option<TextureMap> {
+        let texels = (0..16)
+            .flat_map(|i| {
+                if (i + i / 4) % 2 == 0 {
+                    [250, 240, 30]
+                } else {
+                    [20, 90, 200]
+                }
+            })
+            .collect();
+        let texture = Texture::from_u8("checker.png".into(), 4, 4, 3, texels).unwrap();
+        Some(TextureMap::new(Arc::new(texture)))
+    }
+
+    /// [`generated_description`]'s scene with every kind of surface Whitted shading
+    /// tells apart, materials changing from triangle to triangle (so packets mix
+    /// them), and lights in front of, behind and far from the surfaces.
+    fn shading_scene(n: u32, with_spheres: bool, seed: u64) -> Scene {
+        let mut d = generated_description(n, with_spheres, seed);
+        let base = d.materials[0].clone();
+        let mut textured = base.clone();
+        textured.maps = Some(Box::new(MaterialMaps {
+            diffuse: checker_map(),
+            specular: checker_map(),
+            ..MaterialMaps::default()
+        }));
+        let mut emissive = base.clone();
+        emissive.emission = Vec3::new(0.4, 0.1, 0.0);
+        let mut reflective_only = base.clone();
+        reflective_only.albedo = [0.0, 0.9, 0.0];
+        let mut dull = base.clone();
+        dull.specular = Vec3::ZERO;
+        dull.shininess = 1.0;
+        let mut sharp = base.clone();
+        sharp.shininess = 1000.0;
+        let mut flat = base.clone();
+        flat.shininess = 0.0;
+        d.materials
+            .extend([textured, emissive, reflective_only, dull, sharp, flat]);
+        let kinds = d.materials.len() as u32;
+        // Texture coordinates from the positions, for the textured triangles.
+        d.texcoords = d.positions.iter().map(|p| Vec2::new(p.x, p.z)).collect();
+        d.triangle_texcoords = d.triangles.iter().map(|t| Some(t.positions)).collect();
+        for (i, triangle) in d.triangles.iter_mut().enumerate() {
+            triangle.material = MaterialId((i as u32 / 3 + i as u32 / 200) % kinds);
+        }
+        for (k, sphere) in d.spheres.iter_mut().enumerate() {
+            sphere.material = MaterialId(k as u32 % kinds);
+        }
+        d.lights.extend([
+            // Under the height field: behind most surfaces the camera sees.
+            PointLight {
+                position: Vec3::new(0.2, -0.8, 0.1),
+                intensity: Vec3::new(0.9, 0.2, 0.4),
+            },
+            // On the height field's plane, among the random triangles.
+            PointLight {
+                position: Vec3::new(0.0, 0.3, 0.0),
+                intensity: Vec3::splat(0.25),
+            },
+            // So bright that sums overflow to infinity.
+            PointLight {
+                position: Vec3::new(-0.3, 3.0, 1.0),
+                intensity: Vec3::new(3e38, 0.0, 1.0),
+            },
+        ]);
+        Scene::build(d, &BvhParams::default())
+    }
+
+    /// `radiance_packet` of the 4x4 tiles (narrower and shorter at the right and
+    /// bottom edges) of a `width` x `height` image from `look_from` against
+    /// `radiance` of each pixel's ray: bitwise the same values, and as many rays.
+    fn check_packets(scene: &Scene, look_from: Vec3, depth: u32) {
+        let (width, height) = (94, 62);
+        let camera = Camera::new(look_from, Vec3::new(0.0, 0.1, 0.0), 50.0, width, height);
+        let integrator = WhittedIntegrator { max_depth: depth };
+        let mut scratch = PacketScratch::default();
+        let (mut packet_rays, mut single_rays) = (RayCounts::default(), RayCounts::default());
+        let sampler = PixelSampler::new(1, 0);
+        let mut checked = 0;
+        for top in (0..height).step_by(4) {
+            for left in (0..width).step_by(4) {
+                let rays: Vec<Ray> = (top..(top + 4).min(height))
+                    .flat_map(|row| (left..(left + 4).min(width)).map(move |c| (c, row)))
+                    .map(|(column, row)| camera.pixel_ray(column, row))
+                    .collect();
+                let mut values = vec![Vec3::ZERO; rays.len()];
+                integrator.radiance_packet(
+                    scene,
+                    &rays,
+                    &mut values,
+                    &mut packet_rays,
+                    &mut scratch,
+                );
+                for (k, (ray, value)) in rays.iter().zip(&values).enumerate() {
+                    let mut sample = sampler.sample(0, 0);
+                    let single = integrator.radiance(scene, ray, &mut sample, &mut single_rays);
+                    assert_eq!(
+                        value.to_array().map(Float::to_bits),
+                        single.to_array().map(Float::to_bits),
+                        "ray {k} of the tile at ({left}, {top}) from {look_from}"
+                    );
+                    checked += usize::from(single != Vec3::ZERO);
+                }
             }
         }
-        local
+        assert!(checked > 1000, "{checked} pixels lit");
+        assert!(
+            single_rays.shadow > 2000,
+            "{} shadow rays",
+            single_rays.shadow
+        );
+        assert_eq!(packet_rays.shadow, single_rays.shadow);
+        assert_eq!(packet_rays.reflected, single_rays.reflected);
+        assert_eq!(packet_rays.refracted, single_rays.refracted);
+    }
+
+    #[test]
+    fn packets_shade_exactly_as_single_rays() {
+        for (n, spheres, seed) in [(40, false, 1), (57, true, 2)] {
+            let scene = shading_scene(n, spheres, seed);
+            for look_from in [
+                Vec3::new(0.0, 1.5, 2.0),
+                Vec3::new(1.7, 0.4, -1.1),
+                Vec3::new(0.0, 3.0, 0.0001),
+                // From below: the height field's back faces.
+                Vec3::new(0.3, -1.5, 1.0),
+            ] {
+                for depth in [1, 4] {
+                    check_packets(&scene, look_from, depth);
+                }
+            }
+        }
+    }
+
+    /// A value's bits, all zeros counted as +0 and all NaNs as one NaN: what of a
+    /// light's term can reach the image.
+    fn visible_bits(x: Float) -> u32 {
+        if x == 0.0 {
+            0
+        } else if x.is_nan() {
+            Float::NAN.to_bits()
+        } else {
+            x.to_bits()
+        }
+    }
+
+    /// `HitLanes::light` against `light_term` and `Hit::spawn_ray_to` hit by hit, on
+    /// random hits and colours and on the awkward cases: a light exactly at the hit
+    /// point, behind the surface, `Ks = 0`, `Ns` of 0, 1 and 1000, overflowing
+    /// intensities.
+    #[test]
+    fn lanes_compute_the_light_terms_and_shadow_rays_of_single_hits() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let unit = |rng: &mut rand::rngs::StdRng| {
+            let v = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            try_unit(v).unwrap_or(Vec3::Y)
+        };
+        let (mut lit_lanes, mut powers) = (0, 0);
+        for round in 0..4000 {
+            let light = PointLight {
+                position: Vec3::new(
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                ),
+                intensity: match round % 5 {
+                    0 => Vec3::new(3e38, 1.0, 0.0),
+                    _ => Vec3::new(0.7, 0.5, rng.random_range(0.0..2.0)),
+                },
+            };
+            let mut lanes = HitLanes::new();
+            let mut cases = Vec::new();
+            for lane in 0..PACKET_SIZE {
+                if rng.random_range(0..8) == 0 {
+                    continue;
+                }
+                let mut material = crate::material::Material::named("m");
+                material.diffuse = Vec3::new(rng.random_range(0.0..1.0), 0.5, 0.25);
+                material.specular = match lane % 4 {
+                    0 => Vec3::ZERO,
+                    1 => Vec3::new(1e38, 0.5, 0.0),
+                    _ => Vec3::splat(rng.random_range(0.0..1.0)),
+                };
+                material.shininess =
+                    [0.0, 1.0, 1000.0, rng.random_range(0.5..200.0)][lane % 4 / 2 + round % 2 * 2];
+                let n = unit(&mut rng);
+                let ns = if lane % 3 == 0 { n } else { unit(&mut rng) };
+                let ray = Ray::new(Vec3::new(0.0, 0.0, 5.0), unit(&mut rng));
+                let p = if lane == 5 {
+                    // A light exactly at the hit point.
+                    light.position
+                } else {
+                    Vec3::new(
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(-2.0..2.0),
+                    )
+                };
+                let hit = Hit {
+                    t: 1.0,
+                    p,
+                    n,
+                    ns,
+                    uv: Vec2::ZERO,
+                    material: MaterialId(0),
+                    front: true,
+                };
+                lanes.set(lane, &ray, &hit, &material);
+                cases.push((lane, ray, hit, material));
+            }
+            let mut shadow_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
+            let mut distances = [0.0; PACKET_SIZE];
+            let (lit, mask) = lanes.light(&light, &mut shadow_rays, &mut distances);
+            for (lane, ray, hit, material) in cases {
+                let expected = light_term(&ray, &hit, &material, &light);
+                let got = Vec3::new(
+                    lit[0].as_array()[lane],
+                    lit[1].as_array()[lane],
+                    lit[2].as_array()[lane],
+                );
+                assert_eq!(
+                    got.to_array().map(visible_bits),
+                    expected.to_array().map(visible_bits),
+                    "lane {lane} of round {round}: {got} against {expected}"
+                );
+                assert_eq!(mask >> lane & 1 == 1, expected != Vec3::ZERO, "lane {lane}");
+                if expected != Vec3::ZERO {
+                    let (shadow, distance) = hit.spawn_ray_to(light.position);
+                    assert_eq!(format!("{:?}", shadow_rays[lane]), format!("{shadow:?}"));
+                    assert_eq!(distances[lane].to_bits(), distance.to_bits());
+                    lit_lanes += 1;
+                    powers += usize::from(expected.x != 0.0 && material.specular.x != 0.0);
+                }
+            }
+        }
+        assert!(
+            lit_lanes > 20_000 && powers > 5000,
+            "{lit_lanes} lit, {powers} specular"
+        );
     }
 }

@@ -24,8 +24,9 @@ use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
-/// by which secondary rays start off the surface.
-const SPAWN_OFFSET: Float = 1e-4;
+/// by which secondary rays start off the surface (also read by the packet shading,
+/// `integrators::phong_lanes`).
+pub(crate) const SPAWN_OFFSET: Float = 1e-4;
 
 /// Shading data of one primitive, in leaf order.
 #[derive(Clone, Copy, Debug)]

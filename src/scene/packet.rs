@@ -50,15 +50,20 @@ impl Scene {
     pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         let found = self.closest_lanes_packet(rays);
-        for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
-            // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
-            *hit = found.map(|(packet, lane, prim)| {
-                if self.prim_texcoords.is_empty() {
-                    self.hit_details(ray, packet, lane, prim)
-                } else {
-                    self.textured_hit_details(ray, packet, lane, prim)
-                }
-            });
+        let answers = hits.iter_mut().zip(rays).zip(found);
+        // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
+        // One loop for each, so that an untextured hit is built in place: built on
+        // the stack in pieces and then copied whole, it stalls the copy's loads.
+        if self.prim_texcoords.is_empty() {
+            for ((hit, ray), found) in answers {
+                *hit = found
+                    .map(|(packet, lane, prim)| self.hit_details_inline(ray, packet, lane, prim));
+            }
+        } else {
+            for ((hit, ray), found) in answers {
+                *hit = found
+                    .map(|(packet, lane, prim)| self.textured_hit_details(ray, packet, lane, prim));
+            }
         }
     }
 
@@ -320,6 +325,14 @@ pub(crate) mod tests {
     /// vertex normals; a cloud of random triangles above it; optionally spheres; two
     /// point lights; a mirror and a glass material besides a diffuse one.
     pub(crate) fn generated_scene(n: u32, with_spheres: bool, seed: u64) -> Scene {
+        Scene::build(
+            generated_description(n, with_spheres, seed),
+            &BvhParams::default(),
+        )
+    }
+
+    /// The description [`generated_scene`] builds.
+    pub(crate) fn generated_description(n: u32, with_spheres: bool, seed: u64) -> SceneDescription {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let mut d = SceneDescription::default();
         let height = |x: f32, z: f32| 0.1 * (3.0 * x).sin() * (2.0 * z).cos();
@@ -401,7 +414,7 @@ pub(crate) mod tests {
                 intensity: Vec3::new(0.3, 0.4, 0.5),
             },
         ];
-        Scene::build(d, &BvhParams::default())
+        d
     }
 
     /// Bits of everything a hit holds, so that equality is bitwise.

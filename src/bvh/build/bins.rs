@@ -91,17 +91,26 @@ impl AxisBins {
             right_cost[b] = bounds_of(acc).half_area() * count as Float;
         }
         let total = count + self.counts[0];
+        // Every plane's cost first, then the choice: the costs do not wait for each
+        // other, and the choice waits only for comparisons.
+        let mut cost = [0.0 as Float; MAX_BINS];
+        let mut valid = 0u32;
+        let mut acc = EMPTY_LANES;
+        let mut count = 0u32;
+        for b in 1..bin_count {
+            acc = acc.fast_min(self.boxes[b - 1]);
+            count += self.counts[b - 1];
+            cost[b] = bounds_of(acc).half_area() * count as Float + right_cost[b];
+            valid |= u32::from(count != 0 && count != total) << b;
+        }
         // The first plane of least cost; `found` rather than an infinite start so
         // that infinite or NaN costs still pick a plane, as for finite ones.
         let (mut found, mut best_bin, mut best_cost) = (false, 0, Float::INFINITY);
-        let mut acc = EMPTY_LANES;
-        let mut count = 0u32;
-        for (b, right) in right_cost.iter().enumerate().take(bin_count).skip(1) {
-            acc = acc.fast_min(self.boxes[b - 1]);
-            count += self.counts[b - 1];
-            let cost = bounds_of(acc).half_area() * count as Float + right;
-            if count != 0 && count != total && (!found || cost < best_cost) {
-                (found, best_bin, best_cost) = (true, b, cost);
+        while valid != 0 {
+            let b = valid.trailing_zeros() as usize;
+            valid &= valid - 1;
+            if !found || cost[b] < best_cost {
+                (found, best_bin, best_cost) = (true, b, cost[b]);
             }
         }
         found.then_some((best_bin, best_cost))

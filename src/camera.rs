@@ -105,9 +105,10 @@ impl Camera {
     }
 
     /// The rays through the pixel centres of the `columns` x `rows` tile (at most 4 x 4)
-    /// whose top left pixel is (`left`, `top`), row by row, into `rays`: bit for bit [`Camera::pixel_ray`] of each, with each column's and each
-    /// row's offset computed once and the sixteen directions normalized in SIMD lanes
-    /// (the same operations: glam's `normalize` multiplies by `1 / sqrt(dot)`).
+    /// whose top left pixel is (`left`, `top`), row by row, into `rays`: bit for bit
+    /// [`Camera::pixel_ray`] of each, with each column's and each row's offset computed
+    /// once and the sixteen directions normalized in SIMD lanes (the same operations:
+    /// glam's `normalize` multiplies by `1 / sqrt(dot)`).
     ///
     /// # Panics
     /// If the tile is wider or taller than 4 pixels, or `rays` is shorter than the tile.

@@ -4,7 +4,7 @@
 use wide::f32x16;
 
 use crate::bvh::PACKET_SIZE;
-use crate::math::{Float, Ray, Vec3, try_unit};
+use crate::math::{Float, Ray, Vec3, dot_lanes, try_unit};
 use crate::options::RenderOptions;
 
 /// A pinhole camera placed by LookAt.
@@ -139,7 +139,7 @@ impl Camera {
             ry * x + uy * y - by,
             rz * x + uz * y - bz,
         ];
-        let recip = f32x16::ONE / (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        let recip = f32x16::ONE / dot_lanes(dir, dir).sqrt();
         let [dx, dy, dz] = dir.map(|c| (c * recip).to_array());
         for (k, ray) in rays[..count].iter_mut().enumerate() {
             *ray = Ray {

@@ -150,6 +150,14 @@ pub fn try_unit(v: Vec3) -> Option<Vec3> {
     (v / largest).try_normalize()
 }
 
+/// glam's `Vec3::dot` of sixteen vectors at once, in structure-of-arrays form: lane by
+/// lane `(x * x' + y * y') + z * z'`, the same bits as the scalar dot (for the SIMD
+/// paths that must match the single-ray code exactly).
+#[inline(always)]
+pub(crate) fn dot_lanes(a: [wide::f32x16; 3], b: [wide::f32x16; 3]) -> wide::f32x16 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 /// The sine and cosine of `x` (radians), inlined: Agner Fog's polynomials as the
 /// `wide` crate vectorizes them, as accurate as the C library's `sincosf` for path
 /// mode's angles in `[0, 2 pi)`, without a call per sampled direction.

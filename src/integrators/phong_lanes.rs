@@ -14,7 +14,7 @@ use wide::f32x16;
 
 use crate::bvh::{PACKET_SIZE, lanes_of};
 use crate::material::{Colours, PointLight};
-use crate::math::{Float, Ray, Vec3};
+use crate::math::{Float, Ray, Vec3, dot_lanes as dot};
 use crate::scene::{Hit, SPAWN_OFFSET};
 
 /// Lanes of sixteen `f32`, as stored between packets (loaded into `f32x16` per light).
@@ -181,12 +181,6 @@ impl HitLanes {
         }
         (lit, lit_lanes)
     }
-}
-
-/// glam's `Vec3::dot`, lane by lane: `(x * x' + y * y') + z * z'`.
-#[inline(always)]
-fn dot(a: [f32x16; 3], b: [f32x16; 3]) -> f32x16 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// glam's `max_element` step, `if a > b { a } else { b }`, lane by lane.

@@ -59,7 +59,8 @@ impl Bvh {
     }
 
     /// The surface area heuristic cost of the tree, relative to the root's area:
-    /// `sum(interior) A/A_root * c_trav + sum(leaves) A/A_root * count * c_int`.
+    /// `sum(interior) A/A_root * c_trav + sum(leaves) A/A_root * tests * c_int`, a
+    /// leaf's tests as [`BvhParams::leaf_tests`] counts them.
     /// Lower is better; a quality number to compare builders with.
     pub fn sah_cost(&self, params: &BvhParams) -> f64 {
         let Some(root) = self.nodes.first() else {
@@ -74,7 +75,8 @@ impl Bvh {
             .map(|n| {
                 let rel = n.bounds().half_area() as f64 / root_area;
                 if n.is_leaf() {
-                    rel * n.prim_count as f64 * params.intersection_cost as f64
+                    rel * params.leaf_tests(n.prim_count as usize) as f64
+                        * params.intersection_cost as f64
                 } else {
                     rel * params.traversal_cost as f64
                 }

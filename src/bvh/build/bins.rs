@@ -79,16 +79,20 @@ impl AxisBins {
     }
 
     /// The cheapest plane between bins of the first `bin_count`, by sweeping from
-    /// the right, then from the left: `(first bin on the right, A_l N_l + A_r N_r)`.
-    /// `None` if every plane leaves a side empty.
-    pub(super) fn best_plane(&self, bin_count: usize) -> Option<(usize, Float)> {
+    /// the right, then from the left: `(first bin on the right, A_l B_l + A_r B_r)`,
+    /// where a side of `N` primitives costs `B = ceil(N / 2^block_shift)` leaf tests
+    /// (see [`BvhParams::block_size`](super::BvhParams::block_size)). `None` if every
+    /// plane leaves a side empty.
+    pub(super) fn best_plane(&self, bin_count: usize, block_shift: u32) -> Option<(usize, Float)> {
+        let mask = (1u32 << block_shift) - 1;
+        let blocks = |count: u32| ((count >> block_shift) + u32::from(count & mask != 0)) as Float;
         let mut right_cost = [0.0 as Float; MAX_BINS];
         let mut acc = EMPTY_LANES;
         let mut count = 0u32;
         for b in (1..bin_count).rev() {
             acc = acc.fast_min(self.boxes[b]);
             count += self.counts[b];
-            right_cost[b] = bounds_of(acc).half_area() * count as Float;
+            right_cost[b] = bounds_of(acc).half_area() * blocks(count);
         }
         let total = count + self.counts[0];
         // Every plane's cost first, then the choice: the costs do not wait for each
@@ -100,7 +104,7 @@ impl AxisBins {
         for b in 1..bin_count {
             acc = acc.fast_min(self.boxes[b - 1]);
             count += self.counts[b - 1];
-            cost[b] = bounds_of(acc).half_area() * count as Float + right_cost[b];
+            cost[b] = bounds_of(acc).half_area() * blocks(count) + right_cost[b];
             valid |= u32::from(count != 0 && count != total) << b;
         }
         // The first plane of least cost; `found` rather than an infinite start so
@@ -286,22 +290,30 @@ mod tests {
                         }
                     }
                 }
-                // The plane sweep over plain boxes.
+                // The plane sweep over plain boxes, pricing single primitives and
+                // blocks of two and four.
                 let total: u32 = plain.iter().map(|p| p.1).sum();
-                let mut best: Option<(usize, Float)> = None;
-                for split in 1..bin_count {
-                    let (left, right) = plain[..bin_count].split_at(split);
-                    let side = |part: &[(Bounds, u32)]| {
-                        part.iter()
-                            .fold((Bounds::EMPTY, 0), |acc, p| (acc.0.union(p.0), acc.1 + p.1))
-                    };
-                    let ((lb, ln), (rb, rn)) = (side(left), side(right));
-                    let cost = lb.half_area() * ln as Float + rb.half_area() * rn as Float;
-                    if ln != 0 && ln != total && best.is_none_or(|(_, c)| cost < c) {
-                        best = Some((split, cost));
+                for block_shift in [0, 1, 2] {
+                    let tests = |n: u32| n.div_ceil(1 << block_shift) as Float;
+                    let mut best: Option<(usize, Float)> = None;
+                    for split in 1..bin_count {
+                        let (left, right) = plain[..bin_count].split_at(split);
+                        let side = |part: &[(Bounds, u32)]| {
+                            part.iter()
+                                .fold((Bounds::EMPTY, 0), |acc, p| (acc.0.union(p.0), acc.1 + p.1))
+                        };
+                        let ((lb, ln), (rb, rn)) = (side(left), side(right));
+                        let cost = lb.half_area() * tests(ln) + rb.half_area() * tests(rn);
+                        if ln != 0 && ln != total && best.is_none_or(|(_, c)| cost < c) {
+                            best = Some((split, cost));
+                        }
                     }
+                    assert_eq!(
+                        axis_bins.best_plane(bin_count, block_shift),
+                        best,
+                        "case {case}, block shift {block_shift}"
+                    );
                 }
-                assert_eq!(axis_bins.best_plane(bin_count), best, "case {case}");
             }
         }
     }

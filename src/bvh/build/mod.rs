@@ -45,8 +45,19 @@ pub struct BvhParams {
     pub bins: usize,
     /// Cost of visiting an interior node, relative to `intersection_cost`.
     pub traversal_cost: Float,
-    /// Cost of intersecting one primitive.
+    /// Cost of one leaf test, which takes up to `block_size` primitives.
     pub intersection_cost: Float,
+    /// Primitives one leaf test takes at once, a power of two: the scene's packets
+    /// hold four triangles, and a leaf of five costs two packet tests, as much as one
+    /// of eight. So the SAH prices a leaf of `n` primitives as `ceil(n / block_size)`
+    /// tests (Embree's SAH block size), and prefers planes that fill whole packets;
+    /// 1 prices every primitive on its own.
+    pub block_size: usize,
+    /// Nodes of at most this many primitives become leaves without a plane search.
+    /// The wide BVH makes one leaf of every binary subtree of up to eight
+    /// primitives (`Scene::build`), so splitting such nodes would only cost build
+    /// time.
+    pub min_leaf_size: usize,
     /// Nodes with more primitives than this are always split.
     pub max_leaf_size: usize,
     /// Nodes with more primitives than this are binned and partitioned on all
@@ -60,12 +71,21 @@ pub struct BvhParams {
     pub all_axes_threshold: usize,
 }
 
+impl BvhParams {
+    /// Leaf tests a leaf of `n` primitives costs: `ceil(n / block_size)`.
+    pub fn leaf_tests(&self, n: usize) -> Float {
+        n.div_ceil(self.block_size.max(1)) as Float
+    }
+}
+
 impl Default for BvhParams {
     fn default() -> Self {
         BvhParams {
             bins: 16,
             traversal_cost: 1.0,
             intersection_cost: 1.0,
+            block_size: 4,
+            min_leaf_size: 8,
             max_leaf_size: 8,
             parallel_threshold: 16 * 1024,
             all_axes_threshold: 64,
@@ -104,8 +124,8 @@ impl Bvh {
     /// primitives as ranges of that order.
     ///
     /// # Panics
-    /// If there are more than `u32::MAX` primitives or `params.bins` is not in
-    /// `4..=16`.
+    /// If there are more than `u32::MAX` primitives, `params.bins` is not in
+    /// `4..=16` or `params.block_size` is not a power of two.
     pub fn build(prim_bounds: &[Aabb], params: &BvhParams) -> (Bvh, Vec<u32>) {
         Bvh::build_with(prim_bounds.len(), |i| prim_bounds[i], params)
     }
@@ -152,6 +172,10 @@ impl Bvh {
         assert!(
             (MIN_BINS..=MAX_BINS).contains(&params.bins),
             "bins out of range"
+        );
+        assert!(
+            params.block_size.is_power_of_two(),
+            "block size not a power of two"
         );
         let (mut refs, bounds, centroids) = make_refs(prim_count, bounds_of);
         let n = refs.len();

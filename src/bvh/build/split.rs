@@ -35,7 +35,7 @@ pub(super) fn split_node(
     bins: &mut [AxisBins; 3],
 ) -> Split {
     let n = refs.len();
-    if n == 1 {
+    if n == 1 || n <= params.min_leaf_size.min(params.max_leaf_size) {
         return Split::Leaf;
     }
     let extent = centroids.max - centroids.min;
@@ -97,21 +97,22 @@ pub(super) fn split_node(
         if extent[axis] <= 0.0 || !(all_axes || axis == widest) {
             continue;
         }
-        if let Some((bin, cost)) = axis_bins.best_plane(bin_count)
+        if let Some((bin, cost)) =
+            axis_bins.best_plane(bin_count, params.block_size.trailing_zeros())
             && best.is_none_or(|(_, _, c)| cost < c)
         {
             best = Some((axis, bin, cost));
         }
     }
 
-    // Step 3: compare the cheapest split, `c_trav + c_int (A_l N_l + A_r N_r) / A`,
-    // with making a leaf, `c_int N`.
+    // Step 3: compare the cheapest split, `c_trav + c_int (A_l B_l + A_r B_r) / A`,
+    // with making a leaf, `c_int B` (`B`: leaf tests, see `BvhParams::block_size`).
     let Some((axis, split_bin, cost)) = best else {
         return Split::Leaf;
     };
     let area = bounds.half_area().max(Float::MIN_POSITIVE);
     let split_cost = params.traversal_cost + params.intersection_cost * cost / area;
-    let leaf_cost = params.intersection_cost * n as Float;
+    let leaf_cost = params.intersection_cost * params.leaf_tests(n);
     if split_cost >= leaf_cost && n <= params.max_leaf_size {
         return Split::Leaf;
     }
@@ -160,7 +161,7 @@ fn split_pair(refs: &mut [PrimRef], bounds: Bounds, widest: usize, params: &BvhP
     let cost = left.half_area() + right.half_area();
     let area = bounds.half_area().max(Float::MIN_POSITIVE);
     let split_cost = params.traversal_cost + params.intersection_cost * cost / area;
-    if split_cost >= params.intersection_cost * 2.0 && 2 <= params.max_leaf_size {
+    if split_cost >= params.intersection_cost * params.leaf_tests(2) && 2 <= params.max_leaf_size {
         return Split::Leaf;
     }
     Split::At {

@@ -163,7 +163,7 @@ impl Bvh {
         prim_count: usize,
         bounds_of: F,
         params: &BvhParams,
-        slots_for: fn(usize) -> usize,
+        slots_for: fn(usize, &BvhParams) -> usize,
     ) -> (Bvh, Vec<u32>)
     where
         F: Fn(usize) -> Option<Aabb> + Sync,
@@ -272,7 +272,7 @@ fn build_subtree(
     slots: &mut [Slot],
     base: u32,
     params: &BvhParams,
-    slots_for: fn(usize) -> usize,
+    slots_for: fn(usize, &BvhParams) -> usize,
 ) -> (Vec<Segment>, usize, Vec<std::ops::Range<u32>>) {
     let n = task.refs.len();
     if n <= params.parallel_threshold {
@@ -315,7 +315,7 @@ fn build_subtree(
             // as many as such a subtree usually needs, the right child's the rest.
             root.write(node(task.bounds, base, 0));
             let (pair, rest) = slots.split_at_mut(2);
-            let left_len = slots_for(mid).min(rest.len());
+            let left_len = slots_for(mid, params).min(rest.len());
             let (left_slots, right_slots) = rest.split_at_mut(left_len);
             let [left_root, right_root] = pair else {
                 unreachable!("split_at_mut(2)")
@@ -370,14 +370,21 @@ fn build_subtree(
 }
 
 /// Slots a subtree of `m` primitives is given besides its root's when it is built
-/// beside another: `5m/4 - 2`, where a subtree can need up to `2m - 2`. The dragon's
-/// subtrees need at most `1.15m`; a subtree that needs more goes on in an overflow
-/// array (see [`build_sequential`]). Each slot range is written from its start, so
-/// the node array's pages touched (and zeroed by the kernel first) are about as
-/// many as the nodes: with `2m - 2` slots the dragon touched 56 MB for 31 MB of
-/// nodes, as the unused end of each range was smaller than a 2 MiB page.
-fn usual_slots(m: usize) -> usize {
-    (m + m / 4).saturating_sub(2)
+/// beside another, where it can need up to `2m - 2`: about 1.25 times what such a
+/// subtree usually needs, which is set by its leaves' size. With leaves of one or two
+/// primitives (`min_leaf_size` 1) that is `5m/4 - 2` (the dragon's subtrees needed at
+/// most `1.15m`); with `min_leaf_size` 8, `5m/12 - 2` (the dragon's leaves hold six
+/// primitives on average: `0.335m` nodes). A subtree that needs more goes on in an
+/// overflow array (see [`build_sequential`]). Each slot range is written from its
+/// start, so the node array's pages touched (and zeroed by the kernel first) are
+/// about as many as the nodes: with `2m - 2` slots the dragon touched 56 MB for 31
+/// MB of nodes, as the unused end of each range was smaller than a 2 MiB page; with
+/// `5m/4 - 2` and leaves of up to eight, 56 MB for 9 MB.
+fn usual_slots(m: usize, params: &BvhParams) -> usize {
+    let smallest_leaf = params.min_leaf_size.min(params.max_leaf_size).max(1);
+    // Leaves average three quarters of the smallest size split no further.
+    let expected = (8 * m).div_ceil(3 * smallest_leaf).min(m);
+    (expected + expected / 4).saturating_sub(2)
 }
 
 /// The single-threaded builder: an explicit work stack, children allocated as
@@ -498,11 +505,54 @@ mod tests {
         let (tight, tight_order) =
             Bvh::build_with_slots(boxes.len(), bounds_of, &params, usual_slots);
         let (roomy, roomy_order) =
-            Bvh::build_with_slots(boxes.len(), bounds_of, &params, |m| 2 * m - 2);
+            Bvh::build_with_slots(boxes.len(), bounds_of, &params, |m, _| 2 * m - 2);
         assert_eq!(
             tight.nodes.len(),
             2 * boxes.len() - 1,
             "one primitive per leaf"
+        );
+        assert_eq!(tight.nodes, roomy.nodes);
+        assert_eq!(tight_order, roomy_order);
+        let leaf_order: Vec<Aabb> = tight_order.iter().map(|&i| boxes[i as usize]).collect();
+        tight.validate(&leaf_order).unwrap();
+    }
+
+    /// With leaves of up to eight primitives a subtree gets well under half as many
+    /// slots as primitives (a third is what a surface usually needs), and the tree of
+    /// a surface comes out exactly as with slots enough for any subtree.
+    #[test]
+    fn subtrees_of_big_leaves_get_fewer_slots_and_the_same_tree() {
+        let params = BvhParams {
+            parallel_threshold: 500,
+            ..BvhParams::default()
+        };
+        assert!(usual_slots(10_000, &params) <= 10_000 / 2);
+        let one_per_leaf = BvhParams {
+            max_leaf_size: 1,
+            ..params
+        };
+        assert!(usual_slots(10_000, &one_per_leaf) > 10_000);
+        // Two triangles' boxes per cell of a bumpy 100x100 grid.
+        let boxes: Vec<Aabb> = (0..20_000)
+            .map(|i| {
+                let (x, z) = ((i / 2 % 100) as f32, (i / 200) as f32);
+                let y = (x * 0.3).sin() * (z * 0.2).cos();
+                let min = Vec3::new(x, y, z);
+                Aabb {
+                    min,
+                    max: min + Vec3::new(1.0, 0.2 + 0.1 * (i % 2) as f32, 1.0),
+                }
+            })
+            .collect();
+        let bounds_of = |i: usize| Some(boxes[i]);
+        let (tight, tight_order) =
+            Bvh::build_with_slots(boxes.len(), bounds_of, &params, usual_slots);
+        let (roomy, roomy_order) =
+            Bvh::build_with_slots(boxes.len(), bounds_of, &params, |m, _| 2 * m - 2);
+        assert!(
+            tight.nodes.len() < boxes.len() / 2,
+            "{} nodes",
+            tight.nodes.len()
         );
         assert_eq!(tight.nodes, roomy.nodes);
         assert_eq!(tight_order, roomy_order);

@@ -84,6 +84,7 @@ impl AxisBins {
     /// (see [`BvhParams::block_size`](super::BvhParams::block_size)). `None` if every
     /// plane leaves a side empty.
     pub(super) fn best_plane(&self, bin_count: usize, block_shift: u32) -> Option<(usize, Float)> {
+        // `BvhParams::leaf_tests` with a shift for the division: two per plane.
         let mask = (1u32 << block_shift) - 1;
         let blocks = |count: u32| ((count >> block_shift) + u32::from(count & mask != 0)) as Float;
         let mut right_cost = [0.0 as Float; MAX_BINS];

@@ -501,20 +501,27 @@ mod tests {
             parallel_threshold: 100,
             ..BvhParams::default()
         };
-        let bounds_of = |i: usize| Some(boxes[i]);
-        let (tight, tight_order) =
-            Bvh::build_with_slots(boxes.len(), bounds_of, &params, usual_slots);
-        let (roomy, roomy_order) =
-            Bvh::build_with_slots(boxes.len(), bounds_of, &params, |m, _| 2 * m - 2);
+        let tight = same_tree_as_with_room_for_any_subtree(&boxes, &params);
         assert_eq!(
             tight.nodes.len(),
             2 * boxes.len() - 1,
             "one primitive per leaf"
         );
+    }
+
+    /// Builds over `boxes` with the usual slots and with `2m - 2` for every subtree,
+    /// checks that both make the same valid tree, and returns it.
+    fn same_tree_as_with_room_for_any_subtree(boxes: &[Aabb], params: &BvhParams) -> Bvh {
+        let bounds_of = |i: usize| Some(boxes[i]);
+        let (tight, tight_order) =
+            Bvh::build_with_slots(boxes.len(), bounds_of, params, usual_slots);
+        let (roomy, roomy_order) =
+            Bvh::build_with_slots(boxes.len(), bounds_of, params, |m, _| 2 * m - 2);
         assert_eq!(tight.nodes, roomy.nodes);
         assert_eq!(tight_order, roomy_order);
         let leaf_order: Vec<Aabb> = tight_order.iter().map(|&i| boxes[i as usize]).collect();
         tight.validate(&leaf_order).unwrap();
+        tight
     }
 
     /// With leaves of up to eight primitives a subtree gets well under half as many
@@ -544,19 +551,11 @@ mod tests {
                 }
             })
             .collect();
-        let bounds_of = |i: usize| Some(boxes[i]);
-        let (tight, tight_order) =
-            Bvh::build_with_slots(boxes.len(), bounds_of, &params, usual_slots);
-        let (roomy, roomy_order) =
-            Bvh::build_with_slots(boxes.len(), bounds_of, &params, |m, _| 2 * m - 2);
+        let tight = same_tree_as_with_room_for_any_subtree(&boxes, &params);
         assert!(
             tight.nodes.len() < boxes.len() / 2,
             "{} nodes",
             tight.nodes.len()
         );
-        assert_eq!(tight.nodes, roomy.nodes);
-        assert_eq!(tight_order, roomy_order);
-        let leaf_order: Vec<Aabb> = tight_order.iter().map(|&i| boxes[i as usize]).collect();
-        tight.validate(&leaf_order).unwrap();
     }
 }

@@ -13,7 +13,11 @@ pub use glam::{Vec2, Vec3};
 pub type Float = f32;
 
 /// A half-line `origin + t * dir`, `t >= 0`, with a unit direction.
+///
+/// Laid out as six `f32` (origin, then direction), so that packets of rays can be
+/// read with vector loads.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     /// Where the ray starts.
     pub origin: Vec3,

@@ -19,8 +19,8 @@
 use wide::f32x16;
 
 use super::{Hit, Scene};
-use crate::bvh::lanes_of;
 use crate::bvh::{PACKET_SIZE, RayPacket};
+use crate::bvh::{lane_mask, lanes_of};
 use crate::math::{Float, Ray};
 use crate::shapes::{LANES, PacketRay, PrimHit, Shape, TrianglePacket, triangle_across_rays};
 
@@ -183,13 +183,15 @@ impl Scene {
                     if within == 0 {
                         continue;
                     }
-                    let closer = t.simd_lt(*t_max).to_bitmask() & within;
+                    let nearer = t.simd_lt(*t_max);
+                    let closer = nearer.to_bitmask() & within;
                     ties |= within & !closer;
                     ties |= t.simd_lt(*path).to_bitmask() & closer;
+                    // In the register, not lane by lane in memory: the next triangle's
+                    // test reads `t_max` whole, and would wait for such stores.
+                    *t_max = (nearer & valid & lane_mask(reached)).select(t, *t_max);
                     let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
-                    let limits = t_max.as_mut_array();
                     for ray in lanes_of(closer) {
-                        limits[ray] = t[ray];
                         best[ray] = Some((
                             packet_index,
                             lane,

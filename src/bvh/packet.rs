@@ -902,12 +902,6 @@ mod tests {
             "{accepted} / {rejected}"
         );
     }
-}
-
-#[cfg(test)]
-mod transpose_tests {
-    use super::*;
-    use crate::math::Vec3;
 
     #[test]
     fn full_packets_are_transposed_as_partial_ones() {

@@ -19,8 +19,7 @@
 use wide::f32x16;
 
 use super::{Hit, Scene};
-use crate::bvh::{PACKET_SIZE, RayPacket};
-use crate::bvh::{lane_mask, lanes_of};
+use crate::bvh::{PACKET_SIZE, RayPacket, lane_mask, lanes_of};
 use crate::math::{Float, Ray};
 use crate::shapes::{LANES, PacketRay, PrimHit, Shape, TrianglePacket, triangle_across_rays};
 

@@ -218,6 +218,25 @@ pub fn trace_closest_primitives(scene: &Scene, rays: &[Ray]) -> Vec<u32> {
     ids
 }
 
+/// [`trace_closest_primitives`] through the array query
+/// ([`Scene::intersect_primitives`], which walks several rays at a time in scenes
+/// larger than the last-level cache), in parallel chunks.
+pub fn trace_closest_primitives_stream(scene: &Scene, rays: &[Ray]) -> Vec<u32> {
+    const CHUNK: usize = 256;
+    let mut ids = vec![u32::MAX; rays.len()];
+    ids.par_chunks_mut(CHUNK)
+        .zip(rays.par_chunks(CHUNK))
+        .for_each(|(ids, rays)| {
+            let mut hits = [None; CHUNK];
+            let hits = &mut hits[..rays.len()];
+            scene.intersect_primitives(rays, hits);
+            for (id, hit) in ids.iter_mut().zip(hits) {
+                *id = hit.map_or(u32::MAX, |(prim, _)| prim);
+            }
+        });
+    ids
+}
+
 /// [`trace_closest_primitives`] of `rays` in packets: one packet per `(first, count)`
 /// range of `packets`, in parallel; the ids in the order of `rays`.
 pub fn trace_closest_primitives_packets(

@@ -359,8 +359,9 @@ fn stats_show_every_stage() {
     assert!(!exr.iter().any(|s| s == "post-processing"), "{text}");
 }
 
-/// `raytracer bench` reports incoherent bounce rays (one per primary hit) and the
-/// primary and shadow rays in packets, with the same hit counts as ray by ray; and
+/// `raytracer bench` reports incoherent bounce rays (one per primary hit, also through
+/// the array query) and the primary and shadow rays in packets, with the same hit
+/// counts as ray by ray; and
 /// `--dump-rays` writes the triangles and every ray for the Embree benchmark.
 #[test]
 fn bench_reports_incoherent_rays_and_packets_and_dumps_the_rays() {
@@ -403,6 +404,7 @@ fn bench_reports_incoherent_rays_and_packets_and_dumps_the_rays() {
     assert!(number("incoherent_hits") > 0.0, "{json}");
     for key in [
         "incoherent_mrays_per_s",
+        "incoherent_stream_mrays_per_s",
         "primary_packet_mrays_per_s",
         "shadow_packet_mrays_per_s",
         "primary_mrays_per_cpu_s",

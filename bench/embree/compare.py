@@ -41,6 +41,13 @@ for kind, label in [
 ]:
     ROWS.append((f"{label} (wall)", f"{kind}_mrays_per_s", f"{kind}_mrays_per_s", "Mrays/s"))
     ROWS.append((f"{label} (CPU)", f"{kind}_mrays_per_cpu_s", f"{kind}_mrays_per_cpu_s", "Mrays/CPU-s"))
+# Our array query (`Scene::intersect_primitives`: several rays in flight in scenes larger
+# than the last-level cache, else ray by ray) on the same incoherent rays, against
+# Embree's single rays.
+for unit_key, unit in [("mrays_per_s", "wall"), ("mrays_per_cpu_s", "CPU")]:
+    ROWS.append((f"incoherent rays, our array query / Embree single ({unit})",
+                 f"incoherent_stream_{unit_key}", f"incoherent_{unit_key}",
+                 "Mrays/s" if unit == "wall" else "Mrays/CPU-s"))
 
 
 def run_json(command: list[str]) -> dict:

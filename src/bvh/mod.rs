@@ -17,7 +17,7 @@ pub use node::BvhNode;
 pub(crate) use packet::lane_mask;
 pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of};
 pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE};
-pub use wide::{RayQuery, WideBvh, WideNode};
+pub use wide::{INTERLEAVED_RAYS, RayQuery, WideBvh, WideNode};
 
 use crate::math::Aabb;
 

@@ -274,46 +274,134 @@ impl WideBvh {
         if self.nodes.is_empty() {
             return false;
         }
-        let slabs = WideRay::new(ray);
         // Uninitialised: zeroing 10 KB per ray would cost more than many node visits.
         let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
-        let mut stack_len = 0usize;
-        let mut current = ChildRef {
-            index: 0,
-            item_count: 0,
-        };
+        let mut walk = Walk::new(ray);
         loop {
-            if current.item_count > 0 {
-                if leaf(current.index, current.item_count, t_max) {
-                    return true;
+            match self.step::<ORDERED, false, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf)
+            {
+                Step::Going => {}
+                Step::Stopped => return true,
+                Step::Finished => return false,
+            }
+        }
+    }
+
+    /// [`WideBvh::walk_ordered`] for every ray of `rays`, with [`INTERLEAVED_RAYS`] of
+    /// them in flight at once: each takes one step (a node or a leaf) in turn, and
+    /// asks for the memory of its next step before the others take theirs. A single
+    /// ray in a scene larger than the caches mostly waits for its next node or leaf
+    /// to come from memory; here the other rays' steps fill that wait (incoherent rays
+    /// on the 871k-triangle dragon: 1.10x), but where the scene fits in the caches
+    /// the bookkeeping costs more than it hides (0.78x-0.93x on the dragon's smaller
+    /// meshes). Each ray visits the same nodes and leaves in the same order as on its
+    /// own, so the answers are the same, bit for bit.
+    ///
+    /// `leaf(ray, first_item, item_count, t_max)` is [`WideBvh::walk_ordered`]'s
+    /// `leaf` for ray `rays[ray]`, whose reach is `t_max[ray]`; returning `true` ends
+    /// that ray's walk.
+    ///
+    /// # Panics
+    /// If `t_max` and `rays` differ in length.
+    pub fn walk_interleaved<T, F>(
+        &self,
+        rays: &[RayQuery],
+        t_max: &mut [Float],
+        items: &[T],
+        mut leaf: F,
+    ) where
+        F: FnMut(usize, u32, u32, &mut Float) -> bool,
+    {
+        assert_eq!(rays.len(), t_max.len(), "one reach per ray");
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stacks =
+            [[const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE]; INTERLEAVED_RAYS];
+        // The walk in each slot and the ray it traces.
+        let mut in_flight = [const { MaybeUninit::<(Walk, usize)>::uninit() }; INTERLEAVED_RAYS];
+        let mut next_ray = 0;
+        let mut live = 0u32;
+        for (slot, walk) in in_flight.iter_mut().enumerate().take(rays.len()) {
+            walk.write((Walk::new(&rays[next_ray]), next_ray));
+            next_ray += 1;
+            live |= 1 << slot;
+        }
+        while live != 0 {
+            let mut turn = live;
+            while turn != 0 {
+                let slot = turn.trailing_zeros() as usize;
+                turn &= turn - 1;
+                // SAFETY: every slot of `live` was written.
+                let (walk, ray) = unsafe { in_flight[slot].assume_init_mut() };
+                let ray = *ray;
+                let step = self.step::<true, true, T, _>(
+                    walk,
+                    &mut stacks[slot],
+                    &mut t_max[ray],
+                    items,
+                    &mut |first, count, t_max: &mut Float| leaf(ray, first, count, t_max),
+                );
+                if step == Step::Going {
+                    continue;
                 }
-            } else {
-                let node = &self.nodes[current.index as usize];
-                let (mut hits, t_enter) = slabs.hit_children::<false>(node, *t_max);
-                if hits != 0 {
-                    let child = |slot: usize| ChildRef {
-                        index: node.child[slot],
-                        item_count: node.item_count[slot],
-                    };
-                    // The items of every leaf hit are asked for at once, the nearest's
-                    // too: they are on their way together rather than one cache miss
-                    // after another as the leaf test reads them.
-                    let mut leaves = hits & node.leaf_slots();
-                    while leaves != 0 {
-                        let slot = leaves.trailing_zeros() as usize;
-                        leaves &= leaves - 1;
-                        prefetch_lines(
-                            items.as_ptr().wrapping_add(node.child[slot] as usize),
-                            PREFETCH_LINES,
-                        );
-                    }
-                    let first = hits.trailing_zeros() as usize;
-                    hits &= hits - 1;
-                    if hits == 0 {
-                        current = child(first);
-                        continue;
-                    }
-                    let t_enter = t_enter.as_array();
+                if next_ray < rays.len() {
+                    in_flight[slot].write((Walk::new(&rays[next_ray]), next_ray));
+                    next_ray += 1;
+                } else {
+                    live &= !(1 << slot);
+                }
+            }
+        }
+    }
+
+    /// One step of a walk: visits its current node or leaf, then takes the next
+    /// child to visit, nearest first if `ORDERED`, from the node's children or the
+    /// stack. With `PREFETCH_NEXT`, also asks for the memory of that child if it is a
+    /// node, for walks that take other rays' steps before they visit it.
+    #[inline(always)]
+    fn step<const ORDERED: bool, const PREFETCH_NEXT: bool, T, F>(
+        &self,
+        walk: &mut Walk,
+        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        t_max: &mut Float,
+        items: &[T],
+        leaf: &mut F,
+    ) -> Step
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        let current = walk.current;
+        if current.item_count > 0 {
+            if leaf(current.index, current.item_count, t_max) {
+                return Step::Stopped;
+            }
+        } else {
+            let node = &self.nodes[current.index as usize];
+            let (mut hits, t_enter) = walk.slabs.hit_children::<false>(node, *t_max);
+            if hits != 0 {
+                let child = |slot: usize| ChildRef {
+                    index: node.child[slot],
+                    item_count: node.item_count[slot],
+                };
+                // The items of every leaf hit are asked for at once, the nearest's
+                // too: they are on their way together rather than one cache miss
+                // after another as the leaf test reads them.
+                let mut leaves = hits & node.leaf_slots();
+                while leaves != 0 {
+                    let slot = leaves.trailing_zeros() as usize;
+                    leaves &= leaves - 1;
+                    prefetch_lines(
+                        items.as_ptr().wrapping_add(node.child[slot] as usize),
+                        PREFETCH_LINES,
+                    );
+                }
+                let first = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                let t_enter = t_enter.as_array();
+                if hits == 0 {
+                    walk.current = child(first);
+                } else {
                     let second = hits.trailing_zeros() as usize;
                     hits &= hits - 1;
                     if hits == 0 {
@@ -323,54 +411,97 @@ impl WideBvh {
                         } else {
                             (second, first)
                         };
-                        debug_assert!(stack_len < STACK_SIZE);
+                        debug_assert!(walk.stack_len < STACK_SIZE);
                         self.prefetch_node(child(far));
-                        stack[stack_len].write((child(far), t_enter[far]));
-                        stack_len += 1;
-                        current = child(near);
-                        continue;
+                        stack[walk.stack_len].write((child(far), t_enter[far]));
+                        walk.stack_len += 1;
+                        walk.current = child(near);
+                    } else {
+                        // Three or more: push all, then, if ordered, sort the pushed
+                        // run so that the nearest is on top, and take it.
+                        let run_start = walk.stack_len;
+                        hits |= (1 << first) | (1 << second);
+                        while hits != 0 {
+                            let slot = hits.trailing_zeros() as usize;
+                            hits &= hits - 1;
+                            debug_assert!(walk.stack_len < STACK_SIZE);
+                            self.prefetch_node(child(slot));
+                            stack[walk.stack_len].write((child(slot), t_enter[slot]));
+                            walk.stack_len += 1;
+                        }
+                        if ORDERED {
+                            // SAFETY: entries `run_start..stack_len` were written just
+                            // above.
+                            let run = unsafe {
+                                &mut *(&mut stack[run_start..walk.stack_len] as *mut [_]
+                                    as *mut [(ChildRef, Float)])
+                            };
+                            sort_far_to_near(run);
+                        }
+                        walk.stack_len -= 1;
+                        // SAFETY: written above (at least three entries were pushed).
+                        walk.current = unsafe { stack[walk.stack_len].assume_init() }.0;
                     }
-                    // Three or more: push all, then, if ordered, sort the pushed run
-                    // so that the nearest is on top, and take it as the current node.
-                    let run_start = stack_len;
-                    hits |= (1 << first) | (1 << second);
-                    while hits != 0 {
-                        let slot = hits.trailing_zeros() as usize;
-                        hits &= hits - 1;
-                        debug_assert!(stack_len < STACK_SIZE);
-                        self.prefetch_node(child(slot));
-                        stack[stack_len].write((child(slot), t_enter[slot]));
-                        stack_len += 1;
-                    }
-                    if ORDERED {
-                        // SAFETY: entries `run_start..stack_len` were written just above.
-                        let run = unsafe {
-                            &mut *(&mut stack[run_start..stack_len] as *mut [_]
-                                as *mut [(ChildRef, Float)])
-                        };
-                        sort_far_to_near(run);
-                    }
-                    stack_len -= 1;
-                    // SAFETY: written above (at least three entries were pushed).
-                    current = unsafe { stack[stack_len].assume_init() }.0;
-                    continue;
                 }
+                if PREFETCH_NEXT && walk.current.item_count == 0 {
+                    self.prefetch_node(walk.current);
+                }
+                return Step::Going;
             }
-            // Pop the next pending child that can still hold a closer hit.
-            loop {
-                if stack_len == 0 {
-                    return false;
-                }
-                stack_len -= 1;
-                // SAFETY: every entry below `stack_len` was written before.
-                let (next, t_entry) = unsafe { stack[stack_len].assume_init() };
-                if !ORDERED || t_entry < *t_max {
-                    current = next;
-                    break;
-                }
+        }
+        // Pop the next pending child that can still hold a closer hit.
+        loop {
+            if walk.stack_len == 0 {
+                return Step::Finished;
+            }
+            walk.stack_len -= 1;
+            // SAFETY: every entry below `stack_len` was written before.
+            let (next, t_entry) = unsafe { stack[walk.stack_len].assume_init() };
+            if !ORDERED || t_entry < *t_max {
+                walk.current = next;
+                return Step::Going;
             }
         }
     }
+}
+
+/// Rays a [`WideBvh::walk_interleaved`] keeps in flight (4 and 16 measured slower on
+/// the dragon).
+pub const INTERLEAVED_RAYS: usize = 8;
+
+/// Where one ray's walk is: its slab test, the node or leaf it visits next, and how
+/// many entries of its stack are pending.
+#[derive(Clone, Copy)]
+struct Walk {
+    slabs: WideRay,
+    current: ChildRef,
+    stack_len: usize,
+}
+
+impl Walk {
+    /// A walk of `ray` from the root.
+    #[inline(always)]
+    fn new(ray: &RayQuery) -> Walk {
+        Walk {
+            slabs: WideRay::new(ray),
+            current: ChildRef {
+                index: 0,
+                item_count: 0,
+            },
+            stack_len: 0,
+        }
+    }
+}
+
+/// What a walk's step left to do.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Step {
+    /// More to visit.
+    Going,
+    /// The leaf closure asked to stop.
+    Stopped,
+    /// Nothing left that can hold a hit.
+    Finished,
 }
 
 /// Lines a walk asks for ahead: a node's four, or all of a 160-byte packet of
@@ -428,6 +559,7 @@ impl RayQuery {
 
 /// A ray set up for eight-box slab tests: origin and reciprocal direction in every
 /// lane, and for each axis which plane the ray meets first.
+#[derive(Clone, Copy)]
 pub(super) struct WideRay {
     origin: [f32x8; 3],
     inv_dir: [f32x8; 3],

@@ -1,11 +1,13 @@
 //! `raytracer bench`: medians of parse, build, primary-ray, shadow-ray and
-//! incoherent-ray times (ray by ray, and primary and shadow rays also as 4x4 packets)
+//! incoherent-ray times (ray by ray; primary and shadow rays also as 4x4 packets,
+//! incoherent rays also through the array query, `Scene::intersect_primitives`)
 //! on one scene, printed as one JSON object for `bench/run.sh`.
 
 use anyhow::Context;
 use raytracer::benchmark::{
     RayWorkload, Times, count_occluded, count_occluded_packets, median_time, median_times,
     median_times_with, trace_closest_primitives, trace_closest_primitives_packets,
+    trace_closest_primitives_stream,
 };
 use raytracer::{BvhParams, Scene, render};
 
@@ -54,6 +56,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         trace_closest_primitives(&scene, &workload.incoherent)
     });
     let incoherent_hits = incoherent_ids.iter().filter(|&&id| id != u32::MAX).count();
+    // The same rays through the array query: the same hits.
+    let (stream_ids, incoherent_stream) = median_times(args.repeat, || {
+        trace_closest_primitives_stream(&scene, &workload.incoherent)
+    });
+    anyhow::ensure!(
+        stream_ids == incoherent_ids,
+        "the array query and single rays disagree on the incoherent rays' hits"
+    );
     let (_, render) = median_times(args.repeat, || render(&scene, options));
     if let Some(path) = &args.dump_rays {
         let triangles: Vec<[u32; 3]> = description.triangles.iter().map(|t| t.positions).collect();
@@ -104,10 +114,15 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             rate("shadow_packet", workload.shadow.len(), &shadow_packet)
         ),
         format!(
-            "\"incoherent_rays\": {}, \"incoherent_hits\": {}, {}",
+            "\"incoherent_rays\": {}, \"incoherent_hits\": {}, {}, {}",
             workload.incoherent.len(),
             incoherent_hits,
-            rate("incoherent", workload.incoherent.len(), &incoherent)
+            rate("incoherent", workload.incoherent.len(), &incoherent),
+            rate(
+                "incoherent_stream",
+                workload.incoherent.len(),
+                &incoherent_stream
+            )
         ),
         format!(
             "\"render_ms\": {:.2}, \"render_cpu_ms\": {:.2}",

@@ -5,10 +5,12 @@
 mod batch;
 mod info;
 mod packet;
+mod stream;
 #[cfg(test)]
 pub(crate) use packet::tests as packet_tests;
 
 pub use batch::BATCH;
+pub use stream::INTERLEAVE_ABOVE_BYTES;
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
 
 use std::mem::MaybeUninit;
@@ -531,16 +533,31 @@ impl Scene {
         let mut t_max = Float::INFINITY;
         self.wide
             .walk_ordered(&query, &mut t_max, &self.packets, |first, count, t_max| {
-                for index in first..first + count {
-                    let packet = &self.packets[index as usize];
-                    if let Some((lane, hit)) = packet.intersect_any_kind(&lanes, *t_max) {
-                        *t_max = hit.t;
-                        closest = Some((index, lane, hit));
-                    }
-                }
+                self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest);
                 false
             });
         closest
+    }
+
+    /// Tests the ray in `lanes` against packets `first..first + count`, in order, and
+    /// records in `closest` (packet, lane and hit) any hit nearer than `t_max`, which
+    /// it lowers: the leaf test of [`Scene::closest_lane`].
+    #[inline(always)]
+    fn nearest_in_leaf(
+        &self,
+        lanes: &PacketRay,
+        first: u32,
+        count: u32,
+        t_max: &mut Float,
+        closest: &mut Option<(u32, usize, PrimHit)>,
+    ) {
+        for index in first..first + count {
+            let packet = &self.packets[index as usize];
+            if let Some((lane, hit)) = packet.intersect_any_kind(lanes, *t_max) {
+                *t_max = hit.t;
+                *closest = Some((index, lane, hit));
+            }
+        }
     }
 
     /// [`Scene::closest_lane`] for scenes with cutouts: a triangle hit counts only

@@ -16,8 +16,8 @@ pub use build::BvhParams;
 pub use node::BvhNode;
 pub(crate) use packet::lane_mask;
 pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of};
-pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE};
 pub use wide::{INTERLEAVED_RAYS, RayQuery, WideBvh, WideNode};
+pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE};
 
 use crate::math::Aabb;
 

@@ -10,8 +10,8 @@ mod stream;
 pub(crate) use packet::tests as packet_tests;
 
 pub use batch::BATCH;
-pub use stream::INTERLEAVE_ABOVE_BYTES;
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
+pub use stream::INTERLEAVE_ABOVE_BYTES;
 
 use std::mem::MaybeUninit;
 

@@ -293,7 +293,7 @@ impl WideBvh {
     /// ray in a scene larger than the caches mostly waits for its next node or leaf
     /// to come from memory; here the other rays' steps fill that wait (incoherent rays
     /// on the 871k-triangle dragon: 1.10x), but where the scene fits in the caches
-    /// the bookkeeping costs more than it hides (0.78x-0.93x on the dragon's smaller
+    /// the bookkeeping costs more than it hides (0.78x-0.97x on the dragon's smaller
     /// meshes). Each ray visits the same nodes and leaves in the same order as on its
     /// own, so the answers are the same, bit for bit.
     ///
@@ -465,8 +465,8 @@ impl WideBvh {
     }
 }
 
-/// Rays a [`WideBvh::walk_interleaved`] keeps in flight (4 and 16 measured slower on
-/// the dragon).
+/// Rays a [`WideBvh::walk_interleaved`] keeps in flight (on the full dragon, four hid
+/// less of the wait, sixteen no more than eight).
 pub const INTERLEAVED_RAYS: usize = 8;
 
 /// Where one ray's walk is: its slab test, the node or leaf it visits next, and how

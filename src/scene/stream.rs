@@ -15,7 +15,7 @@ use crate::shapes::{PacketRay, PrimHit};
 /// arrays of rays several at a time: the size of a last-level cache shared by a few
 /// cores on current desktop and server processors (32 MiB on this project's
 /// benchmark machine). Measured on the dragon's incoherent bounce rays: 1.10x at
-/// 871k triangles (50 MB), 0.92x-0.97x at 203k (12 MB) and 0.78x-0.88x below.
+/// 871k triangles (50 MB), 0.90x-0.97x at 203k (12 MB) and 0.78x-0.88x below.
 pub const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 
 /// Rays given to one interleaved walk: enough for the walk's rays in flight to be

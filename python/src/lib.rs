@@ -21,14 +21,15 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use numpy::ndarray::{Array3, ArrayView3};
-use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike3, TypeMustMatch};
+use numpy::ndarray::{Array3, ArrayView2, ArrayView3};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike2, PyArrayLike3, TypeMustMatch};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
+use rayon::prelude::*;
 use raytracer::formats::{self, ParseErrorKind, SceneFormat};
-use raytracer::math::{Float, Vec3};
+use raytracer::math::{Float, Ray, Vec3};
 use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced};
 use raytracer::output::{self, UnknownFormatError, WriteError};
 use raytracer::postprocess::PostProcessing;
@@ -361,7 +362,7 @@ impl Loaded {
 /// stop a Dask worker inside a tile, at a known step rather than at a lucky moment.
 /// When the environment variable `variable` names a file, the (detached) call writes
 /// the marker `<file>.<process id>` and waits until `<file>` exists, for a minute at
-/// most. Without the variable it costs one look-up per load or render.
+/// most. Without the variable it costs one look-up per load, render or ray array.
 fn test_gate(variable: &str) {
     let Some(gate) = std::env::var_os(variable) else {
         return;
@@ -545,6 +546,41 @@ impl PyScene {
         Ok(dict)
     }
 
+    /// The closest hit of every ray: ``origins`` and ``directions`` are arrays (or
+    /// lists) of shape ``(n, 3)``, one ray per row; a direction need not be unit
+    /// length. Returns a dict of arrays of length ``n``:
+    ///
+    /// - ``"t"`` (``float32``): the distance from the origin to the hit, along the
+    ///   direction made unit length; ``inf`` where the ray misses;
+    /// - ``"primitive"`` (``int64``): what the ray hits, ``-1`` where it misses: the
+    ///   index of the triangle in the order the file lists them (a polygon of ``k``
+    ///   corners is ``k - 2`` triangles, fanned from its first corner), then of the
+    ///   spheres a scene lists, numbered after all triangles;
+    /// - ``"u"``, ``"v"`` (``float32``): the hit's barycentric coordinates on its
+    ///   triangle, the weights of its second and third corners (0 on spheres and
+    ///   misses): the hit point is ``(1 - u - v) * a + u * b + v * c``.
+    ///
+    /// Rays pass through what a material cuts out (``map_d``, glTF's alpha mask),
+    /// as rendering does. The rays are traced on all cores with the interpreter
+    /// released. Raises ``ValueError`` for arrays of another shape, values that are
+    /// not finite or a zero direction, naming the row.
+    fn intersect<'py>(
+        &self,
+        py: Python<'py>,
+        origins: PyArrayLike2<'py, f32, AllowTypeChange>,
+        directions: PyArrayLike2<'py, f32, AllowTypeChange>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let rays = rays_of(origins.as_array(), directions.as_array())?;
+        let loaded = Arc::clone(&self.loaded);
+        let hits = py.detach(move || closest_hits(&loaded.scene, &rays));
+        let dict = PyDict::new(py);
+        dict.set_item("t", hits.t.into_pyarray(py))?;
+        dict.set_item("primitive", hits.primitive.into_pyarray(py))?;
+        dict.set_item("u", hits.u.into_pyarray(py))?;
+        dict.set_item("v", hits.v.into_pyarray(py))?;
+        Ok(dict)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "raytracer.Scene({:?}: {} primitives, {} lights)",
@@ -576,6 +612,91 @@ impl PyScene {
         })?;
         Ok(film_array(py, width, height, values))
     }
+}
+
+/// One ray per row of `origins` and `directions`, both of shape `(n, 3)`.
+fn rays_of(origins: ArrayView2<'_, f32>, directions: ArrayView2<'_, f32>) -> PyResult<Vec<Ray>> {
+    for (name, array) in [("origins", &origins), ("directions", &directions)] {
+        let (rows, columns) = array.dim();
+        if columns != 3 {
+            return Err(PyValueError::new_err(format!(
+                "{name} must have the shape (n, 3), not ({rows}, {columns})"
+            )));
+        }
+    }
+    if origins.nrows() != directions.nrows() {
+        return Err(PyValueError::new_err(format!(
+            "{} origins but {} directions: give one of each per ray",
+            origins.nrows(),
+            directions.nrows()
+        )));
+    }
+    origins
+        .outer_iter()
+        .zip(directions.outer_iter())
+        .enumerate()
+        .map(|(row, (origin, dir))| {
+            let origin = Vec3::new(origin[0], origin[1], origin[2]);
+            let dir = Vec3::new(dir[0], dir[1], dir[2]);
+            if !origin.is_finite() || !dir.is_finite() {
+                return Err(PyValueError::new_err(format!(
+                    "ray {row}: origin {origin} and direction {dir} must be finite"
+                )));
+            }
+            // A direction too short to make unit length (zero, or so small that its
+            // length underflows) points nowhere.
+            if !dir.normalize_or_zero().is_normalized() {
+                return Err(PyValueError::new_err(format!(
+                    "ray {row}: the direction {dir} is zero or too short to make unit length"
+                )));
+            }
+            Ok(Ray::new(origin, dir))
+        })
+        .collect()
+}
+
+/// The closest hits of [`PyScene::intersect`], by coordinate.
+struct ClosestHits {
+    t: Vec<f32>,
+    primitive: Vec<i64>,
+    u: Vec<f32>,
+    v: Vec<f32>,
+}
+
+/// The closest hit of every ray, on all cores. Call detached from the interpreter.
+fn closest_hits(scene: &Scene, rays: &[Ray]) -> ClosestHits {
+    test_gate("RAYTRACER_TEST_GATE_INTERSECT");
+    // Enough rays per task for the array query to keep several in flight.
+    const CHUNK: usize = 256;
+    let n = rays.len();
+    let mut hits = ClosestHits {
+        t: vec![Float::INFINITY; n],
+        primitive: vec![-1; n],
+        u: vec![0.0; n],
+        v: vec![0.0; n],
+    };
+    rays.par_chunks(CHUNK)
+        .zip(hits.t.par_chunks_mut(CHUNK))
+        .zip(hits.primitive.par_chunks_mut(CHUNK))
+        .zip(
+            hits.u
+                .par_chunks_mut(CHUNK)
+                .zip(hits.v.par_chunks_mut(CHUNK)),
+        )
+        .for_each(|(((rays, t), primitive), (u, v))| {
+            let mut found = [None; CHUNK];
+            let found = &mut found[..rays.len()];
+            scene.intersect_primitives(rays, found);
+            for (i, hit) in found.iter().enumerate() {
+                if let Some((prim, hit)) = *hit {
+                    t[i] = hit.t;
+                    primitive[i] = scene.source_index(prim) as i64;
+                    u[i] = hit.u;
+                    v[i] = hit.v;
+                }
+            }
+        });
+    hits
 }
 
 /// Renders a scene file and returns the linear image before post-processing (what

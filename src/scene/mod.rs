@@ -77,6 +77,10 @@ pub struct Scene {
     vertex_normals: Vec<Vec3>,
     /// The description's texture coordinates; empty unless some material has maps.
     texcoords: Vec<Vec2>,
+    /// The description index of each primitive (leaf order): its triangles in
+    /// order, then its spheres. Read only to answer [`Scene::source_index`], so it
+    /// stays out of the caches that rays use.
+    source: Vec<u32>,
     /// Indices into `texcoords` of each primitive's corners (leaf order), or
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
     /// scenes neither store nor interpolate texture coordinates.
@@ -440,6 +444,7 @@ impl Scene {
             shading,
             vertex_normals,
             texcoords,
+            source: order,
             prim_texcoords,
             has_cutouts,
             materials,
@@ -453,6 +458,18 @@ impl Scene {
     /// Figures about the scene's BVH.
     pub fn bvh_summary(&self) -> &BvhSummary {
         &self.summary
+    }
+
+    /// Where primitive `prim` (leaf order, as [`Scene::intersect_primitive`] names
+    /// it) came from: its index among the description's triangles, in the order
+    /// the file lists them, followed by its spheres (so a sphere's index is the
+    /// triangle count plus its own). Degenerate triangles and copies dropped by
+    /// [`Scene::build`] keep their places in this numbering: no primitive maps to them.
+    ///
+    /// # Panics
+    /// If `prim` is not below [`Scene::prim_count`].
+    pub fn source_index(&self, prim: u32) -> usize {
+        self.source[prim as usize] as usize
     }
 
     /// Number of primitives (triangles and spheres).
@@ -1182,5 +1199,79 @@ mod build_tests {
             }
         }
         assert_eq!(checked, triangles + spheres);
+    }
+
+    /// [`Scene::source_index`] names the description's triangle a ray hits, past
+    /// the degenerate triangles the build drops, with the spheres after the
+    /// triangles: here a grid of triangles side by side in the plane `z = 0`, listed
+    /// in shuffled order, each hit from straight above its centroid.
+    #[test]
+    fn source_index_names_the_description_primitive() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(25);
+        let mut cells: Vec<(u32, u32, bool)> = (0..30)
+            .flat_map(|x| (0..30).flat_map(move |y| [(x, y, false), (x, y, true)]))
+            .collect();
+        for i in (1..cells.len()).rev() {
+            cells.swap(i, rng.random_range(0..=i));
+        }
+        let mut d = SceneDescription::default();
+        let mut centroids = Vec::new();
+        for (i, &(x, y, upper)) in cells.iter().enumerate() {
+            let (x, y) = (x as f32, y as f32);
+            let corners = if upper {
+                [
+                    Vec3::new(x + 1.0, y, 0.0),
+                    Vec3::new(x + 1.0, y + 1.0, 0.0),
+                    Vec3::new(x, y + 1.0, 0.0),
+                ]
+            } else {
+                [
+                    Vec3::new(x, y, 0.0),
+                    Vec3::new(x + 1.0, y, 0.0),
+                    Vec3::new(x, y + 1.0, 0.0),
+                ]
+            };
+            if i % 7 == 3 {
+                // A zero-area triangle before this one: dropped, but it keeps its index.
+                let first = d.positions.len() as u32;
+                d.positions.extend([corners[0]; 3]);
+                d.triangles.push(TriangleDesc {
+                    positions: [first, first + 1, first + 2],
+                    normals: None,
+                    material: MaterialId(0),
+                });
+                centroids.push(None);
+            }
+            let first = d.positions.len() as u32;
+            d.positions.extend(corners);
+            d.triangles.push(TriangleDesc {
+                positions: [first, first + 1, first + 2],
+                normals: None,
+                material: MaterialId(0),
+            });
+            centroids.push(Some((corners[0] + corners[1] + corners[2]) / 3.0));
+        }
+        d.spheres.push(SphereDesc {
+            center: Vec3::new(-5.0, -5.0, 0.0),
+            radius: 1.0,
+            material: MaterialId(0),
+        });
+        centroids.push(Some(Vec3::new(-5.0, -5.0, 0.0)));
+        d.materials = vec![Material::fallback()];
+        let scene = Scene::build(d, &BvhParams::default());
+        assert!(scene.warnings.iter().any(|w| w.contains("degenerate")));
+        let mut checked = 0;
+        for (index, centroid) in centroids.iter().enumerate() {
+            let Some(centroid) = centroid else { continue };
+            let ray = Ray::new(*centroid + Vec3::new(0.0, 0.0, 3.0), -Vec3::Z);
+            let (prim, _) = scene.intersect_primitive(&ray).expect("the ray hits");
+            assert_eq!(
+                scene.source_index(prim),
+                index,
+                "primitive hit above {centroid}"
+            );
+            checked += 1;
+        }
+        assert_eq!(checked, scene.prim_count());
     }
 }

@@ -264,6 +264,7 @@ GIL_PROBE = textwrap.dedent(
     # Once before: a first call's lazy set-up (numpy's C API) must not be what lets
     # the main thread run.
     raytracer.render(path, width=2, height=2)
+    scene.intersect([[0, 0.5, 2]], [[0, 0, -1]])
     # With a switch interval this long a thread keeps the interpreter until it
     # releases it itself: the main thread runs while a call is under way only if the
     # call released it.
@@ -272,6 +273,7 @@ GIL_PROBE = textwrap.dedent(
         ("render(path)", "RENDER", lambda: raytracer.render(path, width=8, height=6)),
         ("Scene.render", "RENDER", lambda: scene.render(width=8, height=6)),
         ("Scene(path)", "LOAD", lambda: raytracer.Scene(path)),
+        ("Scene.intersect", "INTERSECT", lambda: scene.intersect([[0, 0.5, 2]], [[0, 0, -1]])),
     ]
     marker = f"{gate}.{os.getpid()}"
     for name, stage, call in calls:
@@ -292,7 +294,7 @@ GIL_PROBE = textwrap.dedent(
 )
 
 
-def test_the_gil_is_released_while_loading_and_rendering(tmp_path):
+def test_the_gil_is_released_while_loading_rendering_and_tracing(tmp_path):
     result = subprocess.run(
         [sys.executable, "-c", GIL_PROBE, str(CORNELL_OBJ), str(tmp_path / "gate")],
         capture_output=True,
@@ -300,10 +302,11 @@ def test_the_gil_is_released_while_loading_and_rendering(tmp_path):
         timeout=600,
     )
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split("\n")[:3] == [
+    assert result.stdout.split("\n")[:4] == [
         "render(path) released",
         "Scene.render released",
         "Scene(path) released",
+        "Scene.intersect released",
     ]
 
 

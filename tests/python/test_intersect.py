@@ -1,0 +1,138 @@
+"""`Scene.intersect`: the closest hit of each of an array of rays, its primitive
+numbered as the file lists it, checked against a brute-force test of every triangle."""
+
+import numpy as np
+import pytest
+
+import raytracer
+
+
+def write_obj(path, triangles, extra=""):
+    """An OBJ file of `triangles` (an (n, 3, 3) array), in that order."""
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in triangles.reshape(-1, 3)]
+    lines += [f"f {3 * i + 1} {3 * i + 2} {3 * i + 3}" for i in range(len(triangles))]
+    path.write_text("\n".join(lines) + "\n" + extra)
+    return path
+
+
+def brute_force(triangles, origins, directions):
+    """Distance, triangle and barycentrics of every ray's nearest hit (Moller-Trumbore
+    in float64 over every triangle), the second-nearest distance, how far inside its
+    triangle's edges the hit is, and how far inside any triangle ahead the ray comes
+    (negative: outside all): rays whose answer rounding may change are told apart by
+    the last three."""
+    d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    a, b, c = (triangles[:, k].astype(np.float64) for k in range(3))
+    e1, e2 = b - a, c - a
+    p = np.cross(d[:, None, :], e2[None])
+    det = np.einsum("rtk,tk->rt", p, e1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        s = origins[:, None, :] - a[None]
+        u = np.einsum("rtk,rtk->rt", s, p) * inv
+        q = np.cross(s, e1[None])
+        v = np.einsum("rk,rtk->rt", d, q) * inv
+        t = np.einsum("tk,rtk->rt", e2, q) * inv
+    ahead = (np.abs(det) > 1e-12) & (t > 1e-4)
+    inside = np.where(ahead, np.minimum(np.minimum(u, v), 1 - u - v), -np.inf)
+    hit = ahead & (inside >= 0)
+    t = np.where(hit, t, np.inf)
+    order = np.argsort(t, axis=1)
+    rows = np.arange(len(origins))
+    nearest, second = order[:, 0], order[:, 1]
+    t_near = t[rows, nearest]
+    u_near, v_near = u[rows, nearest], v[rows, nearest]
+    edge = np.minimum(np.minimum(u_near, v_near), 1 - u_near - v_near)
+    return t_near, nearest, u_near, v_near, t[rows, second], edge, inside.max(axis=1)
+
+
+def test_hits_are_those_of_every_triangle_tested(tmp_path):
+    rng = np.random.default_rng(7)
+    corners = rng.uniform(-1, 1, size=(400, 1, 3))
+    triangles = (corners + rng.normal(scale=0.25, size=(400, 3, 3))).astype(np.float32)
+    path = write_obj(tmp_path / "soup.obj", triangles)
+    scene = raytracer.Scene(path)
+    origins = rng.uniform(-2, 2, size=(3000, 3)).astype(np.float32)
+    targets = rng.uniform(-2, 2, size=(3000, 3))
+    directions = (targets - origins) * rng.uniform(0.1, 10, size=(3000, 1))
+
+    hits = scene.intersect(origins, directions)
+    assert set(hits) == {"t", "primitive", "u", "v"}
+    assert hits["t"].dtype == np.float32 and hits["primitive"].dtype == np.int64
+    assert all(a.shape == (3000,) for a in hits.values())
+
+    t, nearest, u, v, t_second, edge, closest_call = brute_force(triangles, origins.astype(np.float64), directions)
+    missed = ~np.isfinite(t)
+    # Rays whose nearest hit is clear of its edges and of the next hit: the answer
+    # cannot depend on rounding.
+    with np.errstate(invalid="ignore"):  # inf - inf where no triangle is hit
+        clear = ~missed & (edge > 1e-4) & (t_second - t > 1e-3 * t)
+    clear_miss = missed & (closest_call < -1e-4)
+    assert clear.sum() > 1500 and clear_miss.sum() > 1000, "too few rays of either kind"
+    assert np.array_equal(hits["primitive"][clear], nearest[clear])
+    np.testing.assert_allclose(hits["t"][clear], t[clear], rtol=1e-4)
+    np.testing.assert_allclose(hits["u"][clear], u[clear], atol=1e-4)
+    np.testing.assert_allclose(hits["v"][clear], v[clear], atol=1e-4)
+    assert np.all(hits["primitive"][clear_miss] == -1)
+    assert np.all(np.isinf(hits["t"][clear_miss]))
+    # Every hit's barycentrics and distance name the same point.
+    found = hits["primitive"] >= 0
+    a, b, c = (triangles[hits["primitive"][found], k] for k in range(3))
+    uu, vv = hits["u"][found, None], hits["v"][found, None]
+    on_triangle = (1 - uu - vv) * a + uu * b + vv * c
+    unit = directions[found] / np.linalg.norm(directions[found], axis=1, keepdims=True)
+    along_ray = origins[found] + hits["t"][found, None] * unit
+    np.testing.assert_allclose(on_triangle, along_ray, atol=1e-4)
+
+
+def test_primitives_are_numbered_as_the_file_lists_them(tmp_path):
+    # A pentagon (three triangles fanned from its first corner), a zero-area triangle
+    # (skipped, but numbered), a triangle, then a sphere: numbers 0-2, 4 and 5.
+    (tmp_path / "shapes.obj").write_text(
+        "v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 2 0\nv -1 1 0\n"
+        "v 5 0 0\nv 6 0 0\nv 7 0 0\n"
+        "v 10 0 0\nv 12 0 0\nv 10 2 0\n"
+        "f 1 2 3 4 5\nf 6 7 8\nf 9 10 11\nS 20 0 0 1\n"
+    )
+    scene = raytracer.Scene(tmp_path / "shapes.obj")
+    fan = np.array([[0, 0, 0], [2, 0, 0], [3, 1, 0], [1, 2, 0], [-1, 1, 0]], np.float64)
+    centroids = [(fan[0] + fan[k] + fan[k + 1]) / 3 for k in (1, 2, 3)]
+    centroids += [np.array([10.5, 0.5, 0]), np.array([20, 0, 0])]
+    origins = np.array(centroids) + [0, 0, 5]
+    hits = scene.intersect(origins, [[0, 0, -1]] * 5)
+    assert hits["primitive"].tolist() == [0, 1, 2, 4, 5]
+    np.testing.assert_allclose(hits["t"], [5, 5, 5, 5, 4], rtol=1e-6)
+    assert hits["u"][4] == 0 and hits["v"][4] == 0
+
+
+def test_rays_come_as_lists_or_arrays_of_any_float_type(tmp_path):
+    triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
+    scene = raytracer.Scene(write_obj(tmp_path / "one.obj", triangles))
+    expected = scene.intersect(np.array([[0.2, 0.2, 1]], np.float32), np.array([[0, 0, -2]], np.float32))
+    for origins, directions in [
+        ([[0.2, 0.2, 1]], [[0, 0, -2]]),
+        (np.array([[0.2, 0.2, 1]]), np.array([[0, 0, -2]], np.float64)),
+    ]:
+        hits = scene.intersect(origins, directions)
+        assert {k: v.tolist() for k, v in hits.items()} == {k: v.tolist() for k, v in expected.items()}
+    assert expected["primitive"].tolist() == [0] and expected["t"].tolist() == [1.0]
+    empty = scene.intersect(np.zeros((0, 3)), np.zeros((0, 3)))
+    assert all(a.shape == (0,) for a in empty.values())
+
+
+@pytest.mark.parametrize(
+    "origins,directions,message",
+    [
+        ([[0, 0, 1, 0]], [[0, 0, -1, 0]], r"origins must have the shape \(n, 3\), not \(1, 4\)"),
+        ([[0, 0, 1]], [[0, 0]], r"directions must have the shape \(n, 3\), not \(1, 2\)"),
+        ([[0, 0, 1]] * 2, [[0, 0, -1]], "2 origins but 1 directions"),
+        ([[0, 0, 1], [0, float("nan"), 1]], [[0, 0, -1]] * 2, "ray 1: .* must be finite"),
+        ([[0, 0, 1]], [[0, 0, float("inf")]], "ray 0: .* must be finite"),
+        ([[0, 0, 1]] * 3, [[0, 0, -1], [0, 0, -1], [0, 0, 0]], "ray 2: the direction .* is zero"),
+    ],
+)
+def test_bad_rays_are_named(tmp_path, origins, directions, message):
+    triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
+    scene = raytracer.Scene(write_obj(tmp_path / "one.obj", triangles))
+    with pytest.raises(ValueError, match=message):
+        scene.intersect(origins, directions)

@@ -136,3 +136,29 @@ def test_bad_rays_are_named(tmp_path, origins, directions, message):
     scene = raytracer.Scene(write_obj(tmp_path / "one.obj", triangles))
     with pytest.raises(ValueError, match=message):
         scene.intersect(origins, directions)
+
+
+def test_the_first_bad_ray_is_named(tmp_path):
+    # Rays are checked a chunk at a time on all cores: the error must still name the
+    # first bad row, whichever chunk is checked first.
+    triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
+    scene = raytracer.Scene(write_obj(tmp_path / "one.obj", triangles))
+    origins = np.tile([0.2, 0.2, 1.0], (5000, 1))
+    directions = np.tile([0.0, 0.0, -1.0], (5000, 1))
+    origins[4321, 1] = np.nan
+    directions[3000] = 0
+    directions[1234] = 0
+    with pytest.raises(ValueError, match="ray 1234: the direction"):
+        scene.intersect(origins, directions)
+    directions[:] = [0, 0, -1]
+    with pytest.raises(ValueError, match="ray 4321: .* must be finite"):
+        scene.intersect(origins, directions)
+    # Views that are not contiguous (rows reversed, every other row of a column slice)
+    # are read as the rows they show.
+    wide = np.zeros((10000, 5), np.float32)
+    wide[1::2, 1:4] = directions * np.arange(1, 5001)[:, None]
+    origins = np.tile(np.float32([0.2, 0.2, 1.0]), (5000, 1))
+    origins[:, 2] += np.arange(5000, dtype=np.float32) / 1000
+    hits = scene.intersect(origins[::-1], wide[1::2, 1:4])
+    assert np.all(hits["primitive"] == 0)
+    np.testing.assert_allclose(hits["t"], origins[::-1, 2], rtol=1e-6)

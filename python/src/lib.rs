@@ -653,20 +653,28 @@ struct BadRay {
 impl From<BadRay> for PyErr {
     fn from(BadRay { row, origin, dir }: BadRay) -> PyErr {
         PyValueError::new_err(if origin.is_finite() && dir.is_finite() {
-            format!("ray {row}: the direction {dir} is zero or too short to make unit length")
+            format!("ray {row}: the direction {dir} is zero")
         } else {
             format!("ray {row}: origin {origin} and direction {dir} must be finite")
         })
     }
 }
 
-/// The ray of row `row`: finite numbers, and a direction that can be made unit length
-/// (not zero, nor so short that its length underflows).
+/// The ray of row `row`: finite numbers and a direction that is not zero, made unit
+/// length.
 #[inline]
 fn ray_at(row: usize, origin: &[f32], dir: &[f32]) -> Result<Ray, BadRay> {
     let origin = Vec3::from_slice(origin);
     let dir = Vec3::from_slice(dir);
-    let unit = dir.normalize_or_zero();
+    let length_squared = dir.length_squared();
+    if origin.is_finite() && (f32::MIN_POSITIVE..f32::INFINITY).contains(&length_squared) {
+        // As `Vec3::normalize`, without its checks: the squared length is normal.
+        let dir = dir * length_squared.sqrt().recip();
+        return Ok(Ray { origin, dir });
+    }
+    // Directions whose squared length underflows or overflows, scaled first; zero,
+    // infinite and NaN ones end up not unit length.
+    let unit = (dir / dir.abs().max_element()).normalize_or_zero();
     if origin.is_finite() && unit.is_normalized() {
         Ok(Ray { origin, dir: unit })
     } else {

@@ -116,6 +116,10 @@ def test_rays_come_as_lists_or_arrays_of_any_float_type(tmp_path):
         hits = scene.intersect(origins, directions)
         assert {k: v.tolist() for k, v in hits.items()} == {k: v.tolist() for k, v in expected.items()}
     assert expected["primitive"].tolist() == [0] and expected["t"].tolist() == [1.0]
+    # Directions too short or too long to square in float32 still point somewhere.
+    for length in (1e-30, 1e-44, 1e30, 3e38):
+        hits = scene.intersect(np.array([[0.2, 0.2, 1]], np.float32), np.array([[0, 0, -length]], np.float32))
+        assert hits["primitive"].tolist() == [0] and hits["t"].tolist() == [1.0], length
     empty = scene.intersect(np.zeros((0, 3)), np.zeros((0, 3)))
     assert all(a.shape == (0,) for a in empty.values())
 

@@ -21,8 +21,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use numpy::ndarray::{Array3, ArrayView2, ArrayView3, CowArray, Ix2};
-use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike2, PyArrayLike3, TypeMustMatch};
+use numpy::ndarray::{Array3, ArrayView3, ArrayViewD, CowArray, Ix2};
+use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike3, PyArrayLikeDyn, TypeMustMatch};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -568,9 +568,13 @@ impl PyScene {
     fn intersect<'py>(
         &self,
         py: Python<'py>,
-        origins: PyArrayLike2<'py, f32, AllowTypeChange>,
-        directions: PyArrayLike2<'py, f32, AllowTypeChange>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let (origins, directions) = (
+            numbers_of(origins, "origins")?,
+            numbers_of(directions, "directions")?,
+        );
         let origins = rows_of(origins.as_array(), "origins")?;
         let directions = rows_of(directions.as_array(), "directions")?;
         if origins.nrows() != directions.nrows() {
@@ -627,15 +631,37 @@ impl PyScene {
     }
 }
 
-/// The rows of an `(n, 3)` array as `3 n` numbers, without a copy when the array is
-/// contiguous.
-fn rows_of<'a>(array: ArrayView2<'a, f32>, name: &str) -> PyResult<CowArray<'a, f32, Ix2>> {
-    let (rows, columns) = array.dim();
-    if columns != 3 {
+/// `value` (an array, or anything numpy makes one of) as `float32` numbers.
+fn numbers_of<'py>(
+    value: &Bound<'py, PyAny>,
+    name: &str,
+) -> PyResult<PyArrayLikeDyn<'py, f32, AllowTypeChange>> {
+    value.extract().map_err(|e: PyErr| {
+        PyValueError::new_err(format!("{name} must be an (n, 3) array of numbers: {e}"))
+    })
+}
+
+/// The rows of an `(n, 3)` array as `3 n` numbers in row order, without a copy when
+/// the array is contiguous.
+fn rows_of<'a>(array: ArrayViewD<'a, f32>, name: &str) -> PyResult<CowArray<'a, f32, Ix2>> {
+    if array.ndim() != 2 || array.shape()[1] != 3 {
+        // Written as numpy writes shapes: `(3,)`, `(2, 4)`.
+        let shape = match array.shape() {
+            [length] => format!("({length},)"),
+            lengths => format!(
+                "({})",
+                lengths
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
         return Err(PyValueError::new_err(format!(
-            "{name} must have the shape (n, 3), not ({rows}, {columns})"
+            "{name} must have the shape (n, 3), one row of three numbers per ray, not {shape}"
         )));
     }
+    let array = array.into_dimensionality::<Ix2>().expect("two dimensions");
     Ok(if array.is_standard_layout() {
         CowArray::from(array)
     } else {

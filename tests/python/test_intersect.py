@@ -127,8 +127,11 @@ def test_rays_come_as_lists_or_arrays_of_any_float_type(tmp_path):
 @pytest.mark.parametrize(
     "origins,directions,message",
     [
-        ([[0, 0, 1, 0]], [[0, 0, -1, 0]], r"origins must have the shape \(n, 3\), not \(1, 4\)"),
-        ([[0, 0, 1]], [[0, 0]], r"directions must have the shape \(n, 3\), not \(1, 2\)"),
+        ([[0, 0, 1, 0]], [[0, 0, -1, 0]], r"origins must have the shape \(n, 3\), .* not \(1, 4\)"),
+        ([[0, 0, 1]], [[0, 0]], r"directions must have the shape \(n, 3\), .* not \(1, 2\)"),
+        ([0, 0, 1], [0, 0, -1], r"origins must have the shape \(n, 3\), .* not \(3,\)"),
+        ([[0, 0, 1]], np.zeros((1, 3, 1)), r"directions must have .* not \(1, 3, 1\)"),
+        ([[0, "x", 1]], [[0, 0, -1]], "origins must be an \\(n, 3\\) array of numbers: .*'x'"),
         ([[0, 0, 1]] * 2, [[0, 0, -1]], "2 origins but 1 directions"),
         ([[0, 0, 1], [0, float("nan"), 1]], [[0, 0, -1]] * 2, "ray 1: .* must be finite"),
         ([[0, 0, 1]], [[0, 0, float("inf")]], "ray 0: .* must be finite"),

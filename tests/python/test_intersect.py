@@ -105,6 +105,25 @@ def test_primitives_are_numbered_as_the_file_lists_them(tmp_path):
     assert hits["u"][4] == 0 and hits["v"][4] == 0
 
 
+def test_rays_pass_through_what_a_material_cuts_out(tmp_path):
+    # A square (triangles 0 and 1) whose map_d is black on its left half, in front of
+    # a plain triangle (2): rays through the left half reach the triangle behind.
+    rgb = np.zeros((4, 8, 3), np.uint8)
+    rgb[:, 4:] = 255
+    raytracer.write_png(rgb, tmp_path / "half.png")
+    (tmp_path / "cut.mtl").write_text("newmtl cut\nKd 1 1 1\nmap_d half.png\nnewmtl plain\nKd 1 1 1\n")
+    (tmp_path / "cut.obj").write_text(
+        "mtllib cut.mtl\n"
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+        "v -1 -1 -1\nv 2 -1 -1\nv 0.5 2 -1\n"
+        "usemtl cut\nf 1/1 2/2 3/3 4/4\nusemtl plain\nf 5 6 7\n"
+    )
+    scene = raytracer.Scene(tmp_path / "cut.obj")
+    hits = scene.intersect([[0.2, 0.5, 1], [0.8, 0.5, 1]], [[0, 0, -1]] * 2)
+    assert hits["primitive"].tolist()[0] == 2 and hits["primitive"][1] in (0, 1)
+    np.testing.assert_allclose(hits["t"], [2, 1], rtol=1e-6)
+
+
 def test_rays_come_as_lists_or_arrays_of_any_float_type(tmp_path):
     triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
     scene = raytracer.Scene(write_obj(tmp_path / "one.obj", triangles))

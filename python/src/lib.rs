@@ -555,8 +555,9 @@ impl PyScene {
     ///   direction made unit length; ``inf`` where the ray misses;
     /// - ``"primitive"`` (``int64``): what the ray hits, ``-1`` where it misses: the
     ///   index of the triangle in the order the file lists them (a polygon of ``k``
-    ///   corners is ``k - 2`` triangles, fanned from its first corner), then of the
-    ///   spheres a scene lists, numbered after all triangles;
+    ///   corners is ``k - 2`` consecutive triangles: the fan from its first corner
+    ///   if it is convex), then of the spheres a scene lists, numbered after all
+    ///   triangles;
     /// - ``"u"``, ``"v"`` (``float32``): the hit's barycentric coordinates on its
     ///   triangle, the weights of its second and third corners (0 on spheres and
     ///   misses): the hit point is ``(1 - u - v) * a + u * b + v * c``.

@@ -17,7 +17,8 @@ The package is a thin layer over the Rust library (the ``raytracer`` command's):
   atomically, as the command line does.
 - :meth:`Scene.intersect` casts rays of your own: the closest hit of each row of
   ``(n, 3)`` arrays of origins and directions, as arrays of distances, triangle
-  indices (in the file's order) and barycentric coordinates.
+  indices (in the file's order) and barycentric coordinates;
+  :meth:`Scene.occluded` whether anything blocks each ray within a distance.
 - :mod:`raytracer.distributed` renders tiles on a Dask cluster (``pip install
   "raytracer[distributed]"``); ``python -m raytracer.distributed`` is its command.
 

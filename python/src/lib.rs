@@ -22,7 +22,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use numpy::ndarray::{Array3, ArrayView3, ArrayViewD, CowArray, Ix2};
-use numpy::{AllowTypeChange, IntoPyArray, PyArray3, PyArrayLike3, PyArrayLikeDyn, TypeMustMatch};
+use numpy::{
+    AllowTypeChange, IntoPyArray, PyArray1, PyArray3, PyArrayLike3, PyArrayLikeDyn, TypeMustMatch,
+};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -573,18 +575,10 @@ impl PyScene {
         directions: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (origins, directions) = (
-            numbers_of(origins, "origins")?,
-            numbers_of(directions, "directions")?,
+            numbers_of(origins, "origins", RAY_ROWS)?,
+            numbers_of(directions, "directions", RAY_ROWS)?,
         );
-        let origins = rows_of(origins.as_array(), "origins")?;
-        let directions = rows_of(directions.as_array(), "directions")?;
-        if origins.nrows() != directions.nrows() {
-            return Err(PyValueError::new_err(format!(
-                "{} origins but {} directions: give one of each per ray",
-                origins.nrows(),
-                directions.nrows()
-            )));
-        }
+        let (origins, directions) = ray_rows(&origins, &directions)?;
         let (origins, directions) = (
             origins.as_slice().expect("standard layout"),
             directions.as_slice().expect("standard layout"),
@@ -597,6 +591,73 @@ impl PyScene {
         dict.set_item("u", hits.u.into_pyarray(py))?;
         dict.set_item("v", hits.v.into_pyarray(py))?;
         Ok(dict)
+    }
+
+    /// Whether anything blocks each ray before the distance ``t_max`` (along the
+    /// direction made unit length, as ``intersect``'s ``"t"``): a ``bool`` array of
+    /// length ``n``, for shadow and visibility queries, which stop at the first
+    /// blocker found. ``origins`` and ``directions`` are as for ``intersect``;
+    /// ``t_max`` is one number for every ray, an array of ``n``, or ``None`` (no
+    /// limit). Raises ``ValueError`` as ``intersect`` does, and for a ``t_max`` that
+    /// is NaN or of another length.
+    #[pyo3(signature = (origins, directions, t_max=None))]
+    fn occluded<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_max: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let (origins, directions) = (
+            numbers_of(origins, "origins", RAY_ROWS)?,
+            numbers_of(directions, "directions", RAY_ROWS)?,
+        );
+        let (origins, directions) = ray_rows(&origins, &directions)?;
+        let n = origins.nrows();
+        let t_max = t_max
+            .map(|t| numbers_of(t, "t_max", "a number or an array of numbers"))
+            .transpose()?;
+        // One reach for every ray, or one each (a contiguous copy).
+        let (every, each) = match &t_max {
+            None => (Float::INFINITY, None),
+            Some(t_max) => {
+                let t_max = t_max.as_array();
+                if !(t_max.ndim() == 0 || t_max.shape() == [n]) {
+                    return Err(PyValueError::new_err(format!(
+                        "t_max must be one number or one per ray ({n}), not {}",
+                        shape_text(t_max.shape())
+                    )));
+                }
+                if let Some(row) = t_max.iter().position(|t| t.is_nan()) {
+                    return Err(PyValueError::new_err(if t_max.ndim() == 0 {
+                        "t_max is NaN".to_string()
+                    } else {
+                        format!("ray {row}: t_max is NaN")
+                    }));
+                }
+                match t_max.ndim() {
+                    0 => (
+                        t_max.iter().copied().next().unwrap_or(Float::INFINITY),
+                        None,
+                    ),
+                    _ => (
+                        Float::INFINITY,
+                        Some(t_max.iter().copied().collect::<Vec<_>>()),
+                    ),
+                }
+            }
+        };
+        let (origins, directions) = (
+            origins.as_slice().expect("standard layout"),
+            directions.as_slice().expect("standard layout"),
+        );
+        let scene = &self.loaded.scene;
+        let blocked = py.detach(|| {
+            occluded_rays(scene, origins, directions, |row| {
+                each.as_ref().map_or(every, |each| each[row])
+            })
+        })?;
+        Ok(blocked.into_pyarray(py))
     }
 
     fn __repr__(&self) -> String {
@@ -636,30 +697,23 @@ impl PyScene {
 fn numbers_of<'py>(
     value: &Bound<'py, PyAny>,
     name: &str,
+    expected: &str,
 ) -> PyResult<PyArrayLikeDyn<'py, f32, AllowTypeChange>> {
-    value.extract().map_err(|e: PyErr| {
-        PyValueError::new_err(format!("{name} must be an (n, 3) array of numbers: {e}"))
-    })
+    value
+        .extract()
+        .map_err(|e: PyErr| PyValueError::new_err(format!("{name} must be {expected}: {e}")))
 }
+
+/// What [`numbers_of`] expects of a ray argument.
+const RAY_ROWS: &str = "an (n, 3) array of numbers";
 
 /// The rows of an `(n, 3)` array as `3 n` numbers in row order, without a copy when
 /// the array is contiguous.
 fn rows_of<'a>(array: ArrayViewD<'a, f32>, name: &str) -> PyResult<CowArray<'a, f32, Ix2>> {
     if array.ndim() != 2 || array.shape()[1] != 3 {
-        // Written as numpy writes shapes: `(3,)`, `(2, 4)`.
-        let shape = match array.shape() {
-            [length] => format!("({length},)"),
-            lengths => format!(
-                "({})",
-                lengths
-                    .iter()
-                    .map(usize::to_string)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        };
         return Err(PyValueError::new_err(format!(
-            "{name} must have the shape (n, 3), one row of three numbers per ray, not {shape}"
+            "{name} must have the shape (n, 3), one row of three numbers per ray, not {}",
+            shape_text(array.shape())
         )));
     }
     let array = array.into_dimensionality::<Ix2>().expect("two dimensions");
@@ -668,6 +722,38 @@ fn rows_of<'a>(array: ArrayViewD<'a, f32>, name: &str) -> PyResult<CowArray<'a, 
     } else {
         CowArray::from(array.as_standard_layout().into_owned())
     })
+}
+
+/// A shape as numpy writes it: `()`, `(3,)`, `(2, 4)`.
+fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [length] => format!("({length},)"),
+        lengths => format!(
+            "({})",
+            lengths
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// The rows of `origins` and `directions`, one of each per ray.
+fn ray_rows<'a>(
+    origins: &'a PyArrayLikeDyn<'_, f32, AllowTypeChange>,
+    directions: &'a PyArrayLikeDyn<'_, f32, AllowTypeChange>,
+) -> PyResult<(CowArray<'a, f32, Ix2>, CowArray<'a, f32, Ix2>)> {
+    let origins = rows_of(origins.as_array(), "origins")?;
+    let directions = rows_of(directions.as_array(), "directions")?;
+    if origins.nrows() != directions.nrows() {
+        return Err(PyValueError::new_err(format!(
+            "{} origins but {} directions: give one of each per ray",
+            origins.nrows(),
+            directions.nrows()
+        )));
+    }
+    Ok((origins, directions))
 }
 
 /// Why ray `row` cannot be traced.
@@ -717,73 +803,94 @@ struct ClosestHits {
     v: Vec<f32>,
 }
 
+/// Rays per task: enough for the array query to keep several in flight.
+const RAY_CHUNK: usize = 256;
+
+/// The rays `first..first + rays.len()` of `origins` and `directions` (three numbers
+/// per ray, from `first` on), into `rays`, or the first that cannot be traced.
+#[inline]
+fn make_rays(
+    first: usize,
+    origins: &[f32],
+    directions: &[f32],
+    rays: &mut [Ray],
+) -> Result<(), BadRay> {
+    for (i, ray) in rays.iter_mut().enumerate() {
+        let at = 3 * i..3 * i + 3;
+        *ray = ray_at(first + i, &origins[at.clone()], &directions[at])?;
+    }
+    Ok(())
+}
+
+/// A chunk of rays on the stack, for [`make_rays`].
+const NO_RAYS: [Ray; RAY_CHUNK] = [Ray {
+    origin: Vec3::ZERO,
+    dir: Vec3::Z,
+}; RAY_CHUNK];
+
+/// Whether the first bad ray of `bad` (the chunks' first, in no order) exists: its
+/// error. Every chunk without one wrote all its outputs.
+fn first_bad(bad: impl ParallelIterator<Item = BadRay>) -> Result<(), BadRay> {
+    bad.min_by_key(|bad| bad.row).map_or(Ok(()), Err)
+}
+
 /// The closest hit of every ray (`origins` and `directions` hold three numbers per
 /// ray), on all cores, or the first ray that cannot be traced. Call detached from the
 /// interpreter.
 fn closest_hits(scene: &Scene, origins: &[f32], directions: &[f32]) -> Result<ClosestHits, BadRay> {
     test_gate("RAYTRACER_TEST_GATE_INTERSECT");
-    // Enough rays per task for the array query to keep several in flight. The rays
-    // are made, checked and traced a chunk at a time, and each output is written
-    // once, by the thread that traced its rays: on the dragon's 786k camera rays, a
-    // whole array of rays and filled outputs made first took as long as the tracing.
-    const CHUNK: usize = 256;
+    // The rays are made, checked and traced a chunk at a time, and each output is
+    // written once, by the thread that traced its rays: on the dragon's 786k camera
+    // rays, a whole array of rays and filled outputs made first took as long as the
+    // tracing.
     let n = origins.len() / 3;
     let mut t = Vec::with_capacity(n);
     let mut primitive = Vec::with_capacity(n);
     let mut u = Vec::with_capacity(n);
     let mut v = Vec::with_capacity(n);
-    let first_bad = origins
-        .par_chunks(3 * CHUNK)
-        .zip(directions.par_chunks(3 * CHUNK))
-        .zip(t.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
-        .zip(primitive.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
-        .zip(
-            u.spare_capacity_mut()[..n]
-                .par_chunks_mut(CHUNK)
-                .zip(v.spare_capacity_mut()[..n].par_chunks_mut(CHUNK)),
-        )
-        .enumerate()
-        .filter_map(
-            |(chunk, ((((origins, directions), t), primitive), (u, v)))| {
-                let mut rays = [Ray {
-                    origin: Vec3::ZERO,
-                    dir: Vec3::Z,
-                }; CHUNK];
-                let rays = &mut rays[..t.len()];
-                for (i, ray) in rays.iter_mut().enumerate() {
-                    let at = 3 * i..3 * i + 3;
-                    *ray = match ray_at(chunk * CHUNK + i, &origins[at.clone()], &directions[at]) {
-                        Ok(ray) => ray,
-                        Err(bad) => return Some(bad),
-                    };
-                }
-                let mut found = [None; CHUNK];
-                let found = &mut found[..rays.len()];
-                scene.intersect_primitives(rays, found);
-                for (i, hit) in found.iter().enumerate() {
-                    let (prim, hit) = match *hit {
-                        Some((prim, hit)) => (scene.source_index(prim) as i64, hit),
-                        None => (
-                            -1,
-                            PrimHit {
-                                t: Float::INFINITY,
-                                u: 0.0,
-                                v: 0.0,
-                            },
-                        ),
-                    };
-                    t[i].write(hit.t);
-                    primitive[i].write(prim);
-                    u[i].write(hit.u);
-                    v[i].write(hit.v);
-                }
-                None
-            },
-        )
-        .min_by_key(|bad| bad.row);
-    if let Some(bad) = first_bad {
-        return Err(bad);
-    }
+    first_bad(
+        origins
+            .par_chunks(3 * RAY_CHUNK)
+            .zip(directions.par_chunks(3 * RAY_CHUNK))
+            .zip(t.spare_capacity_mut()[..n].par_chunks_mut(RAY_CHUNK))
+            .zip(primitive.spare_capacity_mut()[..n].par_chunks_mut(RAY_CHUNK))
+            .zip(
+                u.spare_capacity_mut()[..n]
+                    .par_chunks_mut(RAY_CHUNK)
+                    .zip(v.spare_capacity_mut()[..n].par_chunks_mut(RAY_CHUNK)),
+            )
+            .enumerate()
+            .filter_map(
+                |(chunk, ((((origins, directions), t), primitive), (u, v)))| {
+                    let mut rays = NO_RAYS;
+                    let rays = &mut rays[..t.len()];
+                    if let Err(bad) = make_rays(chunk * RAY_CHUNK, origins, directions, rays) {
+                        return Some(bad);
+                    }
+                    let mut found = [None; RAY_CHUNK];
+                    let found = &mut found[..rays.len()];
+                    scene.intersect_primitives(rays, found);
+                    for (i, hit) in found.iter().enumerate() {
+                        let (prim, hit) = match *hit {
+                            Some((prim, hit)) => (scene.source_index(prim) as i64, hit),
+                            None => (
+                                -1,
+                                PrimHit {
+                                    t: Float::INFINITY,
+                                    u: 0.0,
+                                    v: 0.0,
+                                },
+                            ),
+                        };
+                        t[i].write(hit.t);
+                        primitive[i].write(prim);
+                        u[i].write(hit.u);
+                        v[i].write(hit.v);
+                    }
+                    None
+                },
+            ),
+    )?;
     // SAFETY: every chunk without a bad ray wrote all its elements, and there was none.
     unsafe {
         t.set_len(n);
@@ -792,6 +899,41 @@ fn closest_hits(scene: &Scene, origins: &[f32], directions: &[f32]) -> Result<Cl
         v.set_len(n);
     }
     Ok(ClosestHits { t, primitive, u, v })
+}
+
+/// Whether anything blocks each ray before its reach (`reach(row)`), on all cores, or
+/// the first ray that cannot be traced. Call detached from the interpreter.
+fn occluded_rays(
+    scene: &Scene,
+    origins: &[f32],
+    directions: &[f32],
+    reach: impl Fn(usize) -> Float + Sync,
+) -> Result<Vec<bool>, BadRay> {
+    test_gate("RAYTRACER_TEST_GATE_INTERSECT");
+    let n = origins.len() / 3;
+    let mut blocked = Vec::with_capacity(n);
+    first_bad(
+        origins
+            .par_chunks(3 * RAY_CHUNK)
+            .zip(directions.par_chunks(3 * RAY_CHUNK))
+            .zip(blocked.spare_capacity_mut()[..n].par_chunks_mut(RAY_CHUNK))
+            .enumerate()
+            .filter_map(|(chunk, ((origins, directions), blocked))| {
+                let first = chunk * RAY_CHUNK;
+                let mut rays = NO_RAYS;
+                let rays = &mut rays[..blocked.len()];
+                if let Err(bad) = make_rays(first, origins, directions, rays) {
+                    return Some(bad);
+                }
+                for (i, (ray, blocked)) in rays.iter().zip(blocked).enumerate() {
+                    blocked.write(scene.occluded(ray, reach(first + i)));
+                }
+                None
+            }),
+    )?;
+    // SAFETY: every chunk without a bad ray wrote all its elements, and there was none.
+    unsafe { blocked.set_len(n) };
+    Ok(blocked)
 }
 
 /// Renders a scene file and returns the linear image before post-processing (what

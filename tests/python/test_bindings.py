@@ -265,6 +265,7 @@ GIL_PROBE = textwrap.dedent(
     # the main thread run.
     raytracer.render(path, width=2, height=2)
     scene.intersect([[0, 0.5, 2]], [[0, 0, -1]])
+    scene.occluded([[0, 0.5, 2]], [[0, 0, -1]])
     # With a switch interval this long a thread keeps the interpreter until it
     # releases it itself: the main thread runs while a call is under way only if the
     # call released it.
@@ -274,6 +275,7 @@ GIL_PROBE = textwrap.dedent(
         ("Scene.render", "RENDER", lambda: scene.render(width=8, height=6)),
         ("Scene(path)", "LOAD", lambda: raytracer.Scene(path)),
         ("Scene.intersect", "INTERSECT", lambda: scene.intersect([[0, 0.5, 2]], [[0, 0, -1]])),
+        ("Scene.occluded", "INTERSECT", lambda: scene.occluded([[0, 0.5, 2]], [[0, 0, -1]])),
     ]
     marker = f"{gate}.{os.getpid()}"
     for name, stage, call in calls:
@@ -302,11 +304,12 @@ def test_the_gil_is_released_while_loading_rendering_and_tracing(tmp_path):
         timeout=600,
     )
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split("\n")[:4] == [
+    assert result.stdout.split("\n")[:5] == [
         "render(path) released",
         "Scene.render released",
         "Scene(path) released",
         "Scene.intersect released",
+        "Scene.occluded released",
     ]
 
 

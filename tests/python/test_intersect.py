@@ -1,5 +1,6 @@
-"""`Scene.intersect`: the closest hit of each of an array of rays, its primitive
-numbered as the file lists it, checked against a brute-force test of every triangle."""
+"""`Scene.intersect` and `Scene.occluded`: the closest hit of each of an array of rays,
+its primitive numbered as the file lists it, and whether anything blocks it, checked
+against a brute-force test of every triangle."""
 
 import numpy as np
 import pytest
@@ -85,6 +86,32 @@ def test_hits_are_those_of_every_triangle_tested(tmp_path):
     np.testing.assert_allclose(on_triangle, along_ray, atol=1e-4)
 
 
+def test_occlusion_is_that_of_every_triangle_tested(tmp_path):
+    rng = np.random.default_rng(8)
+    corners = rng.uniform(-1, 1, size=(300, 1, 3))
+    triangles = (corners + rng.normal(scale=0.25, size=(300, 3, 3))).astype(np.float32)
+    scene = raytracer.Scene(write_obj(tmp_path / "soup.obj", triangles))
+    origins = rng.uniform(-2, 2, size=(3000, 3)).astype(np.float32)
+    directions = rng.uniform(-2, 2, size=(3000, 3)) - origins
+    t_max = rng.uniform(0, 4, size=3000).astype(np.float32)
+
+    blocked = scene.occluded(origins, directions, t_max)
+    assert blocked.dtype == np.bool_ and blocked.shape == (3000,)
+    t, _, _, _, _, edge, closest_call = brute_force(triangles, origins.astype(np.float64), directions)
+    # Rays whose answer cannot depend on rounding: a hit clear of its edges and of
+    # the reach, or no triangle anywhere near.
+    hit_clear = np.isfinite(t) & (edge > 1e-4) & (np.abs(t - t_max) > 1e-3 * t_max)
+    miss_clear = ~np.isfinite(t) & (closest_call < -1e-4)
+    assert hit_clear.sum() > 1000 and (hit_clear & (t < t_max)).sum() > 300
+    assert np.array_equal(blocked[hit_clear], t[hit_clear] < t_max[hit_clear])
+    assert not blocked[miss_clear].any()
+    # One reach for all, none, and the closest hits' own distances agree.
+    hits = scene.intersect(origins, directions)
+    assert np.array_equal(scene.occluded(origins, directions), hits["primitive"] >= 0)
+    assert np.array_equal(scene.occluded(origins, directions, 1.5), hits["t"] < 1.5)
+    assert np.array_equal(scene.occluded(origins, directions, t_max.astype(np.float64)), blocked)
+
+
 def test_primitives_are_numbered_as_the_file_lists_them(tmp_path):
     # A pentagon (three triangles fanned from its first corner), a zero-area triangle
     # (skipped, but numbered), a triangle, then a sphere: numbers 0-2, 4 and 5.
@@ -119,9 +146,11 @@ def test_rays_pass_through_what_a_material_cuts_out(tmp_path):
         "usemtl cut\nf 1/1 2/2 3/3 4/4\nusemtl plain\nf 5 6 7\n"
     )
     scene = raytracer.Scene(tmp_path / "cut.obj")
-    hits = scene.intersect([[0.2, 0.5, 1], [0.8, 0.5, 1]], [[0, 0, -1]] * 2)
+    origins, directions = [[0.2, 0.5, 1], [0.8, 0.5, 1]], [[0, 0, -1]] * 2
+    hits = scene.intersect(origins, directions)
     assert hits["primitive"].tolist()[0] == 2 and hits["primitive"][1] in (0, 1)
     np.testing.assert_allclose(hits["t"], [2, 1], rtol=1e-6)
+    assert scene.occluded(origins, directions, 1.5).tolist() == [False, True]
 
 
 def test_rays_come_as_lists_or_arrays_of_any_float_type(tmp_path):
@@ -164,6 +193,23 @@ def test_bad_rays_are_named(tmp_path, origins, directions, message):
         scene.intersect(origins, directions)
 
 
+@pytest.mark.parametrize(
+    "t_max,message",
+    [
+        ([1.0, 2.0], r"t_max must be one number or one per ray \(3\), not \(2,\)"),
+        ([[1.0, 2.0, 3.0]], r"t_max must be one number or one per ray \(3\), not \(1, 3\)"),
+        ([1.0, float("nan"), 3.0], "ray 1: t_max is NaN"),
+        (float("nan"), "t_max is NaN"),
+        ("far", "t_max must be a number or an array of numbers: .*'far'"),
+    ],
+)
+def test_bad_reaches_are_named(tmp_path, t_max, message):
+    triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
+    scene = raytracer.Scene(write_obj(tmp_path / "one.obj", triangles))
+    with pytest.raises(ValueError, match=message):
+        scene.occluded([[0.2, 0.2, 1]] * 3, [[0, 0, -1]] * 3, t_max)
+
+
 def test_the_first_bad_ray_is_named(tmp_path):
     # Rays are checked a chunk at a time on all cores: the error must still name the
     # first bad row, whichever chunk is checked first.
@@ -176,6 +222,8 @@ def test_the_first_bad_ray_is_named(tmp_path):
     directions[1234] = 0
     with pytest.raises(ValueError, match="ray 1234: the direction"):
         scene.intersect(origins, directions)
+    with pytest.raises(ValueError, match="ray 1234: the direction"):
+        scene.occluded(origins, directions)
     directions[:] = [0, 0, -1]
     with pytest.raises(ValueError, match="ray 4321: .* must be finite"):
         scene.intersect(origins, directions)

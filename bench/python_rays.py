@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""`raytracer.Scene.intersect` against embreex (the Embree binding Python ray-casting
-code uses, as trimesh does) on the same rays and triangles, in one process: the
-dragon's camera rays and its incoherent bounce rays, as `raytracer bench` makes them.
+"""`raytracer.Scene.intersect` and `Scene.occluded` against embreex (the Embree binding
+Python ray-casting code uses, as trimesh does) on the same rays and triangles, in one
+process: the dragon's camera rays, its shadow rays towards the lights (occlusion) and
+its incoherent bounce rays, as `raytracer bench` makes them.
 
     python3 bench/python_rays.py [--runs 5] [SCENE]
 
@@ -9,7 +10,8 @@ SCENE defaults to bench/work/dragon-full.obj with the camera of bench/README.md.
 the package (`pip install .`), `pip install embreex` and target/release/raytracer
 (which writes the triangles and rays, `raytracer bench --dump-rays`). The two calls
 alternate RUNS times; rates are medians, per second of wall time and of CPU time (the
-process's, all threads). Also counts the rays on which both name the same triangle.
+process's, all threads). Also counts the rays on which both give the same answer (the
+same triangle, or both blocked or not).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ CAMERA = [
 
 
 def read_dump(path: Path):
-    """Positions, triangles, primary rays and incoherent rays of a `--dump-rays` file
+    """Positions, triangles, primary, shadow and incoherent rays of a `--dump-rays` file
     (layout in bench/embree/embree_bench.c)."""
     data = path.read_bytes()
     assert data[:8] == b"RTBENCH1", path
@@ -53,10 +55,10 @@ def read_dump(path: Path):
     triangles = take("<u4", 3 * count()).reshape(-1, 3)
     primary = take("<f4", 7 * count()).reshape(-1, 7)
     take("<u4", 2 * count())  # primary packets
-    take("<f4", 7 * count())  # shadow rays
+    shadow = take("<f4", 7 * count()).reshape(-1, 7)
     take("<u4", 2 * count())  # shadow packets
     incoherent = take("<f4", 7 * count()).reshape(-1, 7)
-    return positions, triangles, primary, incoherent
+    return positions, triangles, primary, shadow, incoherent
 
 
 def timed(call):
@@ -78,7 +80,7 @@ def main() -> None:
          "--dump-rays", str(dump)],
         check=True, capture_output=True,
     )
-    positions, triangles, primary, incoherent = read_dump(dump)
+    positions, triangles, primary, shadow, incoherent = read_dump(dump)
     ours = raytracer.Scene(args.scene)
     theirs = rtcore_scene.EmbreeScene()
     mesh_construction.TriangleMesh(theirs, positions, triangles.astype(np.int32))
@@ -87,20 +89,30 @@ def main() -> None:
           f"load average {os.getloadavg()[0]:.1f} at the start")
     print()
     print("| rays | ours (wall) | embreex (wall) | ours faster by | ours (CPU) | embreex (CPU) "
-          "| ours faster by | same triangle |")
+          "| ours faster by | same answer |")
     print("|---|---|---|---|---|---|---|---|")
-    for label, rays in [("camera", primary), ("incoherent bounces", incoherent)]:
+    for label, rays in [("camera", primary), ("shadow", shadow), ("incoherent bounces", incoherent)]:
         origins = np.ascontiguousarray(rays[:, 0:3])
         directions = np.ascontiguousarray(rays[:, 3:6])
+        t_max = np.ascontiguousarray(rays[:, 6])
+        if label == "shadow":
+            mine_call = lambda: ours.occluded(origins, directions, t_max)  # noqa: E731
+            their_call = lambda: theirs.run(origins, directions, dists=t_max, query="OCCLUDED")  # noqa: E731
+        else:
+            mine_call = lambda: ours.intersect(origins, directions)  # noqa: E731
+            their_call = lambda: theirs.run(origins, directions, output=1)  # noqa: E731
         rates = {"ours": ([], []), "embreex": ([], [])}
         for _ in range(args.runs):
-            mine, wall, cpu = timed(lambda: ours.intersect(origins, directions))
+            mine, wall, cpu = timed(mine_call)
             rates["ours"][0].append(len(rays) / wall / 1e6)
             rates["ours"][1].append(len(rays) / cpu / 1e6)
-            other, wall, cpu = timed(lambda: theirs.run(origins, directions, output=1))
+            other, wall, cpu = timed(their_call)
             rates["embreex"][0].append(len(rays) / wall / 1e6)
             rates["embreex"][1].append(len(rays) / cpu / 1e6)
-        same = np.mean(mine["primitive"] == np.where(other["geomID"] < 0, -1, other["primID"]))
+        if label == "shadow":
+            same = np.mean(mine == (other >= 0))
+        else:
+            same = np.mean(mine["primitive"] == np.where(other["geomID"] < 0, -1, other["primID"]))
         (ow, oc), (ew, ec) = ([statistics.median(r) for r in rates[k]] for k in ("ours", "embreex"))
         print(f"| {label} ({len(rays):,}) | {ow:.1f} Mrays/s | {ew:.1f} Mrays/s | {ow / ew:.2f}x "
               f"| {oc:.1f} Mrays/CPU-s | {ec:.1f} Mrays/CPU-s | {oc / ec:.2f}x | {same:.4%} |")

@@ -294,6 +294,22 @@ pub fn count_occluded(scene: &Scene, rays: &[(Ray, Float)]) -> usize {
         .count()
 }
 
+/// [`count_occluded`] through the array query ([`Scene::occluded_rays`], which walks
+/// several rays at a time in scenes larger than the last-level cache), in parallel
+/// chunks: `rays[i]` within its reach `t_max[i]`.
+pub fn count_occluded_stream(scene: &Scene, rays: &[Ray], t_max: &[Float]) -> usize {
+    const CHUNK: usize = 256;
+    rays.par_chunks(CHUNK)
+        .zip(t_max.par_chunks(CHUNK))
+        .map(|(rays, t_max)| {
+            let mut blocked = [false; CHUNK];
+            let blocked = &mut blocked[..rays.len()];
+            scene.occluded_rays(rays, t_max, blocked);
+            blocked.iter().filter(|&&b| b).count()
+        })
+        .sum()
+}
+
 /// Runs `f` `repeat` times (at least once) and returns its last result and the median
 /// wall time in seconds.
 pub fn median_time<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {

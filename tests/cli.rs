@@ -405,6 +405,9 @@ fn bench_reports_incoherent_rays_and_packets_and_dumps_the_rays() {
     for key in [
         "incoherent_mrays_per_s",
         "incoherent_stream_mrays_per_s",
+        "shadow_stream_mrays_per_s",
+        "occlusion_mrays_per_s",
+        "occlusion_stream_mrays_per_s",
         "primary_packet_mrays_per_s",
         "shadow_packet_mrays_per_s",
         "primary_mrays_per_cpu_s",

@@ -41,13 +41,14 @@ for kind, label in [
 ]:
     ROWS.append((f"{label} (wall)", f"{kind}_mrays_per_s", f"{kind}_mrays_per_s", "Mrays/s"))
     ROWS.append((f"{label} (CPU)", f"{kind}_mrays_per_cpu_s", f"{kind}_mrays_per_cpu_s", "Mrays/CPU-s"))
-# Our array query (`Scene::intersect_primitives`: several rays in flight in scenes larger
-# than the last-level cache, else ray by ray) on the same incoherent rays, against
-# Embree's single rays.
-for unit_key, unit in [("mrays_per_s", "wall"), ("mrays_per_cpu_s", "CPU")]:
-    ROWS.append((f"incoherent rays, our array query / Embree single ({unit})",
-                 f"incoherent_stream_{unit_key}", f"incoherent_{unit_key}",
-                 "Mrays/s" if unit == "wall" else "Mrays/CPU-s"))
+# Our array queries (`Scene::intersect_primitives`, `Scene::occluded_rays`: several rays
+# in flight in scenes larger than the last-level cache, else ray by ray) on the same
+# shadow and incoherent rays, against Embree's single rays.
+for kind in ("shadow", "incoherent"):
+    for unit_key, unit in [("mrays_per_s", "wall"), ("mrays_per_cpu_s", "CPU")]:
+        ROWS.append((f"{kind} rays, our array query / Embree single ({unit})",
+                     f"{kind}_stream_{unit_key}", f"{kind}_{unit_key}",
+                     "Mrays/s" if unit == "wall" else "Mrays/CPU-s"))
 
 
 def run_json(command: list[str]) -> dict:

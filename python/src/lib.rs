@@ -595,8 +595,10 @@ impl PyScene {
 
     /// Whether anything blocks each ray before the distance ``t_max`` (along the
     /// direction made unit length, as ``intersect``'s ``"t"``): a ``bool`` array of
-    /// length ``n``, for shadow and visibility queries, which stop at the first
-    /// blocker found. ``origins`` and ``directions`` are as for ``intersect``;
+    /// length ``n``, for shadow, visibility and ambient occlusion queries, which stop
+    /// at the first blocker found. It goes through ``Scene::occluded_rays``: in
+    /// scenes larger than the last-level cache, runs of incoherent rays are walked
+    /// several at a time. ``origins`` and ``directions`` are as for ``intersect``;
     /// ``t_max`` is one number for every ray, an array of ``n``, or ``None`` (no
     /// limit). Raises ``ValueError`` as ``intersect`` does, and for a ``t_max`` that
     /// is NaN or of another length.
@@ -653,7 +655,7 @@ impl PyScene {
         );
         let scene = &self.loaded.scene;
         let blocked = py.detach(|| {
-            occluded_rays(scene, origins, directions, |row| {
+            blocked_rays(scene, origins, directions, |row| {
                 each.as_ref().map_or(every, |each| each[row])
             })
         })?;
@@ -903,7 +905,7 @@ fn closest_hits(scene: &Scene, origins: &[f32], directions: &[f32]) -> Result<Cl
 
 /// Whether anything blocks each ray before its reach (`reach(row)`), on all cores, or
 /// the first ray that cannot be traced. Call detached from the interpreter.
-fn occluded_rays(
+fn blocked_rays(
     scene: &Scene,
     origins: &[f32],
     directions: &[f32],
@@ -925,8 +927,16 @@ fn occluded_rays(
                 if let Err(bad) = make_rays(first, origins, directions, rays) {
                     return Some(bad);
                 }
-                for (i, (ray, blocked)) in rays.iter().zip(blocked).enumerate() {
-                    blocked.write(scene.occluded(ray, reach(first + i)));
+                let mut reaches = [0.0; RAY_CHUNK];
+                let reaches = &mut reaches[..rays.len()];
+                for (i, t_max) in reaches.iter_mut().enumerate() {
+                    *t_max = reach(first + i);
+                }
+                let mut found = [false; RAY_CHUNK];
+                let found = &mut found[..rays.len()];
+                scene.occluded_rays(rays, reaches, found);
+                for (blocked, &found) in blocked.iter_mut().zip(found.iter()) {
+                    blocked.write(found);
                 }
                 None
             }),

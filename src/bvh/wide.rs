@@ -308,6 +308,34 @@ impl WideBvh {
         rays: &[RayQuery],
         t_max: &mut [Float],
         items: &[T],
+        leaf: F,
+    ) where
+        F: FnMut(usize, u32, u32, &mut Float) -> bool,
+    {
+        self.walk_interleaved_as::<true, T, F>(rays, t_max, items, leaf);
+    }
+
+    /// [`WideBvh::walk_interleaved`] in no particular order, for any-hit queries, as
+    /// [`WideBvh::walk_any`] walks one ray: each ray visits the leaves its own
+    /// `walk_any` visits, in the same order.
+    pub fn walk_interleaved_any<T, F>(
+        &self,
+        rays: &[RayQuery],
+        t_max: &mut [Float],
+        items: &[T],
+        leaf: F,
+    ) where
+        F: FnMut(usize, u32, u32, &mut Float) -> bool,
+    {
+        self.walk_interleaved_as::<false, T, F>(rays, t_max, items, leaf);
+    }
+
+    #[inline(always)]
+    fn walk_interleaved_as<const ORDERED: bool, T, F>(
+        &self,
+        rays: &[RayQuery],
+        t_max: &mut [Float],
+        items: &[T],
         mut leaf: F,
     ) where
         F: FnMut(usize, u32, u32, &mut Float) -> bool,
@@ -335,7 +363,7 @@ impl WideBvh {
                 // SAFETY: every slot of `live` was written.
                 let (walk, ray) = unsafe { in_flight[slot].assume_init_mut() };
                 let ray = *ray;
-                let step = self.step::<true, true, T, _>(
+                let step = self.step::<ORDERED, true, T, _>(
                     walk,
                     &mut stacks[slot],
                     &mut t_max[ray],

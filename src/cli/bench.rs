@@ -5,10 +5,11 @@
 
 use anyhow::Context;
 use raytracer::benchmark::{
-    RayWorkload, Times, count_occluded, count_occluded_packets, median_time, median_times,
-    median_times_with, trace_closest_primitives, trace_closest_primitives_packets,
+    RayWorkload, Times, count_occluded, count_occluded_packets, count_occluded_stream, median_time,
+    median_times, median_times_with, trace_closest_primitives, trace_closest_primitives_packets,
     trace_closest_primitives_stream,
 };
+use raytracer::math::{Float, Ray};
 use raytracer::{BvhParams, Scene, render};
 
 use super::args::BenchArgs;
@@ -52,6 +53,16 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         packet_occluded == occluded,
         "packets and single rays disagree on the number of blocked shadow rays"
     );
+    // The same rays through the array query: as many blocked.
+    let (shadow_rays, shadow_reach): (Vec<Ray>, Vec<Float>) =
+        workload.shadow.iter().copied().unzip();
+    let (stream_occluded, shadow_stream) = median_times(args.repeat, || {
+        count_occluded_stream(&scene, &shadow_rays, &shadow_reach)
+    });
+    anyhow::ensure!(
+        stream_occluded == occluded,
+        "the array query and single rays disagree on the number of blocked shadow rays"
+    );
     let (incoherent_ids, incoherent) = median_times(args.repeat, || {
         trace_closest_primitives(&scene, &workload.incoherent)
     });
@@ -63,6 +74,23 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         stream_ids == incoherent_ids,
         "the array query and single rays disagree on the incoherent rays' hits"
+    );
+    // The bounce rays again as occlusion queries with no limit (as ambient
+    // occlusion's rays): one by one and through the array query. A ray is blocked
+    // exactly when it hits something.
+    let reach = vec![Float::INFINITY; workload.incoherent.len()];
+    let pairs: Vec<(Ray, Float)> = workload
+        .incoherent
+        .iter()
+        .map(|&r| (r, Float::INFINITY))
+        .collect();
+    let (blocked, occlusion) = median_times(args.repeat, || count_occluded(&scene, &pairs));
+    let (stream_blocked, occlusion_stream) = median_times(args.repeat, || {
+        count_occluded_stream(&scene, &workload.incoherent, &reach)
+    });
+    anyhow::ensure!(
+        blocked == incoherent_hits && stream_blocked == blocked,
+        "occlusion queries disagree with closest hits on the incoherent rays"
     );
     let (_, render) = median_times(args.repeat, || render(&scene, options));
     if let Some(path) = &args.dump_rays {
@@ -107,11 +135,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             rate("primary_packet", workload.primary.len(), &primary_packet)
         ),
         format!(
-            "\"shadow_rays\": {}, \"shadow_occluded\": {}, {}, {}",
+            "\"shadow_rays\": {}, \"shadow_occluded\": {}, {}, {}, {}",
             workload.shadow.len(),
             occluded,
             rate("shadow", workload.shadow.len(), &shadow),
-            rate("shadow_packet", workload.shadow.len(), &shadow_packet)
+            rate("shadow_packet", workload.shadow.len(), &shadow_packet),
+            rate("shadow_stream", workload.shadow.len(), &shadow_stream)
         ),
         format!(
             "\"incoherent_rays\": {}, \"incoherent_hits\": {}, {}, {}",
@@ -123,6 +152,13 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 workload.incoherent.len(),
                 &incoherent_stream
             )
+        ),
+        format!(
+            "\"occlusion_rays\": {}, \"occlusion_blocked\": {}, {}, {}",
+            pairs.len(),
+            blocked,
+            rate("occlusion", pairs.len(), &occlusion),
+            rate("occlusion_stream", pairs.len(), &occlusion_stream)
         ),
         format!(
             "\"render_ms\": {:.2}, \"render_cpu_ms\": {:.2}",

@@ -710,6 +710,12 @@ impl Scene {
     /// Whether anything blocks `ray` before distance `t_max`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
+        self.occluded_inlined(ray, t_max)
+    }
+
+    /// [`Scene::occluded`], inlined into loops over rays (the array query's).
+    #[inline(always)]
+    fn occluded_inlined(&self, ray: &Ray, t_max: Float) -> bool {
         if self.has_cutouts {
             return self.occluded_with_cutouts(ray, t_max);
         }
@@ -718,10 +724,17 @@ impl Scene {
         let mut t_max = t_max;
         self.wide
             .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
-                self.packets[first as usize..(first + count) as usize]
-                    .iter()
-                    .any(|packet| packet.occludes_any_kind(&lanes, *t_max))
+                self.blocker_in_leaf(&lanes, first, count, *t_max)
             })
+    }
+
+    /// Whether some primitive of packets `first..first + count` blocks the ray in
+    /// `lanes` before `t_max`: the leaf test of [`Scene::occluded`].
+    #[inline(always)]
+    fn blocker_in_leaf(&self, lanes: &PacketRay, first: u32, count: u32, t_max: Float) -> bool {
+        self.packets[first as usize..(first + count) as usize]
+            .iter()
+            .any(|packet| packet.occludes_any_kind(lanes, t_max))
     }
 
     /// [`Scene::occluded`] for scenes with cutouts: a lane blocks the ray only where

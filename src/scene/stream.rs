@@ -22,6 +22,18 @@ pub const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 /// replaced many times, few enough for their state to stay in the first-level cache.
 const CHUNK: usize = 64;
 
+/// Whether most of `rays` run nearly parallel (within about 8 degrees) to one of the
+/// four rays before them: the shadow rays of neighbouring points towards a few
+/// lights, or the camera rays of neighbouring pixels. Such rays find the nodes and
+/// leaves their neighbours read in the caches, so several in flight would only add
+/// bookkeeping. Incoherent rays (bounces, ambient occlusion) are almost never so.
+fn coherent(rays: &[Ray]) -> bool {
+    let parallel = (0..rays.len())
+        .filter(|&i| (1..=4.min(i)).any(|k| rays[i].dir.dot(rays[i - k].dir) > 0.99))
+        .count();
+    2 * parallel > rays.len()
+}
+
 impl Scene {
     /// [`Scene::intersect_primitive`] of every ray of `rays`, into `hits` (the
     /// closest primitive, in leaf order, with distance and barycentric coordinates):
@@ -39,6 +51,64 @@ impl Scene {
             for (ray, hit) in rays.iter().zip(hits) {
                 *hit = self.intersect_primitive(ray);
             }
+        }
+    }
+
+    /// [`Scene::occluded`] of every ray of `rays` within its reach `t_max[i]`, into
+    /// `blocked`: the same answers. In scenes larger than [`INTERLEAVE_ABOVE_BYTES`],
+    /// each run of [`CHUNK`] rays that are not [`coherent`] is walked several rays at
+    /// a time (on the 871k-triangle dragon's bounce directions with no limit: 1.24x
+    /// ray by ray); coherent runs, which find their nodes in the caches, are traced
+    /// ray by ray (the dragon's shadow rays walked eight at a time: 0.88x). Runs on
+    /// the calling thread.
+    ///
+    /// # Panics
+    /// If `t_max` or `blocked` differ from `rays` in length.
+    pub fn occluded_rays(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
+        assert_eq!(rays.len(), t_max.len(), "one reach per ray");
+        assert_eq!(rays.len(), blocked.len(), "one answer per ray");
+        if self.interleaves() {
+            self.occluded_rays_interleaved(rays, t_max, blocked);
+        } else {
+            self.occluded_ray_by_ray(rays, t_max, blocked);
+        }
+    }
+
+    /// [`Scene::occluded_rays`] one ray after another.
+    fn occluded_ray_by_ray(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
+        for ((ray, &t_max), blocked) in rays.iter().zip(t_max).zip(blocked) {
+            *blocked = self.occluded_inlined(ray, t_max);
+        }
+    }
+
+    /// [`Scene::occluded_rays`] through interleaved walks for the runs of rays that
+    /// are not coherent, whatever the scene's size (for scenes without cutouts).
+    fn occluded_rays_interleaved(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
+        debug_assert!(!self.has_cutouts);
+        for ((rays, t_max), blocked) in rays
+            .chunks(CHUNK)
+            .zip(t_max.chunks(CHUNK))
+            .zip(blocked.chunks_mut(CHUNK))
+        {
+            if coherent(rays) {
+                self.occluded_ray_by_ray(rays, t_max, blocked);
+                continue;
+            }
+            let queries: [RayQuery; CHUNK] =
+                std::array::from_fn(|i| RayQuery::new(rays.get(i).unwrap_or(&rays[0])));
+            let mut reach = [0.0; CHUNK];
+            reach[..rays.len()].copy_from_slice(t_max);
+            blocked.fill(false);
+            self.wide.walk_interleaved_any(
+                &queries[..rays.len()],
+                &mut reach[..rays.len()],
+                &self.packets,
+                |ray, first, count, t_max| {
+                    let lanes = PacketRay::new(&rays[ray]);
+                    blocked[ray] = self.blocker_in_leaf(&lanes, first, count, *t_max);
+                    blocked[ray]
+                },
+            );
         }
     }
 
@@ -167,5 +237,89 @@ mod tests {
         scene.intersect_primitives(&rays, &mut hits);
         let expected: Vec<_> = rays.iter().map(|r| scene.intersect_primitive(r)).collect();
         assert_eq!(hits, expected);
+        let t_max: Vec<Float> = (0..rays.len()).map(|i| i as Float * 0.03).collect();
+        let mut blocked = vec![false; rays.len()];
+        scene.occluded_rays(&rays, &t_max, &mut blocked);
+        let expected: Vec<_> = rays
+            .iter()
+            .zip(&t_max)
+            .map(|(r, &t)| scene.occluded(r, t))
+            .collect();
+        assert_eq!(blocked, expected);
+    }
+
+    /// Interleaved any-hit walks find a ray blocked exactly when its own walk does,
+    /// within reaches from zero to unlimited, for whole chunks and ragged arrays.
+    #[test]
+    fn interleaved_any_hit_walks_find_what_single_rays_find() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(6);
+        // Rays found not blocked, and blocked.
+        let mut answers = [0; 2];
+        for (n, with_spheres, seed) in [(40, false, 11), (24, true, 12), (1, false, 13)] {
+            let scene = generated_scene(n, with_spheres, seed);
+            for count in [0, 1, 5, CHUNK, 3 * CHUNK + 17] {
+                let rays = random_rays(count, seed + count as u64);
+                let t_max: Vec<Float> = (0..count)
+                    .map(|i| match i % 5 {
+                        0 => Float::INFINITY,
+                        1 => 0.0,
+                        _ => rng.random_range(0.0..3.0),
+                    })
+                    .collect();
+                // Stale answers must be overwritten, both ways.
+                let mut blocked: Vec<bool> = (0..count).map(|i| i % 2 == 0).collect();
+                scene.occluded_rays_interleaved(&rays, &t_max, &mut blocked);
+                let expected: Vec<bool> = rays
+                    .iter()
+                    .zip(&t_max)
+                    .map(|(r, &t)| scene.occluded(r, t))
+                    .collect();
+                assert_eq!(blocked, expected, "scene {n}, {count} rays");
+                for b in expected {
+                    answers[usize::from(b)] += 1;
+                }
+            }
+        }
+        assert!(
+            answers.iter().all(|&a| a > 150),
+            "too few of one answer: {answers:?}"
+        );
+    }
+
+    /// Shadow rays from neighbouring points towards two lights in turn are coherent
+    /// and traced ray by ray; random directions are not. Either way the answers are
+    /// the rays' own.
+    #[test]
+    fn coherent_runs_are_told_from_incoherent_ones() {
+        let scene = generated_scene(40, true, 21);
+        let lights = [Vec3::new(0.3, 3.0, 0.2), Vec3::new(-2.0, 2.0, 1.0)];
+        let mut shadow = Vec::new();
+        let mut reach = Vec::new();
+        for i in 0..3 * CHUNK {
+            let origin = Vec3::new(-0.5 + 0.004 * (i / 2) as Float, 0.0, 0.1);
+            let to_light = lights[i % 2] - origin;
+            shadow.push(Ray::new(origin, to_light));
+            reach.push(to_light.length());
+        }
+        let random = random_rays(3 * CHUNK, 22);
+        for (rays, is_coherent) in [(&shadow, true), (&random, false)] {
+            for chunk in rays.chunks(CHUNK) {
+                assert_eq!(coherent(chunk), is_coherent);
+            }
+            let t_max: Vec<Float> = if is_coherent {
+                reach.clone()
+            } else {
+                vec![Float::INFINITY; rays.len()]
+            };
+            let mut blocked = vec![false; rays.len()];
+            scene.occluded_rays_interleaved(rays, &t_max, &mut blocked);
+            let expected: Vec<bool> = rays
+                .iter()
+                .zip(&t_max)
+                .map(|(r, &t)| scene.occluded(r, t))
+                .collect();
+            assert_eq!(blocked, expected);
+            assert!(expected.iter().any(|&b| b) && expected.iter().any(|&b| !b));
+        }
     }
 }

@@ -22,6 +22,12 @@ pub const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 /// replaced many times, few enough for their state to stay in the first-level cache.
 const CHUNK: usize = 64;
 
+/// The slab tests' set-up of up to [`CHUNK`] rays, for one interleaved walk (slots
+/// past the rays repeat the first one, and are not walked).
+fn queries_of(rays: &[Ray]) -> [RayQuery; CHUNK] {
+    std::array::from_fn(|i| RayQuery::new(rays.get(i).unwrap_or(&rays[0])))
+}
+
 /// Whether most of `rays` run nearly parallel (within about 8 degrees) to one of the
 /// four rays before them: the shadow rays of neighbouring points towards a few
 /// lights, or the camera rays of neighbouring pixels. Such rays find the nodes and
@@ -94,8 +100,7 @@ impl Scene {
                 self.occluded_ray_by_ray(rays, t_max, blocked);
                 continue;
             }
-            let queries: [RayQuery; CHUNK] =
-                std::array::from_fn(|i| RayQuery::new(rays.get(i).unwrap_or(&rays[0])));
+            let queries = queries_of(rays);
             let mut reach = [0.0; CHUNK];
             reach[..rays.len()].copy_from_slice(t_max);
             blocked.fill(false);
@@ -129,8 +134,7 @@ impl Scene {
     fn intersect_primitives_interleaved(&self, rays: &[Ray], hits: &mut [Option<(u32, PrimHit)>]) {
         debug_assert!(!self.has_cutouts);
         for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
-            let queries: [RayQuery; CHUNK] =
-                std::array::from_fn(|i| RayQuery::new(rays.get(i).unwrap_or(&rays[0])));
+            let queries = queries_of(rays);
             let mut t_max = [Float::INFINITY; CHUNK];
             let mut closest = [None; CHUNK];
             self.wide.walk_interleaved(

@@ -1,10 +1,12 @@
-//! Closest hits of an array of independent rays ([`Scene::intersect_primitives`]),
-//! the query a ray-casting library answers for a caller's rays. In a scene larger
-//! than the processor's last-level cache, each ray mostly waits for its next node or
-//! leaf to come from memory, so the rays are walked several at a time
-//! ([`WideBvh::walk_interleaved`](crate::bvh::WideBvh::walk_interleaved)); in a
-//! smaller one, ray by ray, which is faster there. Both give the answers of
-//! [`Scene::intersect_primitive`], bit for bit.
+//! Closest hits and blockers of an array of independent rays
+//! ([`Scene::intersect_primitives`], [`Scene::occluded_rays`]), the queries a
+//! ray-casting library answers for a caller's rays. In a scene larger than the
+//! processor's last-level cache, each ray mostly waits for its next node or leaf to
+//! come from memory, so the rays are walked several at a time
+//! ([`WideBvh::walk_interleaved`](crate::bvh::WideBvh::walk_interleaved),
+//! [`walk_interleaved_any`](crate::bvh::WideBvh::walk_interleaved_any)); in a smaller
+//! one, ray by ray, which is faster there. Either way they give the answers of
+//! [`Scene::intersect_primitive`] and [`Scene::occluded`], bit for bit.
 
 use super::Scene;
 use crate::bvh::RayQuery;
@@ -63,7 +65,7 @@ impl Scene {
     /// [`Scene::occluded`] of every ray of `rays` within its reach `t_max[i]`, into
     /// `blocked`: the same answers. In scenes larger than [`INTERLEAVE_ABOVE_BYTES`],
     /// each run of [`CHUNK`] rays that are not [`coherent`] is walked several rays at
-    /// a time (on the 871k-triangle dragon's bounce directions with no limit: 1.24x
+    /// a time (on the 871k-triangle dragon's bounce directions with no limit: 1.20x
     /// ray by ray); coherent runs, which find their nodes in the caches, are traced
     /// ray by ray (the dragon's shadow rays walked eight at a time: 0.88x). Runs on
     /// the calling thread.

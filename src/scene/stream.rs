@@ -65,11 +65,11 @@ impl Scene {
     /// [`Scene::occluded`] of every ray of `rays` within its reach `t_max[i]`, into
     /// `blocked`: the same answers. In scenes larger than [`INTERLEAVE_ABOVE_BYTES`],
     /// each run of 64 rays that is not coherent (most of them within about 8 degrees
-    /// of one of the four rays before them) is walked several rays at
-    /// a time (on the 871k-triangle dragon's bounce directions with no limit: 1.20x
-    /// ray by ray); coherent runs, which find their nodes in the caches, are traced
-    /// ray by ray (the dragon's shadow rays walked eight at a time: 0.88x). Runs on
-    /// the calling thread.
+    /// of one of the four rays before them) is walked several rays at a time (on the
+    /// 871k-triangle dragon's bounce directions with no limit: 1.20x ray by ray);
+    /// coherent runs, which find their nodes in the caches, are traced ray by ray
+    /// (the dragon's shadow rays walked eight at a time: 0.88x). Runs on the calling
+    /// thread.
     ///
     /// # Panics
     /// If `t_max` or `blocked` differ from `rays` in length.

@@ -15,7 +15,8 @@ The package is a thin layer over the Rust library (the ``raytracer`` command's):
 - :func:`postprocess` turns a linear image into 8-bit RGB exactly as the command line
   does before writing a PNG; :func:`write_image` and :func:`write_png` write files
   atomically, as the command line does.
-- :meth:`Scene.intersect` casts rays of your own: the closest hit of each row of
+- :meth:`Scene.from_mesh` makes a scene of a mesh held as arrays (vertices and faces);
+  :meth:`Scene.intersect` casts rays of your own: the closest hit of each row of
   ``(n, 3)`` arrays of origins and directions, as arrays of distances, triangle
   indices (in the file's order) and barycentric coordinates;
   :meth:`Scene.occluded` whether anything blocks each ray within a distance.

@@ -34,6 +34,7 @@ use raytracer::output::{self, UnknownFormatError, WriteError};
 use raytracer::postprocess::PostProcessing;
 use raytracer::{BvhParams, Film, Image, ImageFormat, Mode, RenderOptions, Scene, Tile, TileError};
 
+mod mesh;
 mod rays;
 use rays::{RAY_ROWS, Reach, blocked_rays, closest_hits, numbers_of, ray_rows};
 
@@ -300,9 +301,11 @@ fn tile(value: &Bound<'_, PyAny>) -> PyResult<Tile> {
     })
 }
 
-/// A scene file read and built, with the options the file gives.
+/// A scene file read and built, with the options the file gives; or a mesh given as
+/// arrays, built.
 struct Loaded {
-    path: PathBuf,
+    /// The scene file, as named (none for a mesh given as arrays).
+    path: Option<PathBuf>,
     scene: Scene,
     options: PartialOptions,
     /// The box around the shapes, for a camera that frames them.
@@ -317,18 +320,29 @@ impl Loaded {
     fn read(path: &Path, access: &formats::FileAccess) -> Result<Loaded, Error> {
         test_gate("RAYTRACER_TEST_GATE_LOAD");
         let loaded = formats::load_with(path, access)?;
-        let bounds = loaded.description.bounds();
-        let unlit = loaded
-            .description
-            .is_unlit()
-            .then(|| loaded.description.clone());
-        Ok(Loaded {
-            path: path.to_path_buf(),
-            scene: Scene::build(loaded.description, &BvhParams::default()),
-            options: loaded.options,
+        Ok(Loaded::build(
+            Some(path.to_path_buf()),
+            loaded.description,
+            loaded.options,
+        ))
+    }
+
+    /// Builds the scene of `description`, whose file's options are `options`. Call
+    /// detached from the interpreter.
+    fn build(
+        path: Option<PathBuf>,
+        description: raytracer::SceneDescription,
+        options: PartialOptions,
+    ) -> Loaded {
+        let bounds = description.bounds();
+        let unlit = description.is_unlit().then(|| description.clone());
+        Loaded {
+            path,
+            scene: Scene::build(description, &BvhParams::default()),
+            options,
             bounds,
             unlit,
-        })
+        }
     }
 
     /// The given options over the file's, with the command line's framing camera.
@@ -490,9 +504,31 @@ impl PyScene {
         })
     }
 
-    /// The scene file, as it was named.
+    /// A scene of one triangle mesh given as arrays, as a ray-casting library takes
+    /// it: ``vertices`` of shape ``(n, 3)`` (numbers) and ``faces`` of shape ``(m,
+    /// 3)`` (integers, each a row of ``vertices``), such as a ``trimesh.Trimesh``'s.
+    /// Every face has the default material (grey, diffuse); the scene has no lights,
+    /// so renders light it as the command line lights a model without any. Face
+    /// ``i`` is triangle ``i`` of ``intersect``'s ``"primitive"``; faces of zero area
+    /// are skipped with a warning (``warnings``). Raises ``ValueError`` for arrays of
+    /// another shape, vertices that are not finite and indices out of range, naming
+    /// the row.
+    #[staticmethod]
+    fn from_mesh(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+    ) -> PyResult<PyScene> {
+        let description = mesh::description(vertices, faces)?;
+        let loaded = py.detach(|| Loaded::build(None, description, PartialOptions::default()));
+        Ok(PyScene {
+            loaded: Arc::new(loaded),
+        })
+    }
+
+    /// The scene file, as it was named; ``None`` for a scene made by ``from_mesh``.
     #[getter]
-    fn path(&self) -> PathBuf {
+    fn path(&self) -> Option<PathBuf> {
         self.loaded.path.clone()
     }
 
@@ -627,9 +663,12 @@ impl PyScene {
     }
 
     fn __repr__(&self) -> String {
+        let source = match &self.loaded.path {
+            Some(path) => format!("{:?}", path.display().to_string()),
+            None => "a mesh".to_string(),
+        };
         format!(
-            "raytracer.Scene({:?}: {} primitives, {} lights)",
-            self.loaded.path.display().to_string(),
+            "raytracer.Scene({source}: {} primitives, {} lights)",
             self.loaded.scene.prim_count(),
             self.loaded.scene.lights.len()
         )

@@ -31,7 +31,10 @@ pub(crate) const RAY_ROWS: &str = "an (n, 3) array of numbers";
 
 /// The rows of an `(n, 3)` array as `3 n` numbers in row order, without a copy when
 /// the array is contiguous.
-fn rows_of<'a>(array: ArrayViewD<'a, f32>, name: &str) -> PyResult<CowArray<'a, f32, Ix2>> {
+pub(crate) fn rows_of<'a>(
+    array: ArrayViewD<'a, f32>,
+    name: &str,
+) -> PyResult<CowArray<'a, f32, Ix2>> {
     if array.ndim() != 2 || array.shape()[1] != 3 {
         return Err(PyValueError::new_err(format!(
             "{name} must have the shape (n, 3), one row of three numbers per ray, not {}",
@@ -47,7 +50,7 @@ fn rows_of<'a>(array: ArrayViewD<'a, f32>, name: &str) -> PyResult<CowArray<'a, 
 }
 
 /// A shape as numpy writes it: `()`, `(3,)`, `(2, 4)`.
-fn shape_text(shape: &[usize]) -> String {
+pub(crate) fn shape_text(shape: &[usize]) -> String {
     match shape {
         [length] => format!("({length},)"),
         lengths => format!(

@@ -236,3 +236,40 @@ def test_the_first_bad_ray_is_named(tmp_path):
     hits = scene.intersect(origins[::-1], wide[1::2, 1:4])
     assert np.all(hits["primitive"] == 0)
     np.testing.assert_allclose(hits["t"], origins[::-1, 2], rtol=1e-6)
+
+
+def test_a_mesh_from_arrays_is_the_mesh_of_its_file(tmp_path):
+    rng = np.random.default_rng(9)
+    vertices = rng.uniform(-1, 1, size=(60, 3)).astype(np.float32)
+    faces = rng.integers(0, 60, size=(80, 3))
+    faces[5] = [3, 3, 4]  # zero area: skipped, and still numbered
+    from_arrays = raytracer.Scene.from_mesh(vertices, faces.astype(np.int32))
+    path = write_obj(tmp_path / "mesh.obj", vertices[faces])
+    from_file = raytracer.Scene(path)
+    assert from_arrays.path is None and "a mesh" in repr(from_arrays)
+    assert any("degenerate" in w for w in from_arrays.warnings)
+    origins = rng.uniform(-2, 2, size=(2000, 3)).astype(np.float32)
+    directions = rng.uniform(-1, 1, size=(2000, 3)).astype(np.float32) - origins
+    mine, theirs = from_arrays.intersect(origins, directions), from_file.intersect(origins, directions)
+    assert (mine["primitive"] >= 0).sum() > 500
+    for key in ("t", "primitive", "u", "v"):
+        assert np.array_equal(mine[key], theirs[key]), key
+    # Rendered with the default camera and lights, as the command line renders the file.
+    options = dict(width=24, height=16)
+    assert np.array_equal(from_arrays.render(**options), from_file.render(**options))
+
+
+@pytest.mark.parametrize(
+    "vertices,faces,message",
+    [
+        ([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]], r"vertices must have the shape \(n, 3\), .* not \(3, 2\)"),
+        ([[0, 0, 0], [1, float("nan"), 0], [0, 1, 0]], [[0, 1, 2]], "vertex 1: .* is not finite"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2], [0, 1, 3]], r"face 1: vertex index 3 is not in 0\.\.3"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, -1, 2]], r"face 0: vertex index -1 is not in 0\.\.3"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1.5, 2]], "faces must be an .* array of integers .*: not float64"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [0, 1, 2], r"faces must have the shape \(m, 3\), .* not \(3,\)"),
+    ],
+)
+def test_bad_meshes_are_named(vertices, faces, message):
+    with pytest.raises(ValueError, match=message):
+        raytracer.Scene.from_mesh(vertices, faces)

@@ -18,8 +18,7 @@ pub(crate) fn description(
 ) -> PyResult<SceneDescription> {
     let vertices = numbers_of(vertices, "vertices", "an (n, 3) array of numbers")?;
     let vertices = rows_of(vertices.as_array(), "vertices")?;
-    let mut description = SceneDescription::default();
-    description.positions = vertices
+    let positions: Vec<Vec3> = vertices
         .rows()
         .into_iter()
         .enumerate()
@@ -42,8 +41,8 @@ pub(crate) fn description(
             shape_text(faces.shape())
         )));
     }
-    let count = description.positions.len();
-    description.triangles = faces
+    let count = positions.len();
+    let triangles = faces
         .rows()
         .into_iter()
         .enumerate()
@@ -66,8 +65,12 @@ pub(crate) fn description(
             })
         })
         .collect::<PyResult<_>>()?;
-    description.materials = vec![Material::fallback()];
-    Ok(description)
+    Ok(SceneDescription {
+        positions,
+        triangles,
+        materials: vec![Material::fallback()],
+        ..SceneDescription::default()
+    })
 }
 
 /// `faces` as 64-bit integers: an array (or anything numpy makes one of) of integers;

@@ -2,7 +2,8 @@
 """`raytracer.Scene.intersect` and `Scene.occluded` against embreex (the Embree binding
 Python ray-casting code uses, as trimesh does) on the same rays and triangles, in one
 process: the dragon's camera rays, its shadow rays towards the lights (occlusion) and
-its incoherent bounce rays, as `raytracer bench` makes them.
+its incoherent bounce rays, as `raytracer bench` makes them; and building each side's
+scene from the same arrays (`Scene.from_mesh`; Embree's build happens at its first query).
 
     python3 bench/python_rays.py [--runs 5] [SCENE]
 
@@ -82,8 +83,25 @@ def main() -> None:
     )
     positions, triangles, primary, shadow, incoherent = read_dump(dump)
     ours = raytracer.Scene(args.scene)
-    theirs = rtcore_scene.EmbreeScene()
-    mesh_construction.TriangleMesh(theirs, positions, triangles.astype(np.int32))
+    faces = triangles.astype(np.int32)
+    one_ray = (np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+
+    def embree_scene():
+        scene = rtcore_scene.EmbreeScene()
+        mesh_construction.TriangleMesh(scene, positions, faces)
+        scene.run(*one_ray)  # Embree builds its BVH on the first query
+        return scene
+
+    # Building from arrays: ours through Scene.from_mesh, Embree's on its first query.
+    builds = {"ours": ([], []), "embreex": ([], [])}
+    built = {}
+    for _ in range(args.runs):
+        for name, make in [("ours", lambda: raytracer.Scene.from_mesh(positions, faces)),
+                           ("embreex", embree_scene)]:
+            built[name], wall, cpu = timed(make)
+            builds[name][0].append(wall * 1e3)
+            builds[name][1].append(cpu * 1e3)
+    theirs = built["embreex"]
 
     print(f"{len(triangles):,} triangles; {args.runs} alternating runs; {os.cpu_count()} cores; "
           f"load average {os.getloadavg()[0]:.1f} at the start")
@@ -91,6 +109,9 @@ def main() -> None:
     print("| rays | ours (wall) | embreex (wall) | ours faster by | ours (CPU) | embreex (CPU) "
           "| ours faster by | same answer |")
     print("|---|---|---|---|---|---|---|---|")
+    (ow, oc), (ew, ec) = ([statistics.median(r) for r in builds[k]] for k in ("ours", "embreex"))
+    print(f"| build from arrays | {ow:.1f} ms | {ew:.1f} ms | {ew / ow:.2f}x | {oc:.1f} CPU-ms "
+          f"| {ec:.1f} CPU-ms | {ec / oc:.2f}x | |")
     for label, rays in [("camera", primary), ("shadow", shadow), ("incoherent bounces", incoherent)]:
         origins = np.ascontiguousarray(rays[:, 0:3])
         directions = np.ascontiguousarray(rays[:, 3:6])

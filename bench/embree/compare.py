@@ -100,7 +100,7 @@ def main() -> None:
     print(f"same work: primary hits {ours[0]['primary_hits']:,} (Embree {theirs[0]['primary_hits']:,}), "
           f"shadow rays blocked {ours[0]['shadow_occluded']:,} (Embree {theirs[0]['shadow_occluded']:,}), "
           f"incoherent hits {ours[0]['incoherent_hits']:,} (Embree {theirs[0]['incoherent_hits']:,}); "
-          f"our SAH cost {ours[0]['sah_cost']}")
+          f"our SAH cost {ours[0]['sah_cost']} (binary), {ours[0]['wide_sah_cost']} (8-wide)")
     print(json.dumps({"ours": ours, "embree": theirs}), file=sys.stderr)
 
 

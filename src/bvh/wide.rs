@@ -13,7 +13,7 @@ use std::mem::MaybeUninit;
 use glam::Vec4;
 use wide::{f32x8, u32x8};
 
-use super::{BvhInvariantError, MAX_DEPTH};
+use super::{BvhInvariantError, BvhParams, MAX_DEPTH};
 use crate::math::{Aabb, Float, Ray, Vec3};
 use crate::memory::prefetch_lines;
 
@@ -117,6 +117,45 @@ impl WideBvh {
                     .map(|slot| (node.child[slot], node.item_count[slot]))
             })
             .collect()
+    }
+
+    /// The SAH cost of the tree as [`Bvh::sah_cost`](super::Bvh::sah_cost) prices
+    /// the binary one: each node's box area relative to the root's times
+    /// `params.traversal_cost`, plus each leaf's times its `leaf_tests(item_count)`
+    /// times `params.intersection_cost` (leaves' items are the caller's: primitives
+    /// straight after the collapse, the scene's packets after it).
+    pub fn sah_cost(&self, params: &BvhParams, leaf_tests: impl Fn(u32) -> Float) -> f64 {
+        let node_area = |node: &WideNode| {
+            let bounds = (0..WIDTH)
+                .map(|slot| node.child_bounds(slot))
+                .fold(Aabb::EMPTY, Aabb::union);
+            f64::from(bounds.half_area())
+        };
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let root_area = node_area(root);
+        if root_area <= 0.0 {
+            return 0.0;
+        }
+        let leaf_cost = |node: &WideNode| -> f64 {
+            (0..WIDTH)
+                .filter(|&slot| node.item_count[slot] > 0)
+                .map(|slot| {
+                    f64::from(node.child_bounds(slot).half_area())
+                        * f64::from(leaf_tests(node.item_count[slot]))
+                })
+                .sum()
+        };
+        let cost: f64 = self
+            .nodes
+            .iter()
+            .map(|node| {
+                node_area(node) * f64::from(params.traversal_cost)
+                    + leaf_cost(node) * f64::from(params.intersection_cost)
+            })
+            .sum();
+        cost / root_area
     }
 
     /// Points leaf `i` (in [`WideBvh::leaf_items`] order) at items
@@ -681,7 +720,7 @@ mod tests {
         let boxes = random_boxes(count, seed);
         let (bvh, order) = Bvh::build(&boxes, &BvhParams::default());
         let leaf_order: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
-        let wide = WideBvh::collapse(&bvh, max_leaf_prims);
+        let wide = WideBvh::collapse(&bvh, max_leaf_prims, &BvhParams::default());
         let leaves = wide.leaf_items();
         wide.validate(count, |prim| leaf_order[prim as usize])
             .unwrap();
@@ -764,7 +803,7 @@ mod validate_tests {
         let (bvh, order) = Bvh::build(&boxes, &BvhParams::default());
         let leaf_order: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
         let bounds = |item: u32| leaf_order[item as usize];
-        let wide = WideBvh::collapse(&bvh, 4);
+        let wide = WideBvh::collapse(&bvh, 4, &BvhParams::default());
         wide.validate(200, bounds).unwrap();
         assert!(wide.validate(201, bounds).is_err(), "a missing item");
         let mut shrunk = wide.clone();

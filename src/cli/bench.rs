@@ -119,12 +119,13 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             file_bytes as f64 / parse_s / 1e6
         ),
         format!(
-            "\"build_ms\": {:.2}, \"build_cpu_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, \"wide_nodes\": {}, \"packets\": {}",
+            "\"build_ms\": {:.2}, \"build_cpu_ms\": {:.2}, \"bvh_nodes\": {}, \"sah_cost\": {:.2}, \"wide_nodes\": {}, \"wide_sah_cost\": {:.3}, \"packets\": {}",
             build.wall * 1e3,
             build.cpu * 1e3,
             summary.nodes,
             summary.sah_cost,
             summary.wide_nodes,
+            summary.wide_sah_cost,
             summary.packets
         ),
         format!(

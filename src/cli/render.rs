@@ -150,13 +150,14 @@ fn print_stats(
     let ms = |s: f64| s * 1e3;
     eprintln!("parse            {:9.1} ms", ms(stages.parse));
     eprintln!(
-        "BVH build        {:9.1} ms  {} primitives, {} binary nodes (depth {}, SAH cost {:.2}) -> {} 8-wide nodes, {} packets",
+        "BVH build        {:9.1} ms  {} primitives, {} binary nodes (depth {}, SAH cost {:.2}) -> {} 8-wide nodes (SAH cost {:.2}), {} packets",
         ms(stages.build),
         scene.prim_count(),
         bvh.nodes,
         bvh.max_depth,
         bvh.sah_cost,
         bvh.wide_nodes,
+        bvh.wide_sah_cost,
         bvh.packets,
     );
     let rays_line = format!(

@@ -56,6 +56,9 @@ pub struct BvhSummary {
     pub sah_cost: f64,
     /// Nodes of the wide BVH.
     pub wide_nodes: usize,
+    /// The wide BVH's SAH cost ([`WideBvh::sah_cost`], a leaf priced by its
+    /// packets).
+    pub wide_sah_cost: f64,
     /// SIMD primitive packets in the wide BVH's leaves.
     pub packets: usize,
     /// The box around all primitives (empty for an empty scene).
@@ -389,7 +392,7 @@ impl Scene {
         // The SAH cost, another pass over the binary nodes, is taken beside the
         // collapse (whose subtrees are tasks too). Then the binary BVH goes.
         let (wide, sah_cost) = rayon::join(
-            || WideBvh::collapse(&bvh, 2 * LANES as u32),
+            || WideBvh::collapse(&bvh, 2 * LANES as u32, params),
             || bvh.sah_cost(params),
         );
         let mut summary = BvhSummary {
@@ -397,6 +400,7 @@ impl Scene {
             max_depth: bvh.max_depth,
             sah_cost,
             wide_nodes: 0,
+            wide_sah_cost: 0.0,
             packets: 0,
             bounds: bvh
                 .nodes
@@ -410,6 +414,7 @@ impl Scene {
             shading,
         } = packetize(wide, order.len(), is_sphere, prim_of, fetch);
         summary.wide_nodes = wide.nodes.len();
+        summary.wide_sah_cost = wide.sah_cost(params, |packets| packets as Float);
         summary.packets = packets.len();
 
         // Texture coordinates only where a material can use them. An index out of

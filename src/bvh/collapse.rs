@@ -5,10 +5,10 @@
 //! the same pass that measures every subtree's primitive range: for each binary node
 //! and each number of slots from one to eight, the least SAH cost of its subtree in
 //! that many slots of its parent (on its own, as a leaf or a wide node, or with the
-//! slots shared between its two children) and how it is reached (Ylitie et al.'s
-//! SAH-optimal collapse). Opening the largest child first, as before, left 34% of the
-//! dragon's wide nodes with two children; the plan makes 31% fewer nodes, the SAH cost
-//! a little lower, and incoherent rays on the full dragon 1.05x faster.
+//! slots shared between its two children) and the choice that gives it (Ylitie et
+//! al.'s SAH-optimal collapse). Opening the largest child first, as before, left 34%
+//! of the dragon's wide nodes with two children; the plan makes 31% fewer nodes, the
+//! SAH cost a little lower, and incoherent rays on the full dragon 1.05x-1.10x faster.
 //!
 //! The sequential walk (kept as [`WideBvh::collapse_sequential`], the reference of
 //! the tests) fills the wide node of binary node `b` as planned, gives the node's

@@ -275,8 +275,10 @@ impl WideBvh {
         self.walk::<true, T, F>(ray, t_max, items, leaf)
     }
 
-    /// As [`WideBvh::walk_ordered`] in no particular order, for any-hit queries, where
-    /// the first blocker found ends the walk and sorting would be wasted.
+    /// As [`WideBvh::walk_ordered`] for any-hit queries, where the first blocker found
+    /// ends the walk and sorting by distance would be wasted: at each node the leaves
+    /// the ray meets come before the interior children, whose memory arrives
+    /// meanwhile; otherwise in slot order.
     #[inline(always)]
     pub fn walk_any<T, F>(&self, ray: &RayQuery, t_max: &mut Float, items: &[T], leaf: F) -> bool
     where
@@ -354,9 +356,9 @@ impl WideBvh {
         self.walk_interleaved_as::<true, T, F>(rays, t_max, items, leaf);
     }
 
-    /// [`WideBvh::walk_interleaved`] in no particular order, for any-hit queries, as
-    /// [`WideBvh::walk_any`] walks one ray: each ray visits the leaves its own
-    /// `walk_any` visits, in the same order.
+    /// [`WideBvh::walk_interleaved`] for any-hit queries, as [`WideBvh::walk_any`]
+    /// walks one ray: each ray visits the leaves its own `walk_any` visits, in the
+    /// same order.
     pub fn walk_interleaved_any<T, F>(
         &self,
         rays: &[RayQuery],
@@ -454,7 +456,8 @@ impl WideBvh {
                 // The items of every leaf hit are asked for at once, the nearest's
                 // too: they are on their way together rather than one cache miss
                 // after another as the leaf test reads them.
-                let mut leaves = hits & node.leaf_slots();
+                let leaf_hits = hits & node.leaf_slots();
+                let mut leaves = leaf_hits;
                 while leaves != 0 {
                     let slot = leaves.trailing_zeros() as usize;
                     leaves &= leaves - 1;
@@ -463,9 +466,27 @@ impl WideBvh {
                         PREFETCH_LINES,
                     );
                 }
+                let t_enter = t_enter.as_array();
+                if !ORDERED && leaf_hits != 0 && leaf_hits != hits {
+                    // Any hit ends the walk: the leaves met here go first, their
+                    // packets already asked for, while the interior children wait on
+                    // the stack with theirs on the way. A ray that something near
+                    // blocks then stops before descending elsewhere (the dragon's
+                    // bounce rays as occlusion queries: 1.15x-1.19x; shadow rays
+                    // toward the lights, mostly unblocked, alike).
+                    let mut interior = hits & !leaf_hits;
+                    while interior != 0 {
+                        let slot = interior.trailing_zeros() as usize;
+                        interior &= interior - 1;
+                        debug_assert!(walk.stack_len < STACK_SIZE);
+                        self.prefetch_node(child(slot));
+                        stack[walk.stack_len].write((child(slot), t_enter[slot]));
+                        walk.stack_len += 1;
+                    }
+                    hits = leaf_hits;
+                }
                 let first = hits.trailing_zeros() as usize;
                 hits &= hits - 1;
-                let t_enter = t_enter.as_array();
                 if hits == 0 {
                     walk.current = child(first);
                 } else {
@@ -761,6 +782,56 @@ mod tests {
         ] {
             check_collapse(count, leaf, seed);
         }
+    }
+
+    /// At a node whose leaves and interior children the ray both meets, the
+    /// any-hit walk tests the leaves first; the closest-hit walk goes by distance.
+    #[test]
+    fn any_hit_walks_visit_a_node_s_leaves_before_its_children() {
+        let unit = |x: f32| Aabb {
+            min: Vec3::new(x, -1.0, -1.0),
+            max: Vec3::new(x + 1.0, 1.0, 1.0),
+        };
+        // The root: slot 0 an interior node (x in 0..1, nearer along +x), slot 1 a
+        // leaf of item 0 (x in 2..3). Node 1: a leaf of item 1 in slot 0.
+        let mut root = WideNode::EMPTY;
+        root.set_child_bounds(0, unit(0.0));
+        root.child[0] = 1;
+        root.set_child_bounds(1, unit(2.0));
+        (root.child[1], root.item_count[1]) = (0, 1);
+        let mut inner = WideNode::EMPTY;
+        inner.set_child_bounds(0, unit(0.0));
+        (inner.child[0], inner.item_count[0]) = (1, 1);
+        let bvh = WideBvh {
+            nodes: vec![root, inner],
+        };
+        bvh.validate(2, |item| unit(if item == 0 { 2.0 } else { 0.0 }))
+            .unwrap();
+        let ray = RayQuery::new(&crate::math::Ray::new(Vec3::new(-1.0, 0.0, 0.0), Vec3::X));
+        let items = [0u8; 2];
+        let visits = |ordered: bool| {
+            let mut seen = Vec::new();
+            let leaf = |first: u32, _: u32, _: &mut Float| {
+                seen.push(first);
+                false
+            };
+            let mut t_max = Float::INFINITY;
+            if ordered {
+                bvh.walk_ordered(&ray, &mut t_max, &items, leaf);
+            } else {
+                bvh.walk_any(&ray, &mut t_max, &items, leaf);
+            }
+            seen
+        };
+        assert_eq!(visits(false), [0, 1]);
+        assert_eq!(visits(true), [1, 0]);
+        let mut reach = [Float::INFINITY];
+        let mut seen = Vec::new();
+        bvh.walk_interleaved_any(&[ray], &mut reach, &items, |_, first, _, _| {
+            seen.push(first);
+            false
+        });
+        assert_eq!(seen, [0, 1]);
     }
 
     #[test]

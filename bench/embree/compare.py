@@ -38,13 +38,14 @@ for kind, label in [
     ("shadow", "shadow rays, single"),
     ("shadow_packet", "shadow rays, 4x4 packets"),
     ("incoherent", "incoherent rays, single"),
+    ("occlusion", "occlusion rays (the incoherent rays, any hit, no limit), single"),
 ]:
     ROWS.append((f"{label} (wall)", f"{kind}_mrays_per_s", f"{kind}_mrays_per_s", "Mrays/s"))
     ROWS.append((f"{label} (CPU)", f"{kind}_mrays_per_cpu_s", f"{kind}_mrays_per_cpu_s", "Mrays/CPU-s"))
 # Our array queries (`Scene::intersect_primitives`, `Scene::occluded_rays`: several rays
 # in flight in scenes larger than the last-level cache, else ray by ray) on the same
 # shadow and incoherent rays, against Embree's single rays.
-for kind in ("shadow", "incoherent"):
+for kind in ("shadow", "incoherent", "occlusion"):
     for unit_key, unit in [("mrays_per_s", "wall"), ("mrays_per_cpu_s", "CPU")]:
         ROWS.append((f"{kind} rays, our array query / Embree single ({unit})",
                      f"{kind}_stream_{unit_key}", f"{kind}_{unit_key}",
@@ -80,7 +81,7 @@ def main() -> None:
     for _ in range(args.runs):
         ours.append(run_json(ours_cmd))
         theirs.append(run_json(embree_cmd))
-    for key in ("primary_hits", "shadow_occluded", "incoherent_hits"):
+    for key in ("primary_hits", "shadow_occluded", "incoherent_hits", "occlusion_blocked"):
         a, b = ours[0][key], theirs[0][key]
         if a != b:
             print(f"warning: {key}: ours {a}, Embree {b}", file=sys.stderr)
@@ -99,7 +100,9 @@ def main() -> None:
     print()
     print(f"same work: primary hits {ours[0]['primary_hits']:,} (Embree {theirs[0]['primary_hits']:,}), "
           f"shadow rays blocked {ours[0]['shadow_occluded']:,} (Embree {theirs[0]['shadow_occluded']:,}), "
-          f"incoherent hits {ours[0]['incoherent_hits']:,} (Embree {theirs[0]['incoherent_hits']:,}); "
+          f"incoherent hits {ours[0]['incoherent_hits']:,} (Embree {theirs[0]['incoherent_hits']:,}), "
+          f"occlusion rays blocked {ours[0]['occlusion_blocked']:,} "
+          f"(Embree {theirs[0]['occlusion_blocked']:,}); "
           f"our SAH cost {ours[0]['sah_cost']} (binary), {ours[0]['wide_sah_cost']} (8-wide)")
     print(json.dumps({"ours": ours, "embree": theirs}), file=sys.stderr)
 

@@ -6,8 +6,9 @@
  *
  * Builds the scene's triangles into an Embree scene (RTC_BUILD_QUALITY_MEDIUM, the
  * default; all of Embree's TBB threads, limited to T), then traces, on T OpenMP
- * threads, the primary rays (closest hit), the shadow rays (any hit) and the
- * incoherent bounce rays (closest hit), one ray at a time (rtcIntersect1 /
+ * threads, the primary rays (closest hit), the shadow rays (any hit), the
+ * incoherent bounce rays (closest hit) and the same bounce rays as occlusion queries
+ * with no limit (any hit, as ambient occlusion's rays), one ray at a time (rtcIntersect1 /
  * rtcOccluded1) and, for primary and shadow rays, in the 4x4-tile packets the file
  * groups them in (rtcIntersect16 / rtcOccluded16 with a valid mask). Prints one JSON
  * object of medians: wall and CPU milliseconds and Mrays/s, with hit counts to check
@@ -285,7 +286,8 @@ int main(int argc, char **argv) {
     }
     double build = median(builds, repeat), build_cpu = median(build_cpus, repeat);
 
-    long primary_hits, primary_packet_hits, occluded, packet_occluded, incoherent_hits;
+    long primary_hits, primary_packet_hits, occluded, packet_occluded, incoherent_hits,
+        occlusion_blocked;
     double w, c;
     printf("{\"peer\": \"embree\", \"version\": \"Embree %d.%d.%d (libembree-dev)\", "
            "\"native_ray16\": %ld, \"threads\": %d, \"triangles\": %u",
@@ -307,6 +309,10 @@ int main(int argc, char **argv) {
     TIME(repeat, incoherent_hits, w, c, closest_single(incoherent, n_incoherent));
     printf(", \"incoherent_rays\": %u, \"incoherent_hits\": %ld", n_incoherent, incoherent_hits);
     print_rate("incoherent", n_incoherent, w, c);
+    TIME(repeat, occlusion_blocked, w, c, occluded_single(incoherent, n_incoherent));
+    printf(", \"occlusion_rays\": %u, \"occlusion_blocked\": %ld", n_incoherent,
+           occlusion_blocked);
+    print_rate("occlusion", n_incoherent, w, c);
     printf("}\n");
     rtcReleaseScene(scene);
     rtcReleaseDevice(device);

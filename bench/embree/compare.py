@@ -42,10 +42,10 @@ for kind, label in [
 ]:
     ROWS.append((f"{label} (wall)", f"{kind}_mrays_per_s", f"{kind}_mrays_per_s", "Mrays/s"))
     ROWS.append((f"{label} (CPU)", f"{kind}_mrays_per_cpu_s", f"{kind}_mrays_per_cpu_s", "Mrays/CPU-s"))
-# Our array queries (`Scene::intersect_primitives`, `Scene::occluded_rays`: several rays
-# in flight in scenes larger than the last-level cache, else ray by ray) on the same
-# shadow and incoherent rays, against Embree's single rays.
-for kind in ("shadow", "incoherent", "occlusion"):
+# Our array queries (`Scene::intersect_primitives`, `Scene::occluded_rays`: runs of
+# coherent rays as packets, others several in flight in scenes larger than the
+# last-level cache, else ray by ray) on the same rays, against Embree's single rays.
+for kind in ("primary", "shadow", "incoherent", "occlusion"):
     for unit_key, unit in [("mrays_per_s", "wall"), ("mrays_per_cpu_s", "CPU")]:
         ROWS.append((f"{kind} rays, our array query / Embree single ({unit})",
                      f"{kind}_stream_{unit_key}", f"{kind}_{unit_key}",

@@ -1,6 +1,7 @@
 //! `raytracer bench`: medians of parse, build, primary-ray, shadow-ray and
-//! incoherent-ray times (ray by ray; primary and shadow rays also as 4x4 packets,
-//! incoherent rays also through the array query, `Scene::intersect_primitives`)
+//! incoherent-ray times (ray by ray; primary and shadow rays also as 4x4 packets;
+//! every kind also through the array queries, `Scene::intersect_primitives` and
+//! `Scene::occluded_rays`)
 //! on one scene, printed as one JSON object for `bench/run.sh`.
 
 use anyhow::Context;
@@ -37,6 +38,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         ids.iter().filter(|&&id| id != u32::MAX).count() == workload.primary_hits,
         "closest-hit runs disagree on the number of hits"
+    );
+    // The same rays through the array query: the same hits.
+    let (stream_ids, primary_stream) = median_times(args.repeat, || {
+        trace_closest_primitives_stream(&scene, &workload.primary)
+    });
+    anyhow::ensure!(
+        stream_ids == ids,
+        "the array query and single rays disagree on the primary rays' hits"
     );
     let (packet_ids, primary_packet) = median_times(args.repeat, || {
         trace_closest_primitives_packets(&scene, &workload.primary_tiled, &workload.primary_packets)
@@ -129,11 +138,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             summary.packets
         ),
         format!(
-            "\"primary_rays\": {}, \"primary_hits\": {}, {}, {}",
+            "\"primary_rays\": {}, \"primary_hits\": {}, {}, {}, {}",
             workload.primary.len(),
             workload.primary_hits,
             rate("primary", workload.primary.len(), &primary),
-            rate("primary_packet", workload.primary.len(), &primary_packet)
+            rate("primary_packet", workload.primary.len(), &primary_packet),
+            rate("primary_stream", workload.primary.len(), &primary_stream)
         ),
         format!(
             "\"shadow_rays\": {}, \"shadow_occluded\": {}, {}, {}, {}",

@@ -29,7 +29,7 @@ use crate::shapes::{LANES, PacketRay, PrimHit, Shape, TrianglePacket, triangle_a
 const FEW_RAYS: u32 = 3;
 
 /// The closest hit of one ray as the packet and lane of its primitive.
-type LaneHit = Option<(u32, usize, PrimHit)>;
+pub(super) type LaneHit = Option<(u32, usize, PrimHit)>;
 
 impl Scene {
     /// Asks the cache for the triangle packets `first..first + count` of a leaf.
@@ -138,7 +138,7 @@ impl Scene {
     }
 
     /// The closest hit of each ray, packet and lane, as [`Scene::closest_lane`].
-    fn closest_lanes_packet(&self, rays: &[Ray]) -> [LaneHit; PACKET_SIZE] {
+    pub(super) fn closest_lanes_packet(&self, rays: &[Ray]) -> [LaneHit; PACKET_SIZE] {
         let mut best: [LaneHit; PACKET_SIZE] = [None; PACKET_SIZE];
         if self.has_cutouts {
             for (best, ray) in best.iter_mut().zip(rays) {

@@ -9,8 +9,10 @@
  * threads, the primary rays (closest hit), the shadow rays (any hit), the
  * incoherent bounce rays (closest hit) and the same bounce rays as occlusion queries
  * with no limit (any hit, as ambient occlusion's rays), one ray at a time (rtcIntersect1 /
- * rtcOccluded1) and, for primary and shadow rays, in the 4x4-tile packets the file
- * groups them in (rtcIntersect16 / rtcOccluded16 with a valid mask). Prints one JSON
+ * rtcOccluded1), for primary and shadow rays also in the 4x4-tile packets the file
+ * groups them in (rtcIntersect16 / rtcOccluded16 with a valid mask), and every kind
+ * also as arrays of 256 rays through the stream calls (rtcIntersect1M /
+ * rtcOccluded1M, coherent for primary and shadow rays). Prints one JSON
  * object of medians: wall and CPU milliseconds and Mrays/s, with hit counts to check
  * that both tracers did the same work.
  *
@@ -137,6 +139,46 @@ static long occluded_single(const Ray *rays, uint32_t n) {
         set_ray(&r, &rays[i]);
         rtcOccluded1(scene, &context, &r);
         blocked += r.tfar < 0.0f; /* set to -inf when blocked */
+    }
+    return blocked;
+}
+
+/* Rays per rtcIntersect1M / rtcOccluded1M call, as `raytracer bench`'s array
+ * queries take them. */
+#define STREAM 256
+
+static long closest_stream(const Ray *rays, uint32_t n, enum RTCIntersectContextFlags flags) {
+    long hits = 0;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : hits)
+    for (long first = 0; first < (long)n; first += STREAM) {
+        struct RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        context.flags = flags;
+        RTC_ALIGN(64) struct RTCRayHit rh[STREAM];
+        unsigned m = (unsigned)((long)n - first < STREAM ? (long)n - first : STREAM);
+        for (unsigned i = 0; i < m; i++) {
+            set_ray(&rh[i].ray, &rays[first + i]);
+            rh[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect1M(scene, &context, rh, m, sizeof(struct RTCRayHit));
+        for (unsigned i = 0; i < m; i++) hits += rh[i].hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    return hits;
+}
+
+static long occluded_stream(const Ray *rays, uint32_t n, enum RTCIntersectContextFlags flags) {
+    long blocked = 0;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : blocked)
+    for (long first = 0; first < (long)n; first += STREAM) {
+        struct RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        context.flags = flags;
+        RTC_ALIGN(64) struct RTCRay r[STREAM];
+        unsigned m = (unsigned)((long)n - first < STREAM ? (long)n - first : STREAM);
+        for (unsigned i = 0; i < m; i++) set_ray(&r[i], &rays[first + i]);
+        rtcOccluded1M(scene, &context, r, m, sizeof(struct RTCRay));
+        for (unsigned i = 0; i < m; i++) blocked += r[i].tfar < 0.0f;
     }
     return blocked;
 }
@@ -313,6 +355,25 @@ int main(int argc, char **argv) {
     printf(", \"occlusion_rays\": %u, \"occlusion_blocked\": %ld", n_incoherent,
            occlusion_blocked);
     print_rate("occlusion", n_incoherent, w, c);
+    /* The same arrays through Embree's stream calls, 256 rays a call: coherent for
+     * the camera and shadow rays (tile by tile), incoherent for the bounces. */
+    long stream_hits;
+    TIME(repeat, stream_hits, w, c,
+         closest_stream(primary, n_primary, RTC_INTERSECT_CONTEXT_FLAG_COHERENT));
+    printf(", \"primary_stream_hits\": %ld", stream_hits);
+    print_rate("primary_stream", n_primary, w, c);
+    TIME(repeat, stream_hits, w, c,
+         occluded_stream(shadow, n_shadow, RTC_INTERSECT_CONTEXT_FLAG_COHERENT));
+    printf(", \"shadow_stream_occluded\": %ld", stream_hits);
+    print_rate("shadow_stream", n_shadow, w, c);
+    TIME(repeat, stream_hits, w, c,
+         closest_stream(incoherent, n_incoherent, RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT));
+    printf(", \"incoherent_stream_hits\": %ld", stream_hits);
+    print_rate("incoherent_stream", n_incoherent, w, c);
+    TIME(repeat, stream_hits, w, c,
+         occluded_stream(incoherent, n_incoherent, RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT));
+    printf(", \"occlusion_stream_blocked\": %ld", stream_hits);
+    print_rate("occlusion_stream", n_incoherent, w, c);
     printf("}\n");
     rtcReleaseScene(scene);
     rtcReleaseDevice(device);

@@ -39,20 +39,21 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         ids.iter().filter(|&&id| id != u32::MAX).count() == workload.primary_hits,
         "closest-hit runs disagree on the number of hits"
     );
-    // The same rays through the array query: the same hits.
-    let (stream_ids, primary_stream) = median_times(args.repeat, || {
-        trace_closest_primitives_stream(&scene, &workload.primary)
-    });
-    anyhow::ensure!(
-        stream_ids == ids,
-        "the array query and single rays disagree on the primary rays' hits"
-    );
     let (packet_ids, primary_packet) = median_times(args.repeat, || {
         trace_closest_primitives_packets(&scene, &workload.primary_tiled, &workload.primary_packets)
     });
     anyhow::ensure!(
         packet_ids.iter().filter(|&&id| id != u32::MAX).count() == workload.primary_hits,
         "packets and single rays disagree on the number of hits"
+    );
+    // The same rays in the same order (tile by tile, as `--dump-rays` writes them for
+    // Embree's array calls) through the array query: the same hits.
+    let (stream_ids, primary_stream) = median_times(args.repeat, || {
+        trace_closest_primitives_stream(&scene, &workload.primary_tiled)
+    });
+    anyhow::ensure!(
+        stream_ids == packet_ids,
+        "the array query and packets disagree on the primary rays' hits"
     );
     let (occluded, shadow) = median_times(args.repeat, || count_occluded(&scene, &workload.shadow));
     let (packet_occluded, shadow_packet) = median_times(args.repeat, || {
@@ -62,9 +63,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         packet_occluded == occluded,
         "packets and single rays disagree on the number of blocked shadow rays"
     );
-    // The same rays through the array query: as many blocked.
+    // The same rays, tile by tile, through the array query: as many blocked.
     let (shadow_rays, shadow_reach): (Vec<Ray>, Vec<Float>) =
-        workload.shadow.iter().copied().unzip();
+        workload.shadow_tiled.iter().copied().unzip();
     let (stream_occluded, shadow_stream) = median_times(args.repeat, || {
         count_occluded_stream(&scene, &shadow_rays, &shadow_reach)
     });

@@ -424,6 +424,39 @@ impl WideBvh {
         }
     }
 
+    /// Puts `child`, met at distance `t_enter`, on the walk's stack, and asks for
+    /// its memory.
+    #[inline(always)]
+    fn push(
+        &self,
+        walk: &mut Walk,
+        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        child: ChildRef,
+        t_enter: Float,
+    ) {
+        debug_assert!(walk.stack_len < STACK_SIZE);
+        self.prefetch_node(child);
+        stack[walk.stack_len].write((child, t_enter));
+        walk.stack_len += 1;
+    }
+
+    /// [`WideBvh::push`] of the children of the slots in `slots`, in slot order.
+    #[inline(always)]
+    fn push_all(
+        &self,
+        walk: &mut Walk,
+        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        mut slots: u32,
+        child: impl Fn(usize) -> ChildRef,
+        t_enter: &[Float; WIDTH],
+    ) {
+        while slots != 0 {
+            let slot = slots.trailing_zeros() as usize;
+            slots &= slots - 1;
+            self.push(walk, stack, child(slot), t_enter[slot]);
+        }
+    }
+
     /// One step of a walk: visits its current node or leaf, then takes the next
     /// child to visit, nearest first if `ORDERED`, from the node's children or the
     /// stack. With `PREFETCH_NEXT`, also asks for the memory of that child if it is a
@@ -474,15 +507,7 @@ impl WideBvh {
                     // blocks then stops before descending elsewhere (the dragon's
                     // bounce rays as occlusion queries: 1.15x-1.19x; shadow rays
                     // toward the lights, mostly unblocked, alike).
-                    let mut interior = hits & !leaf_hits;
-                    while interior != 0 {
-                        let slot = interior.trailing_zeros() as usize;
-                        interior &= interior - 1;
-                        debug_assert!(walk.stack_len < STACK_SIZE);
-                        self.prefetch_node(child(slot));
-                        stack[walk.stack_len].write((child(slot), t_enter[slot]));
-                        walk.stack_len += 1;
-                    }
+                    self.push_all(walk, stack, hits & !leaf_hits, child, t_enter);
                     hits = leaf_hits;
                 }
                 let first = hits.trailing_zeros() as usize;
@@ -499,24 +524,14 @@ impl WideBvh {
                         } else {
                             (second, first)
                         };
-                        debug_assert!(walk.stack_len < STACK_SIZE);
-                        self.prefetch_node(child(far));
-                        stack[walk.stack_len].write((child(far), t_enter[far]));
-                        walk.stack_len += 1;
+                        self.push(walk, stack, child(far), t_enter[far]);
                         walk.current = child(near);
                     } else {
                         // Three or more: push all, then, if ordered, sort the pushed
                         // run so that the nearest is on top, and take it.
                         let run_start = walk.stack_len;
                         hits |= (1 << first) | (1 << second);
-                        while hits != 0 {
-                            let slot = hits.trailing_zeros() as usize;
-                            hits &= hits - 1;
-                            debug_assert!(walk.stack_len < STACK_SIZE);
-                            self.prefetch_node(child(slot));
-                            stack[walk.stack_len].write((child(slot), t_enter[slot]));
-                            walk.stack_len += 1;
-                        }
+                        self.push_all(walk, stack, hits, child, t_enter);
                         if ORDERED {
                             // SAFETY: entries `run_start..stack_len` were written just
                             // above.

@@ -409,19 +409,32 @@ mod tests {
         );
         assert!(!scene.interleaves());
         let rays = random_rays(100, 5);
-        let mut hits = vec![None; rays.len()];
-        scene.intersect_primitives(&rays, &mut hits);
-        let expected: Vec<_> = rays.iter().map(|r| scene.intersect_primitive(r)).collect();
-        assert_eq!(hits, expected);
         let t_max: Vec<Float> = (0..rays.len()).map(|i| i as Float * 0.03).collect();
+        assert_array_answers(&scene, &rays, &t_max);
+    }
+
+    /// Both array queries of `rays` give each ray its own answer: the blocker within
+    /// `t_max`, and the closest primitive, distance and barycentrics, bit for bit.
+    /// Returns how many rays are blocked and how many hit something.
+    fn assert_array_answers(scene: &Scene, rays: &[Ray], t_max: &[Float]) -> (usize, usize) {
         let mut blocked = vec![false; rays.len()];
-        scene.occluded_rays(&rays, &t_max, &mut blocked);
-        let expected: Vec<_> = rays
+        scene.occluded_rays(rays, t_max, &mut blocked);
+        let expected: Vec<bool> = rays
             .iter()
-            .zip(&t_max)
+            .zip(t_max)
             .map(|(r, &t)| scene.occluded(r, t))
             .collect();
         assert_eq!(blocked, expected);
+        let mut hits = vec![None; rays.len()];
+        scene.intersect_primitives(rays, &mut hits);
+        let bits = |h: &Option<(u32, PrimHit)>| {
+            h.map(|(prim, h)| (prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+        };
+        for (ray, hit) in rays.iter().zip(&hits) {
+            assert_eq!(bits(hit), bits(&scene.intersect_primitive(ray)));
+        }
+        let blocked = blocked.iter().filter(|&&b| b).count();
+        (blocked, hits.iter().filter(|h| h.is_some()).count())
     }
 
     /// Interleaved any-hit walks find a ray blocked exactly when its own walk does,
@@ -523,24 +536,9 @@ mod tests {
             (&random, vec![Float::INFINITY; random.len()]),
             (&camera, vec![Float::INFINITY; camera.len()]),
         ] {
-            let mut blocked = vec![false; rays.len()];
-            scene.occluded_rays(rays, &t_max, &mut blocked);
-            let expected: Vec<bool> = rays
-                .iter()
-                .zip(&t_max)
-                .map(|(r, &t)| scene.occluded(r, t))
-                .collect();
-            assert_eq!(blocked, expected);
-            assert!(expected.iter().any(|&b| b) && expected.iter().any(|&b| !b));
-            let mut hits = vec![None; rays.len()];
-            scene.intersect_primitives(rays, &mut hits);
-            for (ray, hit) in rays.iter().zip(&hits) {
-                let bits = |h: &Option<(u32, PrimHit)>| {
-                    h.map(|(prim, h)| (prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
-                };
-                assert_eq!(bits(hit), bits(&scene.intersect_primitive(ray)));
-            }
-            assert!(hits.iter().filter(|h| h.is_some()).count() > rays.len() / 4);
+            let (blocked, hits) = assert_array_answers(&scene, rays, &t_max);
+            assert!(blocked > 0 && blocked < rays.len());
+            assert!(hits > rays.len() / 4);
         }
     }
 
@@ -561,18 +559,7 @@ mod tests {
             .copied()
             .chain(std::iter::repeat_n(Float::INFINITY, random.len()))
             .collect();
-        let mut blocked = vec![false; rays.len()];
-        scene.occluded_rays(&rays, &t_max, &mut blocked);
-        let expected: Vec<bool> = rays
-            .iter()
-            .zip(&t_max)
-            .map(|(r, &t)| scene.occluded(r, t))
-            .collect();
-        assert_eq!(blocked, expected);
-        let mut hits = vec![None; rays.len()];
-        scene.intersect_primitives(&rays, &mut hits);
-        let expected: Vec<_> = rays.iter().map(|r| scene.intersect_primitive(r)).collect();
-        assert_eq!(hits, expected);
+        assert_array_answers(&scene, &rays, &t_max);
     }
 
     /// A coherent chunk's rays go into packets of nearly parallel rays, each ray in

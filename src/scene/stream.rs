@@ -106,6 +106,8 @@ struct Packets {
     run_count: usize,
 }
 
+/// [`Packets`] of a coherent chunk: each ray joins the first open packet whose first
+/// ray is nearly parallel to it, or opens one.
 fn packets_of(rays: &[Ray]) -> Packets {
     debug_assert!(rays.len() <= CHUNK);
     // Rays of each open packet, and its first ray's direction.

@@ -540,7 +540,14 @@ impl Scene {
     /// 1.03x-1.05x on the 11k-triangle dragon's incoherent rays.
     #[inline(always)]
     pub fn intersect_primitive(&self, ray: &Ray) -> Option<(u32, PrimHit)> {
-        let (packet, lane, hit) = self.closest_lane(ray)?;
+        self.named(self.closest_lane(ray))
+    }
+
+    /// A closest hit as packet, lane and hit, with its primitive's index (leaf
+    /// order) in place of packet and lane.
+    #[inline(always)]
+    fn named(&self, found: Option<(u32, usize, PrimHit)>) -> Option<(u32, PrimHit)> {
+        let (packet, lane, hit) = found?;
         Some((self.packets[packet as usize].prim(lane)?, hit))
     }
 

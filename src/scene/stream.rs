@@ -199,9 +199,7 @@ impl Scene {
                 std::array::from_fn(|k| rays[members[k.min(members.len() - 1)] as usize]);
             let found = self.closest_lanes_packet(&packet[..members.len()]);
             for (&i, found) in members.iter().zip(found) {
-                hits[i as usize] = found.and_then(|(packet, lane, hit)| {
-                    Some((self.packets[packet as usize].prim(lane)?, hit))
-                });
+                hits[i as usize] = self.named(found);
             }
         }
     }
@@ -303,29 +301,25 @@ impl Scene {
         !self.has_cutouts && self.acceleration_bytes() > INTERLEAVE_ABOVE_BYTES
     }
 
-    /// [`Scene::intersect_primitives`] through interleaved walks, whatever the
-    /// scene's size (for scenes without cutouts).
+    /// [`Scene::intersect_primitives`] of a chunk through an interleaved walk,
+    /// whatever the scene's size (for scenes without cutouts).
     fn intersect_primitives_interleaved(&self, rays: &[Ray], hits: &mut [Option<(u32, PrimHit)>]) {
-        debug_assert!(!self.has_cutouts);
-        for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
-            let queries = queries_of(rays);
-            let mut t_max = [Float::INFINITY; CHUNK];
-            let mut closest = [None; CHUNK];
-            self.wide.walk_interleaved(
-                &queries[..rays.len()],
-                &mut t_max[..rays.len()],
-                &self.packets,
-                |ray, first, count, t_max| {
-                    let lanes = PacketRay::new(&rays[ray]);
-                    self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest[ray]);
-                    false
-                },
-            );
-            for (hit, found) in hits.iter_mut().zip(closest) {
-                *hit = found.and_then(|(packet, lane, hit)| {
-                    Some((self.packets[packet as usize].prim(lane)?, hit))
-                });
-            }
+        debug_assert!(!self.has_cutouts && rays.len() <= CHUNK);
+        let queries = queries_of(rays);
+        let mut t_max = [Float::INFINITY; CHUNK];
+        let mut closest = [None; CHUNK];
+        self.wide.walk_interleaved(
+            &queries[..rays.len()],
+            &mut t_max[..rays.len()],
+            &self.packets,
+            |ray, first, count, t_max| {
+                let lanes = PacketRay::new(&rays[ray]);
+                self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest[ray]);
+                false
+            },
+        );
+        for (hit, found) in hits.iter_mut().zip(closest) {
+            *hit = self.named(found);
         }
     }
 }
@@ -382,7 +376,9 @@ mod tests {
             for count in [0, 1, 5, CHUNK, 3 * CHUNK + 17] {
                 let rays = random_rays(count, seed + count as u64);
                 let mut hits = vec![None; count];
-                scene.intersect_primitives_interleaved(&rays, &mut hits);
+                for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
+                    scene.intersect_primitives_interleaved(rays, hits);
+                }
                 let expected: Vec<_> = rays.iter().map(|r| scene.intersect_primitive(r)).collect();
                 assert!(
                     count < CHUNK || expected.iter().filter(|h| h.is_some()).count() > count / 4,

@@ -67,7 +67,7 @@ impl WideNode {
 
     /// Bit `i` set if slot `i` is a leaf.
     #[inline(always)]
-    fn leaf_slots(&self) -> u32 {
+    pub(super) fn leaf_slots(&self) -> u32 {
         let interior = u32x8::from(self.item_count).simd_eq(u32x8::ZERO);
         !interior.to_bitmask() & ((1 << WIDTH) - 1)
     }
@@ -294,7 +294,7 @@ impl WideBvh {
     /// is fetched for nothing. Large scenes' nodes do not fit in the caches, and an
     /// incoherent ray's next node is otherwise a cache miss the walk waits for.
     #[inline(always)]
-    fn prefetch_node(&self, child: ChildRef) {
+    pub(super) fn prefetch_node(&self, child: ChildRef) {
         prefetch_lines(
             self.nodes.as_ptr().wrapping_add(child.index as usize),
             PREFETCH_LINES,
@@ -349,34 +349,6 @@ impl WideBvh {
         rays: &[RayQuery],
         t_max: &mut [Float],
         items: &[T],
-        leaf: F,
-    ) where
-        F: FnMut(usize, u32, u32, &mut Float) -> bool,
-    {
-        self.walk_interleaved_as::<true, T, F>(rays, t_max, items, leaf);
-    }
-
-    /// [`WideBvh::walk_interleaved`] for any-hit queries, as [`WideBvh::walk_any`]
-    /// walks one ray: each ray visits the leaves its own `walk_any` visits, in the
-    /// same order.
-    pub fn walk_interleaved_any<T, F>(
-        &self,
-        rays: &[RayQuery],
-        t_max: &mut [Float],
-        items: &[T],
-        leaf: F,
-    ) where
-        F: FnMut(usize, u32, u32, &mut Float) -> bool,
-    {
-        self.walk_interleaved_as::<false, T, F>(rays, t_max, items, leaf);
-    }
-
-    #[inline(always)]
-    fn walk_interleaved_as<const ORDERED: bool, T, F>(
-        &self,
-        rays: &[RayQuery],
-        t_max: &mut [Float],
-        items: &[T],
         mut leaf: F,
     ) where
         F: FnMut(usize, u32, u32, &mut Float) -> bool,
@@ -404,7 +376,7 @@ impl WideBvh {
                 // SAFETY: every slot of `live` was written.
                 let (walk, ray) = unsafe { in_flight[slot].assume_init_mut() };
                 let ray = *ray;
-                let step = self.step::<ORDERED, true, T, _>(
+                let step = self.step::<true, true, T, _>(
                     walk,
                     &mut stacks[slot],
                     &mut t_max[ray],
@@ -673,7 +645,7 @@ pub(super) struct WideRay {
 
 impl WideRay {
     #[inline(always)]
-    fn new(ray: &RayQuery) -> WideRay {
+    pub(super) fn new(ray: &RayQuery) -> WideRay {
         let [x, y, z, _] = ray.origin.to_array();
         let [u, v, w, _] = ray.inv_dir.to_array();
         WideRay::from_parts([x, y, z], [u, v, w])
@@ -840,9 +812,8 @@ mod tests {
         };
         assert_eq!(visits(false), [0, 1]);
         assert_eq!(visits(true), [1, 0]);
-        let mut reach = [Float::INFINITY];
         let mut seen = Vec::new();
-        bvh.walk_interleaved_any(&[ray], &mut reach, &items, |_, first, _, _| {
+        bvh.walk_stream_any(&[ray], &[Float::INFINITY], &items, |_, first, _, _| {
             seen.push(first);
             false
         });

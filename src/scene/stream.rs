@@ -5,32 +5,34 @@
 //! (camera rays of neighbouring pixels, shadow rays of neighbouring points towards a
 //! few lights), its rays are sorted into packets of up to sixteen nearly parallel
 //! rays and traced as the renderer traces its 4x4 tiles ([`Scene::occluded_packet`],
-//! the closest-hit packet walk). Other chunks, in a scene larger than the
-//! processor's last-level cache, where each ray mostly waits for its next node or
-//! leaf to come from memory, are walked several rays at a time
-//! ([`WideBvh::walk_interleaved`](crate::bvh::WideBvh::walk_interleaved),
-//! [`walk_interleaved_any`](crate::bvh::WideBvh::walk_interleaved_any)); in a smaller
-//! one, ray by ray, which is faster there. Every way gives the answers of
+//! the closest-hit packet walk). Other chunks' blockers are found by one walk of the
+//! whole chunk down the tree ([`WideBvh::walk_stream_any`](crate::bvh::WideBvh::walk_stream_any)).
+//! Their closest hits, in a scene larger than the processor's last-level cache,
+//! where each ray mostly waits for its next node or leaf to come from memory, are
+//! walked several rays at a time
+//! ([`WideBvh::walk_interleaved`](crate::bvh::WideBvh::walk_interleaved)); in a
+//! smaller one, ray by ray, which is faster there. Every way gives the answers of
 //! [`Scene::intersect_primitive`] and [`Scene::occluded`], bit for bit.
 
 use super::Scene;
-use crate::bvh::{PACKET_SIZE, RayQuery};
+use crate::bvh::{PACKET_SIZE, RayQuery, STREAM_RAYS};
 use crate::math::{Float, Ray, Vec3};
 use crate::shapes::{PacketRay, PrimHit};
 
 /// Scenes whose wide BVH nodes and triangle packets take more bytes than this trace
-/// arrays of rays several at a time: the size of a last-level cache shared by a few
+/// the closest hits of arrays of rays several at a time: the size of a last-level cache shared by a few
 /// cores on current desktop and server processors (32 MiB on this project's
 /// benchmark machine). Measured on the dragon's incoherent bounce rays: 1.10x at
 /// 871k triangles (50 MB), 0.90x-0.97x at 203k (12 MB) and 0.78x-0.88x below.
 pub const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 
-/// Rays given to one interleaved walk: enough for the walk's rays in flight to be
-/// replaced many times, few enough for their state to stay in the first-level cache.
-const CHUNK: usize = 64;
+/// Rays given to one interleaved or stream walk: enough for the interleaved walk's
+/// rays in flight to be replaced many times, few enough for their state to stay in
+/// the first-level cache; one bit each in a stream walk's masks.
+const CHUNK: usize = STREAM_RAYS;
 
-/// The slab tests' set-up of up to [`CHUNK`] rays, for one interleaved walk (slots
-/// past the rays repeat the first one, and are not walked).
+/// The slab tests' set-up of up to [`CHUNK`] rays, for one interleaved or stream
+/// walk (slots past the rays repeat the first one, and are not walked).
 fn queries_of(rays: &[Ray]) -> [RayQuery; CHUNK] {
     std::array::from_fn(|i| RayQuery::new(rays.get(i).unwrap_or(&rays[0])))
 }
@@ -208,10 +210,13 @@ impl Scene {
     /// `blocked`: the same answers. Coherent runs of 64 rays (most of them within
     /// about 8 degrees of one of the four rays before them) are traced in packets of
     /// nearly parallel rays (the dragon's shadow rays towards two lights in turn:
-    /// 1.3x ray by ray on the 871k-triangle dragon, 1.7x on the 11k one). In scenes
-    /// larger than [`INTERLEAVE_ABOVE_BYTES`] the other runs are walked several rays
-    /// at a time (the dragon's bounce directions with no limit: 1.20x ray by ray).
-    /// Runs on the calling thread.
+    /// 1.3x ray by ray on the 871k-triangle dragon, 1.7x on the 11k one). The other
+    /// runs go down the tree 64 rays at a time ([`WideBvh::walk_stream_any`]; the
+    /// dragon's bounce directions with no limit: 1.23x-1.30x ray by ray on the 11k to
+    /// 203k-triangle meshes, 1.2x on the 871k one, as fast there as walking eight
+    /// rays at a time). Runs on the calling thread.
+    ///
+    /// [`WideBvh::walk_stream_any`]: crate::bvh::WideBvh::walk_stream_any
     ///
     /// # Panics
     /// If `t_max` or `blocked` differ from `rays` in length.
@@ -222,7 +227,6 @@ impl Scene {
             self.occluded_ray_by_ray(rays, t_max, blocked);
             return;
         }
-        let interleaves = self.interleaves();
         let mut vote = Vote::default();
         for ((rays, t_max), blocked) in rays
             .chunks(CHUNK)
@@ -231,10 +235,8 @@ impl Scene {
         {
             if vote.coherent(rays) {
                 self.occluded_in_packets(rays, t_max, blocked);
-            } else if interleaves {
-                self.occluded_interleaved(rays, t_max, blocked);
             } else {
-                self.occluded_ray_by_ray(rays, t_max, blocked);
+                self.occluded_streamed(rays, t_max, blocked);
             }
         }
     }
@@ -269,24 +271,23 @@ impl Scene {
         }
     }
 
-    /// [`Scene::occluded_rays`] of a chunk through an interleaved walk, whatever the
-    /// scene's size (for scenes without cutouts).
-    fn occluded_interleaved(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
+    /// [`Scene::occluded_rays`] of a chunk (at most [`STREAM_RAYS`]) through one
+    /// stream walk (for scenes without cutouts).
+    fn occluded_streamed(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
         debug_assert!(!self.has_cutouts && rays.len() <= CHUNK);
         let queries = queries_of(rays);
-        let mut reach = [0.0; CHUNK];
-        reach[..rays.len()].copy_from_slice(t_max);
-        blocked.fill(false);
-        self.wide.walk_interleaved_any(
+        let answers = self.wide.walk_stream_any(
             &queries[..rays.len()],
-            &mut reach[..rays.len()],
+            t_max,
             &self.packets,
             |ray, first, count, t_max| {
                 let lanes = PacketRay::new(&rays[ray]);
-                blocked[ray] = self.blocker_in_leaf(&lanes, first, count, *t_max);
-                blocked[ray]
+                self.blocker_in_leaf(&lanes, first, count, t_max)
             },
         );
+        for (i, blocked) in blocked.iter_mut().enumerate() {
+            *blocked = answers >> i & 1 != 0;
+        }
     }
 
     /// Bytes of the wide BVH's nodes and the triangle packets: what rays read.
@@ -435,10 +436,10 @@ mod tests {
         (blocked, hits.iter().filter(|h| h.is_some()).count())
     }
 
-    /// Interleaved any-hit walks find a ray blocked exactly when its own walk does,
-    /// within reaches from zero to unlimited, for whole chunks and ragged arrays.
+    /// Stream walks find a ray blocked exactly when its own walk does, within
+    /// reaches from zero to unlimited, for whole chunks and ragged arrays.
     #[test]
-    fn interleaved_any_hit_walks_find_what_single_rays_find() {
+    fn stream_walks_find_what_single_rays_find() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(6);
         // Rays found not blocked, and blocked.
         let mut answers = [0; 2];
@@ -455,7 +456,13 @@ mod tests {
                     .collect();
                 // Stale answers must be overwritten, both ways.
                 let mut blocked: Vec<bool> = (0..count).map(|i| i % 2 == 0).collect();
-                occluded_interleaved(&scene, &rays, &t_max, &mut blocked);
+                for ((rays, t_max), blocked) in rays
+                    .chunks(CHUNK)
+                    .zip(t_max.chunks(CHUNK))
+                    .zip(blocked.chunks_mut(CHUNK))
+                {
+                    scene.occluded_streamed(rays, t_max, blocked);
+                }
                 let expected: Vec<bool> = rays
                     .iter()
                     .zip(&t_max)
@@ -471,17 +478,6 @@ mod tests {
             answers.iter().all(|&a| a > 150),
             "too few of one answer: {answers:?}"
         );
-    }
-
-    /// [`Scene::occluded_interleaved`] chunk by chunk, whatever the rays.
-    fn occluded_interleaved(scene: &Scene, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
-        for ((rays, t_max), blocked) in rays
-            .chunks(CHUNK)
-            .zip(t_max.chunks(CHUNK))
-            .zip(blocked.chunks_mut(CHUNK))
-        {
-            scene.occluded_interleaved(rays, t_max, blocked);
-        }
     }
 
     /// Shadow rays from points along a line towards two lights in turn, with their

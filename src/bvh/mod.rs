@@ -18,8 +18,8 @@ pub use node::BvhNode;
 pub(crate) use packet::lane_mask;
 pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of};
 pub use stream::STREAM_RAYS;
-pub use wide::{INTERLEAVED_RAYS, RayQuery, WideBvh, WideNode};
 pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE};
+pub use wide::{RayQuery, WideBvh, WideNode};
 
 use crate::math::Aabb;
 

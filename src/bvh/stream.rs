@@ -1,25 +1,34 @@
-//! Any-hit walks of a whole stream of rays at once, as Embree's stream traversal
-//! answers incoherent occlusion queries: the stream goes down the tree together, each
-//! node visited once with the set of rays that reached it, as a bit per ray. Rays
-//! that start near one another share most of the nodes they visit (bounce rays from
+//! Walks of a whole stream of up to 64 rays at once, as Embree's stream traversal
+//! answers incoherent queries: the stream goes down the tree together, each node
+//! visited once with the set of rays that reached it, as a bit per ray. Rays that
+//! start near one another share most of the nodes they visit (bounce rays from
 //! neighbouring pixels share the tree's top and the surface they leave), so a node's
 //! memory is waited for once per stream rather than once per ray, and the box tests
 //! of the rays that reached it run back to back, each ray against the node's eight
-//! children, as in its own walk. No ray meets a box that its own walk would not test.
+//! children as in its own walk: independent work the processor overlaps, where one
+//! ray's walk is a chain of steps that each wait for the one before. No ray meets a
+//! box that its own walk would not test.
 
 use std::mem::MaybeUninit;
 
-use super::wide::{ChildRef, STACK_SIZE, WideBvh, WideRay};
-use super::{PREFETCH_LINES, RayQuery};
+use wide::{f32x8, u32x8, u64x8};
+
+use super::wide::{ChildRef, STACK_SIZE, WIDTH, WideBvh, WideNode, WideRay, sort_far_to_near};
+use super::{CLOSEST_CULL_MARGIN, PREFETCH_LINES, RayQuery};
 use crate::math::Float;
 use crate::memory::prefetch_lines;
-use wide::u64x8;
+
+/// Most rays one stream walk takes: one bit each of a `u64`. On the dragon's bounce
+/// rays, streams of 32 or 128 rays were 4-10% slower, of 16 rays 16%.
+pub const STREAM_RAYS: usize = 64;
 
 /// Bit `i` in lane `i`: spreads a node's hit mask over one lane per child.
 const SLOT_BITS: u64x8 = u64x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
+/// The same for 32-bit lanes.
+const SLOT_BITS_32: u32x8 = u32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
 
-/// Most rays one stream walk takes: one bit each of a `u64`.
-pub const STREAM_RAYS: usize = 64;
+/// The rays of a stream walk that have reached one node or leaf, a bit each.
+type Rays = u64;
 
 impl WideBvh {
     /// Whether each ray of `rays` (at most [`STREAM_RAYS`]) meets something within
@@ -50,19 +59,12 @@ impl WideBvh {
         if self.nodes.is_empty() || rays.is_empty() {
             return 0;
         }
-        let every_ray = u64::MAX >> (STREAM_RAYS - rays.len());
-        let mut blocked = 0u64;
+        let mut blocked: Rays = 0;
         // Nodes and leaves still to visit, each with the rays that reached it. The
         // walk goes depth first, so the stack holds at most `WIDTH - 1` pending
         // siblings per level, as one ray's does.
-        let mut stack = [const { MaybeUninit::<(ChildRef, u64)>::uninit() }; STACK_SIZE];
-        stack[0].write((
-            ChildRef {
-                index: 0,
-                item_count: 0,
-            },
-            every_ray,
-        ));
+        let mut stack = [const { MaybeUninit::<(ChildRef, Rays)>::uninit() }; STACK_SIZE];
+        stack[0].write((ROOT, every_ray(rays.len())));
         let mut stack_len = 1;
         while stack_len > 0 {
             stack_len -= 1;
@@ -83,28 +85,131 @@ impl WideBvh {
                 continue;
             }
             let node = &self.nodes[current.index as usize];
-            // The rays that meet each child's box, one lane per child.
-            let mut slot_rays = u64x8::ZERO;
-            while waiting != 0 {
-                let ray = waiting.trailing_zeros() as usize;
-                waiting &= waiting - 1;
-                let (hits, _) = WideRay::new(&rays[ray]).hit_children::<false>(node, t_max[ray]);
-                let met = (u64x8::splat(u64::from(hits)) & SLOT_BITS).simd_ne(u64x8::ZERO);
-                slot_rays |= met & u64x8::splat(1 << ray);
-            }
-            let slot_rays = slot_rays.to_array();
-            let met = slot_rays
-                .iter()
-                .enumerate()
-                .fold(0u32, |met, (slot, &r)| met | u32::from(r != 0) << slot);
+            let slot_rays = rays_per_child::<false>(node, rays, t_max, waiting, |_, _, _| {});
             // Interior children go on the stack first, leaves last: a stream's leaves
             // are tested first, their items asked for now, and any ray they block
             // leaves the stream before it goes down elsewhere (as `walk_any`).
+            let met = met_slots(&slot_rays);
             let leaves = met & node.leaf_slots();
-            let mut interior = met & !leaves;
-            while interior != 0 {
-                let slot = interior.trailing_zeros() as usize;
-                interior &= interior - 1;
+            for slots in [met & !leaves, leaves] {
+                let mut slots = slots;
+                while slots != 0 {
+                    let slot = slots.trailing_zeros() as usize;
+                    slots &= slots - 1;
+                    let child = ChildRef {
+                        index: node.child[slot],
+                        item_count: node.item_count[slot],
+                    };
+                    if child.item_count > 0 {
+                        prefetch_lines(
+                            items.as_ptr().wrapping_add(child.index as usize),
+                            PREFETCH_LINES,
+                        );
+                    } else {
+                        self.prefetch_node(child);
+                    }
+                    debug_assert!(stack_len < STACK_SIZE);
+                    stack[stack_len].write((child, slot_rays[slot]));
+                    stack_len += 1;
+                }
+            }
+        }
+        blocked
+    }
+
+    /// The closest hits of `rays` (at most [`STREAM_RAYS`]), each within its reach
+    /// `t_max[i]`, which the leaf test lowers: [`WideBvh::walk_ordered`] for a
+    /// stream. `leaf(ray, first_item, item_count, entry, t_max)` tests leaf items for
+    /// ray `rays[ray]`, which entered the leaf's box at distance `entry`.
+    ///
+    /// At each node, every ray that reached it tests the leaves among the children
+    /// it meets right away, nearest first, their items asked for as soon as one ray
+    /// meets them; the interior children go on the stack nearest first by the mean
+    /// entry distance of the rays that meet them. A ray's leaves therefore come in
+    /// another order than in its own walk: where two hits lie at exactly the same
+    /// distance, or a hit lies nearer than the box entry of its leaf (the triangle
+    /// test's edge tolerance reaches a hair outside a triangle's box), its own walk
+    /// may keep another hit, and a caller after its answers bit for bit must trace
+    /// such a ray again on its own (`entry` tells it). So that the caller sees such
+    /// hits, boxes are entered up to [`CLOSEST_CULL_MARGIN`] times a ray's `t_max`,
+    /// as in the closest-hit packet walk: every leaf single-ray traversal could
+    /// test is tested, unless a hit falls short of its box by more than that.
+    ///
+    /// # Panics
+    /// If `rays` holds more than [`STREAM_RAYS`] rays, or `t_max` differs from it in
+    /// length.
+    pub fn walk_stream_closest<T, F>(
+        &self,
+        rays: &[RayQuery],
+        t_max: &mut [Float],
+        items: &[T],
+        mut leaf: F,
+    ) where
+        F: FnMut(usize, u32, u32, Float, &mut Float),
+    {
+        assert!(rays.len() <= STREAM_RAYS, "at most {STREAM_RAYS} rays");
+        assert_eq!(rays.len(), t_max.len(), "one reach per ray");
+        if self.nodes.is_empty() || rays.is_empty() {
+            return;
+        }
+        // Interior nodes still to visit, with the rays that reached them.
+        let mut stack = [const { MaybeUninit::<(ChildRef, Rays)>::uninit() }; STACK_SIZE];
+        stack[0].write((ROOT, every_ray(rays.len())));
+        let mut stack_len = 1;
+        // Each ray's children met at the current node, and its entry distances.
+        let mut met_by = [0u8; STREAM_RAYS];
+        let mut entries = [[0.0; WIDTH]; STREAM_RAYS];
+        while stack_len > 0 {
+            stack_len -= 1;
+            // SAFETY: every entry below `stack_len` was written before.
+            let (current, reached) = unsafe { stack[stack_len].assume_init() };
+            let node = &self.nodes[current.index as usize];
+            let mut entry_sums = f32x8::ZERO;
+            let leaf_slots = node.leaf_slots();
+            // Leaves whose items were asked for: each as soon as a ray meets it, so
+            // that the items are on their way during the other rays' box tests.
+            let mut asked = 0;
+            let slot_rays =
+                rays_per_child::<true>(node, rays, t_max, reached, |ray, hits, t_enter| {
+                    met_by[ray] = hits as u8;
+                    entries[ray] = t_enter.to_array();
+                    let met = (u32x8::splat(hits) & SLOT_BITS_32).simd_ne(u32x8::ZERO);
+                    entry_sums += t_enter & bytemuck::cast::<u32x8, f32x8>(met);
+                    let mut new = hits & leaf_slots & !asked;
+                    asked |= new;
+                    while new != 0 {
+                        let slot = new.trailing_zeros() as usize;
+                        new &= new - 1;
+                        prefetch_lines(
+                            items.as_ptr().wrapping_add(node.child[slot] as usize),
+                            PREFETCH_LINES,
+                        );
+                    }
+                });
+            let met = met_slots(&slot_rays);
+            let leaves = met & leaf_slots;
+            // Far first, so that the nearest is on top (`ChildRef::index` holds the
+            // slot while sorting).
+            let mut interior = [(ROOT, 0.0); WIDTH];
+            let mut interior_count = 0;
+            let sums = entry_sums.to_array();
+            let mut slots = met & !leaves;
+            while slots != 0 {
+                let slot = slots.trailing_zeros() as usize;
+                slots &= slots - 1;
+                let mean = sums[slot] / slot_rays[slot].count_ones() as Float;
+                interior[interior_count] = (
+                    ChildRef {
+                        index: slot as u32,
+                        item_count: 0,
+                    },
+                    mean,
+                );
+                interior_count += 1;
+            }
+            sort_far_to_near(&mut interior[..interior_count]);
+            for &(slot, _) in &interior[..interior_count] {
+                let slot = slot.index as usize;
                 let child = ChildRef {
                     index: node.child[slot],
                     item_count: 0,
@@ -114,25 +219,85 @@ impl WideBvh {
                 stack[stack_len].write((child, slot_rays[slot]));
                 stack_len += 1;
             }
-            let mut leaves = leaves;
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let child = ChildRef {
-                    index: node.child[slot],
-                    item_count: node.item_count[slot],
-                };
-                prefetch_lines(
-                    items.as_ptr().wrapping_add(child.index as usize),
-                    PREFETCH_LINES,
-                );
-                debug_assert!(stack_len < STACK_SIZE);
-                stack[stack_len].write((child, slot_rays[slot]));
-                stack_len += 1;
+            if leaves == 0 {
+                continue;
+            }
+            let mut waiting = reached;
+            while waiting != 0 {
+                let ray = waiting.trailing_zeros() as usize;
+                waiting &= waiting - 1;
+                let entry = &entries[ray];
+                let mut left = u32::from(met_by[ray]) & leaves;
+                while left != 0 {
+                    let mut nearest = left.trailing_zeros() as usize;
+                    let mut others = left & (left - 1);
+                    while others != 0 {
+                        let slot = others.trailing_zeros() as usize;
+                        others &= others - 1;
+                        if entry[slot] < entry[nearest] {
+                            nearest = slot;
+                        }
+                    }
+                    left &= !(1 << nearest);
+                    if entry[nearest] <= t_max[ray] * CLOSEST_CULL_MARGIN {
+                        let (first, count) = (node.child[nearest], node.item_count[nearest]);
+                        leaf(ray, first, count, entry[nearest], &mut t_max[ray]);
+                    }
+                }
             }
         }
-        blocked
     }
+}
+
+/// The root node, where every walk starts.
+const ROOT: ChildRef = ChildRef {
+    index: 0,
+    item_count: 0,
+};
+
+/// The mask of the first `count` rays of a stream.
+fn every_ray(count: usize) -> Rays {
+    Rays::MAX >> (STREAM_RAYS - count)
+}
+
+/// The rays of `waiting` that meet each child of `node` within their reach `t_max`
+/// (entering before it; if `CLOSEST`, at most [`CLOSEST_CULL_MARGIN`] times it, as
+/// the closest-hit packet walk, so as to see every hit whose answer in single-ray
+/// traversal could depend on the order of the leaves): one slab test per ray, whose
+/// hit mask and entry distances also go to `each(ray, hits, t_enter)`.
+#[inline(always)]
+fn rays_per_child<const CLOSEST: bool>(
+    node: &WideNode,
+    rays: &[RayQuery],
+    t_max: &[Float],
+    mut waiting: Rays,
+    mut each: impl FnMut(usize, u32, f32x8),
+) -> [Rays; WIDTH] {
+    // Lane `i` holds the rays that meet child `i`: one masked OR per ray rather than
+    // one per child it meets.
+    let mut slot_rays = u64x8::ZERO;
+    while waiting != 0 {
+        let ray = waiting.trailing_zeros() as usize;
+        waiting &= waiting - 1;
+        let reach = if CLOSEST {
+            t_max[ray] * CLOSEST_CULL_MARGIN
+        } else {
+            t_max[ray]
+        };
+        let (hits, t_enter) = WideRay::new(&rays[ray]).hit_children::<CLOSEST>(node, reach);
+        let met = (u64x8::splat(u64::from(hits)) & SLOT_BITS).simd_ne(u64x8::ZERO);
+        slot_rays |= met & u64x8::splat(1 << ray);
+        each(ray, hits, t_enter);
+    }
+    slot_rays.to_array()
+}
+
+/// Bit `i` set if some ray meets child `i`.
+fn met_slots(slot_rays: &[Rays; WIDTH]) -> u32 {
+    slot_rays
+        .iter()
+        .enumerate()
+        .fold(0, |met, (slot, &rays)| met | u32::from(rays != 0) << slot)
 }
 
 #[cfg(test)]

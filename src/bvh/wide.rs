@@ -319,79 +319,10 @@ impl WideBvh {
         let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
         let mut walk = Walk::new(ray);
         loop {
-            match self.step::<ORDERED, false, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf)
-            {
+            match self.step::<ORDERED, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf) {
                 Step::Going => {}
                 Step::Stopped => return true,
                 Step::Finished => return false,
-            }
-        }
-    }
-
-    /// [`WideBvh::walk_ordered`] for every ray of `rays`, with [`INTERLEAVED_RAYS`] of
-    /// them in flight at once: each takes one step (a node or a leaf) in turn, and
-    /// asks for the memory of its next step before the others take theirs. A single
-    /// ray in a scene larger than the caches mostly waits for its next node or leaf
-    /// to come from memory; here the other rays' steps fill that wait (incoherent rays
-    /// on the 871k-triangle dragon: 1.10x), but where the scene fits in the caches
-    /// the bookkeeping costs more than it hides (0.78x-0.97x on the dragon's smaller
-    /// meshes). Each ray visits the same nodes and leaves in the same order as on its
-    /// own, so the answers are the same, bit for bit.
-    ///
-    /// `leaf(ray, first_item, item_count, t_max)` is [`WideBvh::walk_ordered`]'s
-    /// `leaf` for ray `rays[ray]`, whose reach is `t_max[ray]`; returning `true` ends
-    /// that ray's walk.
-    ///
-    /// # Panics
-    /// If `t_max` and `rays` differ in length.
-    pub fn walk_interleaved<T, F>(
-        &self,
-        rays: &[RayQuery],
-        t_max: &mut [Float],
-        items: &[T],
-        mut leaf: F,
-    ) where
-        F: FnMut(usize, u32, u32, &mut Float) -> bool,
-    {
-        assert_eq!(rays.len(), t_max.len(), "one reach per ray");
-        if self.nodes.is_empty() {
-            return;
-        }
-        let mut stacks =
-            [[const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE]; INTERLEAVED_RAYS];
-        // The walk in each slot and the ray it traces.
-        let mut in_flight = [const { MaybeUninit::<(Walk, usize)>::uninit() }; INTERLEAVED_RAYS];
-        let mut next_ray = 0;
-        let mut live = 0u32;
-        for (slot, walk) in in_flight.iter_mut().enumerate().take(rays.len()) {
-            walk.write((Walk::new(&rays[next_ray]), next_ray));
-            next_ray += 1;
-            live |= 1 << slot;
-        }
-        while live != 0 {
-            let mut turn = live;
-            while turn != 0 {
-                let slot = turn.trailing_zeros() as usize;
-                turn &= turn - 1;
-                // SAFETY: every slot of `live` was written.
-                let (walk, ray) = unsafe { in_flight[slot].assume_init_mut() };
-                let ray = *ray;
-                let step = self.step::<true, true, T, _>(
-                    walk,
-                    &mut stacks[slot],
-                    &mut t_max[ray],
-                    items,
-                    &mut |first, count, t_max: &mut Float| leaf(ray, first, count, t_max),
-                );
-                if step == Step::Going {
-                    continue;
-                }
-                if next_ray < rays.len() {
-                    in_flight[slot].write((Walk::new(&rays[next_ray]), next_ray));
-                    next_ray += 1;
-                } else {
-                    live &= !(1 << slot);
-                }
             }
         }
     }
@@ -431,10 +362,9 @@ impl WideBvh {
 
     /// One step of a walk: visits its current node or leaf, then takes the next
     /// child to visit, nearest first if `ORDERED`, from the node's children or the
-    /// stack. With `PREFETCH_NEXT`, also asks for the memory of that child if it is a
-    /// node, for walks that take other rays' steps before they visit it.
+    /// stack.
     #[inline(always)]
-    fn step<const ORDERED: bool, const PREFETCH_NEXT: bool, T, F>(
+    fn step<const ORDERED: bool, T, F>(
         &self,
         walk: &mut Walk,
         stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
@@ -518,9 +448,6 @@ impl WideBvh {
                         walk.current = unsafe { stack[walk.stack_len].assume_init() }.0;
                     }
                 }
-                if PREFETCH_NEXT && walk.current.item_count == 0 {
-                    self.prefetch_node(walk.current);
-                }
                 return Step::Going;
             }
         }
@@ -539,10 +466,6 @@ impl WideBvh {
         }
     }
 }
-
-/// Rays a [`WideBvh::walk_interleaved`] keeps in flight (on the full dragon, four hid
-/// less of the wait, sixteen no more than eight).
-pub const INTERLEAVED_RAYS: usize = 8;
 
 /// Where one ray's walk is: its slab test, the node or leaf it visits next, and how
 /// many entries of its stack are pending.
@@ -587,7 +510,7 @@ pub(crate) const PREFETCH_LINES: usize = 4;
 /// Insertion sort by decreasing entry distance: at most eight entries, mostly two or
 /// three, where it beats any general sort.
 #[inline(always)]
-fn sort_far_to_near(run: &mut [(ChildRef, Float)]) {
+pub(super) fn sort_far_to_near(run: &mut [(ChildRef, Float)]) {
     for i in 1..run.len() {
         let entry = run[i];
         let mut j = i;

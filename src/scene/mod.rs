@@ -11,7 +11,6 @@ pub(crate) use packet::tests as packet_tests;
 
 pub use batch::BATCH;
 pub use info::{MaterialUse, MemoryEstimate, SceneSummary};
-pub use stream::INTERLEAVE_ABOVE_BYTES;
 
 use std::mem::MaybeUninit;
 
@@ -588,6 +587,38 @@ impl Scene {
                 *closest = Some((index, lane, hit));
             }
         }
+    }
+
+    /// [`Scene::nearest_in_leaf`] for a walk that visits a ray's leaves in another
+    /// order than its own walk, in a leaf whose box the ray entered at `entry`: also
+    /// whether the ray's answer could depend on that order, as it can when a hit lies
+    /// at exactly `t_max` (its own walk may have met it first) or a nearer one before
+    /// `entry` (its own walk may have passed it by).
+    #[inline(always)]
+    pub(super) fn nearest_in_leaf_noting_order(
+        &self,
+        lanes: &PacketRay,
+        first: u32,
+        count: u32,
+        entry: Float,
+        t_max: &mut Float,
+        closest: &mut Option<(u32, usize, PrimHit)>,
+    ) -> bool {
+        let mut order_matters = false;
+        for index in first..first + count {
+            let packet = &self.packets[index as usize];
+            // Up to the next float: a hit at exactly `t_max` is reported too.
+            if let Some((lane, hit)) = packet.intersect_any_kind(lanes, t_max.next_up()) {
+                if hit.t < *t_max {
+                    order_matters |= hit.t < entry;
+                    *t_max = hit.t;
+                    *closest = Some((index, lane, hit));
+                } else {
+                    order_matters = true;
+                }
+            }
+        }
+        order_matters
     }
 
     /// [`Scene::closest_lane`] for scenes with cutouts: a triangle hit counts only

@@ -5,34 +5,24 @@
 //! (camera rays of neighbouring pixels, shadow rays of neighbouring points towards a
 //! few lights), its rays are sorted into packets of up to sixteen nearly parallel
 //! rays and traced as the renderer traces its 4x4 tiles ([`Scene::occluded_packet`],
-//! the closest-hit packet walk). Other chunks' blockers are found by one walk of the
-//! whole chunk down the tree ([`WideBvh::walk_stream_any`](crate::bvh::WideBvh::walk_stream_any)).
-//! Their closest hits, in a scene larger than the processor's last-level cache,
-//! where each ray mostly waits for its next node or leaf to come from memory, are
-//! walked several rays at a time
-//! ([`WideBvh::walk_interleaved`](crate::bvh::WideBvh::walk_interleaved)); in a
-//! smaller one, ray by ray, which is faster there. Every way gives the answers of
-//! [`Scene::intersect_primitive`] and [`Scene::occluded`], bit for bit.
+//! the closest-hit packet walk). Other chunks go down the tree together, 64 rays at
+//! a time ([`WideBvh::walk_stream_closest`], [`WideBvh::walk_stream_any`]), short
+//! runs ray by ray. Every way gives the answers of [`Scene::intersect_primitive`]
+//! and [`Scene::occluded`], bit for bit.
+//!
+//! [`WideBvh::walk_stream_closest`]: crate::bvh::WideBvh::walk_stream_closest
+//! [`WideBvh::walk_stream_any`]: crate::bvh::WideBvh::walk_stream_any
 
 use super::Scene;
 use crate::bvh::{PACKET_SIZE, RayQuery, STREAM_RAYS};
 use crate::math::{Float, Ray, Vec3};
 use crate::shapes::{PacketRay, PrimHit};
 
-/// Scenes whose wide BVH nodes and triangle packets take more bytes than this trace
-/// the closest hits of arrays of rays several at a time: the size of a last-level cache shared by a few
-/// cores on current desktop and server processors (32 MiB on this project's
-/// benchmark machine). Measured on the dragon's incoherent bounce rays: 1.10x at
-/// 871k triangles (50 MB), 0.90x-0.97x at 203k (12 MB) and 0.78x-0.88x below.
-pub const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
-
-/// Rays given to one interleaved or stream walk: enough for the interleaved walk's
-/// rays in flight to be replaced many times, few enough for their state to stay in
-/// the first-level cache; one bit each in a stream walk's masks.
+/// Rays given to one stream walk: one bit each in its masks.
 const CHUNK: usize = STREAM_RAYS;
 
-/// The slab tests' set-up of up to [`CHUNK`] rays, for one interleaved or stream
-/// walk (slots past the rays repeat the first one, and are not walked).
+/// The slab tests' set-up of up to [`CHUNK`] rays, for one stream walk (slots past
+/// the rays repeat the first one, and are not walked).
 fn queries_of(rays: &[Ray]) -> [RayQuery; CHUNK] {
     std::array::from_fn(|i| RayQuery::new(rays.get(i).unwrap_or(&rays[0])))
 }
@@ -155,9 +145,13 @@ impl Scene {
     /// [`Scene::intersect_primitive`] of every ray of `rays`, into `hits` (the
     /// closest primitive, in leaf order, with distance and barycentric coordinates):
     /// the same answers, coherent runs of rays in packets (the dragon's camera rays
-    /// given row by row: 1.4x-1.7x ray by ray) and incoherent ones several in flight
-    /// at once in scenes larger than [`INTERLEAVE_ABOVE_BYTES`]. Runs on the calling
+    /// given row by row: 1.4x-1.7x ray by ray) and incoherent ones down the tree 64
+    /// at a time ([`WideBvh::walk_stream_closest`]; the dragon's bounce rays:
+    /// 1.17x-1.22x ray by ray on its 11k to 203k-triangle meshes, 1.1x on the 871k
+    /// one, where eight rays in flight at once did as well). Runs on the calling
     /// thread; callers split large arrays between threads.
+    ///
+    /// [`WideBvh::walk_stream_closest`]: crate::bvh::WideBvh::walk_stream_closest
     ///
     /// # Panics
     /// If `hits` and `rays` differ in length.
@@ -167,15 +161,14 @@ impl Scene {
             self.intersect_primitives_ray_by_ray(rays, hits);
             return;
         }
-        let interleaves = self.interleaves();
         let mut vote = Vote::default();
         for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
             if vote.coherent(rays) {
                 self.intersect_primitives_in_packets(rays, hits);
-            } else if interleaves {
-                self.intersect_primitives_interleaved(rays, hits);
-            } else {
+            } else if rays.len() <= FEW_RAYS {
                 self.intersect_primitives_ray_by_ray(rays, hits);
+            } else {
+                self.intersect_primitives_streamed(rays, hits);
             }
         }
     }
@@ -235,6 +228,8 @@ impl Scene {
         {
             if vote.coherent(rays) {
                 self.occluded_in_packets(rays, t_max, blocked);
+            } else if rays.len() <= FEW_RAYS {
+                self.occluded_ray_by_ray(rays, t_max, blocked);
             } else {
                 self.occluded_streamed(rays, t_max, blocked);
             }
@@ -290,35 +285,38 @@ impl Scene {
         }
     }
 
-    /// Bytes of the wide BVH's nodes and the triangle packets: what rays read.
-    pub fn acceleration_bytes(&self) -> usize {
-        size_of_val(&self.wide.nodes[..]) + size_of_val(&self.packets[..])
-    }
-
-    /// Whether [`Scene::intersect_primitives`] walks several rays at a time.
-    fn interleaves(&self) -> bool {
-        // Cutouts need a shading lookup per hit, which the interleaved leaf test
-        // does not make.
-        !self.has_cutouts && self.acceleration_bytes() > INTERLEAVE_ABOVE_BYTES
-    }
-
-    /// [`Scene::intersect_primitives`] of a chunk through an interleaved walk,
-    /// whatever the scene's size (for scenes without cutouts).
-    fn intersect_primitives_interleaved(&self, rays: &[Ray], hits: &mut [Option<(u32, PrimHit)>]) {
+    /// [`Scene::intersect_primitives`] of a chunk (at most [`STREAM_RAYS`]) through
+    /// one stream walk (for scenes without cutouts). The rays whose answer could
+    /// depend on the order of their leaves are traced again on their own.
+    fn intersect_primitives_streamed(&self, rays: &[Ray], hits: &mut [Option<(u32, PrimHit)>]) {
         debug_assert!(!self.has_cutouts && rays.len() <= CHUNK);
         let queries = queries_of(rays);
         let mut t_max = [Float::INFINITY; CHUNK];
         let mut closest = [None; CHUNK];
-        self.wide.walk_interleaved(
+        let mut order_matters = 0u64;
+        self.wide.walk_stream_closest(
             &queries[..rays.len()],
             &mut t_max[..rays.len()],
             &self.packets,
-            |ray, first, count, t_max| {
+            |ray, first, count, entry, t_max| {
                 let lanes = PacketRay::new(&rays[ray]);
-                self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest[ray]);
-                false
+                if self.nearest_in_leaf_noting_order(
+                    &lanes,
+                    first,
+                    count,
+                    entry,
+                    t_max,
+                    &mut closest[ray],
+                ) {
+                    order_matters |= 1 << ray;
+                }
             },
         );
+        while order_matters != 0 {
+            let ray = order_matters.trailing_zeros() as usize;
+            order_matters &= order_matters - 1;
+            closest[ray] = self.closest_lane(&rays[ray]);
+        }
         for (hit, found) in hits.iter_mut().zip(closest) {
             *hit = self.named(found);
         }
@@ -366,50 +364,87 @@ mod tests {
             .collect()
     }
 
-    /// Interleaved walks give every ray the primitive, distance and barycentrics of
-    /// its own walk, bit for bit, for arrays that fill whole chunks and for ragged
-    /// ones (fewer rays than a walk keeps in flight, one ray, none).
+    /// Closest-hit streams give every ray the primitive, distance and barycentrics
+    /// of its own walk, bit for bit, for arrays that fill whole chunks and for ragged
+    /// ones (one ray, none).
     #[test]
-    fn interleaved_walks_find_what_single_rays_find() {
+    fn closest_hit_streams_find_what_single_rays_find() {
         for (n, with_spheres, seed) in [(40, false, 1), (24, true, 2), (1, false, 3)] {
             let scene = generated_scene(n, with_spheres, seed);
             assert!(!scene.has_cutouts);
             for count in [0, 1, 5, CHUNK, 3 * CHUNK + 17] {
                 let rays = random_rays(count, seed + count as u64);
-                let mut hits = vec![None; count];
-                for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
-                    scene.intersect_primitives_interleaved(rays, hits);
-                }
-                let expected: Vec<_> = rays.iter().map(|r| scene.intersect_primitive(r)).collect();
                 assert!(
-                    count < CHUNK || expected.iter().filter(|h| h.is_some()).count() > count / 4,
+                    count < CHUNK || assert_streamed_hits(&scene, &rays) > count / 4,
                     "too few hits to mean anything"
                 );
-                for (i, (hit, expected)) in hits.iter().zip(&expected).enumerate() {
-                    let bits = |h: &Option<(u32, PrimHit)>| {
-                        h.map(|(prim, h)| (prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
-                    };
-                    assert_eq!(bits(hit), bits(expected), "scene {n}, ray {i} of {count}");
-                }
             }
         }
     }
 
-    /// Small scenes are traced ray by ray, and only scenes larger than the threshold
-    /// are interleaved.
+    /// Where a ray's answer depends on the order of its leaves (rays straight down
+    /// onto eight overlapping flat grids in one plane, shifted by quarters of a cell
+    /// and cut along either diagonal: hits at exactly the same distance in several
+    /// leaves, in the plane of the leaves' boxes), the stream still gives each ray
+    /// its own walk's answer.
     #[test]
-    fn only_scenes_larger_than_the_cache_are_interleaved() {
-        let scene = generated_scene(40, true, 4);
-        let bytes = scene.acceleration_bytes();
-        let packets = scene.bvh_summary().packets;
-        assert!(
-            bytes >= packets * 160 && bytes < INTERLEAVE_ABOVE_BYTES,
-            "{bytes}"
-        );
-        assert!(!scene.interleaves());
-        let rays = random_rays(100, 5);
-        let t_max: Vec<Float> = (0..rays.len()).map(|i| i as Float * 0.03).collect();
-        assert_array_answers(&scene, &rays, &t_max);
+    fn closest_hit_streams_keep_single_rays_answers_where_order_matters() {
+        let mut d = crate::description::SceneDescription::default();
+        let n = 12u32;
+        for grid in 0..8u32 {
+            let shift = Vec3::new((grid % 4) as Float * 0.25, 0.0, (grid / 4) as Float * 0.5);
+            let first = d.positions.len() as u32;
+            for j in 0..=n {
+                for i in 0..=n {
+                    d.positions
+                        .push(shift + Vec3::new(i as Float, 0.0, j as Float));
+                }
+            }
+            let at = |i: u32, j: u32| first + j * (n + 1) + i;
+            for j in 0..n {
+                for i in 0..n {
+                    let [a, b, c, e] = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                    let halves = if grid % 2 == 0 {
+                        [[a, c, b], [a, e, c]]
+                    } else {
+                        [[a, e, b], [b, e, c]]
+                    };
+                    for positions in halves {
+                        d.triangles.push(crate::description::TriangleDesc {
+                            positions,
+                            normals: None,
+                            material: crate::material::MaterialId(0),
+                        });
+                    }
+                }
+            }
+        }
+        d.materials = vec![crate::material::Material::named("grey")];
+        let scene = Scene::build(d, &crate::bvh::BvhParams::default());
+        // Through vertices, edges and faces, from several heights.
+        let rays: Vec<Ray> = (0..8 * CHUNK)
+            .map(|k| {
+                let (x, z) = ((k % 53) as Float * 0.25, (k * 7 % 53) as Float * 0.25);
+                Ray::new(Vec3::new(x, 1.0 + (k % 3) as Float, z), -Vec3::Y)
+            })
+            .collect();
+        assert!(assert_streamed_hits(&scene, &rays) > rays.len() * 9 / 10);
+    }
+
+    /// Checks [`Scene::intersect_primitives_streamed`] of `rays`, chunk by chunk,
+    /// against [`Scene::intersect_primitive`] bit for bit; returns how many hit.
+    fn assert_streamed_hits(scene: &Scene, rays: &[Ray]) -> usize {
+        let mut hits = vec![None; rays.len()];
+        for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
+            scene.intersect_primitives_streamed(rays, hits);
+        }
+        let bits = |h: &Option<(u32, PrimHit)>| {
+            h.map(|(prim, h)| (prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+        };
+        for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+            assert_eq!(bits(hit), bits(&scene.intersect_primitive(ray)), "ray {i}");
+        }
+        hits.iter().filter(|h| h.is_some()).count()
     }
 
     /// Both array queries of `rays` give each ray its own answer: the blocker within

@@ -162,6 +162,26 @@ pub(crate) fn dot_lanes(a: [wide::f32x16; 3], b: [wide::f32x16; 3]) -> wide::f32
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The index of the smallest of `values` among the bits set in `mask`, the lowest
+/// index on equal values (as a scalar loop keeping only strictly smaller ones);
+/// `None` for an empty mask. Bits at or past `N` must be clear.
+#[inline(always)]
+pub(crate) fn nearest_in_mask<const N: usize>(mut mask: u32, values: &[Float; N]) -> Option<usize> {
+    if mask == 0 {
+        return None;
+    }
+    let mut best = mask.trailing_zeros() as usize;
+    mask &= mask - 1;
+    while mask != 0 {
+        let index = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        if values[index] < values[best] {
+            best = index;
+        }
+    }
+    Some(best)
+}
+
 /// The sine and cosine of `x` (radians), inlined: Agner Fog's polynomials as the
 /// `wide` crate vectorizes them, as accurate as the C library's `sincosf` for path
 /// mode's angles in `[0, 2 pi)`, without a call per sampled direction.

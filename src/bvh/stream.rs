@@ -5,9 +5,9 @@
 //! neighbouring pixels share the tree's top and the surface they leave), so a node's
 //! memory is waited for once per stream rather than once per ray, and the box tests
 //! of the rays that reached it run back to back, each ray against the node's eight
-//! children as in its own walk: independent work the processor overlaps, where one
-//! ray's walk is a chain of steps that each wait for the one before. No ray meets a
-//! box that its own walk would not test.
+//! children with its own walk's slab test, bit for bit: independent work the
+//! processor overlaps, where one ray's walk is a chain of steps that each wait for
+//! the one before.
 
 use std::mem::MaybeUninit;
 
@@ -15,7 +15,7 @@ use wide::{f32x8, u32x8, u64x8};
 
 use super::wide::{ChildRef, STACK_SIZE, WIDTH, WideBvh, WideNode, WideRay, sort_far_to_near};
 use super::{CLOSEST_CULL_MARGIN, PREFETCH_LINES, RayQuery};
-use crate::math::Float;
+use crate::math::{Float, nearest_in_mask};
 use crate::memory::prefetch_lines;
 
 /// Most rays one stream walk takes: one bit each of a `u64`. On the dragon's bounce
@@ -228,16 +228,7 @@ impl WideBvh {
                 waiting &= waiting - 1;
                 let entry = &entries[ray];
                 let mut left = u32::from(met_by[ray]) & leaves;
-                while left != 0 {
-                    let mut nearest = left.trailing_zeros() as usize;
-                    let mut others = left & (left - 1);
-                    while others != 0 {
-                        let slot = others.trailing_zeros() as usize;
-                        others &= others - 1;
-                        if entry[slot] < entry[nearest] {
-                            nearest = slot;
-                        }
-                    }
+                while let Some(nearest) = nearest_in_mask(left, entry) {
                     left &= !(1 << nearest);
                     if entry[nearest] <= t_max[ray] * CLOSEST_CULL_MARGIN {
                         let (first, count) = (node.child[nearest], node.item_count[nearest]);
@@ -307,8 +298,9 @@ mod tests {
     use crate::math::{Aabb, Ray, Vec3};
     use rand::{Rng, SeedableRng};
 
-    /// Thin random boxes, a tree over them with leaves of up to four, and the boxes
-    /// in the tree's leaf order.
+    /// Random boxes thicker and larger than the wide BVH tests' (so that rays from
+    /// one region meet, share and are blocked by many), a tree over them with leaves
+    /// of up to four, and the boxes in the tree's leaf order.
     fn random_tree(count: usize, seed: u64) -> (WideBvh, Vec<Aabb>) {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let boxes: Vec<Aabb> = (0..count)

@@ -20,7 +20,7 @@ use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::{AreaLights, AreaLightsBuilder};
 use crate::material::{Material, MaterialId, PointLight};
-use crate::math::{Aabb, Float, Ray, Vec2, Vec3, try_unit};
+use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
 
@@ -659,16 +659,7 @@ impl Scene {
         t_max: Float,
     ) -> Option<(usize, PrimHit)> {
         let (mut mask, t, u, v) = packet.hits(lanes, t_max);
-        while mask != 0 {
-            let mut best = mask.trailing_zeros() as usize;
-            let mut rest = mask & (mask - 1);
-            while rest != 0 {
-                let lane = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
-                if t[lane] < t[best] {
-                    best = lane;
-                }
-            }
+        while let Some(best) = nearest_in_mask(mask, &t) {
             let hit = PrimHit {
                 t: t[best],
                 u: u[best],

@@ -10,7 +10,7 @@
 use wide::f32x4;
 
 use super::{PrimHit, Shape, Sphere, Triangle};
-use crate::math::{Float, Ray, Vec3};
+use crate::math::{Float, Ray, Vec3, nearest_in_mask};
 
 use super::triangle::EDGE_SLACK;
 
@@ -178,7 +178,7 @@ impl TrianglePacket {
     #[inline(always)]
     fn intersect_spheres(&self, ray: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
         let (valid, t) = self.sphere_lanes(ray, t_max);
-        let lane = nearest_lane(valid.to_bitmask(), &t.to_array())?;
+        let lane = nearest_in_mask(valid.to_bitmask(), &t.to_array())?;
         Some((
             lane,
             PrimHit {
@@ -216,7 +216,7 @@ impl TrianglePacket {
     pub fn intersect(&self, ray: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
         let (valid, t, u, v) = self.lanes(ray, t_max);
         let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
-        let best = nearest_lane(valid.to_bitmask(), t)?;
+        let best = nearest_in_mask(valid.to_bitmask(), t)?;
         Some((
             best,
             PrimHit {
@@ -275,26 +275,6 @@ impl TrianglePacket {
             & t.simd_lt(f32x4::splat(t_max));
         (valid, t, u, v)
     }
-}
-
-/// The lane of smallest `t` among the lanes set in `mask`, the lowest one on equal
-/// distances (as a scalar loop keeping only strictly closer hits); `None` for an
-/// empty mask.
-#[inline(always)]
-fn nearest_lane(mut mask: u32, t: &[Float; LANES]) -> Option<usize> {
-    if mask == 0 {
-        return None;
-    }
-    let mut best = mask.trailing_zeros() as usize;
-    mask &= mask - 1;
-    while mask != 0 {
-        let lane = mask.trailing_zeros() as usize;
-        mask &= mask - 1;
-        if t[lane] < t[best] {
-            best = lane;
-        }
-    }
-    Some(best)
 }
 
 #[cfg(test)]

@@ -183,7 +183,7 @@ impl Scene {
     /// the same answers, coherent runs of rays in packets (the dragon's camera rays
     /// given row by row: 1.4x-1.7x ray by ray) and incoherent ones down the tree 64
     /// at a time ([`WideBvh::walk_stream_closest`]; the dragon's bounce rays:
-    /// 1.17x-1.22x ray by ray on its 11k to 203k-triangle meshes, 1.1x on the 871k
+    /// 1.14x-1.23x ray by ray on its 11k to 203k-triangle meshes, 1.1x on the 871k
     /// one, where eight rays in flight at once did as well). Runs on the calling
     /// thread; callers split large arrays between threads.
     ///

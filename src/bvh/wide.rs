@@ -492,7 +492,7 @@ impl Walk {
 }
 
 /// What a walk's step left to do.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy)]
 enum Step {
     /// More to visit.
     Going,

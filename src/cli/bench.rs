@@ -40,16 +40,15 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         "closest-hit runs disagree on the number of hits"
     );
     let (packet_ids, primary_packet) = median_times(args.repeat, || {
-        trace_closest_primitives_packets(&scene, &workload.primary_tiled, &workload.primary_packets)
+        trace_closest_primitives_packets(&scene, &workload.primary, &workload.primary_packets)
     });
     anyhow::ensure!(
-        packet_ids.iter().filter(|&&id| id != u32::MAX).count() == workload.primary_hits,
-        "packets and single rays disagree on the number of hits"
+        packet_ids == ids,
+        "packets and single rays disagree on the primary rays' hits"
     );
-    // The same rays in the same order (tile by tile, as `--dump-rays` writes them for
-    // Embree's array calls) through the array query: the same hits.
+    // The same rays through the array query: the same hits.
     let (stream_ids, primary_stream) = median_times(args.repeat, || {
-        trace_closest_primitives_stream(&scene, &workload.primary_tiled)
+        trace_closest_primitives_stream(&scene, &workload.primary)
     });
     anyhow::ensure!(
         stream_ids == packet_ids,
@@ -57,15 +56,15 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     );
     let (occluded, shadow) = median_times(args.repeat, || count_occluded(&scene, &workload.shadow));
     let (packet_occluded, shadow_packet) = median_times(args.repeat, || {
-        count_occluded_packets(&scene, &workload.shadow_tiled, &workload.shadow_packets)
+        count_occluded_packets(&scene, &workload.shadow, &workload.shadow_packets)
     });
     anyhow::ensure!(
         packet_occluded == occluded,
         "packets and single rays disagree on the number of blocked shadow rays"
     );
-    // The same rays, tile by tile, through the array query: as many blocked.
+    // The same rays through the array query: as many blocked.
     let (shadow_rays, shadow_reach): (Vec<Ray>, Vec<Float>) =
-        workload.shadow_tiled.iter().copied().unzip();
+        workload.shadow.iter().copied().unzip();
     let (stream_occluded, shadow_stream) = median_times(args.repeat, || {
         count_occluded_stream(&scene, &shadow_rays, &shadow_reach)
     });

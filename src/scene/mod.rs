@@ -560,11 +560,16 @@ impl Scene {
         let lanes = PacketRay::new(ray);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
-        self.wide
-            .walk_ordered(&query, &mut t_max, &self.packets, |first, count, t_max| {
+        self.wide.walk_ordered(
+            &query,
+            &mut t_max,
+            &self.packets,
+            #[inline(always)]
+            |first, count, t_max| {
                 self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest);
                 false
-            });
+            },
+        );
         closest
     }
 

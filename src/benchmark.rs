@@ -24,8 +24,8 @@ const _: () = assert!((TILE * TILE) as usize == PACKET_SIZE);
 /// direction about the shading normal (as a path tracer's diffuse bounce). Primary
 /// and shadow rays come tile by tile (4x4 pixels), as packets take them and as
 /// `--dump-rays` writes them for Embree: single rays, packets and array queries on
-/// both sides trace them in this one order (camera rays row by row instead ran 1.16x
-/// slower on the full dragon, one thread, than the same rays tile by tile).
+/// both sides trace them in this one order (camera rays row by row instead ran
+/// 1.03x-1.10x slower on the full dragon than the same rays tile by tile).
 pub struct RayWorkload {
     /// The camera rays tile by tile (4x4 pixels, row by row within a tile).
     pub primary: Vec<Ray>,

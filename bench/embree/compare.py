@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Ours against Embree 3 on the same rays, in one run: `raytracer bench` and
 `bench/embree/embree_bench` alternate RUNS times (each run itself a median of
---repeat), and the medians of the runs are printed side by side as a markdown table.
+--repeat; who goes first alternates too), and the medians of the runs are printed side
+by side as a markdown table, with the median and range of the runs' pairwise ratios.
 
     python3 bench/embree/compare.py [--runs 3] [--repeat 3] [--threads 2] [SCENE]
 
@@ -85,9 +86,15 @@ def main() -> None:
                   "--threads", str(args.threads)]
     run_json(ours_cmd[:2] + ours_cmd[2:] + ["--dump-rays", str(rays)])
     ours, theirs = [], []
-    for _ in range(args.runs):
-        ours.append(run_json(ours_cmd))
-        theirs.append(run_json(embree_cmd))
+    for run in range(args.runs):
+        # Who goes first alternates, so that a drift in the machine's speed does not
+        # always favour the same side.
+        if run % 2 == 0:
+            ours.append(run_json(ours_cmd))
+            theirs.append(run_json(embree_cmd))
+        else:
+            theirs.append(run_json(embree_cmd))
+            ours.append(run_json(ours_cmd))
     for key, their_keys in [
         ("primary_hits", ("primary_hits", "primary_stream_hits")),
         ("shadow_occluded", ("shadow_occluded", "shadow_stream_occluded")),
@@ -103,13 +110,18 @@ def main() -> None:
     print(f"{args.runs} alternating runs, each a median of {args.repeat}; {args.threads} threads; "
           f"load average {load:.1f} at the end; {theirs[0]['version']}")
     print()
-    print("| figure | ours | Embree | ours faster by |")
-    print("|---|---|---|---|")
+    print("| figure | ours | Embree | ours faster by | pair by pair |")
+    print("|---|---|---|---|---|")
     for label, ours_key, their_key, unit in ROWS:
         a, b = med(ours, ours_key), med(theirs, their_key)
         # Above 1: ours faster (Embree / ours for times, ours / Embree for rates).
-        ratio = b / a if unit == "ms" else a / b
-        print(f"| {label} | {a:.1f} {unit} | {b:.1f} {unit} | {ratio:.2f}x |")
+        faster = (lambda o, t: t / o) if unit == "ms" else (lambda o, t: o / t)
+        # Each run's ratio against the run beside it: their median and range hold
+        # when the machine's speed drifts between runs, as medians of each side alone
+        # do not.
+        pairs = [faster(o[ours_key], t[their_key]) for o, t in zip(ours, theirs)]
+        print(f"| {label} | {a:.1f} {unit} | {b:.1f} {unit} | {statistics.median(pairs):.2f}x | "
+              f"{min(pairs):.2f}-{max(pairs):.2f} |")
     print()
     print(f"same work: primary hits {ours[0]['primary_hits']:,} (Embree {theirs[0]['primary_hits']:,}), "
           f"shadow rays blocked {ours[0]['shadow_occluded']:,} (Embree {theirs[0]['shadow_occluded']:,}), "

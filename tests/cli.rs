@@ -328,6 +328,9 @@ fn stats_show_every_stage() {
     for stage in [
         "parse",
         "BVH build",
+        "binary tree",
+        "8-wide collapse",
+        "packets",
         "trace",
         "shading",
         "render total",

@@ -43,6 +43,21 @@ const NO_NORMALS: u32 = u32::MAX;
 /// Marks a primitive without texture coordinates in `Scene::prim_texcoords`.
 const NO_TEXCOORDS: u32 = u32::MAX;
 
+/// How long each step of [`Scene::build`] took, for `--stats`. Kept apart from
+/// [`BvhSummary`], which two builds of one scene share exactly.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BuildTimes {
+    /// The binary BVH: the primitives' boxes, then binned SAH from the root (built
+    /// twice where duplicate shapes are dropped).
+    pub tree: std::time::Duration,
+    /// Collapsing it into the 8-wide BVH (its SAH cost measured beside it).
+    pub collapse: std::time::Duration,
+    /// The triangle packets and shading data in leaf order, and the rest of the
+    /// scene's arrays. Most of what it writes is fresh memory, so on machines where
+    /// a page's first touch is slow (virtual machines) this step varies the most.
+    pub packets: std::time::Duration,
+}
+
 /// Figures about the binary BVH the scene was built with, kept after it is collapsed
 /// into the wide one that rays traverse.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,6 +113,7 @@ pub struct Scene {
     /// The triangles and spheres whose material emits (`Ke`), for path mode.
     pub area_lights: AreaLights,
     summary: BvhSummary,
+    build_times: BuildTimes,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
 }
@@ -267,6 +283,7 @@ impl Scene {
             mut warnings,
             ..
         } = description;
+        let started = std::time::Instant::now();
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
         // from the description (no second copy of the shapes exists while the
@@ -325,6 +342,7 @@ impl Scene {
             }
         }
 
+        let tree_built = std::time::Instant::now();
         let degenerate = triangle_count + spheres.len() - order.len() - duplicates;
         if degenerate > 0 {
             warnings.push(format!(
@@ -394,6 +412,7 @@ impl Scene {
             || WideBvh::collapse(&bvh, 2 * LANES as u32, params),
             || bvh.sah_cost(params),
         );
+        let collapsed = std::time::Instant::now();
         let mut summary = BvhSummary {
             nodes: bvh.nodes.len(),
             max_depth: bvh.max_depth,
@@ -442,6 +461,11 @@ impl Scene {
             .par_iter()
             .map(|&n| try_unit(n).unwrap_or(Vec3::ZERO))
             .collect();
+        let build_times = BuildTimes {
+            tree: tree_built - started,
+            collapse: collapsed - tree_built,
+            packets: collapsed.elapsed(),
+        };
         Scene {
             wide,
             packets,
@@ -455,6 +479,7 @@ impl Scene {
             lights,
             area_lights,
             summary,
+            build_times,
             warnings,
         }
     }
@@ -462,6 +487,11 @@ impl Scene {
     /// Figures about the scene's BVH.
     pub fn bvh_summary(&self) -> &BvhSummary {
         &self.summary
+    }
+
+    /// How long each step of the build took.
+    pub fn build_times(&self) -> BuildTimes {
+        self.build_times
     }
 
     /// Where primitive `prim` (leaf order, as [`Scene::intersect_primitive`] names
@@ -1183,6 +1213,24 @@ mod build_tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use std::collections::HashMap;
+
+    /// The build's steps are timed one after another inside it: together they take
+    /// no longer than the whole build timed from outside, and a build over shapes
+    /// spends its time in them (not all of it in one).
+    #[test]
+    fn build_steps_are_timed_in_turn_within_the_build() {
+        let description = packet::tests::generated_description(60, true, 7);
+        let started = std::time::Instant::now();
+        let scene = Scene::build(description, &BvhParams::default());
+        let whole = started.elapsed();
+        let steps = scene.build_times();
+        assert!(
+            steps.tree + steps.collapse + steps.packets <= whole,
+            "{steps:?} beyond {whole:?}"
+        );
+        assert!(steps.tree > std::time::Duration::ZERO, "{steps:?}");
+        assert!(steps.packets > std::time::Duration::ZERO, "{steps:?}");
+    }
 
     /// The shading data is written leaf by leaf beside the packets, into slices cut
     /// in primitive order and handed to leaves listed in node order: every primitive

@@ -1098,32 +1098,38 @@ where
     // waited on memory most of the time: on the dragon this step took 50-70 ms of
     // wall time under load, 25-30 ms with the hints (one and two leaves ahead
     // gave 40-50 ms, six and three 30-40 ms).
-    let mut jobs: Vec<_> = packet_slices
-        .into_iter()
-        .zip(shading_slices)
-        .zip(leaves.iter().copied())
-        .collect();
-    jobs.par_chunks_mut(LEAF_RUN).for_each(|run| {
-        let ask = |run: &[_], leaf: usize, corners: bool| {
-            if let Some(&(_, (first, count))) = run.get(leaf) {
-                for prim in first..first + count {
-                    fetch(prim, corners);
+    // The three per-leaf arrays cut into the same runs, rather than zipped into one
+    // more array (six megabytes of fresh memory on the dragon, written on one thread).
+    packet_slices
+        .par_chunks_mut(LEAF_RUN)
+        .zip(shading_slices.par_chunks_mut(LEAF_RUN))
+        .zip(leaves.par_chunks(LEAF_RUN))
+        .for_each(|((packet_run, shading_run), run)| {
+            let ask = |leaf: usize, corners: bool| {
+                if let Some(&(first, count)) = run.get(leaf) {
+                    for prim in first..first + count {
+                        fetch(prim, corners);
+                    }
                 }
+            };
+            for leaf in 0..DESCRIPTIONS_AHEAD {
+                ask(leaf, false);
             }
-        };
-        for leaf in 0..DESCRIPTIONS_AHEAD {
-            ask(run, leaf, false);
-        }
-        for leaf in 0..CORNERS_AHEAD {
-            ask(run, leaf, true);
-        }
-        for leaf in 0..run.len() {
-            ask(run, leaf + DESCRIPTIONS_AHEAD, false);
-            ask(run, leaf + CORNERS_AHEAD, true);
-            let ((packets, shading), (first, count)) = &mut run[leaf];
-            write_leaf(*first, *count, &prim_of, packets, shading);
-        }
-    });
+            for leaf in 0..CORNERS_AHEAD {
+                ask(leaf, true);
+            }
+            for (leaf, &(first, count)) in run.iter().enumerate() {
+                ask(leaf + DESCRIPTIONS_AHEAD, false);
+                ask(leaf + CORNERS_AHEAD, true);
+                write_leaf(
+                    first,
+                    count,
+                    &prim_of,
+                    &mut packet_run[leaf],
+                    &mut shading_run[leaf],
+                );
+            }
+        });
     // SAFETY: the packet slices cover `0..total` exactly, the shading slices
     // `0..prim_count`, and `write_leaf` wrote every element of its slices (it
     // asserts so).

@@ -1121,13 +1121,7 @@ where
             for (leaf, &(first, count)) in run.iter().enumerate() {
                 ask(leaf + DESCRIPTIONS_AHEAD, false);
                 ask(leaf + CORNERS_AHEAD, true);
-                write_leaf(
-                    first,
-                    count,
-                    &prim_of,
-                    &mut packet_run[leaf],
-                    &mut shading_run[leaf],
-                );
+                write_leaf(first, count, &prim_of, packet_run[leaf], shading_run[leaf]);
             }
         });
     // SAFETY: the packet slices cover `0..total` exactly, the shading slices

@@ -5,8 +5,9 @@
 use std::fmt;
 use std::mem::size_of;
 
-use super::{PrimShading, SceneDescription, SphereDesc, TriangleDesc};
+use super::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::bvh::WideNode;
+use crate::material::MaterialId;
 use crate::math::{Aabb, Vec2, Vec3};
 use crate::options::RenderOptions;
 use crate::shapes::{Sphere, Triangle, TrianglePacket};
@@ -150,7 +151,15 @@ impl SceneSummary {
                 + scene.triangles.len() * size_of::<TriangleDesc>()
                 + scene.spheres.len() * size_of::<SphereDesc>(),
             shapes: packets as usize * size_of::<TrianglePacket>(),
-            shading: prims * size_of::<PrimShading>(),
+            // A material per primitive, and its normals' indices if some triangle
+            // has vertex normals.
+            shading: prims
+                * (size_of::<MaterialId>()
+                    + if with_normals > 0 {
+                        size_of::<[u32; 3]>()
+                    } else {
+                        0
+                    }),
             vertex_normals: if with_normals > 0 {
                 scene.normals.len() * size_of::<Vec3>()
             } else {

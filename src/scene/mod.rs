@@ -40,6 +40,36 @@ struct PrimShading {
 
 const NO_NORMALS: u32 = u32::MAX;
 
+/// The shading data of every primitive, in leaf order: its material, and the
+/// indices of its corners' normals only if the scene has vertex normals (most big
+/// meshes, scans among them, have none: 12 bytes a primitive saved, 10 MB on the
+/// dragon).
+#[derive(Clone, Debug, Default)]
+struct ShadingData {
+    materials: Vec<MaterialId>,
+    /// Empty, or one entry per primitive (`[NO_NORMALS; 3]` for those without).
+    normals: Vec<[u32; 3]>,
+}
+
+impl ShadingData {
+    /// Primitive `prim`'s shading data.
+    #[inline(always)]
+    fn get(&self, prim: u32) -> PrimShading {
+        PrimShading {
+            material: self.materials[prim as usize],
+            normals: self
+                .normals
+                .get(prim as usize)
+                .copied()
+                .unwrap_or([NO_NORMALS; 3]),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.materials.len()
+    }
+}
+
 /// Marks a primitive without texture coordinates in `Scene::prim_texcoords`.
 const NO_TEXCOORDS: u32 = u32::MAX;
 
@@ -88,7 +118,7 @@ pub struct Scene {
     /// The primitives' geometry, grouped by four for SIMD tests: the only copy.
     packets: Vec<TrianglePacket>,
     /// Shading data by primitive (leaf order).
-    shading: Vec<PrimShading>,
+    shading: ShadingData,
     /// The description's vertex normals, unit length, or zero where a `vn` has no
     /// direction (the geometric normal stands in for it then).
     vertex_normals: Vec<Vec3>,
@@ -387,6 +417,8 @@ impl Scene {
                 }
             }
         };
+        // Per-primitive normals only where some triangle has them.
+        let with_normals = !normals.is_empty() && triangles.par_iter().any(|t| t.normals.is_some());
         // Triangle meshes (most big scenes) count their packets without a look.
         let has_spheres = !spheres.is_empty();
         let is_sphere = |prim: u32| has_spheres && order[prim as usize] as usize >= triangle_count;
@@ -430,7 +462,7 @@ impl Scene {
             wide,
             packets,
             shading,
-        } = packetize(wide, order.len(), is_sphere, prim_of, fetch);
+        } = packetize(wide, order.len(), with_normals, is_sphere, prim_of, fetch);
         summary.wide_nodes = wide.nodes.len();
         summary.wide_sah_cost = wide.sah_cost(params, |packets| packets as Float);
         summary.packets = packets.len();
@@ -715,7 +747,7 @@ impl Scene {
         if !self.has_cutouts {
             return true;
         }
-        let material = &self.materials[self.shading[prim as usize].material.0 as usize];
+        let material = &self.materials[self.shading.get(prim).material.0 as usize];
         match material.cutout() {
             Some(cutout) => cutout.keeps(self.uv_at(prim, u, v)),
             None => true,
@@ -883,7 +915,7 @@ impl Scene {
         let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
             unreachable!("hits come from used lanes")
         };
-        let shading = self.shading[prim as usize];
+        let shading = self.shading.get(prim);
         let (p, n, ns) = match shape {
             Shape::Triangle(tri) => {
                 // `build` kept only triangles whose normal `try_unit` accepts.
@@ -950,7 +982,7 @@ impl Scene {
         details.uv = uv;
         // The shading normal before `hit_details` turned it.
         let n = try_unit(triangle.normal()).unwrap_or(-ray.dir);
-        let ns = self.shading_normal(self.shading[prim as usize], n, &hit);
+        let ns = self.shading_normal(self.shading.get(prim), n, &hit);
         if let Some(bumped) = self.perturbed_normal(prim, &triangle, material, uv, ns) {
             // Turned with the normal it perturbs, so that a bump cannot turn the
             // shading normal to the other side at grazing angles.
@@ -1008,7 +1040,7 @@ fn collect_area_lights(
 struct Packetized {
     wide: WideBvh,
     packets: Vec<TrianglePacket>,
-    shading: Vec<PrimShading>,
+    shading: ShadingData,
 }
 
 /// Points the leaves of `wide` (collapsed from the binary BVH, its leaves still
@@ -1021,6 +1053,7 @@ struct Packetized {
 fn packetize<S, F, P>(
     mut wide: WideBvh,
     prim_count: usize,
+    with_normals: bool,
     is_sphere: S,
     prim_of: F,
     fetch: P,
@@ -1073,20 +1106,30 @@ where
     for (leaf, &(first, _)) in leaves.iter().enumerate() {
         leaf_at[first as usize] = leaf as u32;
     }
-    let mut shading: Vec<PrimShading> = Vec::with_capacity(prim_count);
-    memory::advise_huge_pages(&shading);
-    let mut shading_slices: Vec<&mut [MaybeUninit<PrimShading>]> = Vec::with_capacity(leaves.len());
+    let mut materials: Vec<MaterialId> = Vec::with_capacity(prim_count);
+    memory::advise_huge_pages(&materials);
+    let normal_count = if with_normals { prim_count } else { 0 };
+    let mut normals: Vec<[u32; 3]> = Vec::with_capacity(normal_count);
+    memory::advise_huge_pages(&normals);
+    let mut shading_slices: Vec<ShadingSlots<'_>> = Vec::with_capacity(leaves.len());
     shading_slices.resize_with(leaves.len(), Default::default);
-    let mut unwritten = &mut shading.spare_capacity_mut()[..prim_count];
+    let mut unwritten_materials = &mut materials.spare_capacity_mut()[..prim_count];
+    let mut unwritten_normals = &mut normals.spare_capacity_mut()[..normal_count];
     let (mut next, mut visited) = (0, 0);
     while next < prim_count {
         let leaf = leaf_at[next];
         assert_ne!(leaf, NO_LEAF, "leaves do not tile the primitives");
         let count = leaves[leaf as usize].1 as usize;
         assert!(count > 0, "leaf {leaf} holds no primitives");
-        let (slice, rest) = unwritten.split_at_mut(count);
-        shading_slices[leaf as usize] = slice;
-        unwritten = rest;
+        let (leaf_materials, rest) = unwritten_materials.split_at_mut(count);
+        unwritten_materials = rest;
+        let (leaf_normals, rest) =
+            unwritten_normals.split_at_mut(if with_normals { count } else { 0 });
+        unwritten_normals = rest;
+        shading_slices[leaf as usize] = ShadingSlots {
+            materials: leaf_materials,
+            normals: leaf_normals,
+        };
         next += count;
         visited += 1;
     }
@@ -1121,22 +1164,37 @@ where
             for (leaf, &(first, count)) in run.iter().enumerate() {
                 ask(leaf + DESCRIPTIONS_AHEAD, false);
                 ask(leaf + CORNERS_AHEAD, true);
-                write_leaf(first, count, &prim_of, packet_run[leaf], shading_run[leaf]);
+                write_leaf(
+                    first,
+                    count,
+                    &prim_of,
+                    packet_run[leaf],
+                    std::mem::take(&mut shading_run[leaf]),
+                );
             }
         });
-    // SAFETY: the packet slices cover `0..total` exactly, the shading slices
-    // `0..prim_count`, and `write_leaf` wrote every element of its slices (it
-    // asserts so).
+    // SAFETY: the packet slices cover `0..total` exactly, the material slices
+    // `0..prim_count`, the normal slices `0..normal_count`, and `write_leaf` wrote
+    // every element of its slices (it asserts so).
     unsafe {
         packets.set_len(total);
-        shading.set_len(prim_count);
+        materials.set_len(prim_count);
+        normals.set_len(normal_count);
     }
     wide.assign_leaf_items(&first_packets);
     Packetized {
         wide,
         packets,
-        shading,
+        shading: ShadingData { materials, normals },
     }
+}
+
+/// One leaf's slots of the shading data: a material per primitive, and its
+/// normals' indices per primitive or none (a scene without vertex normals).
+#[derive(Default)]
+struct ShadingSlots<'a> {
+    materials: &'a mut [MaybeUninit<MaterialId>],
+    normals: &'a mut [MaybeUninit<[u32; 3]>],
 }
 
 /// Leaves written in a row by one thread in [`packetize`].
@@ -1150,17 +1208,27 @@ const CORNERS_AHEAD: usize = 2;
 
 /// Writes the packets of the leaf holding primitives `first..first + count` into
 /// `out`, which must have room for exactly as many as it needs, and their shading
-/// data into `shading` (one per primitive).
+/// data into `shading` (a material per primitive, and the normals' indices per
+/// primitive unless its normal slots are empty).
 fn write_leaf<F>(
     first: u32,
     count: u32,
     prim_of: &F,
     out: &mut [MaybeUninit<TrianglePacket>],
-    shading: &mut [MaybeUninit<PrimShading>],
+    shading: ShadingSlots<'_>,
 ) where
     F: Fn(u32) -> (Shape, PrimShading),
 {
-    assert_eq!(shading.len(), count as usize, "shading slots of a leaf");
+    assert_eq!(
+        shading.materials.len(),
+        count as usize,
+        "material slots of a leaf"
+    );
+    let with_normals = !shading.normals.is_empty();
+    assert!(
+        !with_normals || shading.normals.len() == count as usize,
+        "normal slots of a leaf"
+    );
     let mut written = 0;
     let mut emit = |packet: TrianglePacket| {
         out[written].write(packet);
@@ -1177,9 +1245,12 @@ fn write_leaf<F>(
         },
     ); LANES];
     let mut sphere_count = 0;
-    for (prim, slot) in (first..first + count).zip(shading) {
+    for (i, prim) in (first..first + count).enumerate() {
         let (shape, prim_shading) = prim_of(prim);
-        slot.write(prim_shading);
+        shading.materials[i].write(prim_shading.material);
+        if with_normals {
+            shading.normals[i].write(prim_shading.normals);
+        }
         match shape {
             Shape::Triangle(tri) => {
                 triangles[triangle_count] = (prim, tri);
@@ -1213,6 +1284,35 @@ mod build_tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use std::collections::HashMap;
+
+    /// A scene whose triangles have no vertex normals keeps a material per
+    /// primitive and no normal indices at all; one whose triangles have them keeps
+    /// them for every primitive, and each primitive reads back the same shading
+    /// data either way.
+    #[test]
+    fn normal_indices_are_kept_only_for_scenes_with_vertex_normals() {
+        let with = packet::tests::generated_description(20, true, 3);
+        let mut without = with.clone();
+        without.normals.clear();
+        for t in &mut without.triangles {
+            t.normals = None;
+        }
+        let (with, without) = (
+            Scene::build(with, &BvhParams::default()),
+            Scene::build(without, &BvhParams::default()),
+        );
+        assert_eq!(with.shading.normals.len(), with.prim_count());
+        assert!(without.shading.normals.is_empty());
+        assert_eq!(without.shading.materials.len(), without.prim_count());
+        let mut with_corner_normals = 0;
+        for prim in 0..with.prim_count() as u32 {
+            let (a, b) = (with.shading.get(prim), without.shading.get(prim));
+            assert_eq!(a.material, b.material);
+            assert_eq!(b.normals, [NO_NORMALS; 3]);
+            with_corner_normals += usize::from(a.normals != [NO_NORMALS; 3]);
+        }
+        assert!(with_corner_normals > 0);
+    }
 
     /// The build's steps are timed one after another inside it: together they take
     /// no longer than the whole build timed from outside, and a build over shapes
@@ -1282,7 +1382,7 @@ mod build_tests {
                 let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
                     continue;
                 };
-                let shading = scene.shading[prim as usize];
+                let shading = scene.shading.get(prim);
                 match shape {
                     Shape::Triangle(t) => {
                         let (material, first) =

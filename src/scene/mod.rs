@@ -1096,7 +1096,7 @@ where
         unwritten = rest;
     }
     // Leaves list their primitive ranges in node order, not in primitive order: the
-    // shading array is cut in primitive order, then its slices are handed to the
+    // shading arrays are cut in primitive order, then their slices are handed to the
     // leaves that own them. The leaf starting at each primitive is found through a
     // table by first primitive (one bucket per primitive, cheaper than sorting the
     // leaves); the ranges must tile `0..prim_count` (collapse puts every primitive in

@@ -163,6 +163,42 @@ pub(crate) fn read_in_pieces<'a>(
     }
 }
 
+/// Maps a regular, uncompressed file into memory, its pages read in up front: the
+/// text stays in the kernel's page cache, where reading it into a buffer of our own
+/// would write every byte again into fresh memory (on the virtual machines this is
+/// measured on, 33 MB took 54-94 ms that way, 4-6 ms mapped). `None` for a file the
+/// caller should read instead: compressed, empty, or one the system cannot map.
+///
+/// Like every reader that maps files (ripgrep, for one), this trusts the file not to
+/// shrink while it is read: a file truncated under a running render ends it with
+/// `SIGBUS`.
+pub(crate) fn map_uncompressed(path: &Path) -> Result<Option<memmap2::Mmap>, SceneError> {
+    let io_error = |error| SceneError::Io {
+        path: path.to_path_buf(),
+        error,
+    };
+    let gz_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    if gz_name {
+        return Ok(None);
+    }
+    let (file, size) = open_regular_file(path).map_err(io_error)?;
+    if size == 0 {
+        return Ok(None);
+    }
+    // SAFETY: the mapping is read-only and private; its bytes change only if another
+    // process writes the file meanwhile, which the renderer cannot prevent (as
+    // above), and a reader of `&[u8]` sees at worst other bytes, never unsound ones.
+    let Ok(map) = (unsafe { memmap2::MmapOptions::new().populate().map(&file) }) else {
+        return Ok(None);
+    };
+    if map.starts_with(&GZIP_MAGIC) {
+        return Ok(None);
+    }
+    Ok(Some(map))
+}
+
 /// Bytes read at a time at least (more for bigger pieces): few system calls, and a
 /// piece is handed over soon after its last byte is read.
 const READ_BYTES: usize = 64 * 1024;
@@ -277,5 +313,29 @@ mod tests {
         let path = dir.path().join("a.obj");
         std::fs::write(&path, b"v 1 2 3\n").unwrap();
         assert_eq!(read_file(&path).unwrap(), b"v 1 2 3\n");
+    }
+
+    #[test]
+    fn uncompressed_regular_files_are_mapped() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.obj");
+        std::fs::write(&path, b"v 1 2 3\n").unwrap();
+        let map = map_uncompressed(&path).unwrap().expect("mapped");
+        assert_eq!(&map[..], b"v 1 2 3\n");
+        // Read instead: empty, compressed by name or by content.
+        let empty = dir.path().join("empty.obj");
+        std::fs::write(&empty, b"").unwrap();
+        assert!(map_uncompressed(&empty).unwrap().is_none());
+        let gz_name = dir.path().join("b.obj.gz");
+        std::fs::write(&gz_name, b"v 1 2 3\n").unwrap();
+        assert!(map_uncompressed(&gz_name).unwrap().is_none());
+        let gz_magic = dir.path().join("c.obj");
+        std::fs::write(&gz_magic, [0x1f, 0x8b, 8, 0]).unwrap();
+        assert!(map_uncompressed(&gz_magic).unwrap().is_none());
+        let err = map_uncompressed(dir.path()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!("{}: is a folder, not a file", dir.path().display())
+        );
     }
 }

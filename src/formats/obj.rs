@@ -65,6 +65,9 @@ pub fn load_obj(path: &Path) -> Result<SceneDescription, SceneError> {
 /// texture it refuses a warning.
 pub fn load_obj_with(path: &Path, access: &FileAccess) -> Result<SceneDescription, SceneError> {
     super::admit(path, access)?;
+    if let Some(text) = file::map_uncompressed(path)? {
+        return parse_in_chunks(&text, path, access, CHUNK_BYTES, Parser::Fast);
+    }
     let mut buffer = Vec::new();
     let read = Mutex::new(Vec::new());
     let whole = rayon::in_place_scope_fifo(|scope| {

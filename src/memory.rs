@@ -1,50 +1,99 @@
-//! Big buffers: fresh ones backed by 2 MiB pages, freed ones reused.
+//! Big buffers: fresh ones backed by 2 MiB pages where those are cheap, freed ones
+//! reused.
 //!
 //! The first write to each 4 KiB page of a fresh buffer takes a page fault, and on
-//! the virtual machines this renderer is measured on a fault costs several
-//! microseconds: touching 28 MB took 50 ms, the same buffer on 2 MiB pages 15 ms.
-//! Linux backs a range with such transparent huge pages only when asked (`madvise`
-//! mode is the usual default), so the few arrays of the scene build that are written
-//! once from end to end ask for them. The `raytracer` command's global allocator,
+//! the virtual machines this renderer is measured on a fault costs a few
+//! microseconds: 2 MiB of small pages about 1.4 ms. One fault of a 2 MiB page
+//! costs 0.1-0.2 ms when the memory behind it is warm, but 5-10 ms when it is
+//! cold (see [`DEAR_HUGE_PAGE`]). Linux backs a range with such transparent huge
+//! pages only when asked (`madvise` mode is the usual default), so the few arrays
+//! of the scene build that are written once from end to end ask for them, and
+//! time what they get. The `raytracer` command's global allocator,
 //! [`RecyclingAllocator`], goes further: big blocks freed are handed out again, so
 //! that most big buffers need no fresh pages at all.
 
-/// A vector of `len` zeroed elements whose buffer Linux is asked to back with huge
-/// pages. The zeroes come from a zeroed allocation (`calloc`, fresh pages for big
-/// sizes), so nothing is written before the advice takes effect.
+/// The 2 MiB page of x86-64 and aarch64 Linux.
+#[cfg(target_os = "linux")]
+const HUGE_PAGE_BYTES: usize = 2 << 20;
+
+/// A vector of `len` zeroed elements, backed with huge pages where they are cheap
+/// ([`advise_huge_pages`]). The zeroes come from a zeroed allocation (`calloc`,
+/// fresh pages for big sizes), so nothing is written before the advice.
 pub(crate) fn zeroed_vec<T: bytemuck::Zeroable>(len: usize) -> Vec<T> {
     let v = bytemuck::zeroed_vec(len);
     advise_huge_pages(&v);
     v
 }
 
-/// Asks Linux to back the part of `v`'s buffer that covers whole 2 MiB pages with
-/// huge pages. Call it before the buffer is first written; the advice only costs
-/// memory for pages that end up touched.
+/// Backs the part of `v`'s buffer that covers whole 2 MiB pages with huge pages
+/// while they are cheap, faulting them in now (see [`back_with_huge_pages`]). For
+/// a buffer that is written from end to end next: the pages of a sparse one would
+/// all be faulted in.
 pub(crate) fn advise_huge_pages<T>(v: &Vec<T>) {
     #[cfg(target_os = "linux")]
     {
-        const HUGE_PAGE: usize = 2 << 20;
         let start = v.as_ptr() as usize;
         let end = start + v.capacity() * size_of::<T>();
-        let aligned_start = start.next_multiple_of(HUGE_PAGE);
-        let aligned_end = end / HUGE_PAGE * HUGE_PAGE;
-        if aligned_end > aligned_start {
-            // SAFETY: the range lies inside `v`'s allocation and starts on a page
-            // boundary; `MADV_HUGEPAGE` changes how pages are backed, never their
-            // contents. Failure (no THP support) leaves ordinary pages, so the result
-            // is ignored.
-            unsafe {
-                libc::madvise(
-                    aligned_start as *mut libc::c_void,
-                    aligned_end - aligned_start,
-                    libc::MADV_HUGEPAGE,
-                );
-            }
-        }
+        back_with_huge_pages(
+            start.next_multiple_of(HUGE_PAGE_BYTES),
+            end / HUGE_PAGE_BYTES * HUGE_PAGE_BYTES,
+        );
     }
     #[cfg(not(target_os = "linux"))]
     let _ = v;
+}
+
+/// Whether fresh huge pages have been found dear in this process.
+#[cfg(target_os = "linux")]
+static HUGE_PAGES_DEAR: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// A fresh huge page whose first write takes longer than this is dear: small pages
+/// would have cost less. On the virtual machines measured, the 512 small-page
+/// faults of 2 MiB cost about 1.4 ms, and a huge page 0.1-0.2 ms when the guest's
+/// memory was in use a moment ago, but 5-10 ms once it has lain free for a few
+/// seconds (the guest reports free memory to its host, which takes it back and
+/// must find it again): a render started after a pause paid for the dragon's ~100
+/// MB of huge pages with 0.3 s of CPU time, three times what small pages cost.
+/// Even back to back, the memory a render finds cheap runs out after 20-70 MB.
+#[cfg(target_os = "linux")]
+const DEAR_HUGE_PAGE: std::time::Duration = std::time::Duration::from_millis(1);
+
+/// Backs `start..end` (whole 2 MiB pages, mapped and ours) with huge pages while
+/// they are cheap: they are faulted in now, one at a time and each timed, and the
+/// first [dear](DEAR_HUGE_PAGE) one switches the process to small pages, for the
+/// rest of this range and every later one. The contents are kept.
+#[cfg(target_os = "linux")]
+fn back_with_huge_pages(start: usize, end: usize) {
+    use std::sync::atomic::Ordering::Relaxed;
+    if end <= start {
+        return;
+    }
+    let advise = |from: usize, advice: libc::c_int| {
+        // SAFETY: the range is mapped, page aligned, and ours; the advice changes
+        // how pages are backed, never their contents. Failure (no THP support)
+        // leaves ordinary pages, so the result is ignored.
+        unsafe { libc::madvise(from as *mut libc::c_void, end - from, advice) };
+    };
+    if HUGE_PAGES_DEAR.load(Relaxed) {
+        // Explicitly, in case huge pages are the system's default.
+        advise(start, libc::MADV_NOHUGEPAGE);
+        return;
+    }
+    advise(start, libc::MADV_HUGEPAGE);
+    for page in (start..end).step_by(HUGE_PAGE_BYTES) {
+        let first = page as *mut std::mem::MaybeUninit<u8>;
+        let began = std::time::Instant::now();
+        // SAFETY: the page is mapped and ours; its first byte is written back as it
+        // was read (whatever it holds), which faults the page in.
+        unsafe { first.write_volatile(first.read_volatile()) };
+        if began.elapsed() > DEAR_HUGE_PAGE {
+            HUGE_PAGES_DEAR.store(true, Relaxed);
+            if page + HUGE_PAGE_BYTES < end {
+                advise(page + HUGE_PAGE_BYTES, libc::MADV_NOHUGEPAGE);
+            }
+            return;
+        }
+    }
 }
 
 /// Gives the whole pages of `v`'s unused capacity back to the system, keeping the
@@ -104,21 +153,17 @@ pub(crate) fn prefetch_lines<T>(address: *const T, lines: usize) {
 #[cfg(target_os = "linux")]
 const BIG_BLOCK: usize = 2 << 20;
 
-/// The 2 MiB page of x86-64 and aarch64 Linux.
-#[cfg(target_os = "linux")]
-const HUGE_PAGE_BYTES: usize = 2 << 20;
-
 /// Freed blocks kept for reuse at most, and their total size.
 #[cfg(target_os = "linux")]
-const CACHED_BLOCKS: usize = 8;
+const CACHED_BLOCKS: usize = 64;
 
 /// The global allocator of the `raytracer` command: big blocks (2 MiB and more)
 /// that are freed are kept and handed out again for the next big request, instead
 /// of being given back to the system and asked for afresh.
 ///
 /// A render allocates far more big buffers over its life than it holds at once
-/// (the dragon: the file's text, then the builder's references and node slots, then
-/// the packets; about 200 MB in all for a peak of 120), and every fresh page costs
+/// (the dragon: the description, then the builder's references and node slots, then
+/// the packets; about 200 MB in all for a peak of 110), and every fresh page costs
 /// the kernel a page fault and zeroing it: about 0.5 ms per MB on the virtual
 /// machines measured, a fifth of the whole process's CPU time. A recycled block
 /// costs nothing (or a `memset` at memory speed for a zeroed request). At most
@@ -126,9 +171,11 @@ const CACHED_BLOCKS: usize = 8;
 /// and only while no request takes them.
 ///
 /// Big blocks are whole 2 MiB pages mapped by `mmap` at 2 MiB boundaries (so that
-/// the advice to use huge pages covers all of them), split when a request needs less than
-/// a kept block holds; everything else goes to the system allocator. Outside Linux
-/// this is the system allocator.
+/// the advice to use huge pages covers all of them), split when a request needs less
+/// than a kept block holds, and gathered by `mremap` when it needs more than any one
+/// holds. Only pages in memory are kept: those never written cost nothing to map
+/// afresh. Everything else goes to the system allocator. Outside Linux this is the
+/// system allocator.
 pub struct RecyclingAllocator {
     #[cfg(target_os = "linux")]
     cache: std::sync::Mutex<BlockCache>,
@@ -184,37 +231,84 @@ impl RecyclingAllocator {
     }
 
     /// A big block of at least `size` bytes: a kept one if one is large enough (the
-    /// smallest such, its rest kept), else fresh pages. Null if the system has none.
+    /// smallest such, its rest kept), else a fresh address range into which kept
+    /// blocks are moved, largest first, and which fresh pages fill up. Returns null if
+    /// the system has no memory, and whether any kept pages were used.
     fn take(&self, size: usize) -> (*mut u8, bool) {
         let bytes = size.next_multiple_of(HUGE_PAGE_BYTES);
-        {
-            let mut cache = self.lock();
+        let mut cache = self.lock();
+        let count = cache.count;
+        let best = (0..count)
+            .filter(|&i| cache.blocks[i].1 >= bytes)
+            .min_by_key(|&i| cache.blocks[i].1);
+        if let Some(i) = best {
+            let address = cache.blocks[i].0;
+            cache.take_front(i, bytes);
+            return (address as *mut u8, true);
+        }
+        let block = map_aligned(bytes);
+        if block.is_null() || count == 0 {
+            return (block, false);
+        }
+        // No kept block is large enough, but their pages in memory are worth more
+        // than fresh ones: the packets the dragon's build makes (38 MB) are bigger
+        // than any block freed before them, yet all those blocks together hold 30
+        // MB of pages in memory. `mremap` moves pages, not bytes.
+        let mut filled = 0;
+        while filled < bytes && cache.count > 0 {
             let count = cache.count;
-            let best = (0..count)
-                .filter(|&i| cache.blocks[i].1 >= bytes)
-                .min_by_key(|&i| cache.blocks[i].1);
-            if let Some(i) = best {
-                let (address, kept) = cache.blocks[i];
-                if kept > bytes {
-                    cache.blocks[i] = (address + bytes, kept - bytes);
-                } else {
-                    cache.blocks.copy_within(i + 1..count, i);
-                    cache.count -= 1;
-                }
-                return (address as *mut u8, true);
+            let i = (0..count)
+                .max_by_key(|&i| cache.blocks[i].1)
+                .expect("count > 0");
+            let (address, kept) = cache.blocks[i];
+            let wanted = kept.min(bytes - filled);
+            let Some(moved) = move_pages(address, wanted, block as usize + filled) else {
+                // A hole in the new block that could not be filled: give it all back
+                // (with what was moved into it).
+                drop(cache);
+                unmap(block as usize, bytes);
+                return (std::ptr::null_mut(), false);
+            };
+            cache.take_front(i, moved);
+            filled += moved;
+            if moved < wanted {
+                break;
             }
         }
-        (map_aligned(bytes), false)
+        (block, filled > 0)
     }
 
-    /// Keeps the big block `(address, size)`, giving back the oldest kept blocks
-    /// (or this one) beyond the limit.
+    /// Keeps the pages of the big block `(address, size)` that are in memory,
+    /// giving back the rest (fresh pages never written cost nothing to map again)
+    /// and the oldest kept blocks beyond the limit.
     fn keep(&self, address: *mut u8, size: usize) {
         let bytes = size.next_multiple_of(HUGE_PAGE_BYTES);
+        let start = address as usize;
+        // Runs of 2 MiB pages alike in being in memory or not.
+        let mut run_start = start;
+        let mut run_resident = false;
+        for chunk in (start..start + bytes).step_by(HUGE_PAGE_BYTES) {
+            let resident = in_memory(chunk);
+            if resident != run_resident && chunk > run_start {
+                self.keep_or_unmap(run_start, chunk - run_start, run_resident);
+                run_start = chunk;
+            }
+            run_resident = resident;
+        }
+        self.keep_or_unmap(run_start, start + bytes - run_start, run_resident);
+    }
+
+    /// Keeps a run of pages in memory (`resident`) as one block, or gives back one
+    /// of pages never written.
+    fn keep_or_unmap(&self, address: usize, bytes: usize, resident: bool) {
+        if !resident {
+            unmap(address, bytes);
+            return;
+        }
         let mut cache = self.lock();
         if bytes > cache.limit {
             drop(cache);
-            unmap(address as usize, bytes);
+            unmap(address, bytes);
             return;
         }
         let mut total: usize = cache.blocks[..cache.count].iter().map(|b| b.1).sum();
@@ -227,9 +321,80 @@ impl RecyclingAllocator {
             unmap(oldest, oldest_bytes);
         }
         let count = cache.count;
-        cache.blocks[count] = (address as usize, bytes);
+        cache.blocks[count] = (address, bytes);
         cache.count += 1;
     }
+}
+
+#[cfg(target_os = "linux")]
+impl BlockCache {
+    /// Hands out the first `bytes` of kept block `i`, keeping its rest.
+    fn take_front(&mut self, i: usize, bytes: usize) {
+        let (address, kept) = self.blocks[i];
+        if kept > bytes {
+            self.blocks[i] = (address + bytes, kept - bytes);
+        } else {
+            let count = self.count;
+            self.blocks.copy_within(i + 1..count, i);
+            self.count -= 1;
+        }
+    }
+}
+
+/// Whether any 4 KiB page of the 2 MiB page at `chunk` is in memory.
+#[cfg(target_os = "linux")]
+fn in_memory(chunk: usize) -> bool {
+    let mut resident = [0u8; HUGE_PAGE_BYTES / 4096];
+    // SAFETY: the range is mapped (a big block's page); `resident` has a byte per
+    // 4 KiB page of it.
+    let known = unsafe {
+        libc::mincore(
+            chunk as *mut libc::c_void,
+            HUGE_PAGE_BYTES,
+            resident.as_mut_ptr(),
+        )
+    } == 0;
+    !known || resident.iter().any(|&r| r & 1 == 1)
+}
+
+/// Moves the pages of `bytes` (whole 2 MiB pages) at `from` to `to`, which must be
+/// mapped by us, one 2 MiB page at a time (a page lies in one mapping, as `mremap`
+/// needs, where a longer range may not). Returns the bytes moved, which stop short
+/// at the first page that cannot be moved (that page of `to` is mapped afresh), or
+/// `None` if `to` was left with a hole.
+#[cfg(target_os = "linux")]
+fn move_pages(from: usize, bytes: usize, to: usize) -> Option<usize> {
+    for offset in (0..bytes).step_by(HUGE_PAGE_BYTES) {
+        // SAFETY: both pages are ours: `from`'s a kept block's, which nothing else
+        // uses, and `to`'s in the block being made; the old page is unmapped by the
+        // move and leaves the cache with it.
+        let moved = unsafe {
+            libc::mremap(
+                (from + offset) as *mut libc::c_void,
+                HUGE_PAGE_BYTES,
+                HUGE_PAGE_BYTES,
+                libc::MREMAP_MAYMOVE | libc::MREMAP_FIXED,
+                (to + offset) as *mut libc::c_void,
+            )
+        };
+        if moved != libc::MAP_FAILED {
+            continue;
+        }
+        // A failed move may have unmapped the target first: map it again.
+        // SAFETY: `to + offset` is a page of the block being made.
+        let remapped = unsafe {
+            libc::mmap(
+                (to + offset) as *mut libc::c_void,
+                HUGE_PAGE_BYTES,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_PRIVATE | libc::MAP_ANONYMOUS | libc::MAP_FIXED,
+                -1,
+                0,
+            )
+        };
+        return (remapped != libc::MAP_FAILED).then_some(offset);
+    }
+    Some(bytes)
 }
 
 /// Fresh pages of `bytes` (a multiple of 2 MiB) at a 2 MiB boundary, or null.
@@ -257,6 +422,11 @@ fn map_aligned(bytes: usize) -> *mut u8 {
     // The mapping's pages before the boundary and after the block go back.
     unmap(start, aligned - start);
     unmap(aligned + bytes, start + mapped - (aligned + bytes));
+    if HUGE_PAGES_DEAR.load(std::sync::atomic::Ordering::Relaxed) {
+        // Small pages, in case huge ones are the system's default.
+        // SAFETY: advice on the block just mapped, which changes no contents.
+        unsafe { libc::madvise(aligned as *mut libc::c_void, bytes, libc::MADV_NOHUGEPAGE) };
+    }
     aligned as *mut u8
 }
 
@@ -427,6 +597,7 @@ mod tests {
             let b = allocator.alloc(layout(5 * MIB));
             assert_eq!(a as usize % HUGE_PAGE_BYTES, 0, "big blocks start on 2 MiB");
             a.write_bytes(1, 9 * MIB);
+            b.write_bytes(2, 5 * MIB);
             allocator.dealloc(a, layout(9 * MIB));
             allocator.dealloc(b, layout(5 * MIB));
             assert_eq!(allocator.cached_bytes(), 16 * MIB);
@@ -452,9 +623,9 @@ mod tests {
         let allocator = RecyclingAllocator::new(64 * MIB);
         unsafe {
             let a = allocator.alloc(layout(8 * MIB));
-            // Half written, half never touched; the written part in odd pages only,
-            // so that the pages in memory come in many runs.
-            for page in (0..1024).step_by(2) {
+            // Half written, half never touched: every other 4 KiB page, so that
+            // each 2 MiB page is kept and the pages in memory come in many runs.
+            for page in (0..2048).step_by(2) {
                 a.add(page * 4096).write_bytes(0xab, 4096);
             }
             allocator.dealloc(a, layout(8 * MIB));
@@ -474,6 +645,10 @@ mod tests {
         unsafe {
             let blocks: Vec<*mut u8> = (0..3).map(|_| allocator.alloc(layout(4 * MIB))).collect();
             let big = allocator.alloc(layout(12 * MIB));
+            for &block in &blocks {
+                block.write_bytes(3, 4 * MIB);
+            }
+            big.write_bytes(4, 12 * MIB);
             for &block in &blocks {
                 allocator.dealloc(block, layout(4 * MIB));
             }
@@ -510,5 +685,101 @@ mod tests {
             assert!(std::slice::from_raw_parts(d, 500).iter().all(|&x| x == 7));
             allocator.dealloc(d, layout(500));
         }
+    }
+
+    /// Only the 2 MiB pages of a freed block that were written are kept; the
+    /// others go back to the system.
+    #[test]
+    fn only_pages_in_memory_are_kept() {
+        let allocator = RecyclingAllocator::new(64 * MIB);
+        unsafe {
+            let a = allocator.alloc(layout(8 * MIB));
+            a.write_bytes(5, 100);
+            a.add(4 * MIB + 10).write(6);
+            allocator.dealloc(a, layout(8 * MIB));
+            assert_eq!(allocator.cached_bytes(), 4 * MIB);
+            // The two kept pages are separate blocks: a 4 MiB request fits in
+            // neither and gathers both.
+            let b = allocator.alloc(layout(2 * MIB));
+            assert!(b == a || b == a.add(4 * MIB));
+            allocator.dealloc(b, layout(2 * MIB));
+        }
+    }
+
+    /// A request bigger than every kept block gets their pages, moved into one
+    /// range (largest first) with their contents, and fresh pages for the rest.
+    #[test]
+    fn kept_blocks_are_gathered_for_a_bigger_request() {
+        let allocator = RecyclingAllocator::new(64 * MIB);
+        unsafe {
+            let a = allocator.alloc(layout(2 * MIB));
+            let b = allocator.alloc(layout(4 * MIB));
+            a.write_bytes(0xaa, 2 * MIB);
+            b.write_bytes(0xbb, 4 * MIB);
+            allocator.dealloc(a, layout(2 * MIB));
+            allocator.dealloc(b, layout(4 * MIB));
+            assert_eq!(allocator.cached_bytes(), 6 * MIB);
+            let c = allocator.alloc(layout(10 * MIB));
+            assert_eq!(allocator.cached_bytes(), 0, "both kept blocks are used");
+            let bytes = std::slice::from_raw_parts_mut(c, 10 * MIB);
+            assert!(bytes[..4 * MIB].iter().all(|&x| x == 0xbb));
+            assert!(bytes[4 * MIB..6 * MIB].iter().all(|&x| x == 0xaa));
+            assert!(bytes[6 * MIB..].iter().all(|&x| x == 0));
+            bytes.fill(0xcc);
+            allocator.dealloc(c, layout(10 * MIB));
+            // Gathered into a zeroed request, the kept pages read as zeroes too.
+            let d = allocator.alloc_zeroed(layout(16 * MIB));
+            assert_eq!(allocator.cached_bytes(), 0);
+            let bytes = std::slice::from_raw_parts(d, 16 * MIB);
+            assert!(bytes.iter().all(|&x| x == 0));
+            allocator.dealloc(d, layout(16 * MIB));
+        }
+    }
+
+    /// The `VmFlags` line of `/proc/self/smaps` for the mapping holding `address`.
+    fn vm_flags(address: usize) -> String {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
+        let mut inside = false;
+        for line in smaps.lines() {
+            let range = line.split_whitespace().next().unwrap_or("");
+            if let Some((start, end)) = range.split_once('-')
+                && let (Ok(start), Ok(end)) = (
+                    usize::from_str_radix(start, 16),
+                    usize::from_str_radix(end, 16),
+                )
+            {
+                inside = (start..end).contains(&address);
+            } else if inside && let Some(flags) = line.strip_prefix("VmFlags:") {
+                return flags.to_string();
+            }
+        }
+        panic!("no mapping holds {address:#x}");
+    }
+
+    /// Once huge pages have been found dear, fresh blocks and buffers written end
+    /// to end ask for small pages; and backing a buffer keeps its contents.
+    #[test]
+    fn dear_huge_pages_give_small_pages() {
+        let mut data: Vec<u8> = Vec::with_capacity(8 * MIB);
+        data.extend((0..3 * MIB).map(|i| i as u8));
+        // Whatever it costs here, the buffer's contents stay.
+        advise_huge_pages(&data);
+        assert!(data.iter().enumerate().all(|(i, &x)| x == i as u8));
+
+        HUGE_PAGES_DEAR.store(true, std::sync::atomic::Ordering::Relaxed);
+        let allocator = RecyclingAllocator::new(64 * MIB);
+        unsafe {
+            let a = allocator.alloc(layout(4 * MIB));
+            assert!(
+                vm_flags(a as usize).contains(" nh"),
+                "{}",
+                vm_flags(a as usize)
+            );
+            allocator.dealloc(a, layout(4 * MIB));
+        }
+        let v: Vec<u64> = Vec::with_capacity(MIB);
+        advise_huge_pages(&v);
+        let page = (v.as_ptr() as usize).next_multiple_of(HUGE_PAGE_BYTES);
+        assert!(vm_flags(page).contains(" nh"), "{}", vm_flags(page));
     }
 }

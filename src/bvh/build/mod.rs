@@ -187,8 +187,8 @@ impl Bvh {
         // first, none written before the builder fills it (subtrees built beside
         // another get fewer slots, see `usual_slots`). The slots a subtree leaves
         // unused are squeezed out afterwards.
+        // Small pages: most of the array is never touched.
         let mut nodes: Vec<BvhNode> = Vec::with_capacity(2 * n - 1);
-        memory::advise_huge_pages(&nodes);
         let (root, rest) = nodes.spare_capacity_mut()[..2 * n - 1]
             .split_first_mut()
             .expect("n > 0");

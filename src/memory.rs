@@ -62,6 +62,9 @@ const DEAR_HUGE_PAGE: std::time::Duration = std::time::Duration::from_millis(1);
 /// they are cheap: they are faulted in now, one at a time and each timed, and the
 /// first [dear](DEAR_HUGE_PAGE) one switches the process to small pages, for the
 /// rest of this range and every later one. The contents are kept.
+///
+/// Timing makes the pages' kind depend on the machine's state, never a result: a
+/// buffer's contents are the same on pages of either size.
 #[cfg(target_os = "linux")]
 fn back_with_huge_pages(start: usize, end: usize) {
     use std::sync::atomic::Ordering::Relaxed;
@@ -82,11 +85,11 @@ fn back_with_huge_pages(start: usize, end: usize) {
     advise(start, libc::MADV_HUGEPAGE);
     for page in (start..end).step_by(HUGE_PAGE_BYTES) {
         let first = page as *mut std::mem::MaybeUninit<u8>;
-        let began = std::time::Instant::now();
+        let began = thread_cpu_time();
         // SAFETY: the page is mapped and ours; its first byte is written back as it
         // was read (whatever it holds), which faults the page in.
         unsafe { first.write_volatile(first.read_volatile()) };
-        if began.elapsed() > DEAR_HUGE_PAGE {
+        if thread_cpu_time().saturating_sub(began) > DEAR_HUGE_PAGE {
             HUGE_PAGES_DEAR.store(true, Relaxed);
             if page + HUGE_PAGE_BYTES < end {
                 advise(page + HUGE_PAGE_BYTES, libc::MADV_NOHUGEPAGE);
@@ -94,6 +97,20 @@ fn back_with_huge_pages(start: usize, end: usize) {
             return;
         }
     }
+}
+
+/// The CPU time of the calling thread: a fault's cost, not the time the thread was
+/// preempted meanwhile (the host's work for a cold page counts, as the guest's
+/// system time).
+#[cfg(target_os = "linux")]
+fn thread_cpu_time() -> std::time::Duration {
+    let mut time = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `time` is a valid `timespec` to write.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut time) };
+    std::time::Duration::new(time.tv_sec as u64, time.tv_nsec as u32)
 }
 
 /// Gives the whole pages of `v`'s unused capacity back to the system, keeping the

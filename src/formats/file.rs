@@ -10,6 +10,12 @@ use std::path::Path;
 use super::SceneError;
 use crate::memory;
 
+/// Whether `path` ends in `.gz` (any case): a file to decompress whatever its bytes.
+fn named_gz(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"))
+}
+
 /// The first two bytes of every gzip member (RFC 1952).
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 
@@ -24,10 +30,7 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
         error,
     };
     let bytes = read_regular_file(path).map_err(io_error)?;
-    let gz_name = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    if gz_name || bytes.starts_with(&GZIP_MAGIC) {
+    if named_gz(path) || bytes.starts_with(&GZIP_MAGIC) {
         gunzip(&bytes).map_err(io_error)
     } else {
         Ok(bytes)
@@ -105,10 +108,7 @@ pub(crate) fn read_in_pieces<'a>(
         path: path.to_path_buf(),
         error,
     };
-    let gz_name = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    if gz_name {
+    if named_gz(path) {
         return read_file(path).map(Some);
     }
     let (mut file, size) = open_regular_file(path).map_err(io_error)?;
@@ -177,10 +177,7 @@ pub(crate) fn map_uncompressed(path: &Path) -> Result<Option<memmap2::Mmap>, Sce
         path: path.to_path_buf(),
         error,
     };
-    let gz_name = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    if gz_name {
+    if named_gz(path) {
         return Ok(None);
     }
     let (file, size) = open_regular_file(path).map_err(io_error)?;

@@ -83,19 +83,28 @@ fn back_with_huge_pages(start: usize, end: usize) {
         return;
     }
     advise(start, libc::MADV_HUGEPAGE);
-    for page in (start..end).step_by(HUGE_PAGE_BYTES) {
-        let first = page as *mut std::mem::MaybeUninit<u8>;
-        let began = thread_cpu_time();
-        // SAFETY: the page is mapped and ours; its first byte is written back as it
-        // was read (whatever it holds), which faults the page in.
-        unsafe { first.write_volatile(first.read_volatile()) };
-        if thread_cpu_time().saturating_sub(began) > DEAR_HUGE_PAGE {
-            HUGE_PAGES_DEAR.store(true, Relaxed);
-            if page + HUGE_PAGE_BYTES < end {
-                advise(page + HUGE_PAGE_BYTES, libc::MADV_NOHUGEPAGE);
+    // On all threads, as the buffer's writes would have faulted them.
+    use rayon::prelude::*;
+    (start..end)
+        .into_par_iter()
+        .step_by(HUGE_PAGE_BYTES)
+        .for_each(|page| {
+            if HUGE_PAGES_DEAR.load(Relaxed) {
+                return;
             }
-            return;
-        }
+            let first = page as *mut std::mem::MaybeUninit<u8>;
+            let began = thread_cpu_time();
+            // SAFETY: the page is mapped and ours, and no other thread touches it
+            // here; its first byte is written back as it was read (whatever it
+            // holds), which faults the page in.
+            unsafe { first.write_volatile(first.read_volatile()) };
+            if thread_cpu_time().saturating_sub(began) > DEAR_HUGE_PAGE {
+                HUGE_PAGES_DEAR.store(true, Relaxed);
+            }
+        });
+    if HUGE_PAGES_DEAR.load(Relaxed) {
+        // The pages not faulted in yet get small ones; those that were stay.
+        advise(start, libc::MADV_NOHUGEPAGE);
     }
 }
 

@@ -59,7 +59,7 @@ static HUGE_PAGES_DEAR: std::sync::atomic::AtomicBool = std::sync::atomic::Atomi
 const DEAR_HUGE_PAGE: std::time::Duration = std::time::Duration::from_millis(1);
 
 /// Backs `start..end` (whole 2 MiB pages, mapped and ours) with huge pages while
-/// they are cheap: they are faulted in now, one at a time and each timed, and the
+/// they are cheap: they are faulted in now, on all threads and each timed, and the
 /// first [dear](DEAR_HUGE_PAGE) one switches the process to small pages, for the
 /// rest of this range and every later one. The contents are kept.
 ///

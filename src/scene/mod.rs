@@ -1084,70 +1084,36 @@ where
     }
     let total = *first_packets.last().unwrap() as usize;
 
-    // Each leaf writes its own slices, so the writes (and the page faults of the
-    // fresh arrays, on huge pages where Linux gives them) are spread over all threads.
+    // Each leaf writes its own ranges of the three arrays, so the writes (and the
+    // page faults of the fresh arrays) are spread over all threads: its packets at
+    // `first_packets[leaf]`, its shading data at its first primitive. Leaves list
+    // their primitive ranges in node order, not in primitive order, so the ranges
+    // are handed out as raw parts of the arrays, which only disjoint ranges make
+    // sound: the leaves' primitive ranges must tile `0..prim_count` (collapse puts
+    // every primitive in one leaf), which `assert_tiles` checks. (Cutting the
+    // arrays into slices in primitive order took three per-leaf tables, 10 MB of
+    // fresh memory on the dragon, written on one thread.)
+    assert_tiles(&leaves, prim_count);
     let mut packets: Vec<TrianglePacket> = Vec::with_capacity(total);
     memory::advise_huge_pages(&packets);
-    let mut unwritten = &mut packets.spare_capacity_mut()[..total];
-    let mut packet_slices = Vec::with_capacity(leaves.len());
-    for &count in &packet_counts {
-        let (slice, rest) = unwritten.split_at_mut(count as usize);
-        packet_slices.push(slice);
-        unwritten = rest;
-    }
-    // Leaves list their primitive ranges in node order, not in primitive order: the
-    // shading arrays are cut in primitive order, then their slices are handed to the
-    // leaves that own them. The leaf starting at each primitive is found through a
-    // table by first primitive (one bucket per primitive, cheaper than sorting the
-    // leaves); the ranges must tile `0..prim_count` (collapse puts every primitive in
-    // one leaf), which the walk checks.
-    const NO_LEAF: u32 = u32::MAX;
-    let mut leaf_at = vec![NO_LEAF; prim_count];
-    for (leaf, &(first, _)) in leaves.iter().enumerate() {
-        leaf_at[first as usize] = leaf as u32;
-    }
     let mut materials: Vec<MaterialId> = Vec::with_capacity(prim_count);
     memory::advise_huge_pages(&materials);
     let normal_count = if with_normals { prim_count } else { 0 };
     let mut normals: Vec<[u32; 3]> = Vec::with_capacity(normal_count);
     memory::advise_huge_pages(&normals);
-    let mut shading_slices: Vec<ShadingSlots<'_>> = Vec::with_capacity(leaves.len());
-    shading_slices.resize_with(leaves.len(), Default::default);
-    let mut unwritten_materials = &mut materials.spare_capacity_mut()[..prim_count];
-    let mut unwritten_normals = &mut normals.spare_capacity_mut()[..normal_count];
-    let (mut next, mut visited) = (0, 0);
-    while next < prim_count {
-        let leaf = leaf_at[next];
-        assert_ne!(leaf, NO_LEAF, "leaves do not tile the primitives");
-        let count = leaves[leaf as usize].1 as usize;
-        assert!(count > 0, "leaf {leaf} holds no primitives");
-        let (leaf_materials, rest) = unwritten_materials.split_at_mut(count);
-        unwritten_materials = rest;
-        let (leaf_normals, rest) =
-            unwritten_normals.split_at_mut(if with_normals { count } else { 0 });
-        unwritten_normals = rest;
-        shading_slices[leaf as usize] = ShadingSlots {
-            materials: leaf_materials,
-            normals: leaf_normals,
-        };
-        next += count;
-        visited += 1;
-    }
-    assert_eq!(visited, leaves.len(), "leaves do not tile the primitives");
-    drop(leaf_at);
+    let packet_parts = Parts::new(&mut packets.spare_capacity_mut()[..total]);
+    let material_parts = Parts::new(&mut materials.spare_capacity_mut()[..prim_count]);
+    let normal_parts = Parts::new(&mut normals.spare_capacity_mut()[..normal_count]);
     // Leaves in runs, so that each one's primitives are asked for ahead while the
     // leaves before them are written: their descriptions four leaves ahead, their
     // corners two leaves ahead (the description is in cache by then). The gather
     // waited on memory most of the time: on the dragon this step took 50-70 ms of
     // wall time under load, 25-30 ms with the hints (one and two leaves ahead
     // gave 40-50 ms, six and three 30-40 ms).
-    // The three per-leaf arrays cut into the same runs, rather than zipped into one
-    // more array (six megabytes of fresh memory on the dragon, written on one thread).
-    packet_slices
-        .par_chunks_mut(LEAF_RUN)
-        .zip(shading_slices.par_chunks_mut(LEAF_RUN))
-        .zip(leaves.par_chunks(LEAF_RUN))
-        .for_each(|((packet_run, shading_run), run)| {
+    leaves
+        .par_chunks(LEAF_RUN)
+        .enumerate()
+        .for_each(|(run_index, run)| {
             let ask = |leaf: usize, corners: bool| {
                 if let Some(&(first, count)) = run.get(leaf) {
                     for prim in first..first + count {
@@ -1164,18 +1130,31 @@ where
             for (leaf, &(first, count)) in run.iter().enumerate() {
                 ask(leaf + DESCRIPTIONS_AHEAD, false);
                 ask(leaf + CORNERS_AHEAD, true);
-                write_leaf(
-                    first,
-                    count,
-                    &prim_of,
-                    packet_run[leaf],
-                    std::mem::take(&mut shading_run[leaf]),
-                );
+                let index = run_index * LEAF_RUN + leaf;
+                let packet_range = first_packets[index] as usize..first_packets[index + 1] as usize;
+                let prims = first as usize..(first + count) as usize;
+                // SAFETY: the packet ranges are consecutive prefix sums, and the
+                // primitive ranges tile `0..prim_count` (checked above): no two
+                // leaves share an element of any of the three arrays.
+                let (out, shading) = unsafe {
+                    (
+                        packet_parts.range(packet_range),
+                        ShadingSlots {
+                            materials: material_parts.range(prims.clone()),
+                            normals: if with_normals {
+                                normal_parts.range(prims)
+                            } else {
+                                &mut []
+                            },
+                        },
+                    )
+                };
+                write_leaf(first, count, &prim_of, out, shading);
             }
         });
-    // SAFETY: the packet slices cover `0..total` exactly, the material slices
-    // `0..prim_count`, the normal slices `0..normal_count`, and `write_leaf` wrote
-    // every element of its slices (it asserts so).
+    // SAFETY: the packet ranges cover `0..total` exactly, the primitive ranges
+    // `0..prim_count`, and `write_leaf` wrote every element of its ranges (it
+    // asserts so).
     unsafe {
         packets.set_len(total);
         materials.set_len(prim_count);
@@ -1186,6 +1165,56 @@ where
         wide,
         packets,
         shading: ShadingData { materials, normals },
+    }
+}
+
+/// Panics unless the ranges `(first, count)` tile `0..prim_count`: none empty, none
+/// overlapping, no gap.
+fn assert_tiles(ranges: &[(u32, u32)], prim_count: usize) {
+    let mut sorted = ranges.to_vec();
+    sorted.par_sort_unstable_by_key(|&(first, _)| first);
+    let mut end = 0u64;
+    for &(first, count) in &sorted {
+        assert!(
+            u64::from(first) == end && count > 0,
+            "leaves do not tile the primitives"
+        );
+        end += u64::from(count);
+    }
+    assert_eq!(end, prim_count as u64, "leaves do not tile the primitives");
+}
+
+/// An array's spare capacity, handed out in ranges to the threads that write them
+/// (see [`packetize`]).
+struct Parts<T> {
+    start: *mut MaybeUninit<T>,
+    len: usize,
+}
+
+// SAFETY: `Parts` only hands out ranges, each to one thread (the caller's contract
+// of `Parts::range`); `T` is written from those threads.
+unsafe impl<T: Send> Sync for Parts<T> {}
+
+impl<T> Parts<T> {
+    fn new(slots: &mut [MaybeUninit<T>]) -> Parts<T> {
+        Parts {
+            start: slots.as_mut_ptr(),
+            len: slots.len(),
+        }
+    }
+
+    /// The slots of `range`.
+    ///
+    /// # Safety
+    /// No two calls may hand out overlapping ranges while both are in use.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn range(&self, range: std::ops::Range<usize>) -> &mut [MaybeUninit<T>] {
+        assert!(
+            range.start <= range.end && range.end <= self.len,
+            "range out of bounds"
+        );
+        // SAFETY: inside the slots `new` took; not aliased, by the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.start.add(range.start), range.len()) }
     }
 }
 
@@ -1317,6 +1346,24 @@ mod build_tests {
     /// The build's steps are timed one after another inside it: together they take
     /// no longer than the whole build timed from outside, and a build over shapes
     /// spends its time in them (not all of it in one).
+    /// The packets step hands each leaf its ranges of the arrays only if the leaves
+    /// tile the primitives.
+    #[test]
+    fn leaves_must_tile_the_primitives() {
+        assert_tiles(&[(4, 3), (0, 4), (7, 1)], 8);
+        for (ranges, prim_count) in [
+            (&[(0, 4), (3, 5)][..], 8),               // overlap
+            (&[(0, 4), (5, 3)][..], 8),               // gap
+            (&[(0, 4), (4, 0), (4, 4)][..], 8),       // empty leaf
+            (&[(0, 4)][..], 8),                       // short
+            (&[(0, 4), (4, 4)][..], 7),               // long
+            (&[(0, u32::MAX), (u32::MAX, 2)][..], 3), // wraps
+        ] {
+            let result = std::panic::catch_unwind(|| assert_tiles(ranges, prim_count));
+            assert!(result.is_err(), "{ranges:?} over {prim_count}");
+        }
+    }
+
     #[test]
     fn build_steps_are_timed_in_turn_within_the_build() {
         let description = packet::tests::generated_description(60, true, 7);

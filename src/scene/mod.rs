@@ -1220,7 +1220,6 @@ impl<T> Parts<T> {
 
 /// One leaf's slots of the shading data: a material per primitive, and its
 /// normals' indices per primitive or none (a scene without vertex normals).
-#[derive(Default)]
 struct ShadingSlots<'a> {
     materials: &'a mut [MaybeUninit<MaterialId>],
     normals: &'a mut [MaybeUninit<[u32; 3]>],
@@ -1343,9 +1342,6 @@ mod build_tests {
         assert!(with_corner_normals > 0);
     }
 
-    /// The build's steps are timed one after another inside it: together they take
-    /// no longer than the whole build timed from outside, and a build over shapes
-    /// spends its time in them (not all of it in one).
     /// The packets step hands each leaf its ranges of the arrays only if the leaves
     /// tile the primitives.
     #[test]
@@ -1364,6 +1360,9 @@ mod build_tests {
         }
     }
 
+    /// The build's steps are timed one after another inside it: together they take
+    /// no longer than the whole build timed from outside, and a build over shapes
+    /// spends its time in them (not all of it in one).
     #[test]
     fn build_steps_are_timed_in_turn_within_the_build() {
         let description = packet::tests::generated_description(60, true, 7);

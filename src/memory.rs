@@ -339,10 +339,7 @@ impl RecyclingAllocator {
         }
         let mut total: usize = cache.blocks[..cache.count].iter().map(|b| b.1).sum();
         while cache.count > 0 && (cache.count == CACHED_BLOCKS || total + bytes > cache.limit) {
-            let (oldest, oldest_bytes) = cache.blocks[0];
-            let count = cache.count;
-            cache.blocks.copy_within(1..count, 0);
-            cache.count -= 1;
+            let (oldest, oldest_bytes) = cache.remove(0);
             total -= oldest_bytes;
             unmap(oldest, oldest_bytes);
         }
@@ -360,10 +357,17 @@ impl BlockCache {
         if kept > bytes {
             self.blocks[i] = (address + bytes, kept - bytes);
         } else {
-            let count = self.count;
-            self.blocks.copy_within(i + 1..count, i);
-            self.count -= 1;
+            self.remove(i);
         }
+    }
+
+    /// Takes kept block `i` out of the cache, keeping the others' order.
+    fn remove(&mut self, i: usize) -> (usize, usize) {
+        let block = self.blocks[i];
+        let count = self.count;
+        self.blocks.copy_within(i + 1..count, i);
+        self.count -= 1;
+        block
     }
 }
 

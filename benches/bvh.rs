@@ -33,7 +33,6 @@ fn soup(n: usize) -> SceneDescription {
         }
         d.triangles.push(TriangleDesc {
             positions: [3 * i, 3 * i + 1, 3 * i + 2],
-            normals: None,
             material: MaterialId(0),
         });
     }

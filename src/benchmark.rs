@@ -402,7 +402,6 @@ mod tests {
             ],
             triangles: vec![TriangleDesc {
                 positions: [0, 2, 1],
-                normals: None,
                 material: MaterialId(0),
             }],
             lights: vec![light(-1.0), light(1.0)],

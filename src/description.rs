@@ -46,6 +46,12 @@ pub struct SceneDescription {
     pub normals: Vec<Vec3>,
     /// Triangles after splitting polygons into fans.
     pub triangles: Vec<TriangleDesc>,
+    /// Indices into [`SceneDescription::normals`] of each triangle's corners, in step
+    /// with `triangles` (`None` where a corner has none); or empty, when no triangle
+    /// has normals. (Kept apart from [`TriangleDesc`], as texture coordinates are, so
+    /// that meshes without normals, such as most scans, store 16 bytes a triangle
+    /// rather than 32.)
+    pub triangle_normals: Vec<Option<[u32; 3]>>,
     /// Indices into [`SceneDescription::texcoords`] of each triangle's corners, in
     /// step with `triangles` (`None` where a corner has none); or empty, when no
     /// triangle has texture coordinates or no material has a map to use them with.
@@ -68,6 +74,23 @@ impl SceneDescription {
     #[inline]
     pub fn texcoords_of(&self, index: usize) -> Option<[u32; 3]> {
         self.triangle_texcoords.get(index).copied().flatten()
+    }
+
+    /// The normal indices of triangle `index`'s corners, if it has them.
+    #[inline]
+    pub fn normals_of(&self, index: usize) -> Option<[u32; 3]> {
+        self.triangle_normals.get(index).copied().flatten()
+    }
+
+    /// Appends a triangle with its normal indices, keeping
+    /// [`SceneDescription::triangle_normals`] in step (or empty while no triangle has
+    /// normals).
+    pub fn push_triangle(&mut self, triangle: TriangleDesc, normals: Option<[u32; 3]>) {
+        self.triangles.push(triangle);
+        if normals.is_some() || !self.triangle_normals.is_empty() {
+            self.triangle_normals.resize(self.triangles.len() - 1, None);
+            self.triangle_normals.push(normals);
+        }
     }
 
     /// The box around every triangle and sphere (not the lights, nor vertices no face
@@ -178,17 +201,18 @@ impl SceneDescription {
     }
 }
 
-/// A triangle of a description: indices into its arrays (texture coordinates are in
+/// A triangle of a description: indices into its arrays (normals and texture
+/// coordinates are in [`SceneDescription::triangle_normals`] and
 /// [`SceneDescription::triangle_texcoords`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleDesc {
     /// Indices into [`SceneDescription::positions`].
     pub positions: [u32; 3],
-    /// Indices into [`SceneDescription::normals`], when every corner has one.
-    pub normals: Option<[u32; 3]>,
     /// The material.
     pub material: MaterialId,
 }
+
+const _: () = assert!(size_of::<TriangleDesc>() == 16);
 
 /// A sphere of a description.
 #[derive(Clone, Copy, Debug, PartialEq)]

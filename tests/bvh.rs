@@ -33,7 +33,6 @@ fn random_soup(rng: &mut Rng64, triangles: usize, spheres: usize) -> SceneDescri
         }
         d.triangles.push(TriangleDesc {
             positions: [base, base + 1, base + 2],
-            normals: None,
             material: MaterialId(0),
         });
     }
@@ -357,7 +356,6 @@ fn height_field(cells: u32) -> SceneDescription {
             ] {
                 d.triangles.push(TriangleDesc {
                     positions,
-                    normals: None,
                     material: MaterialId(0),
                 });
             }

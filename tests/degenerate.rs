@@ -18,7 +18,6 @@ fn description(triangles: &[[Vec3; 3]]) -> SceneDescription {
         d.positions.extend_from_slice(corners);
         d.triangles.push(TriangleDesc {
             positions: [base, base + 1, base + 2],
-            normals: None,
             material: MaterialId(0),
         });
     }

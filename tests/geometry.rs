@@ -87,7 +87,6 @@ fn ray_triangle_records() {
             positions: vec![v(&r[6..9]), v(&r[9..12]), v(&r[12..15])],
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
-                normals: None,
                 material: MaterialId(0),
             }],
             ..SceneDescription::default()

@@ -67,10 +67,7 @@ fn meshes_sit_under_their_node_transforms() {
         assert!(normal.z > 0.0, "{}: {normal}", path.display());
         // Normals stay unit +z (the scene normalizes them) and texture coordinates
         // have v turned up: glTF's (0, 0), the top left of the image, is v = 1.
-        let n = d.triangles[0]
-            .normals
-            .unwrap()
-            .map(|i| d.normals[i as usize]);
+        let n = d.normals_of(0).unwrap().map(|i| d.normals[i as usize]);
         assert!(n.iter().all(|n| n.normalize() == Vec3::Z));
         let uv = d.texcoords_of(0).unwrap().map(|i| d.texcoords[i as usize]);
         assert_eq!(

@@ -128,11 +128,13 @@ fn random_scene(seed: u64) -> SceneDescription {
             d.normals.extend([Vec3::ZERO, r.vec(1.0), r.vec(1e30)]);
             [n, n + 1, n + 2]
         });
-        d.triangles.push(TriangleDesc {
-            positions: [base, base + 1, base + 2],
+        d.push_triangle(
+            TriangleDesc {
+                positions: [base, base + 1, base + 2],
+                material: material(r),
+            },
             normals,
-            material: material(r),
-        });
+        );
     }
     for _ in 0..r.below(6) {
         d.spheres.push(SphereDesc {

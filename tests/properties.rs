@@ -62,7 +62,6 @@ fn perturbed_sphere_mesh(
     let mut tri = |a, b, c| {
         d.triangles.push(TriangleDesc {
             positions: [a, b, c],
-            normals: None,
             material: MaterialId(0),
         });
     };
@@ -123,7 +122,6 @@ fn rays_spawned_from_a_triangle_hit_never_hit_it_again() {
             positions: vertices.to_vec(),
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
-                normals: None,
                 material: MaterialId(0),
             }],
             ..SceneDescription::default()

@@ -87,11 +87,11 @@ fn convex_polygons_keep_the_fan_and_concave_ones_keep_their_outline() {
     let d =
         parse("v 0 0.5 0.5\nv 1 0 0\nv 0.5 0.5 0.25\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\n");
     assert_eq!(d.triangles.len(), 2);
-    for t in &d.triangles {
+    for (i, t) in d.triangles.iter().enumerate() {
         // Corner 3 (index 2), the notch, is in both triangles: each triangle is an ear
         // on one side of it.
         assert!(t.positions.contains(&2), "{:?}", t.positions);
-        assert_eq!(t.normals, Some([0, 0, 0]));
+        assert_eq!(d.normals_of(i), Some([0, 0, 0]));
     }
 }
 
@@ -151,7 +151,7 @@ fn smoothing_groups_average_the_normals_of_faces_sharing_a_position() {
     let normal_at = |triangle: usize, position: u32| {
         let t = &d.triangles[triangle];
         let corner = t.positions.iter().position(|&p| p == position).unwrap();
-        d.normals[t.normals.expect("smoothed")[corner] as usize]
+        d.normals[d.normals_of(triangle).expect("smoothed")[corner] as usize]
     };
     // On the ridge: the mean of the two faces' normals, (0,-1,1) and (0,1,1)
     // normalized, is +z; the same vector for both faces, though they have their own
@@ -172,7 +172,7 @@ fn smoothing_groups_average_the_normals_of_faces_sharing_a_position() {
 fn faces_outside_a_group_stay_faceted_and_groups_do_not_mix() {
     for off in ["s off", "s 0", "# no group"] {
         let d = parse(&ridge(off));
-        assert!(d.triangles.iter().all(|t| t.normals.is_none()), "{off}");
+        assert!(d.triangle_normals.is_empty(), "{off}");
         assert!(d.normals.is_empty());
     }
     // Each face in its own group: each keeps its own normal at the ridge.
@@ -180,7 +180,7 @@ fn faces_outside_a_group_stay_faceted_and_groups_do_not_mix() {
         "v 0 0 0\nv 1 0 0\nv 1 1 1\nv 0 1 1\nv 1 -1 1\nv 0 -1 1\n\
          s 1\nf 1 2 3 4\ns 2\nf 2 1 6 5\n",
     );
-    let n = d.normals[d.triangles[0].normals.unwrap()[0] as usize];
+    let n = d.normals[d.normals_of(0).unwrap()[0] as usize];
     assert!(
         (n - Vec3::new(0.0, -1.0, 1.0).normalize()).length() < 1e-6,
         "{n}"
@@ -193,10 +193,10 @@ fn faces_with_their_own_normals_keep_them_in_a_group() {
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvn 1 0 0\n\
          s 1\nf 1//1 2//1 3//1\nf 1 2 4\n",
     );
-    assert_eq!(d.triangles[0].normals, Some([0, 0, 0]));
+    assert_eq!(d.normals_of(0), Some([0, 0, 0]));
     assert_eq!(d.normals[0], Vec3::X);
     // The second face gets its own: only faces without `vn` are averaged.
-    let ids = d.triangles[1].normals.unwrap();
+    let ids = d.normals_of(1).unwrap();
     assert!(ids.iter().all(|&i| i >= 1));
     let n = d.normals[ids[0] as usize];
     assert!((n - Vec3::NEG_Y).length() < 1e-6, "{n}");
@@ -213,7 +213,7 @@ fn a_group_set_in_an_earlier_chunk_holds_in_later_ones() {
     }
     text.push_str(faces);
     let d = parse(&text);
-    let smoothed = d.triangles.iter().filter(|t| t.normals.is_some()).count();
+    let smoothed = d.triangle_normals.iter().filter(|n| n.is_some()).count();
     assert_eq!(smoothed, 4);
 }
 

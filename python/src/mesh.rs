@@ -60,7 +60,6 @@ pub(crate) fn description(
             }
             Ok(raytracer::description::TriangleDesc {
                 positions,
-                normals: None,
                 material: MaterialId(0),
             })
         })

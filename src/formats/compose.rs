@@ -121,7 +121,6 @@ impl SceneDescription {
         }
         for t in &mut mesh.triangles {
             t.positions = t.positions.map(|i| i + position_offset);
-            t.normals = t.normals.map(|ns| ns.map(|i| i + normal_offset));
             t.material = material_of(t.material);
         }
         for s in &mut mesh.spheres {
@@ -135,12 +134,21 @@ impl SceneDescription {
         for t in mesh.triangle_texcoords.iter_mut().flatten() {
             *t = t.map(|i| i + texcoord_offset);
         }
-        // Texture coordinate indices stay in step with the triangles: if only one
-        // side has them, the other's triangles have none.
-        if !mesh.triangle_texcoords.is_empty() || !self.triangle_texcoords.is_empty() {
-            self.triangle_texcoords.resize(self.triangles.len(), None);
-            mesh.triangle_texcoords.resize(mesh.triangles.len(), None);
-            append(&mut self.triangle_texcoords, mesh.triangle_texcoords);
+        for n in mesh.triangle_normals.iter_mut().flatten() {
+            *n = n.map(|i| i + normal_offset);
+        }
+        // Normal and texture coordinate indices stay in step with the triangles: if
+        // only one side has them, the other's triangles have none.
+        for (ours, theirs) in [
+            (&mut self.triangle_texcoords, mesh.triangle_texcoords),
+            (&mut self.triangle_normals, mesh.triangle_normals),
+        ] {
+            if !theirs.is_empty() || !ours.is_empty() {
+                let mut theirs = theirs;
+                ours.resize(self.triangles.len(), None);
+                theirs.resize(mesh.triangles.len(), None);
+                append(ours, theirs);
+            }
         }
         append(&mut self.positions, mesh.positions);
         append(&mut self.normals, mesh.normals);
@@ -212,9 +220,9 @@ mod tests {
             normals: vec![Vec3::Z],
             triangles: vec![TriangleDesc {
                 positions: [0, 1, 2],
-                normals: Some([0, 0, 0]),
                 material: MaterialId(0),
             }],
+            triangle_normals: vec![Some([0, 0, 0])],
             spheres: vec![SphereDesc {
                 center: Vec3::ZERO,
                 radius: 1.0,
@@ -236,7 +244,7 @@ mod tests {
             .unwrap();
         assert_eq!(all.positions.len(), 9);
         assert_eq!(all.triangles[1].positions, [3, 4, 5]);
-        assert_eq!(all.triangles[1].normals, Some([1, 1, 1]));
+        assert_eq!(all.normals_of(1), Some([1, 1, 1]));
         assert_eq!(all.triangles[1].material, MaterialId(1));
         assert_eq!(all.triangles[2].material, MaterialId(0));
         assert_eq!(all.materials.len(), 2);
@@ -248,5 +256,36 @@ mod tests {
         let squash = Transform::new(Vec3::new(1.0, 2.0, 1.0), Vec3::ZERO, Vec3::ZERO);
         let err = all.append(mesh, &squash, None).unwrap_err();
         assert_eq!(err, ParseErrorKind::NonUniformSphereScale);
+    }
+
+    /// Normal indices stay in step with the triangles when only some meshes have
+    /// them, and stay absent when none has.
+    #[test]
+    fn append_keeps_normal_indices_in_step() {
+        let bare = SceneDescription {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            triangles: vec![
+                TriangleDesc {
+                    positions: [0, 1, 2],
+                    material: MaterialId(0),
+                };
+                2
+            ],
+            materials: vec![Material::named("m")],
+            ..SceneDescription::default()
+        };
+        let mut smooth = bare.clone();
+        smooth.normals = vec![Vec3::Z, Vec3::X];
+        smooth.triangle_normals = vec![Some([1, 1, 1]), None];
+        let mut all = SceneDescription::default();
+        all.append(bare.clone(), &Transform::IDENTITY, None)
+            .unwrap();
+        assert!(all.triangle_normals.is_empty());
+        all.append(smooth, &Transform::IDENTITY, None).unwrap();
+        all.append(bare, &Transform::IDENTITY, None).unwrap();
+        assert_eq!(
+            all.triangle_normals,
+            [None, None, Some([1, 1, 1]), None, None, None]
+        );
     }
 }

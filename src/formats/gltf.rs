@@ -716,11 +716,13 @@ impl Reader<'_> {
             }
             for (k, [a, b, c]) in triangles.into_iter().enumerate() {
                 let corners = if mirrored { [a, c, b] } else { [a, b, c] };
-                scene.triangles.push(TriangleDesc {
-                    positions: corners.map(|i| position_base + i),
-                    normals: has_normals.then(|| corners.map(|i| normal_base + i)),
-                    material,
-                });
+                scene.push_triangle(
+                    TriangleDesc {
+                        positions: corners.map(|i| position_base + i),
+                        material,
+                    },
+                    has_normals.then(|| corners.map(|i| normal_base + i)),
+                );
                 let texcoords = match atlas_texcoords {
                     Some(_) => Some([0, 1, 2].map(|c| atlas_base + 3 * k as u32 + c)),
                     None => has_texcoords.then(|| corners.map(|i| texcoord_base + i)),

@@ -209,12 +209,17 @@ fn parse_surveyed(
     // for them is asked for fallibly, so that a file claiming absurdly many gets
     // the general parser's error rather than an abort.
     let keep_texcoords = keeps_triangle_texcoords(&total, &scene);
+    let keep_normals = keeps_triangle_normals(&total);
     let reserved = scene.positions.try_reserve_exact(total.positions).is_ok()
         && scene.texcoords.try_reserve_exact(total.texcoords).is_ok()
         && scene.normals.try_reserve_exact(total.normals).is_ok()
         && scene.triangles.try_reserve_exact(total.triangles).is_ok()
         && (!keep_texcoords
             || (scene.triangle_texcoords)
+                .try_reserve_exact(total.triangles)
+                .is_ok())
+        && (!keep_normals
+            || (scene.triangle_normals)
                 .try_reserve_exact(total.triangles)
                 .is_ok());
     if !reserved {
@@ -231,19 +236,31 @@ fn parse_surveyed(
         Vec::new()
     };
     triangle_texcoords.resize_with(triangles.len(), || None);
+    let mut triangle_normals = if keep_normals {
+        let parts = parts_of(&mut scene.triangle_normals, lengths(|c| c.triangles));
+        parts.into_iter().map(Some).collect()
+    } else {
+        Vec::new()
+    };
+    triangle_normals.resize_with(triangles.len(), || None);
     let parts: Vec<Parts<'_>> = positions
         .into_iter()
         .zip(texcoords)
         .zip(normals)
         .zip(triangles)
         .zip(triangle_texcoords)
+        .zip(triangle_normals)
         .map(
-            |((((positions, texcoords), normals), triangles), triangle_texcoords)| Parts {
+            |(
+                ((((positions, texcoords), normals), triangles), triangle_texcoords),
+                triangle_normals,
+            )| Parts {
                 positions,
                 texcoords,
                 normals,
                 triangles,
                 triangle_texcoords,
+                triangle_normals,
             },
         )
         .collect();
@@ -288,6 +305,9 @@ fn parse_surveyed(
         if keep_texcoords {
             scene.triangle_texcoords.set_len(total.triangles);
         }
+        if keep_normals {
+            scene.triangle_normals.set_len(total.triangles);
+        }
     }
     let material = |chunk: usize, slot: MaterialId| materials[chunk][slot.0 as usize];
     let sphere = |chunk, s: &SphereDesc| SphereDesc {
@@ -327,6 +347,13 @@ fn chunk_faces(statements: &[Chunk], bases: &[Counts], shapings: Vec<Shaping>) -
 /// to read with them. Most large meshes have neither, and pay nothing.
 fn keeps_triangle_texcoords(total: &Counts, scene: &SceneDescription) -> bool {
     total.texcoords > 0 && scene.materials.iter().any(|m| m.maps.is_some())
+}
+
+/// Whether the description keeps each triangle's normal indices as read: only when
+/// the file has normals (smoothing groups may add some later, see `faces::finish`).
+/// Scans, the largest meshes, mostly have none, and pay nothing.
+fn keeps_triangle_normals(total: &Counts) -> bool {
+    total.normals > 0
 }
 
 /// The triangles of the chunks up to and including `chunk`.
@@ -386,13 +413,18 @@ fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<
         Some(part) => copy_into(&chunk.triangle_texcoords, part),
         None => true,
     };
+    let triangle_normals = match &mut parts.triangle_normals {
+        Some(part) => copy_into(&chunk.triangle_normals, part),
+        None => true,
+    };
     match triangles {
         Some(triangles)
             if copy_into(&chunk.positions, parts.positions)
                 && copy_into(&chunk.texcoords, parts.texcoords)
                 && copy_into(&chunk.normals, parts.normals)
                 && copy_into(&triangles, parts.triangles)
-                && triangle_texcoords =>
+                && triangle_texcoords
+                && triangle_normals =>
         {
             Filled::Complete(std::mem::take(&mut chunk.shaping))
         }
@@ -488,9 +520,9 @@ fn parse_generally(
         }
     }
     let mut scene = std::mem::take(&mut resolver.scene);
-    let total_texcoords = parsed.iter().map(|c| c.texcoords.len()).sum();
     let total = Counts {
-        texcoords: total_texcoords,
+        texcoords: parsed.iter().map(|c| c.texcoords.len()).sum(),
+        normals: parsed.iter().map(|c| c.normals.len()).sum(),
         ..Counts::default()
     };
     if keeps_triangle_texcoords(&total, &scene) {
@@ -499,6 +531,14 @@ fn parse_generally(
             |c| &c.triangle_texcoords,
             |_, &t| t,
             &mut scene.triangle_texcoords,
+        );
+    }
+    if keeps_triangle_normals(&total) {
+        concat(
+            &parsed,
+            |c| &c.triangle_normals,
+            |_, &n| n,
+            &mut scene.triangle_normals,
         );
     }
     concat(&parsed, |c| &c.positions, |_, &p| p, &mut scene.positions);
@@ -688,6 +728,8 @@ struct Chunk {
     triangles: Vec<TriangleDesc>,
     /// Texture coordinate indices of each triangle, in step with `triangles`.
     triangle_texcoords: Vec<Option<[u32; 3]>>,
+    /// Normal indices of each triangle, in step with `triangles`.
+    triangle_normals: Vec<Option<[u32; 3]>>,
     spheres: Vec<SphereDesc>,
     lights: Vec<PointLight>,
     events: Vec<Event>,
@@ -884,10 +926,10 @@ impl Chunk {
                 };
                 self.triangles.push(TriangleDesc {
                     positions: [a.position, b.position, corner.position],
-                    normals,
                     material: MaterialId(slot),
                 });
                 self.triangle_texcoords.push(texcoords);
+                self.triangle_normals.push(normals);
             }
             first.get_or_insert(corner);
             previous = Some(corner);
@@ -1441,10 +1483,16 @@ mod tests {
         let mut texcoords = Vec::with_capacity(counts.texcoords);
         let mut normals = Vec::with_capacity(counts.normals);
         let mut triangles = Vec::with_capacity(counts.triangles);
+        let mut triangle_normals = Vec::with_capacity(counts.triangles);
         let mut parts = Parts {
             positions: &mut positions.spare_capacity_mut()[..counts.positions],
             texcoords: &mut texcoords.spare_capacity_mut()[..counts.texcoords],
             triangle_texcoords: None,
+            triangle_normals: if counts.normals > 0 {
+                Some(&mut triangle_normals.spare_capacity_mut()[..counts.triangles])
+            } else {
+                None
+            },
             normals: &mut normals.spare_capacity_mut()[..counts.normals],
             triangles: &mut triangles.spare_capacity_mut()[..counts.triangles],
         };

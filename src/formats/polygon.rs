@@ -129,28 +129,22 @@ pub(crate) fn recut_fans(
         for p in batch {
             let first = p.first as usize - base;
             let fan = &mut part[first..first + p.corners as usize - 2];
-            recut_fan(positions, fan, None);
+            recut_fan(positions, fan, None, None);
         }
     });
 }
 
-/// Cuts again, in place, the polygon whose fan is `fan` (with its triangles' texture
-/// coordinate indices, when kept), if it is not convex.
+/// Cuts again, in place, the polygon whose fan is `fan` (with its triangles' normal
+/// and texture coordinate indices, when kept), if it is not convex.
 pub(crate) fn recut_fan(
     positions: &[Vec3],
     fan: &mut [TriangleDesc],
+    normals: Option<&mut [Option<[u32; 3]>]>,
     texcoords: Option<&mut [Option<[u32; 3]>]>,
 ) {
-    // Corner k of the polygon is corner 0 of the first triangle (k = 0), corner 1 of
-    // the first (k = 1), and corner 2 of triangle k - 2 (k >= 2).
-    let corner = |k: usize| match k {
-        0 => (0, 0),
-        1 => (0, 1),
-        k => (k - 2, 2),
-    };
     let count = fan.len() + 2;
     let point = |k: usize| {
-        let (t, c) = corner(k);
+        let (t, c) = fan_corner(k);
         positions[fan[t].positions[c] as usize]
     };
     // Quads, the common polygon, without an allocation.
@@ -162,44 +156,49 @@ pub(crate) fn recut_fan(
     let Triangulation::Triangles(triangles) = triangulation else {
         return;
     };
-    // A corner's `vn` is known when a triangle of the fan holding it has them all (the
-    // fan gave a triangle normals only when all three corners had one).
-    let mut normals: Vec<Option<u32>> = vec![None; count];
-    for (t, triangle) in fan.iter().enumerate() {
-        if let Some(n) = triangle.normals {
-            for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
-                normals[k] = Some(n[c]);
-            }
-        }
+    for ids in [normals, texcoords].into_iter().flatten() {
+        recut_corner_ids(ids, &triangles);
     }
     let old: Vec<TriangleDesc> = fan.to_vec();
-    if let Some(texcoords) = texcoords {
-        // As the normals: a corner's `vt` is known from a triangle that has them all.
-        let mut corner_texcoords: Vec<Option<u32>> = vec![None; count];
-        for (t, triangle) in texcoords.iter().enumerate() {
-            if let Some(ids) = triangle {
-                for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
-                    corner_texcoords[k] = Some(ids[c]);
-                }
+    for (slot, corners) in fan.iter_mut().zip(triangles) {
+        *slot = TriangleDesc {
+            positions: corners.map(|k| {
+                let (t, c) = fan_corner(k as usize);
+                old[t].positions[c]
+            }),
+            ..old[0]
+        };
+    }
+}
+
+/// Where corner `k` of a fan's polygon is, as (triangle, corner): corner 0 of the
+/// first triangle (k = 0), corner 1 of the first (k = 1), and corner 2 of triangle
+/// k - 2 (k >= 2).
+fn fan_corner(k: usize) -> (usize, usize) {
+    match k {
+        0 => (0, 0),
+        1 => (0, 1),
+        k => (k - 2, 2),
+    }
+}
+
+/// Gives the triangles `triangles` (corners of the polygon) the per-corner indices
+/// (normals or texture coordinates) that `ids` held for the fan: a corner's index is
+/// known when a triangle of the fan holding it has them all (the fan gave a triangle
+/// indices only when all three corners had one).
+fn recut_corner_ids(ids: &mut [Option<[u32; 3]>], triangles: &[[u32; 3]]) {
+    let mut corner_ids: Vec<Option<u32>> = vec![None; ids.len() + 2];
+    for (t, triangle) in ids.iter().enumerate() {
+        if let Some(triangle) = triangle {
+            for (c, k) in [0, t + 1, t + 2].into_iter().enumerate() {
+                corner_ids[k] = Some(triangle[c]);
             }
         }
-        for (slot, corners) in texcoords.iter_mut().zip(&triangles) {
-            *slot = match corners.map(|k| corner_texcoords[k as usize]) {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => None,
-            };
-        }
     }
-    for (slot, corners) in fan.iter_mut().zip(triangles) {
-        let corners = corners.map(|k| k as usize);
-        let at = corners.map(corner);
-        *slot = TriangleDesc {
-            positions: at.map(|(t, c)| old[t].positions[c]),
-            normals: match corners.map(|k| normals[k]) {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => None,
-            },
-            ..old[0]
+    for (slot, corners) in ids.iter_mut().zip(triangles) {
+        *slot = match corners.map(|k| corner_ids[k as usize]) {
+            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+            _ => None,
         };
     }
 }

@@ -88,7 +88,7 @@ impl SceneSummary {
         let mut degenerate = 0;
         let mut with_normals = 0;
         let mut bounds = Aabb::EMPTY;
-        for tri in &scene.triangles {
+        for (i, tri) in scene.triangles.iter().enumerate() {
             let [a, b, c] = tri.positions.map(|i| scene.positions[i as usize]);
             if Triangle::new(a, b, c).is_degenerate() {
                 degenerate += 1;
@@ -96,7 +96,7 @@ impl SceneSummary {
             }
             bounds = bounds.grow(a).grow(b).grow(c);
             triangle_uses[tri.material.0 as usize] += 1;
-            with_normals += tri.normals.is_some() as usize;
+            with_normals += scene.normals_of(i).is_some() as usize;
         }
         for s in &scene.spheres {
             let sphere = Sphere {
@@ -149,6 +149,8 @@ impl SceneSummary {
                 + scene.normals.len() * size_of::<Vec3>()
                 + scene.texcoords.len() * size_of::<Vec2>()
                 + scene.triangles.len() * size_of::<TriangleDesc>()
+                + scene.triangle_normals.len() * size_of::<Option<[u32; 3]>>()
+                + scene.triangle_texcoords.len() * size_of::<Option<[u32; 3]>>()
                 + scene.spheres.len() * size_of::<SphereDesc>(),
             shapes: packets as usize * size_of::<TrianglePacket>(),
             // A material per primitive, and its normals' indices if some triangle

@@ -216,15 +216,27 @@ impl Hit {
 /// bits of its corners, normals and texture coordinates (or of its centre and radius).
 type PrimKey = [u32; 29];
 
-fn prim_key(
-    i: usize,
-    triangles: &[TriangleDesc],
-    triangle_texcoords: &[Option<[u32; 3]>],
-    spheres: &[SphereDesc],
-    positions: &[Vec3],
-    normals: &[Vec3],
-    texcoords: &[Vec2],
-) -> PrimKey {
+/// The arrays of a description that [`prim_key`] reads.
+struct KeyArrays<'a> {
+    triangles: &'a [TriangleDesc],
+    triangle_normals: &'a [Option<[u32; 3]>],
+    triangle_texcoords: &'a [Option<[u32; 3]>],
+    spheres: &'a [SphereDesc],
+    positions: &'a [Vec3],
+    normals: &'a [Vec3],
+    texcoords: &'a [Vec2],
+}
+
+fn prim_key(i: usize, arrays: &KeyArrays<'_>) -> PrimKey {
+    let KeyArrays {
+        triangles,
+        triangle_normals,
+        triangle_texcoords,
+        spheres,
+        positions,
+        normals,
+        texcoords,
+    } = *arrays;
     fn put(key: &mut PrimKey, at: usize, values: &[Float]) {
         for (k, v) in values.iter().enumerate() {
             key[at + k] = v.to_bits();
@@ -250,7 +262,7 @@ fn prim_key(
     for (k, &p) in t.positions.iter().enumerate() {
         put(&mut key, 2 + 3 * k, &vec3(positions, p));
     }
-    if let Some(ns) = t.normals {
+    if let Some(Some(ns)) = triangle_normals.get(i) {
         for (k, &n) in ns.iter().enumerate() {
             put(&mut key, 11 + 3 * k, &vec3(normals, n));
         }
@@ -306,12 +318,12 @@ impl Scene {
             normals,
             texcoords,
             triangles,
+            triangle_normals,
             triangle_texcoords,
             spheres,
             lights,
             materials,
             mut warnings,
-            ..
         } = description;
         let started = std::time::Instant::now();
 
@@ -342,17 +354,16 @@ impl Scene {
         // render): drop all but the first of each, and build again without them.
         let mut duplicates = 0;
         if !bvh.coincident.is_empty() {
-            let key = |i: u32| {
-                prim_key(
-                    i as usize,
-                    &triangles,
-                    &triangle_texcoords,
-                    &spheres,
-                    &positions,
-                    &normals,
-                    &texcoords,
-                )
+            let arrays = KeyArrays {
+                triangles: &triangles,
+                triangle_normals: &triangle_normals,
+                triangle_texcoords: &triangle_texcoords,
+                spheres: &spheres,
+                positions: &positions,
+                normals: &normals,
+                texcoords: &texcoords,
             };
+            let key = |i: u32| prim_key(i as usize, &arrays);
             let copies = duplicates_in(&bvh.coincident, &order, key);
             if !copies.is_empty() {
                 duplicates = copies.len();
@@ -403,7 +414,8 @@ impl Scene {
                     let [a, b, c] = corners(t);
                     let shading = PrimShading {
                         material: t.material,
-                        normals: t.normals.unwrap_or([NO_NORMALS; 3]),
+                        normals: (triangle_normals.get(i).copied().flatten())
+                            .unwrap_or([NO_NORMALS; 3]),
                     };
                     (Shape::Triangle(Triangle::new(a, b, c)), shading)
                 }
@@ -418,7 +430,7 @@ impl Scene {
             }
         };
         // Per-primitive normals only where some triangle has them.
-        let with_normals = !normals.is_empty() && triangles.par_iter().any(|t| t.normals.is_some());
+        let with_normals = !normals.is_empty() && triangle_normals.par_iter().any(|n| n.is_some());
         // Triangle meshes (most big scenes) count their packets without a look.
         let has_spheres = !spheres.is_empty();
         let is_sphere = |prim: u32| has_spheres && order[prim as usize] as usize >= triangle_count;
@@ -435,6 +447,9 @@ impl Scene {
                     }
                 } else {
                     memory::prefetch_lines(t, 1);
+                    if let Some(n) = triangle_normals.get(i) {
+                        memory::prefetch_lines(n, 1);
+                    }
                 }
             }
         };
@@ -1322,9 +1337,7 @@ mod build_tests {
         let with = packet::tests::generated_description(20, true, 3);
         let mut without = with.clone();
         without.normals.clear();
-        for t in &mut without.triangles {
-            t.normals = None;
-        }
+        without.triangle_normals.clear();
         let (with, without) = (
             Scene::build(with, &BvhParams::default()),
             Scene::build(without, &BvhParams::default()),
@@ -1402,11 +1415,13 @@ mod build_tests {
             d.normals.extend([Vec3::Y; 3]);
             let material = MaterialId(t);
             material_of_corner.insert(a.to_array().map(f32::to_bits), (material, first));
-            d.triangles.push(TriangleDesc {
-                positions: [first, first + 1, first + 2],
-                normals: Some([first, first + 1, first + 2]),
-                material,
-            });
+            d.push_triangle(
+                TriangleDesc {
+                    positions: [first, first + 1, first + 2],
+                    material,
+                },
+                Some([first, first + 1, first + 2]),
+            );
         }
         let mut material_of_centre = HashMap::new();
         for s in 0..spheres {
@@ -1484,7 +1499,6 @@ mod build_tests {
                 d.positions.extend([corners[0]; 3]);
                 d.triangles.push(TriangleDesc {
                     positions: [first, first + 1, first + 2],
-                    normals: None,
                     material: MaterialId(0),
                 });
                 centroids.push(None);
@@ -1493,7 +1507,6 @@ mod build_tests {
             d.positions.extend(corners);
             d.triangles.push(TriangleDesc {
                 positions: [first, first + 1, first + 2],
-                normals: None,
                 material: MaterialId(0),
             });
             centroids.push(Some((corners[0] + corners[1] + corners[2]) / 3.0));

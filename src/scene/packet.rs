@@ -356,11 +356,13 @@ pub(crate) mod tests {
             for i in 0..n {
                 let quad = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
                 for positions in [[quad[0], quad[2], quad[1]], [quad[0], quad[3], quad[2]]] {
-                    d.triangles.push(TriangleDesc {
-                        positions,
-                        normals: Some(positions),
-                        material: MaterialId((i / 3 + j / 5) % 3),
-                    });
+                    d.push_triangle(
+                        TriangleDesc {
+                            positions,
+                            material: MaterialId((i / 3 + j / 5) % 3),
+                        },
+                        Some(positions),
+                    );
                 }
             }
         }
@@ -381,7 +383,6 @@ pub(crate) mod tests {
             }
             d.triangles.push(TriangleDesc {
                 positions: [first, first + 1, first + 2],
-                normals: None,
                 material: MaterialId(0),
             });
         }

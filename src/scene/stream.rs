@@ -501,7 +501,6 @@ mod tests {
                     for positions in halves {
                         d.triangles.push(crate::description::TriangleDesc {
                             positions,
-                            normals: None,
                             material: crate::material::MaterialId(0),
                         });
                     }

@@ -283,13 +283,14 @@ pub fn check_description(d: &SceneDescription) {
     assert!(d.positions.iter().all(finite), "non-finite position");
     assert!(d.normals.iter().all(finite), "non-finite normal");
     assert!(d.texcoords.iter().all(|t| t.is_finite()));
-    for t in &d.triangles {
+    assert!(d.triangle_normals.is_empty() || d.triangle_normals.len() == d.triangles.len());
+    for (i, t) in d.triangles.iter().enumerate() {
         assert!(
             t.positions
                 .iter()
                 .all(|&i| (i as usize) < d.positions.len())
         );
-        if let Some(ns) = t.normals {
+        if let Some(ns) = d.normals_of(i) {
             assert!(ns.iter().all(|&i| (i as usize) < d.normals.len()));
         }
         assert!((t.material.0 as usize) < d.materials.len());

@@ -94,35 +94,32 @@ pub(super) fn finish(scene: &mut SceneDescription, chunks: Vec<ChunkFaces>) {
     if chunks.iter().any(|c| !c.shaping.polygons.is_empty()) {
         let mut parts = Vec::with_capacity(chunks.len());
         let mut rest = &mut scene.triangles[..];
-        // Texture coordinate indices, when kept, are cut with their triangles.
+        // Normal and texture coordinate indices, when kept, are cut with their
+        // triangles.
+        let mut rest_normals = &mut scene.triangle_normals[..];
         let mut rest_texcoords = &mut scene.triangle_texcoords[..];
-        let keeps_texcoords = !rest_texcoords.is_empty();
         let mut at = 0;
         for (i, chunk) in chunks.iter().enumerate() {
             let end = chunks
                 .get(i + 1)
                 .map_or(at + rest.len(), |c| c.first_triangle);
             let (part, tail) = std::mem::take(&mut rest).split_at_mut(end - at);
-            let texcoords = if keeps_texcoords {
-                let (part, tail) = std::mem::take(&mut rest_texcoords).split_at_mut(end - at);
-                rest_texcoords = tail;
-                Some(part)
-            } else {
-                None
-            };
-            parts.push((part, texcoords, &chunk.shaping.polygons));
             rest = tail;
+            let normals = split_kept(&mut rest_normals, end - at);
+            let texcoords = split_kept(&mut rest_texcoords, end - at);
+            parts.push((part, normals, texcoords, &chunk.shaping.polygons));
             at = end;
         }
         let positions = &scene.positions;
         parts
             .into_par_iter()
-            .for_each(|(triangles, mut texcoords, polygons)| {
+            .for_each(|(triangles, mut normals, mut texcoords, polygons)| {
                 for p in polygons {
                     let range = p.first as usize..p.first as usize + p.corners as usize - 2;
                     polygon::recut_fan(
                         positions,
                         &mut triangles[range.clone()],
+                        normals.as_deref_mut().map(|n| &mut n[range.clone()]),
                         texcoords.as_deref_mut().map(|t| &mut t[range]),
                     );
                 }
@@ -184,14 +181,28 @@ fn smooth(scene: &mut SceneDescription, runs: &[(usize, usize, u32)]) {
         sums.iter()
             .map(|&n| n.try_normalize().unwrap_or(Vec3::ZERO)),
     );
+    if scene.triangle_normals.is_empty() {
+        scene.triangle_normals = vec![None; scene.triangles.len()];
+    }
     let mut corners = corners.into_iter();
     for &(first, count, _) in runs {
-        for t in &mut scene.triangles[first..first + count] {
+        for normals in &mut scene.triangle_normals[first..first + count] {
             if let Some(ids) = corners.next() {
-                t.normals = Some(ids.map(|i| base + i));
+                *normals = Some(ids.map(|i| base + i));
             }
         }
     }
+}
+
+/// The first `len` elements of `rest` (taking them off it), or `None` if `rest` is
+/// empty: an array in step with the triangles that the description does not keep.
+fn split_kept<'a, T>(rest: &mut &'a mut [T], len: usize) -> Option<&'a mut [T]> {
+    if rest.is_empty() {
+        return None;
+    }
+    let (part, tail) = std::mem::take(rest).split_at_mut(len);
+    *rest = tail;
+    Some(part)
 }
 
 /// The angle between `u` and `v`, 0 if either is zero.

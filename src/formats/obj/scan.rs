@@ -30,6 +30,8 @@ pub(super) struct Parts<'a> {
     pub(super) triangles: &'a mut [MaybeUninit<TriangleDesc>],
     /// Each triangle's texture coordinate indices, when the description keeps them.
     pub(super) triangle_texcoords: Option<&'a mut [MaybeUninit<Option<[u32; 3]>>]>,
+    /// Each triangle's normal indices, when the description keeps them.
+    pub(super) triangle_normals: Option<&'a mut [MaybeUninit<Option<[u32; 3]>>]>,
 }
 
 /// Fills `parts` from the chunk `text`, preceded in the file by `base`; `materials`
@@ -299,9 +301,14 @@ impl Scanner<'_, '_> {
                 };
                 part.get_mut(*written)?.write(texcoords);
             }
+            if let Some(part) = &mut self.parts.triangle_normals {
+                part.get_mut(*written)?.write(normals);
+            } else if normals.is_some() {
+                // Pass 1 counted no normals, which a corner cannot then name.
+                return None;
+            }
             self.parts.triangles.get_mut(*written)?.write(TriangleDesc {
                 positions: [first.position, previous.position, corner.position],
-                normals,
                 material,
             });
             *written += 1;

@@ -379,7 +379,6 @@ impl MeshReader {
                 let positions = [first, previous, next];
                 self.scene.triangles.push(TriangleDesc {
                     positions,
-                    normals: self.has_normals.then_some(positions),
                     material: MaterialId(0),
                 });
                 previous = next;
@@ -446,7 +445,6 @@ impl MeshReader {
     ) -> Vec<TriangleDesc> {
         let count_size = count.size();
         let defined = self.vertex_count as u64;
-        let has_normals = self.has_normals;
         records
             .par_chunks_exact(count_size + 3 * item_size)
             .map(|r| {
@@ -461,7 +459,6 @@ impl MeshReader {
                 });
                 TriangleDesc {
                     positions,
-                    normals: has_normals.then_some(positions),
                     material: MaterialId(0),
                 }
             })

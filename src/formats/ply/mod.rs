@@ -32,6 +32,7 @@ use crate::math::{Float, Vec2, Vec3};
 use ascii::{AsciiBody, PARALLEL_ASCII_ELEMENTS};
 use binary::BinaryBody;
 use header::{Element, Format, Header, PropertyType, Role, Scalar, parse_header, roles};
+use rayon::prelude::*;
 
 /// Reads a PLY file (gzip-compressed or not).
 ///
@@ -332,7 +333,6 @@ impl MeshReader {
             let positions = [first, previous, next];
             self.scene.triangles.push(TriangleDesc {
                 positions,
-                normals: self.has_normals.then_some(positions),
                 material: MaterialId(0),
             });
             previous = next;
@@ -363,6 +363,12 @@ impl MeshReader {
                 &mut self.scene.triangles,
                 &self.polygons,
             );
+        }
+        if self.has_normals {
+            // A normal per vertex: each corner's normal is its position's.
+            self.scene.triangle_normals = (self.scene.triangles.par_iter())
+                .map(|t| Some(t.positions))
+                .collect();
         }
         if !self.scene.triangles.is_empty() {
             self.scene.materials.push(Material::fallback());
@@ -403,7 +409,7 @@ mod tests {
                             [[0, 1, 2], [0, 2, 3], [0, 1, 4]],
                             "{what}"
                         );
-                        assert!(scene.triangles.iter().all(|t| t.normals.is_none()));
+                        assert!(scene.triangle_normals.is_empty());
                         assert_eq!(scene.materials, [Material::fallback()]);
                         assert!(scene.warnings.is_empty(), "{what}: {:?}", scene.warnings);
                         cases += 1;
@@ -462,7 +468,7 @@ mod tests {
             assert_eq!(scene.texcoords, [Vec2::ZERO, Vec2::X, Vec2::Y], "{format}");
             assert_eq!(scene.triangles.len(), 1);
             assert_eq!(scene.triangles[0].positions, [0, 1, 2]);
-            assert_eq!(scene.triangles[0].normals, Some([0, 1, 2]), "{format}");
+            assert_eq!(scene.normals_of(0), Some([0, 1, 2]), "{format}");
         }
     }
 

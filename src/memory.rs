@@ -605,6 +605,28 @@ unsafe impl std::alloc::GlobalAlloc for RecyclingAllocator {
     }
 }
 
+/// The line `field` (such as `"Rss:"`) of `/proc/self/smaps` for the mapping holding
+/// `address`, without its name: for tests of how memory is backed.
+#[cfg(all(test, target_os = "linux"))]
+pub(crate) fn smaps_field(address: usize, field: &str) -> String {
+    let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
+    let mut inside = false;
+    for line in smaps.lines() {
+        let range = line.split_whitespace().next().unwrap_or("");
+        if let Some((start, end)) = range.split_once('-')
+            && let (Ok(start), Ok(end)) = (
+                usize::from_str_radix(start, 16),
+                usize::from_str_radix(end, 16),
+            )
+        {
+            inside = (start..end).contains(&address);
+        } else if inside && let Some(value) = line.strip_prefix(field) {
+            return value.to_string();
+        }
+    }
+    panic!("no mapping holds {address:#x}");
+}
+
 #[cfg(all(test, target_os = "linux"))]
 mod tests {
     use std::alloc::{GlobalAlloc, Layout};
@@ -768,22 +790,7 @@ mod tests {
 
     /// The `VmFlags` line of `/proc/self/smaps` for the mapping holding `address`.
     fn vm_flags(address: usize) -> String {
-        let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
-        let mut inside = false;
-        for line in smaps.lines() {
-            let range = line.split_whitespace().next().unwrap_or("");
-            if let Some((start, end)) = range.split_once('-')
-                && let (Ok(start), Ok(end)) = (
-                    usize::from_str_radix(start, 16),
-                    usize::from_str_radix(end, 16),
-                )
-            {
-                inside = (start..end).contains(&address);
-            } else if inside && let Some(flags) = line.strip_prefix("VmFlags:") {
-                return flags.to_string();
-            }
-        }
-        panic!("no mapping holds {address:#x}");
+        smaps_field(address, "VmFlags:")
     }
 
     /// Once huge pages have been found dear, fresh blocks and buffers written end

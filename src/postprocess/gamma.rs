@@ -39,6 +39,11 @@ pub(super) fn gamma_byte_exact(v: Float) -> u8 {
 }
 
 struct Table {
+    /// Floats (as bits) below this give byte 0, [`MARGIN`] floats short of the
+    /// first that gives 1: black, a render's commonest value (the dragon's
+    /// background is a quarter of its channels), would otherwise sit at a bucket's
+    /// edge and go through `powf`.
+    zero_below: u32,
     /// The byte at each bucket's first float.
     first_byte: Vec<u8>,
     /// The first float (as bits) of the bucket whose byte is one more, or [`NONE`].
@@ -51,6 +56,7 @@ impl Table {
         let buckets = (ONE >> BUCKET_BITS) as usize + 1;
         let mut first_byte = vec![0u8; buckets];
         let mut threshold = vec![NONE; buckets];
+        let mut zero_below = 0;
         for (bucket, first) in first_byte.iter_mut().enumerate() {
             *first = byte_at((bucket as u32) << BUCKET_BITS);
         }
@@ -64,6 +70,9 @@ impl Table {
                 } else {
                     low = middle + 1;
                 }
+            }
+            if byte == 1 {
+                zero_below = low.saturating_sub(MARGIN);
             }
             let bucket = (low >> BUCKET_BITS) as usize;
             if low & ((1 << BUCKET_BITS) - 1) == 0 {
@@ -83,6 +92,7 @@ impl Table {
             }
         }
         Some(Table {
+            zero_below,
             first_byte,
             threshold,
         })
@@ -97,6 +107,9 @@ pub(super) fn gamma_byte(v: Float) -> u8 {
         return gamma_byte_exact(v);
     };
     let bits = v.to_bits();
+    if bits < table.zero_below {
+        return 0;
+    }
     let offset = bits & ((1 << BUCKET_BITS) - 1);
     if bits > ONE || !(MARGIN..(1 << BUCKET_BITS) - MARGIN).contains(&offset) {
         return gamma_byte_exact(v);
@@ -136,6 +149,13 @@ mod tests {
         }
         // Most thresholds lie inside buckets, so most were checked around.
         assert!(checked_thresholds > 200, "{checked_thresholds} thresholds");
+        // Below the first threshold, where the table answers 0 at once: zero and
+        // the denormals, then a stride up to the margin before the threshold.
+        assert!(table.zero_below > 1 << 29, "{:#x}", table.zero_below);
+        for bits in (0..1 << 16).chain((0..table.zero_below).step_by(997)) {
+            check(bits);
+        }
+        check(table.zero_below - 1);
         for v in [
             -0.0,
             -1.0,

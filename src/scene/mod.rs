@@ -662,12 +662,31 @@ impl Scene {
         t_max: &mut Float,
         closest: &mut Option<(u32, usize, PrimHit)>,
     ) {
-        for index in first..first + count {
+        let end = first + count;
+        let mut index = first;
+        while index < end {
             let packet = &self.packets[index as usize];
+            // Two triangle packets in one eight-lane test, as most leaves of a mesh
+            // are: the same hit as testing them in turn.
+            if index + 1 < end
+                && let next = &self.packets[index as usize + 1]
+                && !packet.holds_spheres()
+                && !next.holds_spheres()
+            {
+                if let Some((lane, hit)) =
+                    TrianglePacket::intersect_pair(packet, next, lanes, *t_max)
+                {
+                    *t_max = hit.t;
+                    *closest = Some((index + (lane / LANES) as u32, lane % LANES, hit));
+                }
+                index += 2;
+                continue;
+            }
             if let Some((lane, hit)) = packet.intersect_any_kind(lanes, *t_max) {
                 *t_max = hit.t;
                 *closest = Some((index, lane, hit));
             }
+            index += 1;
         }
     }
 
@@ -687,18 +706,51 @@ impl Scene {
         closest: &mut Option<(u32, usize, PrimHit)>,
     ) -> bool {
         let mut order_matters = false;
-        for index in first..first + count {
-            let packet = &self.packets[index as usize];
-            // Up to the next float: a hit at exactly `t_max` is reported too.
-            if let Some((lane, hit)) = packet.intersect_any_kind(lanes, t_max.next_up()) {
-                if hit.t < *t_max {
-                    order_matters |= hit.t < entry;
-                    *t_max = hit.t;
-                    *closest = Some((index, lane, hit));
-                } else {
-                    order_matters = true;
-                }
+        // A packet's nearest hit up to the next float after `t_max`: a hit at
+        // exactly `t_max` is reported too.
+        let mut note = |index: u32, lane: usize, hit: PrimHit, t_max: &mut Float| {
+            if hit.t < *t_max {
+                order_matters |= hit.t < entry;
+                *t_max = hit.t;
+                *closest = Some((index, lane, hit));
+            } else {
+                order_matters = true;
             }
+        };
+        let end = first + count;
+        let mut index = first;
+        while index < end {
+            let packet = &self.packets[index as usize];
+            if index + 1 < end
+                && let next = &self.packets[index as usize + 1]
+                && !packet.holds_spheres()
+                && !next.holds_spheres()
+            {
+                // Both packets in one eight-lane test, then each one's nearest as
+                // testing them in turn finds it: the second's only up to the
+                // first's hit.
+                let (valid, t, u, v) =
+                    TrianglePacket::hits_pair(packet, next, lanes, t_max.next_up());
+                let hit_at = |lane: usize| PrimHit {
+                    t: t[lane],
+                    u: u[lane],
+                    v: v[lane],
+                };
+                if let Some(lane) = nearest_in_mask(valid & 0xf, &t) {
+                    note(index, lane, hit_at(lane), t_max);
+                }
+                if let Some(lane) = nearest_in_mask(valid & 0xf0, &t)
+                    && t[lane] <= *t_max
+                {
+                    note(index + 1, lane - LANES, hit_at(lane), t_max);
+                }
+                index += 2;
+                continue;
+            }
+            if let Some((lane, hit)) = packet.intersect_any_kind(lanes, t_max.next_up()) {
+                note(index, lane, hit, t_max);
+            }
+            index += 1;
         }
         order_matters
     }
@@ -848,9 +900,25 @@ impl Scene {
     /// `lanes` before `t_max`: the leaf test of [`Scene::occluded`].
     #[inline(always)]
     fn blocker_in_leaf(&self, lanes: &PacketRay, first: u32, count: u32, t_max: Float) -> bool {
-        self.packets[first as usize..(first + count) as usize]
-            .iter()
-            .any(|packet| packet.occludes_any_kind(lanes, t_max))
+        let mut packets = &self.packets[first as usize..(first + count) as usize];
+        loop {
+            match packets {
+                // Two triangle packets in one eight-lane test.
+                [a, b, rest @ ..] if !a.holds_spheres() && !b.holds_spheres() => {
+                    if TrianglePacket::hits_pair(a, b, lanes, t_max).0 != 0 {
+                        return true;
+                    }
+                    packets = rest;
+                }
+                [a, rest @ ..] => {
+                    if a.occludes_any_kind(lanes, t_max) {
+                        return true;
+                    }
+                    packets = rest;
+                }
+                [] => return false,
+            }
+        }
     }
 
     /// [`Scene::occluded`] for scenes with cutouts: a lane blocks the ray only where

@@ -5,7 +5,7 @@
 
 use wide::f32x16;
 
-use super::triangle::EDGE_SLACK;
+use super::lanes::moller_trumbore;
 use super::{Sphere, Triangle};
 
 /// Möller–Trumbore of `triangle` against the rays with origins `origin` and
@@ -17,43 +17,14 @@ pub fn triangle_across_rays(
     origin: &[f32x16; 3],
     dir: &[f32x16; 3],
 ) -> (f32x16, f32x16, f32x16, f32x16) {
-    let splat = |v: f32| f32x16::splat(v);
-    let [dx, dy, dz] = *dir;
-    let (e1x, e1y, e1z) = (
-        splat(triangle.e1.x),
-        splat(triangle.e1.y),
-        splat(triangle.e1.z),
-    );
-    let (e2x, e2y, e2z) = (
-        splat(triangle.e2.x),
-        splat(triangle.e2.y),
-        splat(triangle.e2.z),
-    );
-    // p = dir x e2, as glam's `Vec3::cross`.
-    let px = dy * e2z - e2y * dz;
-    let py = dz * e2x - e2z * dx;
-    let pz = dx * e2y - e2x * dy;
-    let det = e1x * px + e1y * py + e1z * pz;
-    let inv_det = f32x16::ONE / det;
-    let sx = origin[0] - splat(triangle.v0.x);
-    let sy = origin[1] - splat(triangle.v0.y);
-    let sz = origin[2] - splat(triangle.v0.z);
-    let u = (sx * px + sy * py + sz * pz) * inv_det;
-    // q = s x e1.
-    let qx = sy * e1z - e1y * sz;
-    let qy = sz * e1x - e1z * sx;
-    let qz = sx * e1y - e1x * sy;
-    let v = (dx * qx + dy * qy + dz * qz) * inv_det;
-    let t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
-    let low = splat(-EDGE_SLACK);
-    let high = splat(1.0 + EDGE_SLACK);
-    let valid = det.simd_ne(f32x16::ZERO)
-        & u.simd_ge(low)
-        & u.simd_le(high)
-        & v.simd_ge(low)
-        & (u + v).simd_le(high)
-        & t.simd_gt(f32x16::ZERO);
-    (valid, t, u, v)
+    let splat = |v: crate::math::Vec3| v.to_array().map(f32x16::splat);
+    moller_trumbore(
+        *origin,
+        *dir,
+        splat(triangle.v0),
+        splat(triangle.e1),
+        splat(triangle.e2),
+    )
 }
 
 /// [`Sphere::intersect`] of `sphere` against the rays with origins `origin` and

@@ -5,6 +5,7 @@
 //! hit, by the scene (two-phase hits, as pbrt's `TriangleIntersection`).
 
 mod across;
+mod lanes;
 mod packet;
 mod sphere;
 mod triangle;

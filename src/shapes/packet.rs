@@ -12,7 +12,7 @@ use wide::{f32x4, f32x8};
 use super::{PrimHit, Shape, Sphere, Triangle};
 use crate::math::{Float, Ray, Vec3, nearest_in_mask};
 
-use super::triangle::EDGE_SLACK;
+use super::lanes::moller_trumbore;
 
 /// Lanes per packet.
 pub const LANES: usize = 4;
@@ -215,16 +215,7 @@ impl TrianglePacket {
     #[inline(always)]
     pub fn intersect(&self, ray: &PacketRay, t_max: Float) -> Option<(usize, PrimHit)> {
         let (valid, t, u, v) = self.lanes(ray, t_max);
-        let (t, u, v) = (t.as_array(), u.as_array(), v.as_array());
-        let best = nearest_in_mask(valid.to_bitmask(), t)?;
-        Some((
-            best,
-            PrimHit {
-                t: t[best],
-                u: u[best],
-                v: v[best],
-            },
-        ))
+        nearest_hit(valid.to_bitmask(), t.as_array(), u.as_array(), v.as_array())
     }
 
     /// Every lane of a triangle packet hit with `0 < t < t_max`: a bit mask of the
@@ -254,15 +245,7 @@ impl TrianglePacket {
         t_max: Float,
     ) -> Option<(usize, PrimHit)> {
         let (valid, t, u, v) = TrianglePacket::hits_pair(first, second, ray, t_max);
-        let best = nearest_in_mask(valid, &t)?;
-        Some((
-            best,
-            PrimHit {
-                t: t[best],
-                u: u[best],
-                v: v[best],
-            },
-        ))
+        nearest_hit(valid, &t, &u, &v)
     }
 
     /// [`TrianglePacket::hits`] over two triangle packets at once, lanes 0-3 being
@@ -288,117 +271,64 @@ impl TrianglePacket {
             [0, 1, 2].map(|k| join(first.v0[k], second.v0[k])),
             [0, 1, 2].map(|k| join(first.e1[k], second.e1[k])),
             [0, 1, 2].map(|k| join(first.e2[k], second.e2[k])),
-            t_max,
         );
+        let valid = valid & t.simd_lt(f32x8::splat(t_max));
         (valid.to_bitmask(), t.to_array(), u.to_array(), v.to_array())
     }
 
     /// Möller–Trumbore on all lanes: which lanes hit, and their `t`, `u`, `v`.
     #[inline(always)]
     fn lanes(&self, ray: &PacketRay, t_max: Float) -> (f32x4, f32x4, f32x4, f32x4) {
-        moller_trumbore(ray.origin, ray.dir, self.v0, self.e1, self.e2, t_max)
+        let (valid, t, u, v) = moller_trumbore(ray.origin, ray.dir, self.v0, self.e1, self.e2);
+        (valid & t.simd_lt(f32x4::splat(t_max)), t, u, v)
     }
 }
 
-/// The lane operations of a SIMD type that [`moller_trumbore`] uses.
-trait Lanes:
-    Copy
-    + std::ops::Add<Output = Self>
-    + std::ops::Sub<Output = Self>
-    + std::ops::Mul<Output = Self>
-    + std::ops::Div<Output = Self>
-    + std::ops::BitAnd<Output = Self>
-{
-    fn splat(x: Float) -> Self;
-    fn simd_ne(self, other: Self) -> Self;
-    fn simd_ge(self, other: Self) -> Self;
-    fn simd_le(self, other: Self) -> Self;
-    fn simd_gt(self, other: Self) -> Self;
-    fn simd_lt(self, other: Self) -> Self;
-}
-
-macro_rules! impl_lanes {
-    ($t:ty) => {
-        impl Lanes for $t {
-            #[inline(always)]
-            fn splat(x: Float) -> Self {
-                <$t>::splat(x)
-            }
-            #[inline(always)]
-            fn simd_ne(self, other: Self) -> Self {
-                <$t>::simd_ne(self, other)
-            }
-            #[inline(always)]
-            fn simd_ge(self, other: Self) -> Self {
-                <$t>::simd_ge(self, other)
-            }
-            #[inline(always)]
-            fn simd_le(self, other: Self) -> Self {
-                <$t>::simd_le(self, other)
-            }
-            #[inline(always)]
-            fn simd_gt(self, other: Self) -> Self {
-                <$t>::simd_gt(self, other)
-            }
-            #[inline(always)]
-            fn simd_lt(self, other: Self) -> Self {
-                <$t>::simd_lt(self, other)
-            }
-        }
-    };
-}
-impl_lanes!(f32x4);
-impl_lanes!(f32x8);
-
-/// Möller–Trumbore on every lane of triangles `v0`, `e1`, `e2` against the ray
-/// `origin`, `dir` (splatted): which lanes hit with `0 < t < t_max` (all bits set),
-/// and their `t`, `u`, `v`. Each lane computes exactly what [`Triangle::intersect`]
-/// computes, operation for operation, whatever the width.
+/// The nearest of the lanes in `mask` as `(lane, hit)`, the lowest lane winning on
+/// equal distances, as in a scalar loop over the lanes.
 #[inline(always)]
-fn moller_trumbore<L: Lanes>(
-    origin: [L; 3],
-    dir: [L; 3],
-    v0: [L; 3],
-    e1: [L; 3],
-    e2: [L; 3],
-    t_max: Float,
-) -> (L, L, L, L) {
-    let [dx, dy, dz] = dir;
-    let [e1x, e1y, e1z] = e1;
-    let [e2x, e2y, e2z] = e2;
-    // p = dir x e2, as glam's `Vec3::cross`.
-    let px = dy * e2z - e2y * dz;
-    let py = dz * e2x - e2z * dx;
-    let pz = dx * e2y - e2x * dy;
-    let det = e1x * px + e1y * py + e1z * pz;
-    let inv_det = L::splat(1.0) / det;
-    let sx = origin[0] - v0[0];
-    let sy = origin[1] - v0[1];
-    let sz = origin[2] - v0[2];
-    let u = (sx * px + sy * py + sz * pz) * inv_det;
-    // q = s x e1.
-    let qx = sy * e1z - e1y * sz;
-    let qy = sz * e1x - e1z * sx;
-    let qz = sx * e1y - e1x * sy;
-    let v = (dx * qx + dy * qy + dz * qz) * inv_det;
-    let t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
-    let low = L::splat(-EDGE_SLACK);
-    let high = L::splat(1.0 + EDGE_SLACK);
-    let zero = L::splat(0.0);
-    let valid = det.simd_ne(zero)
-        & u.simd_ge(low)
-        & u.simd_le(high)
-        & v.simd_ge(low)
-        & (u + v).simd_le(high)
-        & t.simd_gt(zero)
-        & t.simd_lt(L::splat(t_max));
-    (valid, t, u, v)
+fn nearest_hit<const N: usize>(
+    mask: u32,
+    t: &[Float; N],
+    u: &[Float; N],
+    v: &[Float; N],
+) -> Option<(usize, PrimHit)> {
+    let best = nearest_in_mask(mask, t)?;
+    Some((
+        best,
+        PrimHit {
+            t: t[best],
+            u: u[best],
+            v: v[best],
+        },
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
+
+    /// `lanes` random triangles near the origin, numbered from `first_prim`, every
+    /// other one with a corner at `shared`.
+    fn random_triangles(
+        rng: &mut rand::rngs::StdRng,
+        lanes: usize,
+        shared: Vec3,
+        first_prim: u32,
+    ) -> Vec<(u32, Triangle)> {
+        (0..lanes)
+            .map(|i| {
+                let a = if i % 2 == 0 {
+                    shared
+                } else {
+                    random_vec(rng, 1.0)
+                };
+                let tri = Triangle::new(a, random_vec(rng, 1.0), random_vec(rng, 1.0));
+                (first_prim + i as u32, tri)
+            })
+            .collect()
+    }
 
     fn random_vec(rng: &mut rand::rngs::StdRng, scale: f32) -> Vec3 {
         Vec3::new(
@@ -435,25 +365,9 @@ mod tests {
         let mut hits = [0; 2];
         for case in 0..20_000 {
             let shared = random_vec(&mut rng, 1.0);
-            let mut packet = |lanes: usize, first_prim: u32| {
-                let tris: Vec<(u32, Triangle)> = (0..lanes)
-                    .map(|i| {
-                        // Some triangles share a vertex, some are copies of the
-                        // first packet's (ties between the packets).
-                        let a = if i % 2 == 0 {
-                            shared
-                        } else {
-                            random_vec(&mut rng, 1.0)
-                        };
-                        let tri =
-                            Triangle::new(a, random_vec(&mut rng, 1.0), random_vec(&mut rng, 1.0));
-                        (first_prim + i as u32, tri)
-                    })
-                    .collect();
-                tris
-            };
-            let first_tris = packet(1 + case % LANES, 0);
-            let mut second_tris = packet(1 + (case / 4) % LANES, 10);
+            let first_tris = random_triangles(&mut rng, 1 + case % LANES, shared, 0);
+            let mut second_tris = random_triangles(&mut rng, 1 + (case / 4) % LANES, shared, 10);
+            // Sometimes a copy of the first packet's triangle: a tie between them.
             if case % 7 == 0 {
                 second_tris[0].1 = first_tris[0].1;
             }
@@ -513,18 +427,7 @@ mod tests {
             // Small triangles near the origin, some sharing an edge or a vertex, so
             // that edge hits and ties between lanes occur.
             let shared = random_vec(&mut rng, 1.0);
-            let tris: Vec<(u32, Triangle)> = (0..lanes)
-                .map(|i| {
-                    let a = if i % 2 == 0 {
-                        shared
-                    } else {
-                        random_vec(&mut rng, 1.0)
-                    };
-                    let tri =
-                        Triangle::new(a, random_vec(&mut rng, 1.0), random_vec(&mut rng, 1.0));
-                    (100 + i as u32, tri)
-                })
-                .collect();
+            let tris = random_triangles(&mut rng, lanes, shared, 100);
             let packet = TrianglePacket::new(&tris);
             let origin = random_vec(&mut rng, 3.0);
             let target = if case % 3 == 0 {

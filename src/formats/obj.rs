@@ -229,20 +229,16 @@ fn parse_surveyed(
     let texcoords = parts_of(&mut scene.texcoords, lengths(|c| c.texcoords));
     let normals = parts_of(&mut scene.normals, lengths(|c| c.normals));
     let triangles = parts_of(&mut scene.triangles, lengths(|c| c.triangles));
-    let mut triangle_texcoords = if keep_texcoords {
-        let parts = parts_of(&mut scene.triangle_texcoords, lengths(|c| c.triangles));
-        parts.into_iter().map(Some).collect()
-    } else {
-        Vec::new()
-    };
-    triangle_texcoords.resize_with(triangles.len(), || None);
-    let mut triangle_normals = if keep_normals {
-        let parts = parts_of(&mut scene.triangle_normals, lengths(|c| c.triangles));
-        parts.into_iter().map(Some).collect()
-    } else {
-        Vec::new()
-    };
-    triangle_normals.resize_with(triangles.len(), || None);
+    let triangle_texcoords = kept_parts_of(
+        &mut scene.triangle_texcoords,
+        keep_texcoords,
+        lengths(|c| c.triangles),
+    );
+    let triangle_normals = kept_parts_of(
+        &mut scene.triangle_normals,
+        keep_normals,
+        lengths(|c| c.triangles),
+    );
     let parts: Vec<Parts<'_>> = positions
         .into_iter()
         .zip(texcoords)
@@ -379,6 +375,20 @@ fn parts_of<T>(out: &mut Vec<T>, lengths: Vec<usize>) -> Vec<&mut [MaybeUninit<T
             part
         })
         .collect()
+}
+
+/// [`parts_of`] for an array the description keeps only when `keep`; otherwise no
+/// part for any chunk.
+fn kept_parts_of<T>(
+    out: &mut Vec<T>,
+    keep: bool,
+    lengths: Vec<usize>,
+) -> Vec<Option<&mut [MaybeUninit<T>]>> {
+    if keep {
+        parts_of(out, lengths).into_iter().map(Some).collect()
+    } else {
+        lengths.iter().map(|_| None).collect()
+    }
 }
 
 /// What pass 3 made of a chunk.

@@ -362,6 +362,78 @@ fn stats_show_every_stage() {
     assert!(!exr.iter().any(|s| s == "post-processing"), "{text}");
 }
 
+/// Where the OS reports them, `--stats` gives each stage's CPU time (all threads)
+/// and page faults beside its wall time: the stages of the pipeline and the steps
+/// of the BVH build, and the whole run, whose counts are at least those of the
+/// stages in it.
+#[cfg(unix)]
+#[test]
+fn stats_show_cpu_time_and_page_faults_of_each_stage() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("stats.png");
+    let scene = box_scene();
+    let output = raytracer(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--stats",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = stderr(&output);
+    // `name  <wall> ms  <cpu> ms CPU  <faults> faults ...` -> (cpu, faults)
+    let usage = |stage: &str| -> (f64, u64) {
+        let line = text
+            .lines()
+            .find(|line| {
+                line.trim_start().starts_with(stage)
+                    && line.trim_start()[stage.len()..].starts_with(' ')
+            })
+            .unwrap_or_else(|| panic!("no '{stage}' line in:\n{text}"));
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let cpu_at = words
+            .iter()
+            .position(|&w| w == "CPU")
+            .unwrap_or_else(|| panic!("no CPU time in '{line}'"));
+        let faults_at = words
+            .iter()
+            .position(|&w| w == "faults")
+            .unwrap_or_else(|| panic!("no faults in '{line}'"));
+        assert_eq!(words[cpu_at - 1], "ms", "{line}");
+        let cpu: f64 = words[cpu_at - 2].parse().expect("CPU time in ms");
+        let faults: u64 = words[faults_at - 1].parse().expect("a count of faults");
+        assert!(cpu >= 0.0, "{line}");
+        (cpu, faults)
+    };
+    let stages = [
+        "parse",
+        "BVH build",
+        "render total",
+        "post-processing",
+        "PNG encoding",
+        "file write",
+    ];
+    let (total_cpu, total_faults) = usage("total");
+    let (mut cpu, mut faults) = (0.0, 0);
+    for stage in stages {
+        let (c, f) = usage(stage);
+        cpu += c;
+        faults += f;
+    }
+    for step in ["binary tree", "8-wide collapse", "packets"] {
+        usage(step);
+    }
+    // Each column is rounded to 0.1 ms.
+    assert!(cpu <= total_cpu + 0.05 * stages.len() as f64, "{text}");
+    assert!(faults <= total_faults, "{text}");
+    // Loading a program and reading a scene touch fresh pages.
+    assert!(total_faults > 0, "{text}");
+}
+
 /// `raytracer bench` reports incoherent bounce rays (one per primary hit, also through
 /// the array query) and the primary and shadow rays in packets, with the same hit
 /// counts as ray by ray; and

@@ -56,7 +56,8 @@ pub struct RenderArgs {
     /// .png (8-bit, post-processed) or .exr (32-bit float, linear, before post-processing).
     #[arg(short, long, value_name = "OUT.png|OUT.exr")]
     pub output: PathBuf,
-    /// Print the time of each stage, BVH size and quality, rays traced and peak memory
+    /// Print the time of each stage (wall, and where the OS reports them CPU time of
+    /// all threads and page faults), BVH size and quality, rays traced and peak memory
     /// on stderr.
     #[arg(long)]
     pub stats: bool,

@@ -1,9 +1,9 @@
 //! `raytracer render`: load, build, render, write, with optional `--stats`.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use raytracer::integrators::path::material_warnings;
-use raytracer::stats::{RayCounts, peak_memory_bytes};
+use raytracer::stats::{RayCounts, Usage, peak_memory_bytes, usage_between};
 use raytracer::{
     BvhParams, ImageFormat, Mode, RenderTimes, Scene, output, render_with_progress,
     render_with_stats,
@@ -31,14 +31,14 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         raytracer::postprocess::check_denoiser()?;
     }
 
-    let start = Instant::now();
+    let start = Mark::now();
     let loading = Progress::start("loading the scene", None, !quiet);
     let (description, options) = super::load_scene(&args.view)?;
     let options = &options;
-    let parsed = Instant::now();
+    let parsed = Mark::now();
     let params = BvhParams::default();
     let scene = Scene::build(description, &params);
-    let built = Instant::now();
+    let built = Mark::now();
     drop(loading);
     if options.samples_per_pixel_in_mode() != options.samples_per_pixel {
         warn(&format!(
@@ -82,39 +82,41 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         }
         (false, _) => film,
     };
-    let rendered = Instant::now();
+    let rendered = Mark::now();
     // Post-processing and encoding apart, so that `--stats` shows each.
     let (processed, encoded) = match format {
         ImageFormat::Png => {
             let image = film.to_image(options);
-            let processed = Instant::now();
+            let processed = Mark::now();
             let bytes = image.encode_png().map_err(|error| output::WriteError {
                 path: args.output.clone(),
                 error,
             })?;
-            let encoded = Instant::now();
+            let encoded = Mark::now();
             output::write_png_bytes(&bytes, &args.output)?;
             (processed, encoded)
         }
         // OpenEXR holds the film as rendered: no post-processing; encoded while written.
         ImageFormat::Exr => {
             film.write(options, format, &args.output)?;
-            (rendered, Instant::now())
+            (rendered, Mark::now())
         }
     };
-    let written = Instant::now();
+    let written = Mark::now();
     let file_bytes = std::fs::metadata(&args.output).map(|m| m.len()).ok();
 
     if args.stats {
-        let render = (rendered - built).as_secs_f64();
+        let render = built.to(&rendered);
         let stages = Stages {
-            parse: (parsed - start).as_secs_f64(),
-            build: (built - parsed).as_secs_f64(),
+            parse: start.to(&parsed),
+            build: parsed.to(&built),
+            trace: times.trace_fraction.map(|f| f * render.seconds),
             render,
-            trace: times.trace_fraction.map(|f| f * render),
-            post: (processed - rendered).as_secs_f64(),
-            encode: (encoded - processed).as_secs_f64(),
-            write: (written - encoded).as_secs_f64(),
+            post: rendered.to(&processed),
+            encode: processed.to(&encoded),
+            write: encoded.to(&written),
+            encode_and_write: processed.to(&written),
+            total: start.to(&written),
         };
         let samples = samples_per_row * u64::from(options.height);
         print_stats(&scene, &stages, &rays, samples, format, file_bytes);
@@ -122,18 +124,76 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Seconds spent in each stage.
+/// A moment of the run, for `--stats`: the clock, and the process's CPU time and
+/// page faults so far.
+#[derive(Clone, Copy)]
+struct Mark {
+    at: Instant,
+    usage: Option<Usage>,
+}
+
+impl Mark {
+    fn now() -> Mark {
+        Mark {
+            at: Instant::now(),
+            usage: Usage::now(),
+        }
+    }
+
+    /// What the run spent from this moment to `later`.
+    fn to(&self, later: &Mark) -> Cost {
+        Cost {
+            seconds: (later.at - self.at).as_secs_f64(),
+            usage: usage_between(self.usage, later.usage),
+        }
+    }
+}
+
+/// What a stage spent: wall time, and CPU time on all threads and page faults where
+/// the OS reports them.
+#[derive(Clone, Copy)]
+struct Cost {
+    seconds: f64,
+    usage: Option<Usage>,
+}
+
+impl Cost {
+    /// The stage's columns of `--stats`: wall time, CPU time, page faults.
+    fn columns(&self) -> String {
+        columns(Duration::from_secs_f64(self.seconds), self.usage)
+    }
+}
+
+/// `--stats` columns for a wall time and the usage over it (blank where the OS
+/// reports none).
+fn columns(wall: Duration, usage: Option<Usage>) -> String {
+    let wall = format!("{:9.1} ms", wall.as_secs_f64() * 1e3);
+    match usage {
+        Some(usage) => format!(
+            "{wall} {:9.1} ms CPU {:7} faults",
+            usage.cpu.as_secs_f64() * 1e3,
+            usage.minor_faults
+        ),
+        None => format!("{wall} {:30}", ""),
+    }
+}
+
+/// What each stage spent.
 struct Stages {
-    parse: f64,
-    build: f64,
+    parse: Cost,
+    build: Cost,
     /// The pixel loop: tracing and shading.
-    render: f64,
-    /// The part of `render` spent tracing ray packets, where it is a stage apart.
+    render: Cost,
+    /// Seconds of `render` spent tracing ray packets, where it is a stage apart.
     trace: Option<f64>,
-    post: f64,
-    encode: f64,
+    post: Cost,
+    encode: Cost,
     /// Writing the encoded file: the temporary file, its sync to disk, the rename.
-    write: f64,
+    write: Cost,
+    /// `encode` and `write` together, which OpenEXR's writer does in one.
+    encode_and_write: Cost,
+    /// From the start of loading to the written file.
+    total: Cost,
 }
 
 /// `samples` is the number of camera samples (paths, in path mode); `file_bytes` the
@@ -147,11 +207,16 @@ fn print_stats(
     file_bytes: Option<u64>,
 ) {
     let bvh = scene.bvh_summary();
-    let ms = |s: f64| s * 1e3;
-    eprintln!("parse            {:9.1} ms", ms(stages.parse));
+    let render_seconds = stages.render.seconds;
+    let seconds = |s: f64| Duration::from_secs_f64(s);
     eprintln!(
-        "BVH build        {:9.1} ms  {} primitives, {} binary nodes (depth {}, SAH cost {:.2}) -> {} 8-wide nodes (SAH cost {:.2}), {} packets",
-        ms(stages.build),
+        "{:17}{:>12}{:>16}{:>15}  (CPU time of all threads; page faults without I/O)",
+        "stage", "wall", "CPU", "page faults"
+    );
+    eprintln!("parse            {}", stages.parse.columns());
+    eprintln!(
+        "BVH build        {}  {} primitives, {} binary nodes (depth {}, SAH cost {:.2}) -> {} 8-wide nodes (SAH cost {:.2}), {} packets",
+        stages.build.columns(),
         scene.prim_count(),
         bvh.nodes,
         bvh.max_depth,
@@ -161,17 +226,18 @@ fn print_stats(
         bvh.packets,
     );
     let steps = scene.build_times();
+    let usage = steps.usage;
     eprintln!(
-        "  binary tree    {:9.1} ms  binned SAH over the primitives' boxes",
-        ms(steps.tree.as_secs_f64())
+        "  binary tree    {}  binned SAH over the primitives' boxes",
+        columns(steps.tree, usage.map(|u| u.tree))
     );
     eprintln!(
-        "  8-wide collapse{:9.1} ms  SAH-optimal, into the nodes rays traverse",
-        ms(steps.collapse.as_secs_f64())
+        "  8-wide collapse{}  SAH-optimal, into the nodes rays traverse",
+        columns(steps.collapse, usage.map(|u| u.collapse))
     );
     eprintln!(
-        "  packets        {:9.1} ms  triangles and shading data in leaf order (fresh memory)",
-        ms(steps.packets.as_secs_f64())
+        "  packets        {}  triangles and shading data in leaf order (fresh memory)",
+        columns(steps.packets, usage.map(|u| u.packets))
     );
     let rays_line = format!(
         "{} rays: {} primary, {} shadow, {} reflected, {} refracted, {} scattered; {:.1} Mrays/s",
@@ -181,54 +247,52 @@ fn print_stats(
         rays.reflected,
         rays.refracted,
         rays.scattered,
-        rays.total() as f64 / stages.render / 1e6
+        rays.total() as f64 / render_seconds / 1e6
     );
     match stages.trace {
         Some(trace) => {
             eprintln!(
-                "trace            {:9.1} ms  camera and shadow rays in 4x4 packets: {} rays, {:.1} Mrays/s",
-                ms(trace),
+                "trace            {}  camera and shadow rays in 4x4 packets: {} rays, {:.1} Mrays/s",
+                columns(seconds(trace), None),
                 rays.primary + rays.shadow,
                 (rays.primary + rays.shadow) as f64 / trace / 1e6
             );
             eprintln!(
-                "shading          {:9.1} ms  with the reflected and refracted rays it traces",
-                ms(stages.render - trace)
+                "shading          {}  with the reflected and refracted rays it traces",
+                columns(seconds(render_seconds - trace), None)
             );
-            eprintln!("  render total   {:9.1} ms  {rays_line}", ms(stages.render));
+            eprintln!("  render total   {}  {rays_line}", stages.render.columns());
         }
         None => eprintln!(
-            "trace + shading  {:9.1} ms  {rays_line} (traced and shaded in turn, ray by ray)",
-            ms(stages.render)
+            "trace + shading  {}  {rays_line} (traced and shaded in turn, ray by ray)",
+            stages.render.columns()
         ),
     }
     eprintln!(
         "                 {:9} samples (paths in path mode), {:.2} M samples/s",
         samples,
-        samples as f64 / stages.render / 1e6
+        samples as f64 / render_seconds / 1e6
     );
     match format {
         ImageFormat::Png => {
-            eprintln!("post-processing  {:9.1} ms", ms(stages.post));
+            eprintln!("post-processing  {}", stages.post.columns());
             eprintln!(
-                "PNG encoding     {:9.1} ms  {}",
-                ms(stages.encode),
+                "PNG encoding     {}  {}",
+                stages.encode.columns(),
                 file_size(file_bytes)
             );
             eprintln!(
-                "file write       {:9.1} ms  temporary file, sync to disk, rename",
-                ms(stages.write)
+                "file write       {}  temporary file, sync to disk, rename",
+                stages.write.columns()
             );
         }
         ImageFormat::Exr => eprintln!(
-            "EXR encoding     {:9.1} ms  {} (linear film, no post-processing; written, synced and renamed)",
-            ms(stages.encode + stages.write),
+            "EXR encoding     {}  {} (linear film, no post-processing; written, synced and renamed)",
+            stages.encode_and_write.columns(),
             file_size(file_bytes)
         ),
     }
-    let total =
-        stages.parse + stages.build + stages.render + stages.post + stages.encode + stages.write;
-    eprintln!("total            {:9.1} ms", ms(total));
+    eprintln!("total            {}", stages.total.columns());
     if let Some(peak) = peak_memory_bytes() {
         eprintln!("peak memory      {:9.1} MB", peak as f64 / 1e6);
     }

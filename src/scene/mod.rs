@@ -23,6 +23,7 @@ use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
+use crate::stats::{Usage, usage_between};
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
 /// by which secondary rays start off the surface (also read by the packet shading,
@@ -86,6 +87,20 @@ pub struct BuildTimes {
     /// scene's arrays. Most of what it writes is fresh memory, so on machines where
     /// a page's first touch is slow (virtual machines) this step varies the most.
     pub packets: std::time::Duration,
+    /// The CPU time and page faults of the three steps, where the OS reports them.
+    pub usage: Option<BuildUsage>,
+}
+
+/// The process's [`Usage`] over each step of [`Scene::build`] (all threads: nothing
+/// else runs beside a build in the `raytracer` command).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BuildUsage {
+    /// Over [`BuildTimes::tree`].
+    pub tree: Usage,
+    /// Over [`BuildTimes::collapse`].
+    pub collapse: Usage,
+    /// Over [`BuildTimes::packets`].
+    pub packets: Usage,
 }
 
 /// Figures about the binary BVH the scene was built with, kept after it is collapsed
@@ -326,6 +341,7 @@ impl Scene {
             mut warnings,
         } = description;
         let started = std::time::Instant::now();
+        let usage_started = Usage::now();
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
         // from the description (no second copy of the shapes exists while the
@@ -384,6 +400,7 @@ impl Scene {
         }
 
         let tree_built = std::time::Instant::now();
+        let usage_tree_built = Usage::now();
         let degenerate = triangle_count + spheres.len() - order.len() - duplicates;
         if degenerate > 0 {
             warnings.push(format!(
@@ -460,6 +477,7 @@ impl Scene {
             || bvh.sah_cost(params),
         );
         let collapsed = std::time::Instant::now();
+        let usage_collapsed = Usage::now();
         let mut summary = BvhSummary {
             nodes: bvh.nodes.len(),
             max_depth: bvh.max_depth,
@@ -508,10 +526,23 @@ impl Scene {
             .par_iter()
             .map(|&n| try_unit(n).unwrap_or(Vec3::ZERO))
             .collect();
+        let usage_built = Usage::now();
         let build_times = BuildTimes {
             tree: tree_built - started,
             collapse: collapsed - tree_built,
             packets: collapsed.elapsed(),
+            usage: match (
+                usage_between(usage_started, usage_tree_built),
+                usage_between(usage_tree_built, usage_collapsed),
+                usage_between(usage_collapsed, usage_built),
+            ) {
+                (Some(tree), Some(collapse), Some(packets)) => Some(BuildUsage {
+                    tree,
+                    collapse,
+                    packets,
+                }),
+                _ => None,
+            },
         };
         Scene {
             wide,
@@ -1468,12 +1499,16 @@ mod build_tests {
 
     /// The build's steps are timed one after another inside it: together they take
     /// no longer than the whole build timed from outside, and a build over shapes
-    /// spends its time in them (not all of it in one).
+    /// spends its time in them (not all of it in one). Their CPU time and faults,
+    /// read from the process's counters, likewise add up to no more than the
+    /// counters moved over the whole build (other tests' threads count in both).
     #[test]
     fn build_steps_are_timed_in_turn_within_the_build() {
         let description = packet::tests::generated_description(60, true, 7);
         let started = std::time::Instant::now();
+        let usage_started = Usage::now();
         let scene = Scene::build(description, &BvhParams::default());
+        let usage_whole = usage_between(usage_started, Usage::now());
         let whole = started.elapsed();
         let steps = scene.build_times();
         assert!(
@@ -1482,6 +1517,16 @@ mod build_tests {
         );
         assert!(steps.tree > std::time::Duration::ZERO, "{steps:?}");
         assert!(steps.packets > std::time::Duration::ZERO, "{steps:?}");
+        if cfg!(unix) {
+            let usage = steps.usage.expect("Unix reports usage");
+            let whole = usage_whole.expect("Unix reports usage");
+            let parts = [usage.tree, usage.collapse, usage.packets];
+            let cpu: std::time::Duration = parts.iter().map(|u| u.cpu).sum();
+            let faults: u64 = parts.iter().map(|u| u.minor_faults).sum();
+            assert!(cpu <= whole.cpu, "{usage:?} beyond {whole:?}");
+            assert!(faults <= whole.minor_faults, "{usage:?} beyond {whole:?}");
+            assert!(usage.tree.cpu > std::time::Duration::ZERO, "{usage:?}");
+        }
     }
 
     /// The shading data is written leaf by leaf beside the packets, into slices cut

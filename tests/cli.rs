@@ -284,6 +284,28 @@ fn scene_extensions_are_matched_in_any_case_and_under_gz() {
     }
 }
 
+/// What `--stats` prints for a 40x30 render of the box scene into `dir/file`, with
+/// `extra` arguments.
+fn stats_of_small_render(dir: &std::path::Path, file: &str, extra: &[&str]) -> String {
+    let out = dir.join(file);
+    let scene = box_scene();
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--stats",
+    ];
+    args.extend_from_slice(extra);
+    let output = raytracer(&args);
+    assert!(output.status.success(), "{}", stderr(&output));
+    stderr(&output)
+}
+
 /// `--stats` names every stage of the pipeline, each on its own line (their times are
 /// not checked): in full mode the traced ray packets apart from the shading, in path
 /// mode tracing and shading together; post-processing and PNG encoding (with the
@@ -291,26 +313,8 @@ fn scene_extensions_are_matched_in_any_case_and_under_gz() {
 #[test]
 fn stats_show_every_stage() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = box_scene();
     let stages = |mode: &str, file: &str| {
-        let out = dir.path().join(file);
-        let output = raytracer(&[
-            "render",
-            scene.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            "40",
-            "--height",
-            "30",
-            "--mode",
-            mode,
-            "--spp",
-            "1",
-            "--stats",
-        ]);
-        assert!(output.status.success(), "{}", stderr(&output));
-        let text = stderr(&output);
+        let text = stats_of_small_render(dir.path(), file, &["--mode", mode, "--spp", "1"]);
         let starts: Vec<String> = text
             .lines()
             .map(|line| {
@@ -370,21 +374,7 @@ fn stats_show_every_stage() {
 #[test]
 fn stats_show_cpu_time_and_page_faults_of_each_stage() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("stats.png");
-    let scene = box_scene();
-    let output = raytracer(&[
-        "render",
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--width",
-        "40",
-        "--height",
-        "30",
-        "--stats",
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
-    let text = stderr(&output);
+    let text = stats_of_small_render(dir.path(), "stats.png", &[]);
     // `name  <wall> ms  <cpu> ms CPU  <faults> faults ...` -> (cpu, faults)
     let usage = |stage: &str| -> (f64, u64) {
         let line = text

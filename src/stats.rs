@@ -95,9 +95,33 @@ impl Usage {
     }
 }
 
-/// The usage from `earlier` to `later`, where both were read.
-pub fn usage_between(earlier: Option<Usage>, later: Option<Usage>) -> Option<Usage> {
-    Some(later?.since(&earlier?))
+/// A moment of a run: the clock, and the process's [`Usage`] so far where the OS
+/// reports it. Two moments give what the work between them took.
+#[derive(Clone, Copy, Debug)]
+pub struct Mark {
+    /// When.
+    pub at: std::time::Instant,
+    /// The process's usage up to then.
+    pub usage: Option<Usage>,
+}
+
+impl Mark {
+    /// This moment.
+    pub fn now() -> Mark {
+        Mark {
+            at: std::time::Instant::now(),
+            usage: Usage::now(),
+        }
+    }
+
+    /// The wall time from this moment to `later`, and the usage where both have it.
+    pub fn to(&self, later: &Mark) -> (std::time::Duration, Option<Usage>) {
+        let usage = match (self.usage, later.usage) {
+            (Some(earlier), Some(later)) => Some(later.since(&earlier)),
+            _ => None,
+        };
+        (later.at.saturating_duration_since(self.at), usage)
+    }
 }
 
 #[cfg(test)]
@@ -138,8 +162,11 @@ mod tests {
         assert!(used.cpu >= std::time::Duration::from_millis(25), "{used:?}");
         assert!(used.system <= used.cpu, "{used:?}");
         assert_eq!(before.since(&after), Usage::default());
-        assert_eq!(usage_between(Some(before), None), None);
-        assert_eq!(usage_between(Some(before), Some(after)), Some(used));
+        let (start, end) = (Mark::now(), Mark::now());
+        let (wall, usage) = start.to(&end);
+        assert!(usage.is_some_and(|u| u.cpu <= wall + std::time::Duration::from_millis(1)));
+        let unreported = Mark { usage: None, ..end };
+        assert_eq!(start.to(&unreported).1, None);
         drop(fresh);
     }
 }

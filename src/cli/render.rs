@@ -1,9 +1,9 @@
 //! `raytracer render`: load, build, render, write, with optional `--stats`.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use raytracer::integrators::path::material_warnings;
-use raytracer::stats::{RayCounts, Usage, peak_memory_bytes, usage_between};
+use raytracer::stats::{Mark, RayCounts, Usage, peak_memory_bytes};
 use raytracer::{
     BvhParams, ImageFormat, Mode, RenderTimes, Scene, output, render_with_progress,
     render_with_stats,
@@ -106,17 +106,18 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let file_bytes = std::fs::metadata(&args.output).map(|m| m.len()).ok();
 
     if args.stats {
-        let render = built.to(&rendered);
+        let cost = |from: &Mark, to: &Mark| Cost::from(from.to(to));
+        let render = cost(&built, &rendered);
         let stages = Stages {
-            parse: start.to(&parsed),
-            build: parsed.to(&built),
-            trace: times.trace_fraction.map(|f| f * render.seconds),
+            parse: cost(&start, &parsed),
+            build: cost(&parsed, &built),
+            trace: times.trace_fraction.map(|f| f * render.wall.as_secs_f64()),
             render,
-            post: rendered.to(&processed),
-            encode: processed.to(&encoded),
-            write: encoded.to(&written),
-            encode_and_write: processed.to(&written),
-            total: start.to(&written),
+            post: cost(&rendered, &processed),
+            encode: cost(&processed, &encoded),
+            write: cost(&encoded, &written),
+            encode_and_write: cost(&processed, &written),
+            total: cost(&start, &written),
         };
         let samples = samples_per_row * u64::from(options.height);
         print_stats(&scene, &stages, &rays, samples, format, file_bytes);
@@ -124,43 +125,24 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A moment of the run, for `--stats`: the clock, and the process's CPU time and
-/// page faults so far.
-#[derive(Clone, Copy)]
-struct Mark {
-    at: Instant,
-    usage: Option<Usage>,
-}
-
-impl Mark {
-    fn now() -> Mark {
-        Mark {
-            at: Instant::now(),
-            usage: Usage::now(),
-        }
-    }
-
-    /// What the run spent from this moment to `later`.
-    fn to(&self, later: &Mark) -> Cost {
-        Cost {
-            seconds: (later.at - self.at).as_secs_f64(),
-            usage: usage_between(self.usage, later.usage),
-        }
-    }
-}
-
 /// What a stage spent: wall time, and CPU time on all threads and page faults where
 /// the OS reports them.
 #[derive(Clone, Copy)]
 struct Cost {
-    seconds: f64,
+    wall: Duration,
     usage: Option<Usage>,
+}
+
+impl From<(Duration, Option<Usage>)> for Cost {
+    fn from((wall, usage): (Duration, Option<Usage>)) -> Cost {
+        Cost { wall, usage }
+    }
 }
 
 impl Cost {
     /// The stage's columns of `--stats`: wall time, CPU time, page faults.
     fn columns(&self) -> String {
-        columns(Duration::from_secs_f64(self.seconds), self.usage)
+        columns(self.wall, self.usage)
     }
 }
 
@@ -207,8 +189,9 @@ fn print_stats(
     file_bytes: Option<u64>,
 ) {
     let bvh = scene.bvh_summary();
-    let render_seconds = stages.render.seconds;
-    let seconds = |s: f64| Duration::from_secs_f64(s);
+    let render_seconds = stages.render.wall.as_secs_f64();
+    // Zero for a negative or NaN number of seconds, which `Duration` refuses.
+    let seconds = |s: f64| Duration::try_from_secs_f64(s).unwrap_or_default();
     eprintln!(
         "{:17}{:>12}{:>16}{:>15}  (CPU time of all threads; page faults without I/O)",
         "stage", "wall", "CPU", "page faults"

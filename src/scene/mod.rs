@@ -23,7 +23,7 @@ use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
-use crate::stats::{Usage, usage_between};
+use crate::stats::{Mark, Usage};
 
 /// Distance, relative to the magnitude of the hit point's coordinates (at least 1),
 /// by which secondary rays start off the surface (also read by the packet shading,
@@ -340,8 +340,7 @@ impl Scene {
             materials,
             mut warnings,
         } = description;
-        let started = std::time::Instant::now();
-        let usage_started = Usage::now();
+        let started = Mark::now();
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
         // from the description (no second copy of the shapes exists while the
@@ -399,8 +398,7 @@ impl Scene {
             }
         }
 
-        let tree_built = std::time::Instant::now();
-        let usage_tree_built = Usage::now();
+        let tree_built = Mark::now();
         let degenerate = triangle_count + spheres.len() - order.len() - duplicates;
         if degenerate > 0 {
             warnings.push(format!(
@@ -476,8 +474,7 @@ impl Scene {
             || WideBvh::collapse(&bvh, 2 * LANES as u32, params),
             || bvh.sah_cost(params),
         );
-        let collapsed = std::time::Instant::now();
-        let usage_collapsed = Usage::now();
+        let collapsed = Mark::now();
         let mut summary = BvhSummary {
             nodes: bvh.nodes.len(),
             max_depth: bvh.max_depth,
@@ -526,16 +523,15 @@ impl Scene {
             .par_iter()
             .map(|&n| try_unit(n).unwrap_or(Vec3::ZERO))
             .collect();
-        let usage_built = Usage::now();
+        let built = Mark::now();
+        let (tree, tree_usage) = started.to(&tree_built);
+        let (collapse, collapse_usage) = tree_built.to(&collapsed);
+        let (packets_time, packets_usage) = collapsed.to(&built);
         let build_times = BuildTimes {
-            tree: tree_built - started,
-            collapse: collapsed - tree_built,
-            packets: collapsed.elapsed(),
-            usage: match (
-                usage_between(usage_started, usage_tree_built),
-                usage_between(usage_tree_built, usage_collapsed),
-                usage_between(usage_collapsed, usage_built),
-            ) {
+            tree,
+            collapse,
+            packets: packets_time,
+            usage: match (tree_usage, collapse_usage, packets_usage) {
                 (Some(tree), Some(collapse), Some(packets)) => Some(BuildUsage {
                     tree,
                     collapse,
@@ -1505,11 +1501,9 @@ mod build_tests {
     #[test]
     fn build_steps_are_timed_in_turn_within_the_build() {
         let description = packet::tests::generated_description(60, true, 7);
-        let started = std::time::Instant::now();
-        let usage_started = Usage::now();
+        let started = Mark::now();
         let scene = Scene::build(description, &BvhParams::default());
-        let usage_whole = usage_between(usage_started, Usage::now());
-        let whole = started.elapsed();
+        let (whole, usage_whole) = started.to(&Mark::now());
         let steps = scene.build_times();
         assert!(
             steps.tree + steps.collapse + steps.packets <= whole,

@@ -112,7 +112,7 @@ fn back_with_huge_pages(start: usize, end: usize) {
 /// preempted meanwhile (the host's work for a cold page counts, as the guest's
 /// system time).
 #[cfg(target_os = "linux")]
-fn thread_cpu_time() -> std::time::Duration {
+pub(crate) fn thread_cpu_time() -> std::time::Duration {
     let mut time = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,

@@ -50,8 +50,8 @@
 #![deny(missing_docs)]
 
 pub mod benchmark;
-pub mod bsdf;
 pub mod bvh;
+pub mod bxdfs;
 pub mod camera;
 pub mod description;
 pub mod film;

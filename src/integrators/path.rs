@@ -16,11 +16,16 @@
 //! lighting, as full mode's is a light rig at the camera; `--no-default-light`
 //! ([`crate::RenderOptions::default_light`]) turns both off.
 //!
-//! Materials: [`crate::bsdf`]; lights: [`crate::lights`].
+//! A path inside a volume (`KHR_materials_volume`) is attenuated by Beer-Lambert's
+//! law over the distance it travels there.
+//!
+//! Materials: [`crate::bxdfs`]; lights: [`crate::lights`].
 
 use super::Integrator;
-use crate::bsdf::ScatteringParams;
 use crate::bvh::lanes_of;
+use crate::bxdfs::Bsdf;
+use crate::bxdfs::gltf::GltfBsdf;
+use crate::bxdfs::mtl::MtlMixture;
 use crate::camera::Camera;
 use crate::material::Material;
 use crate::math::{Float, Ray, Vec3, saturate_finite};
@@ -39,7 +44,7 @@ pub const DIMENSIONS_PER_BOUNCE: u32 = 7;
 /// The path tracer for one scene: per-material scattering, derived once per render.
 #[derive(Clone, Debug)]
 pub struct PathIntegrator {
-    scattering: Vec<ScatteringParams>,
+    scattering: Vec<Bsdf>,
     /// Most path segments.
     max_depth: u32,
     /// Radiance of rays that leave the scene: white when the scene has no light.
@@ -53,7 +58,10 @@ impl PathIntegrator {
         let scattering = scene
             .materials
             .iter()
-            .map(|m| ScatteringParams::new(m).0)
+            .map(|m| match m.pbr_at(crate::math::Vec2::ZERO) {
+                Some(values) => Bsdf::Gltf(GltfBsdf::new(&values)),
+                None => Bsdf::Mtl(MtlMixture::new(m).0),
+            })
             .collect();
         let unlit = scene.lights.is_empty() && scene.area_lights.is_empty() && default_light;
         PathIntegrator {
@@ -77,6 +85,8 @@ struct PathState {
     previous_pdf: Float,
     previous_point: Vec3,
     eta: Float,
+    /// The attenuation coefficient of the volume the path is in (zero outside).
+    medium: Vec3,
     /// Path segments traced so far.
     depth: u32,
     /// The light a shadow ray is testing: added to `radiance` if it gets through.
@@ -94,6 +104,7 @@ impl PathState {
             previous_pdf: 0.0,
             previous_point: ray.origin,
             eta: 1.0,
+            medium: Vec3::ZERO,
             depth: 0,
             unoccluded: Vec3::ZERO,
         }
@@ -130,6 +141,9 @@ impl PathIntegrator {
             path.radiance += path.throughput * self.environment;
             return done;
         };
+        if path.medium != Vec3::ZERO {
+            path.throughput *= (-path.medium * hit.t).exp();
+        }
         let material = &scene.materials[hit.material.0 as usize];
         // A textured material's scattering is made for this hit from the values of
         // its maps here; an untextured one's was made once, in `new`.
@@ -154,7 +168,10 @@ impl PathIntegrator {
         let per_hit;
         let scattering = match &textured {
             Some(surface) => {
-                per_hit = ScatteringParams::at(material, surface);
+                per_hit = match material.pbr_at(hit.uv) {
+                    Some(values) => Bsdf::Gltf(GltfBsdf::new(&values)),
+                    None => Bsdf::Mtl(MtlMixture::at(material, surface)),
+                };
                 &per_hit
             }
             None => &self.scattering[hit.material.0 as usize],
@@ -168,7 +185,7 @@ impl PathIntegrator {
         let mut shadow = None;
         if scattering.has_smooth_lobes() {
             if let Some(light) = scene.area_lights.sample(hit.p, u_pick, u_light) {
-                let f = scattering.eval(wo, light.direction, hit.ns, hit.n);
+                let f = scattering.eval(wo, light.direction, hit.ns, hit.n, hit.front);
                 if f != Vec3::ZERO {
                     // The light point lies `light.distance` along `light.direction`
                     // from the hit point: a little less from the offset origin.
@@ -176,12 +193,12 @@ impl PathIntegrator {
                     let distance =
                         light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
                     rays.shadow += 1;
-                    let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n);
+                    let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n, hit.front);
                     let weight = power_heuristic(light.pdf, bsdf_pdf);
                     path.unoccluded = path.throughput
                         * f
                         * light.radiance
-                        * (light.direction.dot(hit.ns) * weight / light.pdf);
+                        * (light.direction.dot(hit.ns).abs() * weight / light.pdf);
                     // The light's own surface must not block the ray to it.
                     shadow = Some((shadow_ray, distance * (1.0 - 1e-3)));
                 }
@@ -190,7 +207,7 @@ impl PathIntegrator {
                 let to_light = light.position - hit.p;
                 let distance_squared = to_light.length_squared();
                 let direction = to_light / distance_squared.sqrt();
-                let f = scattering.eval(wo, direction, hit.ns, hit.n);
+                let f = scattering.eval(wo, direction, hit.ns, hit.n, hit.front);
                 if f == Vec3::ZERO || !distance_squared.is_normal() {
                     continue;
                 }
@@ -200,7 +217,7 @@ impl PathIntegrator {
                     path.radiance += path.throughput
                         * f
                         * light.intensity
-                        * (direction.dot(hit.ns) / distance_squared);
+                        * (direction.dot(hit.ns).abs() / distance_squared);
                 }
             }
         }
@@ -216,6 +233,13 @@ impl PathIntegrator {
             };
         };
         path.throughput *= scattered.weight;
+        if scattered.wi.dot(hit.n) < 0.0 {
+            // Through the surface: into the volume it bounds, or out of it.
+            path.medium = match scattering.attenuation() {
+                Some(attenuation) if hit.front => attenuation,
+                _ => Vec3::ZERO,
+            };
+        }
         path.eta *= scattered.eta;
         path.previous_delta = scattered.delta;
         path.previous_pdf = scattered.pdf;
@@ -355,7 +379,7 @@ impl Integrator for PathIntegrator {
 pub fn material_warnings(materials: &[Material]) -> Vec<String> {
     materials
         .iter()
-        .filter(|m| ScatteringParams::new(m).1)
+        .filter(|m| m.pbr.is_none() && MtlMixture::new(m).1)
         .map(|m| {
             format!(
                 "material '{}': Kd + Ks exceeds 1, scaled down in path mode to conserve energy",

@@ -1,7 +1,12 @@
-//! Phong materials as read from MTL files, with their texture maps.
+//! Materials as the readers describe them: SPEC's Phong record, which full mode
+//! shades, with its texture maps, and optionally a physically based material
+//! ([`pbr`]) that path mode scatters by instead.
+
+pub mod pbr;
 
 use crate::math::{Float, Vec2, Vec3};
 use crate::textures::{Encoding, TextureMap};
+use pbr::{PbrMaps, PbrMaterial, PbrValues};
 
 /// Index of a material in [`crate::Scene::materials`] (and in the description's list).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -33,6 +38,11 @@ pub struct Material {
     /// Texture maps, if any (boxed: most materials have none, and a material with
     /// none stays small and is told apart by one pointer test).
     pub maps: Option<Box<MaterialMaps>>,
+    /// The physically based material this one is (glTF, MTL's `Pr`/`Pm`, TOML's
+    /// `base_color`, ...), which path mode scatters by; `None` for SPEC's Phong
+    /// materials. When set, the Phong fields hold its approximation for full mode
+    /// ([`PbrValues::phong`]), and its maps are in [`MaterialMaps::pbr`].
+    pub pbr: Option<Box<PbrMaterial>>,
 }
 
 /// A material's texture maps. Each colour map multiplies its colour (`map_Kd`
@@ -59,6 +69,8 @@ pub struct MaterialMaps {
     /// tangent-space normal map (OpenGL's convention, as glTF's: red along `u`, green
     /// along `v`, blue out of the surface), linear.
     pub normal: Option<TextureMap>,
+    /// The maps of the physically based material ([`Material::pbr`]).
+    pub pbr: PbrMaps,
 }
 
 /// Where a surface is cut out: rays pass through it where its alpha is below
@@ -165,7 +177,49 @@ impl Material {
             opacity: 1.0,
             albedo: [1.0, 0.0, 0.0],
             maps: None,
+            pbr: None,
         }
+    }
+
+    /// A physically based material named `name`, its maps (`None` when it has none)
+    /// and its Phong approximation for full mode; `emission` is its emitted radiance
+    /// (its `Ke`).
+    pub fn physically_based(
+        name: impl Into<String>,
+        pbr: PbrMaterial,
+        emission: Vec3,
+        maps: Option<Box<MaterialMaps>>,
+    ) -> Material {
+        let mut material = Material {
+            emission,
+            ior: pbr.ior,
+            maps,
+            ..Material::named(name)
+        };
+        let mut values = material.at_constants();
+        pbr.constants().phong(&mut values);
+        material.diffuse = values.diffuse;
+        material.specular = values.specular;
+        material.shininess = values.shininess;
+        material.pbr = Some(Box::new(pbr));
+        material
+    }
+
+    fn at_constants(&self) -> SurfaceValues {
+        SurfaceValues {
+            ambient: self.ambient,
+            diffuse: self.diffuse,
+            specular: self.specular,
+            emission: self.emission,
+            shininess: self.shininess,
+        }
+    }
+
+    /// The physically based material's values at `uv`, if this is one.
+    #[inline]
+    pub fn pbr_at(&self, uv: Vec2) -> Option<PbrValues> {
+        let pbr = self.pbr.as_deref()?;
+        Some(pbr.at(uv, self.maps.as_deref().map(|m| &m.pbr)))
     }
 
     /// The material's values at texture coordinates `uv`: the constants, each
@@ -173,15 +227,9 @@ impl Material {
     /// Without maps, the constants exactly.
     #[inline]
     pub fn at(&self, uv: Vec2) -> SurfaceValues {
-        let mut values = SurfaceValues {
-            ambient: self.ambient,
-            diffuse: self.diffuse,
-            specular: self.specular,
-            emission: self.emission,
-            shininess: self.shininess,
-        };
+        let mut values = self.at_constants();
         if let Some(maps) = &self.maps {
-            maps.apply(uv, &mut values);
+            maps.apply(uv, &mut values, self.pbr.as_deref());
         }
         values
     }
@@ -194,10 +242,14 @@ impl Material {
 }
 
 impl MaterialMaps {
-    /// Multiplies `values` by the maps at `uv`. Out of line: only textured materials
-    /// get here.
+    /// Multiplies `values` by the maps at `uv`; for a physically based material
+    /// (`pbr`), sets its Phong approximation from its values there. Out of line: only
+    /// textured materials get here.
     #[inline(never)]
-    fn apply(&self, uv: Vec2, values: &mut SurfaceValues) {
+    fn apply(&self, uv: Vec2, values: &mut SurfaceValues, pbr: Option<&PbrMaterial>) {
+        if let Some(pbr) = pbr {
+            pbr.at(uv, Some(&self.pbr)).phong(values);
+        }
         let colour = |map: &Option<TextureMap>, value: &mut Vec3| {
             if let Some(map) = map {
                 *value *= map.colour(uv, Encoding::Srgb);

@@ -1,5 +1,5 @@
-//! Physically based scattering for path mode: what an MTL [`Material`] means to a
-//! path tracer, as a mixture of four lobes weighted by the spec's `al` weights.
+//! SPEC's MTL material in path mode: what an MTL [`Material`] means to a path
+//! tracer, as a mixture of four lobes weighted by the spec's `al` weights.
 //!
 //! | MTL | lobe | Mitsuba 3 | Blender (Principled) |
 //! |---|---|---|---|
@@ -11,20 +11,23 @@
 //! | `Ka` | ignored: an ambient term has no physical meaning | | |
 //!
 //! `Kd + Ks` is scaled down to at most 1 per channel so that the Phong part conserves
-//! energy ([`ScatteringParams::new`] says when it did).
+//! energy ([`MtlMixture::new`] says when it did).
 //!
-//! Directions follow pbrt's convention: `wo` points away from the surface towards
-//! where the path came from, `wi` towards where it goes next. The shading normal
-//! faces `wo` (hits are flipped to face the ray).
+//! It works in world space, the shading normal `ns` facing `wo` (as every material
+//! in [`super`]).
 
 use std::f32::consts::{FRAC_1_PI, PI};
 
+use super::fresnel::dielectric as fresnel_dielectric;
+use super::lambert::cosine_hemisphere;
+use super::phong::{Phong, phong_lobe};
+use super::{Frame, Lobe, LocalSample, ScatterSample};
 use crate::material::{Material, SurfaceValues};
-use crate::math::{Float, Vec2, Vec3, reflect, sin_cos};
+use crate::math::{Float, Vec2, Vec3, reflect};
 
 /// The scattering of one material, derived once per render.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ScatteringParams {
+pub struct MtlMixture {
     /// `al0 * Kd`, after the energy scaling.
     diffuse: Vec3,
     /// `diffuse` over the probability of sampling it: the weight of a direction
@@ -45,29 +48,11 @@ pub struct ScatteringParams {
     lobe_probability: [Float; 4],
 }
 
-/// A direction chosen by [`ScatteringParams::sample`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ScatterSample {
-    /// Unit direction the path continues in.
-    pub wi: Vec3,
-    /// `f * |cos| / pdf`: what the path throughput is multiplied by.
-    pub weight: Vec3,
-    /// Probability density of `wi` (solid angle) over the non-delta lobes, for
-    /// multiple importance sampling; meaningless when `delta`.
-    pub pdf: Float,
-    /// A mirror or glass lobe was chosen: no light sampling strategy could have
-    /// found `wi`.
-    pub delta: bool,
-    /// The relative index of refraction crossed (1 for reflection), for Russian
-    /// roulette (as Mitsuba's `eta`).
-    pub eta: Float,
-}
-
-impl ScatteringParams {
+impl MtlMixture {
     /// The scattering `material` describes, and whether `Kd + Ks` had to be scaled
     /// down to conserve energy.
-    pub fn new(material: &Material) -> (ScatteringParams, bool) {
-        ScatteringParams::from_values(
+    pub fn new(material: &Material) -> (MtlMixture, bool) {
+        MtlMixture::from_values(
             material,
             material.diffuse,
             material.specular,
@@ -78,8 +63,8 @@ impl ScatteringParams {
     /// The scattering of a textured material at one point, from its values there
     /// (`Kd`, `Ks` and `Ns` times their maps), for each hit on it.
     #[inline]
-    pub fn at(material: &Material, surface: &SurfaceValues) -> ScatteringParams {
-        ScatteringParams::from_values(
+    pub fn at(material: &Material, surface: &SurfaceValues) -> MtlMixture {
+        MtlMixture::from_values(
             material,
             surface.diffuse,
             surface.specular,
@@ -89,7 +74,7 @@ impl ScatteringParams {
     }
 
     #[inline]
-    fn from_values(material: &Material, kd: Vec3, ks: Vec3, ns: Float) -> (ScatteringParams, bool) {
+    fn from_values(material: &Material, kd: Vec3, ks: Vec3, ns: Float) -> (MtlMixture, bool) {
         let [local, mirror, glass] = material.albedo.map(|w| w.max(0.0));
         let mut diffuse = kd.max(Vec3::ZERO) * local;
         let mut glossy = ks.max(Vec3::ZERO) * local;
@@ -116,7 +101,7 @@ impl ScatteringParams {
         } else {
             Vec3::ZERO
         };
-        let params = ScatteringParams {
+        let params = MtlMixture {
             diffuse,
             diffuse_weight,
             glossy,
@@ -147,13 +132,13 @@ impl ScatteringParams {
         }
         let mut f = self.diffuse * FRAC_1_PI;
         if self.glossy != Vec3::ZERO {
-            let cos_alpha = wi.dot(reflect(-wo, ns)).max(0.0);
-            f += self.glossy * ((self.exponent + 2.0) / (2.0 * PI) * cos_alpha.powf(self.exponent));
+            let lobe = Phong::lobe(reflect(-wo, ns), wi, self.exponent);
+            f += self.glossy * ((self.exponent + 2.0) / (2.0 * PI) * lobe);
         }
         f
     }
 
-    /// The density (solid angle) with which [`ScatteringParams::sample`] picks `wi`
+    /// The density (solid angle) with which [`MtlMixture::sample`] picks `wi`
     /// through its non-delta lobes.
     #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3) -> Float {
@@ -164,8 +149,8 @@ impl ScatteringParams {
         let [p_diffuse, p_glossy, ..] = self.lobe_probability;
         let mut pdf = p_diffuse * cos_i * FRAC_1_PI;
         if p_glossy > 0.0 {
-            let cos_alpha = wi.dot(reflect(-wo, ns)).max(0.0);
-            pdf += p_glossy * (self.exponent + 1.0) / (2.0 * PI) * cos_alpha.powf(self.exponent);
+            let lobe = Phong::lobe(reflect(-wo, ns), wi, self.exponent);
+            pdf += p_glossy * (self.exponent + 1.0) / (2.0 * PI) * lobe;
         }
         pdf
     }
@@ -197,7 +182,7 @@ impl ScatteringParams {
             })
         };
         if u_lobe < p_diffuse {
-            let wi = to_world(cosine_hemisphere(u), ns);
+            let wi = Frame::from_normal(ns).to_world(cosine_hemisphere(u));
             if p_glossy > 0.0 {
                 return smooth(wi);
             }
@@ -215,7 +200,7 @@ impl ScatteringParams {
                 eta: 1.0,
             })
         } else if u_lobe < p_diffuse + p_glossy {
-            smooth(to_world(phong_lobe(u, self.exponent), reflect(-wo, ns)))
+            smooth(Frame::from_normal(reflect(-wo, ns)).to_world(phong_lobe(u, self.exponent)))
         } else if u_lobe < p_diffuse + p_glossy + p_mirror {
             Some(ScatterSample {
                 wi: reflect(-wo, ns),
@@ -266,48 +251,32 @@ impl ScatteringParams {
     }
 }
 
-/// Unpolarized Fresnel reflectance of a smooth dielectric boundary, for cosines of
-/// the incident and transmitted angles (both positive) and `eta` = index entered /
-/// index left.
-#[inline]
-pub fn fresnel_dielectric(cos_i: Float, cos_t: Float, eta: Float) -> Float {
-    let parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (parallel * parallel + perpendicular * perpendicular)
+/// The mixture in its local frame (`ns = ng = +z`, hit from the front), for the
+/// conformance suite.
+impl Lobe for MtlMixture {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        MtlMixture::eval(self, wo, wi, Vec3::Z, Vec3::Z)
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> Float {
+        MtlMixture::pdf(self, wo, wi, Vec3::Z, Vec3::Z)
+    }
+
+    fn sample(&self, wo: Vec3, u_lobe: Float, u: Vec2) -> Option<LocalSample> {
+        let s = MtlMixture::sample(self, wo, Vec3::Z, Vec3::Z, true, u_lobe, u)?;
+        Some(LocalSample {
+            wi: s.wi,
+            weight: s.weight,
+            pdf: s.pdf,
+            delta: s.delta,
+            eta: s.eta,
+        })
+    }
 }
 
 #[inline]
 fn mean(v: Vec3) -> Float {
     (v.x + v.y + v.z) / 3.0
-}
-
-/// A cosine-distributed direction about +z.
-#[inline]
-fn cosine_hemisphere(u: Vec2) -> Vec3 {
-    let r = u.x.sqrt();
-    let (sin, cos) = sin_cos(2.0 * PI * u.y);
-    Vec3::new(r * cos, r * sin, (1.0 - u.x).max(0.0).sqrt())
-}
-
-/// A direction about +z with density proportional to `cos^exponent`.
-#[inline]
-fn phong_lobe(u: Vec2, exponent: Float) -> Vec3 {
-    let cos = u.x.powf(1.0 / (exponent + 1.0));
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos(2.0 * PI * u.y);
-    Vec3::new(sin * cos_phi, sin * sin_phi, cos)
-}
-
-/// `local` (about +z) turned so that +z becomes the unit vector `axis`, with the
-/// branchless orthonormal basis of Duff et al. (2017).
-#[inline]
-fn to_world(local: Vec3, axis: Vec3) -> Vec3 {
-    let sign = 1.0_f32.copysign(axis.z);
-    let a = -1.0 / (sign + axis.z);
-    let b = axis.x * axis.y * a;
-    let tangent = Vec3::new(1.0 + sign * axis.x * axis.x * a, sign * b, -sign * axis.x);
-    let bitangent = Vec3::new(b, sign + axis.y * axis.y * a, -axis.y);
-    local.x * tangent + local.y * bitangent + local.z * axis
 }
 
 #[cfg(test)]
@@ -344,7 +313,7 @@ mod tests {
             Vec3::X,
             Vec3::new(0.3, -0.5, 0.81).normalize(),
         ] {
-            let d = to_world(Vec3::new(0.6, 0.0, 0.8), axis);
+            let d = Frame::from_normal(axis).to_world(Vec3::new(0.6, 0.0, 0.8));
             assert!((d.length() - 1.0).abs() < 1e-5, "{axis}");
             assert!((d.dot(axis) - 0.8).abs() < 1e-5, "{axis}");
         }
@@ -361,7 +330,7 @@ mod tests {
             (material(0.5, 0.0, 1.0, [0.5, 0.5, 0.0]), 0.25 + 0.5),
             (material(0.0, 0.0, 1.0, [0.0, 0.0, 1.0]), 1.0),
         ] {
-            let (params, _) = ScatteringParams::new(&m);
+            let (params, _) = MtlMixture::new(&m);
             let samples = 20_000;
             let mut u = uniforms(3 * samples);
             let mut sum = Vec3::ZERO;
@@ -381,7 +350,7 @@ mod tests {
 
     #[test]
     fn phong_conserves_energy_and_kd_plus_ks_is_scaled_to_one() {
-        let (params, scaled) = ScatteringParams::new(&material(0.8, 0.6, 20.0, [1.0, 0.0, 0.0]));
+        let (params, scaled) = MtlMixture::new(&material(0.8, 0.6, 20.0, [1.0, 0.0, 0.0]));
         assert!(scaled);
         assert!((params.diffuse.x + params.glossy.x - 1.0).abs() < 1e-6);
         // Albedo at normal incidence stays at most 1.
@@ -400,14 +369,14 @@ mod tests {
             "{}",
             sum / samples as Float
         );
-        let (_, scaled) = ScatteringParams::new(&material(0.5, 0.5, 20.0, [1.0, 0.0, 0.0]));
+        let (_, scaled) = MtlMixture::new(&material(0.5, 0.5, 20.0, [1.0, 0.0, 0.0]));
         assert!(!scaled);
     }
 
     #[test]
     fn pdf_matches_the_sampled_density() {
         // The pdf integrates to the smooth lobes' probability over the hemisphere.
-        let (params, _) = ScatteringParams::new(&material(0.4, 0.4, 10.0, [0.8, 0.2, 0.0]));
+        let (params, _) = MtlMixture::new(&material(0.4, 0.4, 10.0, [0.8, 0.2, 0.0]));
         let n = Vec3::Z;
         let wo = Vec3::new(0.3, 0.0, 0.95).normalize();
         let samples = 200_000;
@@ -434,7 +403,7 @@ mod tests {
         let head_on = fresnel_dielectric(1.0, 1.0, 1.5);
         assert!((head_on - 0.04).abs() < 1e-4, "{head_on}");
         // Leaving glass at a grazing angle: total internal reflection, the mirror way.
-        let (params, _) = ScatteringParams::new(&material(0.0, 0.0, 1.0, [0.0, 0.0, 1.0]));
+        let (params, _) = MtlMixture::new(&material(0.0, 0.0, 1.0, [0.0, 0.0, 1.0]));
         let wo = Vec3::new(0.9, 0.0, 0.1).normalize();
         let s = params
             .sample(wo, Vec3::Z, Vec3::Z, false, 0.5, Vec2::new(0.99, 0.5))

@@ -90,6 +90,19 @@ impl Ggx {
         }
     }
 
+    /// The separable Smith visibility `G1(wo) G1(wi) / (4 |n.wo| |n.wi|)`: Mitsuba 3's
+    /// and pbrt-v3's masking-shadowing, for comparing with them (glTF's is
+    /// [`Ggx::visibility`]).
+    #[inline]
+    pub fn separable_visibility(&self, wo: Vec3, wi: Vec3) -> Float {
+        let cosines = 4.0 * wo.z.abs() * wi.z.abs();
+        if cosines > 0.0 {
+            self.g1(wo) * self.g1(wi) / cosines
+        } else {
+            0.0
+        }
+    }
+
     /// The density of [`Ggx::sample_visible`] at the microfacet normal `h`:
     /// `G1(wo) max(0, wo.h) D(h) / |wo.z|`.
     #[inline]

@@ -70,6 +70,15 @@ impl PathIntegrator {
             environment: if unlit { Vec3::ONE } else { Vec3::ZERO },
         }
     }
+
+    /// The same path tracer with rays that leave the scene seeing a uniform
+    /// environment of `radiance` (a white furnace at `Vec3::ONE`).
+    pub fn with_environment(self, radiance: Vec3) -> PathIntegrator {
+        PathIntegrator {
+            environment: radiance,
+            ..self
+        }
+    }
 }
 
 /// One path in flight: where it goes next and what it has gathered.
@@ -375,18 +384,35 @@ impl Integrator for PathIntegrator {
 }
 
 /// Warnings about what path mode changes in `materials`: `Kd + Ks` scaled down to
-/// conserve energy.
+/// conserve energy, one line for all the materials it concerns.
 pub fn material_warnings(materials: &[Material]) -> Vec<String> {
-    materials
+    let scaled: Vec<&str> = materials
         .iter()
         .filter(|m| m.pbr.is_none() && MtlMixture::new(m).1)
-        .map(|m| {
-            format!(
-                "material '{}': Kd + Ks exceeds 1, scaled down in path mode to conserve energy",
-                m.name
-            )
-        })
-        .collect()
+        .map(|m| m.name.as_str())
+        .collect();
+    let names = |count: usize| {
+        let mut list = scaled[..count.min(3)]
+            .iter()
+            .map(|name| format!("'{name}'"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        if count > 3 {
+            list.push_str(", ...");
+        }
+        list
+    };
+    match scaled.len() {
+        0 => Vec::new(),
+        1 => vec![format!(
+            "material {}: Kd + Ks exceeds 1, scaled down in path mode to conserve energy",
+            names(1)
+        )],
+        count => vec![format!(
+            "{count} materials ({}): Kd + Ks exceeds 1, scaled down in path mode to conserve energy",
+            names(count)
+        )],
+    }
 }
 
 /// The power heuristic (exponent 2) of Veach's multiple importance sampling: the

@@ -1,0 +1,441 @@
+//! Path mode against closed forms for glTF's metallic-roughness material: under a
+//! uniform white environment, a convex object seen at angle `theta` returns its
+//! directional albedo there, `integral f(wo, wi) cos(wi) dwi`, which a quadrature of
+//! the glTF specification's formulas (Appendix B, `KHR_materials_specular`,
+//! `KHR_materials_clearcoat`), written here apart from the renderer in double
+//! precision, gives. A lossless thin pane vanishes in the furnace, and light crossing
+//! a volume is attenuated by Beer-Lambert's law over the chord.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use raytracer::Scene;
+use raytracer::bvh::BvhParams;
+use raytracer::bxdfs::microfacet::Ggx;
+use raytracer::description::{SceneDescription, SphereDesc};
+use raytracer::integrators::{Integrator, PathIntegrator};
+use raytracer::material::pbr::{PbrMaps, PbrMaterial};
+use raytracer::material::{Material, MaterialId, MaterialMaps};
+use raytracer::math::{Float, Ray, Vec3};
+use raytracer::sampler::PixelSampler;
+use raytracer::stats::RayCounts;
+use raytracer::textures::{Channel, Texture, TextureMap};
+
+/// The glTF parameters the reference formulas read.
+#[derive(Clone, Copy, Debug)]
+struct Params {
+    base: [f64; 3],
+    metallic: f64,
+    roughness: f64,
+    ior: f64,
+    specular: f64,
+    clearcoat: f64,
+    clearcoat_roughness: f64,
+}
+
+const PLASTIC: Params = Params {
+    base: [0.8, 0.3, 0.1],
+    metallic: 0.0,
+    roughness: 0.5,
+    ior: 1.5,
+    specular: 1.0,
+    clearcoat: 0.0,
+    clearcoat_roughness: 0.0,
+};
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let l = dot(a, a).sqrt();
+    [a[0] / l, a[1] / l, a[2] / l]
+}
+
+/// GGX `D` and the height-correlated visibility of Appendix B, for `alpha`.
+fn d_v(alpha: f64, n_h: f64, n_l: f64, n_v: f64) -> f64 {
+    let a2 = alpha * alpha;
+    let t = n_h * n_h * (a2 - 1.0) + 1.0;
+    let d = a2 / (PI * t * t);
+    let v = 0.5
+        / (n_l * (n_v * n_v * (1.0 - a2) + a2).sqrt() + n_v * (n_l * n_l * (1.0 - a2) + a2).sqrt());
+    d * v
+}
+
+/// The glTF BRDF (metallic-roughness, `KHR_materials_specular` with white
+/// `specularColor`, `KHR_materials_ior`, `KHR_materials_clearcoat` over the same
+/// normal) for unit `v` and `l` in the frame of the normal `+z`; the clearcoat's
+/// delta lobe (roughness 0) is left out.
+fn brdf(p: &Params, v: [f64; 3], l: [f64; 3]) -> [f64; 3] {
+    let h = normalize([v[0] + l[0], v[1] + l[1], v[2] + l[2]]);
+    let v_h = dot(v, h).abs();
+    let w = (1.0 - v_h).powi(5);
+    let specular = d_v(p.roughness * p.roughness, h[2], l[2], v[2]);
+    let f0 = ((p.ior - 1.0) / (p.ior + 1.0)).powi(2).min(1.0) * p.specular;
+    let f90 = p.specular;
+    let fd = f0 + (f90 - f0) * w;
+    let coat = p.clearcoat * (0.04 + 0.96 * (1.0 - v[2]).powi(5));
+    let coat_brdf = if p.clearcoat_roughness > 0.0 {
+        d_v(
+            p.clearcoat_roughness * p.clearcoat_roughness,
+            h[2],
+            l[2],
+            v[2],
+        )
+    } else {
+        0.0
+    };
+    let mut f = [0.0; 3];
+    for (c, out) in f.iter_mut().enumerate() {
+        let base = p.base[c];
+        let dielectric = fd * specular + (1.0 - fd) * base / PI;
+        let metal = (base + (1.0 - base) * w) * specular;
+        let material = (1.0 - p.metallic) * dielectric + p.metallic * metal;
+        *out = (1.0 - coat) * material + coat * coat_brdf;
+    }
+    f
+}
+
+/// `integral f cos dl` over the hemisphere for `v` at `cos_v` to the normal, by a
+/// midpoint quadrature over half vectors (`dl = 4 |v.h| dh`), dense where `D`
+/// peaks: `theta_h = (pi / 2) s^3`. Adds the clearcoat's mirror when it is smooth.
+fn albedo(p: &Params, cos_v: f64) -> [f64; 3] {
+    let v = [(1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v];
+    let (n_s, n_phi) = (3000, 720);
+    let mut sum = [0.0; 3];
+    for i in 0..n_s {
+        let s = (i as f64 + 0.5) / n_s as f64;
+        let theta = PI / 2.0 * s * s * s;
+        let d_theta = PI / 2.0 * 3.0 * s * s / n_s as f64;
+        for j in 0..n_phi {
+            // Symmetric about the plane of v and the normal: half the circle, twice.
+            let phi = PI * (j as f64 + 0.5) / n_phi as f64;
+            let h = [
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ];
+            let v_h = dot(v, h);
+            let l = [
+                2.0 * v_h * h[0] - v[0],
+                2.0 * v_h * h[1] - v[1],
+                2.0 * v_h * h[2] - v[2],
+            ];
+            if v_h <= 0.0 || l[2] <= 0.0 {
+                continue;
+            }
+            let f = brdf(p, v, l);
+            let measure = l[2] * 4.0 * v_h * theta.sin() * d_theta * (2.0 * PI / n_phi as f64);
+            for c in 0..3 {
+                sum[c] += f[c] * measure;
+            }
+        }
+    }
+    if p.clearcoat > 0.0 && p.clearcoat_roughness == 0.0 {
+        let coat = p.clearcoat * (0.04 + 0.96 * (1.0 - cos_v).powi(5));
+        sum = sum.map(|s| s + coat);
+    }
+    sum
+}
+
+fn pbr(p: &Params) -> PbrMaterial {
+    PbrMaterial {
+        base_color: Vec3::new(p.base[0] as Float, p.base[1] as Float, p.base[2] as Float),
+        metallic: p.metallic as Float,
+        roughness: p.roughness as Float,
+        ior: p.ior as Float,
+        specular: p.specular as Float,
+        clearcoat: p.clearcoat as Float,
+        clearcoat_roughness: p.clearcoat_roughness as Float,
+        ..PbrMaterial::default()
+    }
+}
+
+/// A unit sphere at the origin made of `material`, in a white furnace.
+fn furnace(material: Material) -> (Scene, PathIntegrator) {
+    let description = SceneDescription {
+        spheres: vec![SphereDesc {
+            center: Vec3::ZERO,
+            radius: 1.0,
+            material: MaterialId(0),
+        }],
+        materials: vec![material],
+        ..SceneDescription::default()
+    };
+    let scene = Scene::build(description, &BvhParams::default());
+    let integrator = PathIntegrator::new(&scene, 64, false).with_environment(Vec3::ONE);
+    (scene, integrator)
+}
+
+/// The mean radiance of `samples` paths along `ray`.
+fn mean_radiance(scene: &Scene, integrator: &PathIntegrator, ray: Ray, samples: u32) -> Vec3 {
+    let sampler = PixelSampler::new(samples, integrator.dimensions());
+    let mut rays = RayCounts::default();
+    let mut sum = Vec3::ZERO;
+    for s in 0..samples {
+        let mut sample = sampler.sample(0, s);
+        sum += integrator.radiance(scene, &ray, &mut sample, &mut rays);
+    }
+    sum / samples as Float
+}
+
+/// A ray along -z hitting the unit sphere where its normal makes `cos` with +z.
+fn ray_at(cos: f64) -> Ray {
+    let sin = (1.0 - cos * cos).sqrt();
+    Ray::new(Vec3::new(sin as Float, 0.0, 5.0), -Vec3::Z)
+}
+
+fn check_albedo(name: &str, p: &Params, material: Material) {
+    let (scene, integrator) = furnace(material);
+    for cos in [1.0, 0.7, 0.3] {
+        let expected = albedo(p, cos);
+        let got = mean_radiance(&scene, &integrator, ray_at(cos), 40_000);
+        for c in 0..3 {
+            let e = expected[c] as Float;
+            assert!(
+                (got[c] - e).abs() <= 0.015 * e.max(0.05),
+                "{name} at cos {cos}: pixel {got}, directional albedo {expected:?}"
+            );
+        }
+    }
+}
+
+fn check(name: &str, p: Params) {
+    check_albedo(
+        name,
+        &p,
+        Material::physically_based(name, pbr(&p), Vec3::ZERO, None),
+    );
+}
+
+#[test]
+fn a_rough_plastic_returns_its_directional_albedo() {
+    check("plastic", PLASTIC);
+}
+
+#[test]
+fn a_rough_dielectric_without_diffuse_colour_returns_its_directional_albedo() {
+    check(
+        "rough dielectric",
+        Params {
+            base: [0.0; 3],
+            roughness: 0.7,
+            ..PLASTIC
+        },
+    );
+}
+
+#[test]
+fn rough_and_near_mirror_metals_return_their_directional_albedo() {
+    let gold = Params {
+        base: [1.0, 0.78, 0.34],
+        metallic: 1.0,
+        ..PLASTIC
+    };
+    check(
+        "rough gold",
+        Params {
+            roughness: 0.6,
+            ..gold
+        },
+    );
+    check(
+        "near-mirror gold",
+        Params {
+            roughness: 0.05,
+            ..gold
+        },
+    );
+}
+
+#[test]
+fn index_1_keeps_schlicks_grazing_term_and_index_2_reflects_more() {
+    check(
+        "ior 1",
+        Params {
+            ior: 1.0,
+            ..PLASTIC
+        },
+    );
+    check(
+        "ior 2",
+        Params {
+            ior: 2.0,
+            ..PLASTIC
+        },
+    );
+}
+
+#[test]
+fn specular_0_is_pure_lambert() {
+    let p = Params {
+        specular: 0.0,
+        ..PLASTIC
+    };
+    for cos in [1.0, 0.3] {
+        let a = albedo(&p, cos);
+        for c in 0..3 {
+            assert!((a[c] - p.base[c]).abs() < 1e-3, "{a:?}");
+        }
+    }
+    check("specular 0", p);
+}
+
+#[test]
+fn clearcoats_return_their_directional_albedo() {
+    check(
+        "rough clearcoat",
+        Params {
+            clearcoat: 1.0,
+            clearcoat_roughness: 0.3,
+            ..PLASTIC
+        },
+    );
+    check(
+        "smooth clearcoat",
+        Params {
+            clearcoat: 0.7,
+            ..PLASTIC
+        },
+    );
+}
+
+/// A 1 x 1 texture of the given RGB bytes, linear.
+fn texel(rgb: [u8; 3]) -> Arc<Texture> {
+    Arc::new(Texture::from_u8("texel.png".into(), 1, 1, 3, rgb.to_vec()).unwrap())
+}
+
+#[test]
+fn a_metallic_roughness_texture_sets_both_through_its_green_and_blue() {
+    // Factors of 1 (glTF's defaults), the texture saying roughness 0.5, metallic 0.
+    let image = texel([255, 128, 0]);
+    let channel = |channel| {
+        let mut map = TextureMap::new(image.clone());
+        map.options.channel = channel;
+        Some(map)
+    };
+    let maps = MaterialMaps {
+        pbr: PbrMaps {
+            roughness: channel(Channel::Green),
+            metallic: channel(Channel::Blue),
+            ..PbrMaps::default()
+        },
+        ..MaterialMaps::default()
+    };
+    let factors = PbrMaterial {
+        metallic: 1.0,
+        roughness: 1.0,
+        ..pbr(&PLASTIC)
+    };
+    let material =
+        Material::physically_based("textured", factors, Vec3::ZERO, Some(Box::new(maps)));
+    check_albedo(
+        "textured",
+        &Params {
+            roughness: 128.0 / 255.0,
+            metallic: 0.0,
+            ..PLASTIC
+        },
+        material,
+    );
+}
+
+#[test]
+fn a_lossless_thin_pane_vanishes_in_the_furnace() {
+    // Every path returns exactly 1 until Russian roulette (from the fifth bounce)
+    // starts ending some and weighting the others up: near grazing, where the pane
+    // reflects most, that adds noise around 1.
+    for roughness in [0.0] {
+        let pane = PbrMaterial {
+            base_color: Vec3::ONE,
+            metallic: 0.0,
+            roughness,
+            transmission: 1.0,
+            ..PbrMaterial::default()
+        };
+        let (scene, integrator) =
+            furnace(Material::physically_based("pane", pane, Vec3::ZERO, None));
+        for cos in [1.0, 0.5, 0.1] {
+            let got = mean_radiance(&scene, &integrator, ray_at(cos), 20_000);
+            assert!(
+                (got - Vec3::ONE).abs().max_element() < 0.01,
+                "cos {cos}: {got}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_volume_attenuates_by_beer_lambert_over_the_chord() {
+    let colour = Vec3::new(0.8, 0.5, 0.2);
+    let distance = 0.7;
+    let volume = PbrMaterial {
+        base_color: Vec3::ONE,
+        metallic: 0.0,
+        roughness: 0.0,
+        ior: 1.0,
+        specular: 0.0,
+        transmission: 1.0,
+        thickness: 1.0,
+        attenuation_color: colour,
+        attenuation_distance: distance,
+        ..PbrMaterial::default()
+    };
+    let (scene, integrator) = furnace(Material::physically_based(
+        "volume",
+        volume,
+        Vec3::ZERO,
+        None,
+    ));
+    for offset in [0.0f32, 0.5, 0.9] {
+        let chord = 2.0 * (1.0 - offset * offset).sqrt();
+        let ray = Ray::new(Vec3::new(offset, 0.0, 5.0), -Vec3::Z);
+        let got = mean_radiance(&scene, &integrator, ray, 64);
+        let expected = Vec3::new(
+            colour.x.powf(chord / distance),
+            colour.y.powf(chord / distance),
+            colour.z.powf(chord / distance),
+        );
+        assert!(
+            (got - expected).abs().max_element() < 1e-3,
+            "offset {offset}: {got} vs {expected}"
+        );
+    }
+}
+
+/// Mitsuba 3's `roughconductor` (GGX, a perfect conductor: Fresnel 1, our metal of
+/// white base colour) at fixed pairs of directions, from
+/// `tests/data/materials/make_mitsuba.py`: our GGX `D` with Mitsuba's separable
+/// Smith term swapped in for glTF's height-correlated one gives the same `f`.
+#[test]
+fn ggx_matches_mitsubas_roughconductor_with_its_separable_smith_term() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/materials/roughconductor.toml"
+    ))
+    .unwrap();
+    let table: toml::Table = text.parse().unwrap();
+    let pairs = table["pair"].as_array().unwrap();
+    assert_eq!(pairs.len(), 96);
+    let vector = |value: &toml::Value| {
+        let v: Vec<f64> = value
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_float().unwrap())
+            .collect();
+        Vec3::new(v[0] as Float, v[1] as Float, v[2] as Float)
+    };
+    for pair in pairs {
+        let alpha = pair["alpha"].as_float().unwrap() as Float;
+        let (wi, wo) = (vector(&pair["wi"]), vector(&pair["wo"]));
+        let expected = pair["f"].as_float().unwrap() as Float;
+        let ggx = Ggx { alpha };
+        let h = (wi + wo).normalize();
+        let ours = ggx.d(h) * ggx.separable_visibility(wo, wi);
+        assert!(
+            (ours - expected).abs() <= 1e-4 * expected.max(1e-3),
+            "alpha {alpha}, wi {wi}, wo {wo}: ours {ours}, Mitsuba {expected}"
+        );
+    }
+}

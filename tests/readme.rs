@@ -43,7 +43,12 @@ fn commands(markdown: &str) -> Vec<String> {
 /// Width and height of a PNG file, from its IHDR chunk.
 fn png_size(path: &Path) -> (u32, u32) {
     let bytes = std::fs::read(path).unwrap();
-    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{} is no PNG", path.display());
+    assert_eq!(
+        &bytes[..8],
+        b"\x89PNG\r\n\x1a\n",
+        "{} is no PNG",
+        path.display()
+    );
     let be = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
     (be(16), be(20))
 }
@@ -56,13 +61,20 @@ fn png_size(path: &Path) -> (u32, u32) {
 fn quick_start_commands_run_as_written() {
     let readme = read("README.md");
     let lines = first_sh_block(&readme, "## Quick start");
-    assert_eq!(lines.len(), 3, "the quick start promises three commands: {lines:?}");
+    assert_eq!(
+        lines.len(),
+        3,
+        "the quick start promises three commands: {lines:?}"
+    );
     let dir = tempfile::tempdir().unwrap();
     for folder in ["examples", "tests"] {
         std::os::unix::fs::symlink(root().join(folder), dir.path().join(folder)).unwrap();
     }
     for line in lines {
-        assert!(!line.contains(['"', '\'', '$', '|', '>']), "not a plain command: {line}");
+        assert!(
+            !line.contains(['"', '\'', '$', '|', '>']),
+            "not a plain command: {line}"
+        );
         let words: Vec<&str> = line.split_whitespace().collect();
         assert_eq!(words[0], "raytracer", "{line}");
         let output = Command::new(env!("CARGO_BIN_EXE_raytracer"))
@@ -115,7 +127,10 @@ fn every_documented_command_uses_flags_that_exist() {
             }
         }
     }
-    assert!(checked > 20, "only {checked} flags found: the extraction broke");
+    assert!(
+        checked > 20,
+        "only {checked} flags found: the extraction broke"
+    );
 }
 
 #[test]
@@ -123,7 +138,12 @@ fn install_uses_the_lock_file_and_no_page_cites_a_file_a_clone_lacks() {
     let readme = read("README.md");
     let install = first_sh_block(&readme, "## Install");
     assert_eq!(install[0], "cargo install --path . --locked");
-    for page in ["README.md", "docs/cli.md", "docs/python.md", "docs/scene-format.md"] {
+    for page in [
+        "README.md",
+        "docs/cli.md",
+        "docs/python.md",
+        "docs/scene-format.md",
+    ] {
         assert!(!read(page).contains("SPEC.md"), "{page} cites SPEC.md");
     }
     // The pages the README links to are there.
@@ -132,6 +152,9 @@ fn install_uses_the_lock_file_and_no_page_cites_a_file_a_clone_lacks() {
         if target.is_empty() || target.starts_with("http") {
             continue;
         }
-        assert!(root().join(target).exists(), "README links to missing {target}");
+        assert!(
+            root().join(target).exists(),
+            "README links to missing {target}"
+        );
     }
 }

@@ -2,6 +2,8 @@
 //! run as written and must print exactly what the page shows, with the exit code it
 //! shows; and the messages this page promises beyond the examples (the default light
 //! turned off by a scene file) say what it says.
+// The examples run from a folder of symbolic links to the repository's files.
+#![cfg(unix)]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

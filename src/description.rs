@@ -136,7 +136,7 @@ impl SceneDescription {
 
     /// Lights a scene that has no light and no emitter ([`SceneDescription::is_unlit`])
     /// for the mode of `options`, with one warning saying so; does nothing to a lit
-    /// scene, whose lighting stays exactly SPEC.md's.
+    /// scene, whose lighting stays exactly the rules of `docs/spec-renderer.md`.
     ///
     /// In full mode, unless `options.default_light` is off, it adds
     /// [`LightRig::DEFAULT`] around the camera of `options` and multiplies every `Ka` by
@@ -146,19 +146,36 @@ impl SceneDescription {
     /// with a white sky instead ([`crate::integrators::path`]), under the same switch.
     /// Depth and normal modes need no light.
     pub fn add_default_light(&mut self, options: &RenderOptions) {
+        self.add_default_light_off_by(options, None);
+    }
+
+    /// [`SceneDescription::add_default_light`], whose warning, when the default light
+    /// is off, names what turned it off (`off_by`: `--no-default-light`, or the scene
+    /// file's line and key), so that a user who did not pass the flag finds the
+    /// file's `render.default_light = false`.
+    pub fn add_default_light_off_by(
+        &mut self,
+        options: &RenderOptions,
+        off_by: Option<&crate::options::Origin>,
+    ) {
         if !self.is_unlit() {
             return;
         }
+        let off = match off_by {
+            Some(origin) => format!(" (the default light is off: {origin})"),
+            None => String::new(),
+        };
         let message = match (options.mode, options.default_light) {
             (Mode::Depth | Mode::Normal, _) => return,
             (Mode::Full, true) => {
                 "lit by a default light rig at the camera (--no-default-light turns it off)"
+                    .to_string()
             }
-            (Mode::Full, false) => "full mode shows only its ambient colour (Ka)",
+            (Mode::Full, false) => format!("full mode shows only its ambient colour (Ka){off}"),
             (Mode::Path, true) => {
-                "path mode lights it with a white sky (--no-default-light turns it off)"
+                "path mode lights it with a white sky (--no-default-light turns it off)".to_string()
             }
-            (Mode::Path, false) => "path mode renders it black",
+            (Mode::Path, false) => format!("path mode renders it black{off}"),
         };
         self.warnings
             .push(format!("the scene has no lights ('P' or 'Ke'): {message}"));

@@ -1,8 +1,14 @@
-//! A Whitted-style CPU ray tracer for Wavefront OBJ/MTL, PLY and TOML scenes.
+//! A CPU ray tracer for Wavefront OBJ/MTL, PLY, glTF 2.0 and TOML scenes.
+//!
+//! Four modes ([`Mode`]): full, the default, a Whitted-style renderer (Phong lighting,
+//! hard shadows, mirror reflection and refraction, tone mapping and gamma: the rules
+//! are in `docs/spec-renderer.md`); depth and normal, the distance and the surface
+//! normal at each pixel; and path, a physically based path tracer with area lights
+//! ([`integrators::PathIntegrator`]). Images are written as PNG or OpenEXR.
 //!
 //! Data flows one way, one module per stage:
-//! files ([`formats::load`]: OBJ/MTL, PLY or a TOML scene, which may also set
-//! [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
+//! files ([`formats::load`]: OBJ/MTL, PLY, glTF 2.0 or a TOML scene, any of them
+//! gzip-compressed; glTF and TOML files may also set [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
 //! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an [`Integrator`] chosen once per
 //! render; [`render_tile`] renders part of the image, bit-identical to the whole)
 //! -> linear [`Film`] -> either [`Image`] (post-processing) -> PNG, or the film's
@@ -70,6 +76,7 @@ pub mod scene;
 pub mod shapes;
 pub mod stats;
 pub mod textures;
+pub mod warnings;
 
 pub use bvh::{Bvh, BvhParams};
 pub use camera::Camera;

@@ -603,7 +603,7 @@ pub fn load_texture(path: &Path) -> Result<Arc<Texture>, String> {
     // Of the file opened, so that it cannot be swapped between the check and the read.
     let metadata = file.metadata().map_err(|e| e.to_string())?;
     if metadata.is_dir() {
-        return Err("is a folder, not an image".into());
+        return Err("is a directory, not an image".into());
     }
     // A device (`/dev/zero`, `/dev/urandom`) or a FIFO would be read forever.
     if !metadata.is_file() {

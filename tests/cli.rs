@@ -166,37 +166,160 @@ fn missing_scene_and_unwritable_output_are_clear_errors() {
     );
 }
 
+/// The `[default: ...]` notes of each flag in `help` (long help), by flag: the notes
+/// of the lines from the flag's own line to the next flag's.
+fn help_defaults(help: &str) -> std::collections::HashMap<String, Vec<String>> {
+    let mut defaults = std::collections::HashMap::new();
+    let mut flag = None;
+    for line in help.lines() {
+        let trimmed = line.trim_start();
+        if line.starts_with("  ") && !line.starts_with("          ") && trimmed.starts_with('-') {
+            // `-j, --threads <N>` or `--width <PIXELS>`: the long name.
+            let long = trimmed.split(['<', ' ']).find(|w| w.starts_with("--"));
+            flag = long.map(|l| l.trim_end_matches(',').to_string());
+        }
+        let Some(flag) = &flag else { continue };
+        for note in line.split("[default: ").skip(1) {
+            let value = note.split(']').next().unwrap().to_string();
+            defaults
+                .entry(flag.clone())
+                .or_insert_with(Vec::new)
+                .push(value);
+        }
+    }
+    defaults
+}
+
+/// Every default `render --help` states is the value the program uses when the flag
+/// is left out: what resolving no flags at all gives, in full and in path mode.
 #[test]
-fn help_explains_every_flag_with_its_default() {
+fn help_states_the_defaults_the_program_uses() {
+    use raytracer::Mode;
+    use raytracer::options::{Origin, PartialOptions, Sourced};
+
     let output = raytracer(&["render", "--help"]);
     assert!(output.status.success());
     let help = String::from_utf8_lossy(&output.stdout);
+    let defaults = help_defaults(&help);
+    let full = PartialOptions::default().resolve().unwrap();
+    let path = PartialOptions {
+        mode: Some(Sourced::new(Mode::Path, Origin::Flag("--mode"))),
+        ..PartialOptions::default()
+    }
+    .resolve()
+    .unwrap();
+    let vector = |v: raytracer::math::Vec3| format!("{},{},{}", v.x, v.y, v.z);
+    let both = |full: u32, path: u32| format!("{full}; {path} in path mode");
+    let expected = [
+        ("--width", full.width.to_string()),
+        ("--height", full.height.to_string()),
+        ("--fov", full.fov_degrees.to_string()),
+        // Left out, the camera frames the scene (tests/first_image.rs checks it).
+        ("--look-from", "framed".to_string()),
+        ("--look-to", "framed".to_string()),
+        ("--up", vector(full.up)),
+        ("--depth", both(full.depth, path.depth)),
+        ("--mode", full.mode.name().to_string()),
+        (
+            "--spp",
+            both(full.samples_per_pixel, path.samples_per_pixel),
+        ),
+        ("--exposure", full.exposure.to_string()),
+        ("--seed", full.seed.to_string()),
+        ("--threads", "0".to_string()),
+    ];
+    for (flag, value) in &expected {
+        assert_eq!(
+            defaults.get(*flag),
+            Some(&vec![value.clone()]),
+            "{flag}: --help says {:?}, the program uses {value}",
+            defaults.get(*flag)
+        );
+    }
+    // Every flag that states a default is checked above.
+    for flag in defaults.keys() {
+        assert!(
+            expected.iter().any(|(f, _)| f == flag),
+            "{flag} is not checked"
+        );
+    }
+    // The empty scene keeps the origin, as --help says of --look-from.
+    assert_eq!(vector(full.look_from), "0,0,0");
+    assert!(help.contains("An empty scene, or --look-to alone, keeps 0,0,0."));
     for flag in [
         "--output",
-        "--width",
-        "--height",
-        "--fov",
-        "--look-from",
-        "--look-to",
-        "--depth",
-        "--mode",
-        "--threads",
         "--stats",
+        "--denoise",
+        "--no-default-light",
+        "--quiet",
     ] {
         assert!(help.contains(flag), "--help lacks {flag}");
     }
-    for default in [
-        "[default: 640]",
-        "[default: 480]",
-        "[default: 90]",
-        "[default: 0,0,0]",
-        "[default: 0,0,-1]",
-        "[default: 4]",
-        "[default: full]",
-    ] {
-        assert!(help.contains(default), "--help lacks {default}");
+    let top = raytracer(&["--help"]);
+    let top = String::from_utf8_lossy(&top.stdout);
+    for said in ["OBJ/MTL, PLY, glTF 2.0 and TOML", "path"] {
+        assert!(
+            top.contains(said),
+            "raytracer --help lacks {said:?}:\n{top}"
+        );
     }
-    assert!(raytracer(&["--help"]).status.success());
+    let info = raytracer(&["info", "--help"]);
+    assert!(String::from_utf8_lossy(&info.stdout).contains("glTF 2.0"));
+}
+
+/// The shell completions and the man page come from the same definitions as
+/// `--help`: each names every flag of `render`.
+#[test]
+fn completions_and_man_page_are_generated_with_every_flag() {
+    let flags = [
+        "--look-from",
+        "--no-default-light",
+        "--denoise",
+        "--spp",
+        "--exposure",
+    ];
+    for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
+        let output = raytracer(&["completions", shell]);
+        assert!(output.status.success(), "{shell}: {}", stderr(&output));
+        let script = String::from_utf8_lossy(&output.stdout);
+        for flag in flags {
+            // fish writes long flags without their dashes (`-l look-from`).
+            assert!(
+                script.contains(flag.trim_start_matches('-')),
+                "{shell} lacks {flag}"
+            );
+        }
+        assert!(
+            script.contains("render"),
+            "{shell} lacks the render subcommand"
+        );
+    }
+    let output = raytracer(&["man"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let page = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        page.starts_with(".ie") && page.contains(".TH raytracer 1"),
+        "{page}"
+    );
+    for section in [
+        ".SH \"RAYTRACER RENDER\"",
+        ".SH \"RAYTRACER BENCH\"",
+        ".SH \"RAYTRACER INFO\"",
+    ] {
+        assert!(page.contains(section), "the man page lacks {section}");
+    }
+    for flag in flags {
+        // roff escapes each hyphen: \-\-look\-from.
+        let roff = flag.replace('-', "\\-");
+        assert!(page.contains(&roff), "the man page lacks {flag}");
+    }
+    // Generating them is no subcommand to advertise: --help does not list them.
+    let help = String::from_utf8_lossy(&raytracer(&["--help"]).stdout).into_owned();
+    assert!(
+        !help.contains("completions") && !help.contains(" man "),
+        "{help}"
+    );
+    assert_eq!(raytracer(&["completions", "tcsh"]).status.code(), Some(2));
 }
 
 #[test]

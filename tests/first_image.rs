@@ -217,7 +217,7 @@ fn no_default_light_renders_the_unlit_scene_as_it_is() {
     let (stderr, rgb) = render_model(&["--no-default-light"]);
     assert_eq!(
         stderr,
-        "warning: the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka)\n"
+        "warning: the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka) (the default light is off: --no-default-light)\n"
     );
     // SPEC's formula: Ka alone, white, flat.
     assert_eq!(brightest(&rgb), [255, 255, 255]);
@@ -244,7 +244,7 @@ fn path_mode_lights_an_unlit_scene_with_a_white_sky_unless_told_not_to() {
     assert_eq!(
         stderr,
         format!(
-            "warning: the scene has no lights ('P' or 'Ke'): path mode renders it black\n{SCALED}"
+            "warning: the scene has no lights ('P' or 'Ke'): path mode renders it black (the default light is off: --no-default-light)\n{SCALED}"
         )
     );
     assert!(rgb.iter().all(|&c| c == 0));
@@ -312,9 +312,13 @@ fn a_scene_file_can_turn_the_default_light_off() {
     let (description, options) = loaded.resolve(PartialOptions::default()).unwrap();
     assert!(!options.default_light);
     assert!(description.lights.is_empty());
+    // The warning names the file's key that turned the light off.
     assert_eq!(
         description.warnings,
-        ["the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka)"]
+        [format!(
+            "the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka) (the default light is off: {}:2: render.default_light)",
+            toml.display()
+        )]
     );
     // The flag's default (unset) does not override the file; the file's camera is
     // unset, so the scene is framed.

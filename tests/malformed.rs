@@ -154,15 +154,11 @@ fn a_missing_scene_or_a_folder_is_refused() {
         "nowhere.obj",
         &format!("nowhere.obj: {}", not_found()),
     );
-    assert_refused(
-        dir.path(),
-        "scene.obj",
-        "scene.obj: is a folder, not a file",
-    );
+    assert_refused(dir.path(), "scene.obj", "scene.obj: is a directory");
     assert_refused(
         dir.path(),
         "lib.obj",
-        "lib.obj:1: cannot read material library scene.obj: is a folder, not a file",
+        "lib.obj:1: cannot read material library scene.obj: is a directory",
     );
 }
 

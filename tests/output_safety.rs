@@ -97,7 +97,7 @@ fn a_missing_folder_is_refused_before_the_scene_is_read() {
 fn a_folder_or_the_scene_itself_is_refused_as_output() {
     let (dir, scene, _) = setup(SPHERE);
     render(&scene, dir.path()).assert().code(2).stderr(format!(
-        "error: cannot write {}: is a folder, not a file\n",
+        "error: cannot write {}: is a directory\n",
         dir.path().display()
     ));
     render(&scene, &scene).assert().code(2).stderr(format!(

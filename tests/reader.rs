@@ -210,7 +210,7 @@ fn missing_files_and_mtl_errors_name_their_path() {
     assert_eq!(
         message,
         format!(
-            "{}:1: cannot read material library {}: is a folder, not a file",
+            "{}:1: cannot read material library {}: is a directory",
             obj.display(),
             dir.path().join("folder.mtl").display()
         )

@@ -51,15 +51,12 @@ fn bundled_real_files_render_with_no_flags() {
     let dir = root().join("tests/data/real/assimp");
     let cases: [(&str, &[&str]); 8] = [
         // Its MTL names textures by Windows paths (`.\\name.jpg`) that the package
-        // does not ship: one warning per map, and the surfaces render without them.
+        // does not ship: one warning for the five maps (the first, with a count), and
+        // the surfaces render without them.
         (
             "spider.obj.gz",
             &[
-                "spider.mtl:10: cannot read texture '.\\wal67ar_small.jpg': No such file or directory (os error 2); the surface renders without it",
-                "spider.mtl:17: cannot read texture '.\\wal69ar_small.jpg': No such file or directory (os error 2); the surface renders without it",
-                "spider.mtl:24: cannot read texture '.\\SpiderTex.jpg': No such file or directory (os error 2); the surface renders without it",
-                "spider.mtl:31: cannot read texture '.\\drkwood2.jpg': No such file or directory (os error 2); the surface renders without it",
-                "spider.mtl:38: cannot read texture '.\\engineflare1.jpg': No such file or directory (os error 2); the surface renders without it",
+                "spider.mtl:10: cannot read texture '.\\wal67ar_small.jpg': No such file or directory (os error 2); the surface renders without it (and 4 more like it)",
                 RIG,
                 "skipped 56 degenerate (zero-area) triangles",
             ],

@@ -445,8 +445,8 @@ fn info_counts_bounds_materials_memory_and_warnings() {
         "  unused                   0 triangles, 0 spheres",
         "  default                  0 triangles, 0 spheres",
         "bounds     min (-1.0000, -1.0000, 0.0000) max (1.0000, 1.0000, 6.0000) size (2.0000, 2.0000, 6.0000)",
-        "warning: material 'unused' is not used",
-        "warning: material 'default' is not used",
+        // Two unused materials: one line, with a count.
+        "warning: material 'unused' is not used (and 1 more like it)",
         "warning: 1 degenerate (zero-area) triangle will be skipped",
         "warning: no lights ('P' or 'Ke'): render adds a default light rig at the camera (a white sky in path mode) unless --no-default-light",
     ];

@@ -1,4 +1,8 @@
-"""A Whitted-style CPU ray tracer for OBJ, PLY and TOML scenes, from Python.
+"""A CPU ray tracer for OBJ/MTL, PLY, glTF 2.0 and TOML scenes, from Python.
+
+Four modes: ``full`` (Whitted-style: Phong lighting, hard shadows, reflection and
+refraction; the default), ``depth``, ``normal`` and ``path`` (a physically based path
+tracer).
 
 The package is a thin layer over the Rust library (the ``raytracer`` command's):
 

@@ -702,15 +702,18 @@ impl PyScene {
 /// ``raytracer render`` writes to an ``.exr`` file): a ``float32`` array of shape
 /// ``(height, width, 3)``, row 0 at the top.
 ///
-/// ``scene`` is a path (``str`` or ``os.PathLike``) to an OBJ, PLY or TOML scene
-/// file, or a :class:`Scene` already read. The other arguments are the command line's
+/// ``scene`` is a path (``str`` or ``os.PathLike``) to an OBJ, PLY, glTF 2.0
+/// (``.gltf``, ``.glb``) or TOML scene file (any of them gzip-compressed), or a
+/// :class:`Scene` already read. The other arguments are the command line's
 /// flags: ``width``, ``height`` (pixels), ``fov`` (vertical, degrees), ``look_from``,
 /// ``look_to``, ``up`` (three numbers each), ``mode`` (``"full"``, ``"depth"``,
 /// ``"normal"``, ``"path"``), ``depth`` (recursion depth), ``spp`` (samples per
 /// pixel), ``exposure`` (path mode's, in stops: used by post-processing only) and
 /// ``seed`` (of the random numbers). Each one left out (``None``) takes the TOML scene
-/// file's value, else the default: 640x480, fov 90, from (0, 0, 0) to (0, 0, -1), up
-/// (0, 1, 0), full mode, depth 4 and 1 sample per pixel (64 and 64 in path mode),
+/// file's value (or a glTF file's camera), else the default: 640x480, fov 90, a
+/// camera that frames the scene (looking along -z at the centre of its bounds, from
+/// as close as lets them fit the view) when neither ``look_from`` nor ``look_to`` is
+/// set, otherwise from (0, 0, 0) to (0, 0, -1); up (0, 1, 0), full mode, depth 4 and 1 sample per pixel (64 and 64 in path mode),
 /// exposure 0, seed 0; a width or height alone keeps the aspect ratio.
 /// ``tile=(x, y, w, h)`` returns only those pixels, shape ``(h, w, 3)``, bit-identical
 /// to the same pixels of the whole image.

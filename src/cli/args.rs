@@ -9,9 +9,14 @@ use raytracer::options::{Origin, PartialOptions, Sourced};
 
 use super::values::{LOOK_FROM, LOOK_TO, UP, number, thread_count, vector, whole_number};
 
-/// A Whitted-style ray tracer for OBJ/MTL, PLY and TOML scenes.
+/// A CPU ray tracer for OBJ/MTL, PLY, glTF 2.0 and TOML scenes, to PNG or OpenEXR.
+///
+/// Four modes: full (the default: Phong lighting, hard shadows, mirror reflection and
+/// refraction, tone mapped), depth, normal, and path (a physically based path tracer
+/// with area lights). `raytracer render SCENE -o OUT.png` frames and lights a scene
+/// that sets no camera and no light.
 #[derive(Parser, Debug)]
-#[command(version, about)]
+#[command(name = "raytracer", version)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -28,9 +33,23 @@ pub enum Command {
     Bench(BenchArgs),
     /// Describe a scene: counts, bounds, materials, memory a render needs, warnings.
     Info {
-        /// The scene: OBJ, PLY or TOML, optionally gzip-compressed.
+        /// The scene: OBJ (MTL files beside it), PLY, glTF 2.0 (.gltf, .glb) or a TOML
+        /// scene file; any may be gzip-compressed.
+        #[arg(value_name = "SCENE")]
         scene: PathBuf,
     },
+    /// Print a shell completion script for SHELL on stdout.
+    ///
+    /// For example `raytracer completions bash > ~/.local/share/bash-completion/completions/raytracer`.
+    #[command(hide = true)]
+    Completions {
+        /// The shell to complete in.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the man page, raytracer(1), in roff on stdout: `raytracer man > raytracer.1`.
+    #[command(hide = true)]
+    Man,
 }
 
 /// Flags of `bench`.
@@ -73,8 +92,8 @@ pub struct RenderArgs {
 /// only; ranges are checked once the flags are merged over the file.
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
-    /// The scene: OBJ (MTL files beside it), PLY, or a TOML scene file
-    /// (docs/scene-format.md); any may be gzip-compressed.
+    /// The scene: OBJ (MTL files beside it), PLY, glTF 2.0 (.gltf, .glb) or a TOML
+    /// scene file (docs/scene-format.md); any may be gzip-compressed.
     #[arg(value_name = "SCENE")]
     pub scene: PathBuf,
     /// Image width in pixels (1..=65536) [default: 640].
@@ -95,18 +114,28 @@ pub struct ViewArgs {
     /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90].
     #[arg(long, value_name = "DEGREES", allow_hyphen_values = true, value_parser = number)]
     pub fov: Option<Float>,
-    /// Camera position, three numbers with commas and no spaces [default: 0,0,0].
+    /// Camera position, three numbers with commas and no spaces [default: framed].
+    ///
+    /// When neither --look-from nor --look-to is given (here or in a scene file), the
+    /// camera frames the scene: it looks along -z (-x or -y at a scene flat in x or y)
+    /// at the centre of the scene's bounds, from as close as lets the bounding sphere
+    /// fit the view. An empty scene, or --look-to alone, keeps 0,0,0.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_FROM))]
     pub look_from: Option<Vec3>,
-    /// Point the camera looks at [default: 0,0,-1].
+    /// Point the camera looks at [default: framed].
+    ///
+    /// The centre of the scene's bounds when the camera frames the scene (see
+    /// --look-from); 0,0,-1 when only --look-from is given or the scene is empty.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_TO))]
     pub look_to: Option<Vec3>,
     /// World up direction of the camera [default: 0,1,0].
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(UP))]
     pub up: Option<Vec3>,
-    /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only.
-    /// With glass, each level can double the rays per pixel [default: 4]. In path mode
-    /// the most path segments (1..=1024; Mitsuba's max_depth) [default: 64].
+    /// Recursion depth of full mode (1..=64): 1 traces primary and shadow rays only
+    /// [default: 4; 64 in path mode].
+    ///
+    /// With glass, each level can double the rays per pixel. In path mode, the most
+    /// path segments (1..=1024; Mitsuba's max_depth). Depth and normal modes ignore it.
     #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
     pub depth: Option<i64>,
     /// What to render [default: full].
@@ -145,7 +174,8 @@ pub struct ViewArgs {
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ModeArg {
-    /// Phong lighting, shadows, reflection and refraction, tone mapped.
+    /// Whitted-style: Phong lighting, hard shadows, reflection and refraction, tone
+    /// mapped.
     Full,
     /// Distance to the nearest hit, normalized by the farthest (misses white).
     Depth,

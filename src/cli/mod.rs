@@ -3,6 +3,7 @@
 
 mod args;
 mod bench;
+mod generated;
 mod info;
 mod interrupt;
 pub mod progress;
@@ -39,6 +40,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => &args.view,
         Command::Bench(args) => &args.view,
         Command::Info { scene } => return info::run(scene),
+        Command::Completions { shell } => return generated::completions(*shell),
+        Command::Man => return generated::man_page(),
     };
     // Before loading: readers use the global pool, which can be set up only once.
     rayon::ThreadPoolBuilder::new()
@@ -49,6 +52,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => render::run(args, cli.quiet),
         Command::Bench(args) => bench::run(args),
         Command::Info { scene } => info::run(scene),
+        Command::Completions { .. } | Command::Man => unreachable!("run above"),
     }
 }
 

@@ -26,6 +26,9 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
             eprintln!("warning: {message}");
         }
     };
+    // The scene's warnings, gathered to be printed once the scene is built, with those
+    // of one kind on one line.
+    let mut warnings = Vec::new();
     if args.denoise {
         // Before any work: a build without the denoiser says so at once.
         raytracer::postprocess::check_denoiser()?;
@@ -41,19 +44,18 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let built = Mark::now();
     drop(loading);
     if options.samples_per_pixel_in_mode() != options.samples_per_pixel {
-        warn(&format!(
+        warnings.push(format!(
             "--spp {} applies to full and path modes only; {} mode takes one sample per pixel",
             options.samples_per_pixel,
             options.mode.name()
         ));
     }
-    for warning in &scene.warnings {
-        warn(warning);
-    }
+    warnings.extend(scene.warnings.iter().cloned());
     if options.mode == Mode::Path {
-        for warning in material_warnings(&scene.materials) {
-            warn(&warning);
-        }
+        warnings.extend(material_warnings(&scene.materials));
+    }
+    for warning in raytracer::warnings::coalesce(&warnings) {
+        warn(&warning);
     }
 
     let samples_per_row = u64::from(options.width) * u64::from(options.samples_per_pixel_in_mode());

@@ -256,7 +256,7 @@ fn open_regular_file(path: &Path) -> io::Result<(File, usize)> {
     if metadata.is_dir() {
         return Err(io::Error::new(
             io::ErrorKind::IsADirectory,
-            "is a folder, not a file",
+            "is a directory",
         ));
     }
     if !metadata.is_file() {
@@ -300,7 +300,7 @@ mod tests {
         let err = read_file(dir.path()).unwrap_err();
         assert_eq!(
             err.to_string(),
-            format!("{}: is a folder, not a file", dir.path().display())
+            format!("{}: is a directory", dir.path().display())
         );
         #[cfg(unix)]
         {
@@ -358,7 +358,7 @@ mod tests {
         let err = map_uncompressed(dir.path()).unwrap_err();
         assert_eq!(
             err.to_string(),
-            format!("{}: is a folder, not a file", dir.path().display())
+            format!("{}: is a directory", dir.path().display())
         );
     }
 

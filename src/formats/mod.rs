@@ -64,9 +64,16 @@ impl LoadedScene {
         self,
         flags: PartialOptions,
     ) -> Result<(SceneDescription, RenderOptions), OptionsError> {
+        // What turned the default light off, if anything did: the flag, else the file.
+        let off_by = flags
+            .default_light
+            .as_ref()
+            .or(self.options.default_light.as_ref())
+            .filter(|on| !on.value)
+            .map(|off| off.origin.clone());
         let options = resolve_options(flags, self.options, || self.description.bounds())?;
         let mut description = self.description;
-        description.add_default_light(&options);
+        description.add_default_light_off_by(&options, off_by.as_ref());
         Ok((description, options))
     }
 }
@@ -137,10 +144,23 @@ impl SceneFormat {
     /// [`SceneFormat::of`], or the error that names `path` and the supported formats.
     ///
     /// # Errors
-    /// The name has none of the supported extensions.
+    /// The name has none of the supported extensions: an I/O error saying "is a
+    /// directory" for a folder, else [`SceneError::UnknownFormat`].
     pub fn require(path: &Path) -> Result<SceneFormat, SceneError> {
-        SceneFormat::of(path).ok_or_else(|| SceneError::UnknownFormat {
-            path: path.to_path_buf(),
+        SceneFormat::of(path).ok_or_else(|| {
+            // `render examples/` is a slip for a file inside: saying what the path is
+            // helps more than listing the extensions (a folder named `x.obj` gets the
+            // same message from the reader).
+            if path.is_dir() {
+                SceneError::Io {
+                    path: path.to_path_buf(),
+                    error: std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory"),
+                }
+            } else {
+                SceneError::UnknownFormat {
+                    path: path.to_path_buf(),
+                }
+            }
         })
     }
 }

@@ -116,7 +116,7 @@ pub fn check_output(path: &Path) -> Result<(), WriteError> {
     }
     if let Ok(m) = fs::metadata(path) {
         if m.is_dir() {
-            let message = "is a folder, not a file";
+            let message = "is a directory";
             return Err(fail(io::Error::new(io::ErrorKind::IsADirectory, message)));
         }
         // Renaming over a read-only file would work, but would not respect it.

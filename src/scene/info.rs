@@ -252,7 +252,7 @@ impl fmt::Display for SceneSummary {
             "  plus {} for the description while loading",
             mib(m.description)
         )?;
-        for w in &self.warnings {
+        for w in crate::warnings::coalesce(&self.warnings) {
             writeln!(f, "warning: {w}")?;
         }
         Ok(())

@@ -53,7 +53,7 @@ def parser() -> argparse.ArgumentParser:
         epilog="Camera and render flags are those of `raytracer render`: each one given "
         "overrides the TOML scene file's value, which overrides the default.",
     )
-    p.add_argument("scene", metavar="SCENE", help="the scene: OBJ, PLY or TOML, optionally gzip-compressed")
+    p.add_argument("scene", metavar="SCENE", help="the scene: OBJ, PLY, glTF 2.0 or TOML, optionally gzip-compressed")
     p.add_argument(
         "-o", "--output", required=True, metavar="OUT.png|OUT.exr",
         help="the image, replaced atomically; .png is post-processed, .exr linear",
@@ -81,8 +81,8 @@ def parser() -> argparse.ArgumentParser:
     view.add_argument("--width", type=int, metavar="PIXELS", help="image width [default: 640]")
     view.add_argument("--height", type=int, metavar="PIXELS", help="image height [default: 480]")
     view.add_argument("--fov", type=float, metavar="DEGREES", help="vertical field of view [default: 90]")
-    view.add_argument("--look-from", type=vector, metavar="X,Y,Z", help="camera position [default: 0,0,0]")
-    view.add_argument("--look-to", type=vector, metavar="X,Y,Z", help="point looked at [default: 0,0,-1]")
+    view.add_argument("--look-from", type=vector, metavar="X,Y,Z", help="camera position [default: framed: the camera frames the scene]")
+    view.add_argument("--look-to", type=vector, metavar="X,Y,Z", help="point looked at [default: framed; 0,0,-1 with --look-from alone]")
     view.add_argument("--up", type=vector, metavar="X,Y,Z", help="world up direction [default: 0,1,0]")
     view.add_argument("--depth", type=int, metavar="N", help="recursion depth [default: 4; 64 in path mode]")
     view.add_argument("--mode", metavar="MODE", help="full, depth, normal or path [default: full]")

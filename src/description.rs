@@ -65,6 +65,8 @@ pub struct SceneDescription {
     /// Materials of all `mtllib` files in order, then the fallback material if any
     /// shape needed it.
     pub materials: Vec<Material>,
+    /// Light from infinitely far away (path mode), if the scene or a flag sets one.
+    pub environment: Option<crate::lights::environment::EnvironmentDesc>,
     /// Non-fatal problems, each naming file and line, for the caller to show.
     pub warnings: Vec<String>,
 }

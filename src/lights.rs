@@ -14,6 +14,8 @@
 //! is evaluated as a camera ray's hit evaluates it, map and alpha cutout included, so
 //! that light sampling and scattering estimate the same light.
 
+pub mod environment;
+
 use std::f32::consts::PI;
 
 use crate::material::{Cutout, Material, MaterialId};
@@ -207,6 +209,12 @@ impl AreaLightsBuilder {
 }
 
 impl AreaLights {
+    /// Sum over emitters of area times `mean(Ke)` (times the map's mean): their
+    /// power over `pi`.
+    pub fn total_power(&self) -> Float {
+        self.total_power
+    }
+
     /// Whether there is no emitter.
     pub fn is_empty(&self) -> bool {
         self.emitters.is_empty()

@@ -163,7 +163,7 @@ fn furnace(material: Material) -> (Scene, PathIntegrator) {
         ..SceneDescription::default()
     };
     let scene = Scene::build(description, &BvhParams::default());
-    let integrator = PathIntegrator::new(&scene, 64, false).with_environment(Vec3::ONE);
+    let integrator = PathIntegrator::new(&scene, 64, false).with_environment(&scene, Vec3::ONE);
     (scene, integrator)
 }
 

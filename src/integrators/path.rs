@@ -11,10 +11,14 @@
 //! - Russian roulette from depth 5 keeps a path with probability
 //!   `min(max(throughput) * eta^2, 0.95)`.
 //!
-//! With no light at all (no `Ke`, no `P`) the scene sits in a uniform white
-//! environment, so that a model without lights still shows: path mode's default
-//! lighting, as full mode's is a light rig at the camera; `--no-default-light`
-//! ([`crate::RenderOptions::default_light`]) turns both off.
+//! An environment ([`crate::lights::environment`]) lights the scene from infinitely
+//! far away: light sampling picks it or an area light in proportion to their power
+//! (the environment's over a disc of the scene's radius, as pbrt does), and a
+//! scattered ray that leaves the scene sees it, weighted against light sampling.
+//! With no light at all (no `Ke`, no `P`, no environment) the scene sits in a
+//! uniform white environment, so that a model without lights still shows: path
+//! mode's default lighting, as full mode's is a light rig at the camera;
+//! `--no-default-light` ([`crate::RenderOptions::default_light`]) turns both off.
 //!
 //! A path inside a volume (`KHR_materials_volume`) is attenuated by Beer-Lambert's
 //! law over the distance it travels there.
@@ -27,11 +31,14 @@ use crate::bxdfs::Bsdf;
 use crate::bxdfs::gltf::GltfBsdf;
 use crate::bxdfs::mtl::MtlMixture;
 use crate::camera::Camera;
+use crate::lights::LightSample;
+use crate::lights::environment::{Environment, EnvironmentDesc, EnvironmentRadiance};
 use crate::material::Material;
-use crate::math::{Float, Ray, Vec3, saturate_finite};
+use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
 use crate::scene::{BATCH, Hit, Scene};
 use crate::stats::RayCounts;
+use std::f32::consts::PI;
 
 /// Depth (in scattering events) from which Russian roulette may end a path, as
 /// Mitsuba's `rr_depth` default.
@@ -47,8 +54,14 @@ pub struct PathIntegrator {
     scattering: Vec<Bsdf>,
     /// Most path segments.
     max_depth: u32,
-    /// Radiance of rays that leave the scene: white when the scene has no light.
-    environment: Vec3,
+    /// What rays that leave the scene see: the scene's environment, or white when the
+    /// scene has no light.
+    environment: Option<Environment>,
+    /// The probability that light sampling picks the environment rather than an
+    /// area light.
+    environment_probability: Float,
+    /// What camera rays that leave the scene see, if not the environment.
+    background: Option<Vec3>,
 }
 
 impl PathIntegrator {
@@ -63,22 +76,78 @@ impl PathIntegrator {
                 None => Bsdf::Mtl(MtlMixture::new(m).0),
             })
             .collect();
-        let unlit = scene.lights.is_empty() && scene.area_lights.is_empty() && default_light;
+        let unlit = scene.lights.is_empty()
+            && scene.area_lights.is_empty()
+            && scene.environment.is_none()
+            && default_light;
+        let environment = scene.environment.clone().or_else(|| unlit.then(white));
         PathIntegrator {
             scattering,
             max_depth,
-            environment: if unlit { Vec3::ONE } else { Vec3::ZERO },
+            environment_probability: 0.0,
+            environment,
+            background: None,
         }
+        .weighed(scene)
     }
 
     /// The same path tracer with rays that leave the scene seeing a uniform
-    /// environment of `radiance` (a white furnace at `Vec3::ONE`).
-    pub fn with_environment(self, radiance: Vec3) -> PathIntegrator {
+    /// environment of `radiance` (a white furnace at `Vec3::ONE`) instead of the
+    /// scene's.
+    pub fn with_environment(self, scene: &Scene, radiance: Vec3) -> PathIntegrator {
         PathIntegrator {
-            environment: radiance,
+            environment: Some(Environment::new(&EnvironmentDesc {
+                radiance: EnvironmentRadiance::Constant(radiance),
+                strength: 1.0,
+                rotation_degrees: 0.0,
+            })),
+            ..self
+        }
+        .weighed(scene)
+    }
+
+    /// The same path tracer with camera rays that leave the scene seeing `colour`
+    /// rather than the environment (which still lights the scene).
+    pub fn with_background(self, colour: Option<Vec3>) -> PathIntegrator {
+        PathIntegrator {
+            background: colour,
             ..self
         }
     }
+
+    /// Sets the chance of sampling the environment rather than an area light (0 for a
+    /// uniform environment), by their power: an area light's is `pi` times its area times its radiance, the
+    /// environment's `pi r^2` times its irradiance-weighted mean radiance `4 pi L`.
+    fn weighed(mut self, scene: &Scene) -> PathIntegrator {
+        self.environment_probability = match &self.environment {
+            // A uniform environment is left to scattering, which finds it as well as
+            // light sampling could (exactly, behind a Lambertian surface).
+            None => 0.0,
+            Some(environment) if environment.is_constant() => 0.0,
+            Some(_) if scene.area_lights.is_empty() => 1.0,
+            Some(environment) => {
+                let r = scene.radius;
+                let environment_power = PI * r * r * 4.0 * PI * environment.mean_radiance();
+                let area_power = PI * scene.area_lights.total_power();
+                let total = environment_power + area_power;
+                if total > 0.0 && total.is_finite() {
+                    environment_power / total
+                } else {
+                    0.5
+                }
+            }
+        };
+        self
+    }
+}
+
+/// The default environment of an unlit scene.
+fn white() -> Environment {
+    Environment::new(&EnvironmentDesc {
+        radiance: EnvironmentRadiance::Constant(Vec3::ONE),
+        strength: 1.0,
+        rotation_degrees: 0.0,
+    })
 }
 
 /// One path in flight: where it goes next and what it has gathered.
@@ -147,7 +216,19 @@ impl PathIntegrator {
         };
         let ray = path.ray;
         let Some(hit) = hit else {
-            path.radiance += path.throughput * self.environment;
+            if let Some(environment) = &self.environment {
+                let seen = match self.background {
+                    Some(colour) if path.depth == 0 => colour,
+                    _ => environment.radiance(ray.dir),
+                };
+                let weight = if path.previous_delta {
+                    1.0
+                } else {
+                    let light_pdf = self.environment_probability * environment.pdf(ray.dir);
+                    power_heuristic(path.previous_pdf, light_pdf)
+                };
+                path.radiance += path.throughput * seen * weight;
+            }
             return done;
         };
         if path.medium != Vec3::ZERO {
@@ -163,8 +244,8 @@ impl PathIntegrator {
                 1.0
             } else {
                 let cos_light = hit.n.dot(-ray.dir);
-                let light_pdf =
-                    scene
+                let light_pdf = (1.0 - self.environment_probability)
+                    * scene
                         .area_lights
                         .pdf(hit.material, path.previous_point, hit.p, cos_light);
                 power_heuristic(path.previous_pdf, light_pdf)
@@ -193,7 +274,7 @@ impl PathIntegrator {
         let u_light = sample.next_2d();
         let mut shadow = None;
         if scattering.has_smooth_lobes() {
-            if let Some(light) = scene.area_lights.sample(hit.p, u_pick, u_light) {
+            if let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light) {
                 let f = scattering.eval(wo, light.direction, hit.ns, hit.n, hit.front);
                 if f != Vec3::ZERO {
                     // The light point lies `light.distance` along `light.direction`
@@ -270,6 +351,35 @@ impl PathIntegrator {
             }
         }
         Step { shadow, alive }
+    }
+
+    /// A point on a light seen from `from`: on the environment with probability
+    /// `environment_probability` (`u_pick` below it), else on an area light, its
+    /// density including the choice.
+    #[inline(always)]
+    fn sample_light(
+        &self,
+        scene: &Scene,
+        from: Vec3,
+        u_pick: Float,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let p = self.environment_probability;
+        if u_pick < p {
+            let (direction, radiance, pdf) = self.environment.as_ref()?.sample(u)?;
+            return Some(LightSample {
+                point: from + direction,
+                direction,
+                distance: Float::INFINITY,
+                radiance,
+                pdf: pdf * p,
+            });
+        }
+        let mut light = scene
+            .area_lights
+            .sample(from, (u_pick - p) / (1.0 - p), u)?;
+        light.pdf *= 1.0 - p;
+        Some(light)
     }
 
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
+use crate::lights::environment::Environment;
 use crate::lights::{AreaLights, AreaLightsBuilder};
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
@@ -161,6 +162,11 @@ pub struct Scene {
     build_times: BuildTimes,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
+    /// Light from infinitely far away, if the description set one.
+    pub environment: Option<Environment>,
+    /// Half the diagonal of the scene's bounds: how far the environment's light
+    /// reaches across the scene, for weighing it against the emitters.
+    pub radius: Float,
 }
 
 /// The closest hit of a ray, with everything shading needs.
@@ -328,6 +334,7 @@ impl Scene {
     /// for free: see [`Bvh::coincident`]), builds the BVH and stores primitives in its
     /// leaf order.
     pub fn build(description: SceneDescription, params: &BvhParams) -> Scene {
+        let bounds = description.bounds();
         let SceneDescription {
             positions,
             normals,
@@ -338,6 +345,7 @@ impl Scene {
             spheres,
             lights,
             materials,
+            environment,
             mut warnings,
         } = description;
         let started = Mark::now();
@@ -540,7 +548,11 @@ impl Scene {
                 _ => None,
             },
         };
+        let environment = environment.as_ref().map(Environment::new);
+        let radius = (bounds.max - bounds.min).length() * 0.5;
         Scene {
+            environment,
+            radius: if radius.is_finite() { radius } else { 0.0 },
             wide,
             packets,
             shading,

@@ -166,7 +166,7 @@ impl Environment {
 
     /// `d` in the environment's own frame (the rotation undone).
     #[inline]
-    fn to_map(&self, d: Vec3) -> Vec3 {
+    fn world_to_map(&self, d: Vec3) -> Vec3 {
         let (sin, cos) = self.rotation;
         // Turning by -A about +Y.
         Vec3::new(d.x * cos - d.z * sin, d.y, d.x * sin + d.z * cos)
@@ -174,7 +174,7 @@ impl Environment {
 
     /// A direction of the environment's own frame in the world (turned by A).
     #[inline]
-    fn from_map(&self, d: Vec3) -> Vec3 {
+    fn map_to_world(&self, d: Vec3) -> Vec3 {
         let (sin, cos) = self.rotation;
         Vec3::new(d.x * cos + d.z * sin, d.y, -d.x * sin + d.z * cos)
     }
@@ -185,7 +185,7 @@ impl Environment {
         match &self.radiance {
             EnvironmentRadiance::Constant(c) => *c * self.strength,
             EnvironmentRadiance::Map(texture) => {
-                let uv = direction_to_uv(self.to_map(d));
+                let uv = direction_to_uv(self.world_to_map(d));
                 let [r, g, b, _] =
                     texture.bilinear(uv, Wrap::Repeat, Wrap::Clamp, Encoding::Linear);
                 Vec3::new(r, g, b) * self.strength
@@ -222,7 +222,7 @@ impl Environment {
             (x as Float + fx) / width as Float,
             1.0 - (y as Float + fy) / height as Float,
         );
-        let d = self.from_map(uv_to_direction(uv));
+        let d = self.map_to_world(uv_to_direction(uv));
         let pdf = self.pdf(d);
         (pdf > 0.0).then(|| (d, self.radiance(d), pdf))
     }
@@ -245,7 +245,7 @@ impl Environment {
         }
         let (width, height) = texture.size();
         let (w, h) = (width as usize, height as usize);
-        let uv = direction_to_uv(self.to_map(d));
+        let uv = direction_to_uv(self.world_to_map(d));
         let x = ((uv.x * width as Float) as usize).min(w - 1);
         let y = (((1.0 - uv.y) * height as Float) as usize).min(h - 1);
         let row = &self.columns[y * (w + 1)..(y + 1) * (w + 1)];
@@ -373,7 +373,7 @@ mod tests {
             (state >> 40) as Float / (1u64 << 24) as Float
         };
         // The sun as the rotated environment shows it.
-        let seen_sun = env.from_map(sun);
+        let seen_sun = env.map_to_world(sun);
         let n = 200_000;
         let mut estimate = 0.0f64;
         let mut toward_sun = 0;

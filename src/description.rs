@@ -67,6 +67,9 @@ pub struct SceneDescription {
     pub materials: Vec<Material>,
     /// Light from infinitely far away (path mode), if the scene or a flag sets one.
     pub environment: Option<crate::lights::environment::EnvironmentDesc>,
+    /// What camera rays that leave the scene see in path mode, if not the
+    /// environment.
+    pub background: Option<Vec3>,
     /// Non-fatal problems, each naming file and line, for the caller to show.
     pub warnings: Vec<String>,
 }
@@ -160,7 +163,7 @@ impl SceneDescription {
         options: &RenderOptions,
         off_by: Option<&crate::options::Origin>,
     ) {
-        if !self.is_unlit() {
+        if !self.is_unlit() || (options.mode == Mode::Path && self.environment.is_some()) {
             return;
         }
         let off = match off_by {

@@ -347,7 +347,7 @@ impl Texture {
             .with_guessed_format()
             .map_err(|e| e.to_string())?;
         if reader.format().is_none() {
-            return Err("not an image format the renderer reads (PNG, JPEG, TGA, BMP)".into());
+            return Err("not an image format the renderer reads (PNG, JPEG, TGA, BMP, Radiance HDR, OpenEXR)".into());
         }
         let mut limits = image::Limits::default();
         limits.max_image_width = Some(MAX_TEXTURE_SIZE);
@@ -413,6 +413,12 @@ impl Texture {
             channels,
             texels,
         })
+    }
+
+    /// Whether the texels are 8-bit (colours stored sRGB-encoded by convention),
+    /// not floating point.
+    pub fn is_8bit(&self) -> bool {
+        matches!(self.texels, Texels::U8(_))
     }
 
     /// Texel `(x, y)` (in range) as linear RGBA.

@@ -7,7 +7,9 @@ use raytracer::Mode;
 use raytracer::math::{Float, Vec3};
 use raytracer::options::{Origin, PartialOptions, Sourced};
 
-use super::values::{LOOK_FROM, LOOK_TO, UP, number, thread_count, vector, whole_number};
+use super::values::{
+    BACKGROUND, LOOK_FROM, LOOK_TO, UP, number, thread_count, vector, whole_number,
+};
 
 /// A CPU ray tracer for OBJ/MTL, PLY, glTF 2.0 and TOML scenes, to PNG or OpenEXR.
 ///
@@ -160,6 +162,24 @@ pub struct ViewArgs {
     /// white sky (path mode), with a warning.
     #[arg(long)]
     pub no_default_light: bool,
+    /// Path mode's environment, lighting the scene from infinitely far away and seen
+    /// where camera rays leave it: an equirectangular image (Radiance .hdr, OpenEXR,
+    /// PNG or JPEG; +Y up, oriented as three.js and Blender show it) or a colour
+    /// R,G,B. Replaces the scene file's [environment] [default: the scene's; none].
+    #[arg(long, value_name = "FILE|R,G,B")]
+    pub env: Option<String>,
+    /// Multiplies the environment's radiance (0..) [default: the scene's; 1].
+    #[arg(long, value_name = "X", value_parser = number)]
+    pub env_strength: Option<Float>,
+    /// Turns the environment about +Y by DEGREES, right-handed: at 90, what was seen
+    /// along +X is seen along -Z [default: the scene's; 0].
+    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true, value_parser = number)]
+    pub env_rotation: Option<Float>,
+    /// What camera rays that leave the scene see in path mode, instead of the
+    /// environment (which still lights the scene): a colour R,G,B [default: the
+    /// environment].
+    #[arg(long, value_name = "R,G,B", value_parser = vector(BACKGROUND))]
+    pub background: Option<Vec3>,
     /// Worker threads (0..=1024); 0 uses every core.
     #[arg(
         short = 'j',

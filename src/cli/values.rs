@@ -39,7 +39,12 @@ pub const UP: VectorFlag = VectorFlag {
     name: "--up",
     example: "0,1,0",
 };
-const VECTOR_FLAGS: [VectorFlag; 3] = [LOOK_FROM, LOOK_TO, UP];
+/// `--background`.
+pub const BACKGROUND: VectorFlag = VectorFlag {
+    name: "--background",
+    example: "0.5,0.5,0.5",
+};
+const VECTOR_FLAGS: [VectorFlag; 4] = [LOOK_FROM, LOOK_TO, UP, BACKGROUND];
 
 /// A whole number: any sign, any size `i64` holds.
 pub fn whole_number(s: &str) -> Result<i64, String> {

@@ -15,6 +15,7 @@
 mod access;
 mod compose;
 mod decimal;
+pub mod environment;
 mod error;
 mod file;
 mod gltf;

@@ -86,7 +86,7 @@ impl PathIntegrator {
             max_depth,
             environment_probability: 0.0,
             environment,
-            background: None,
+            background: scene.background,
         }
         .weighed(scene)
     }

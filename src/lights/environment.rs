@@ -56,6 +56,17 @@ pub struct Environment {
     mean_radiance: Float,
 }
 
+/// How an image's texels are read: 8-bit images (PNG, JPEG) as sRGB, floating
+/// point ones (HDR, EXR) as linear.
+#[inline]
+fn encoding(texture: &Texture) -> Encoding {
+    if texture.is_8bit() {
+        Encoding::Srgb
+    } else {
+        Encoding::Linear
+    }
+}
+
 /// Luminance of linear Rec. 709 RGB.
 #[inline]
 fn luminance(c: Vec3) -> Float {
@@ -100,8 +111,12 @@ impl Environment {
             let sin_polar = f64::from((PI * v).sin());
             for x in 0..w {
                 let u = (x as Float + 0.5) / width as Float;
-                let texel =
-                    texture.bilinear(Vec2::new(u, v), Wrap::Repeat, Wrap::Clamp, Encoding::Linear);
+                let texel = texture.bilinear(
+                    Vec2::new(u, v),
+                    Wrap::Repeat,
+                    Wrap::Clamp,
+                    encoding(texture),
+                );
                 let l = luminance(Vec3::new(texel[0], texel[1], texel[2]));
                 // NaN and negative texels weigh nothing (the reader warns of them).
                 let l = if l.is_finite() && l > 0.0 { l } else { 0.0 };
@@ -187,8 +202,13 @@ impl Environment {
             EnvironmentRadiance::Map(texture) => {
                 let uv = direction_to_uv(self.world_to_map(d));
                 let [r, g, b, _] =
-                    texture.bilinear(uv, Wrap::Repeat, Wrap::Clamp, Encoding::Linear);
-                Vec3::new(r, g, b) * self.strength
+                    texture.bilinear(uv, Wrap::Repeat, Wrap::Clamp, encoding(texture));
+                // NaN and negative texels emit nothing, infinite ones the most a
+                // float holds.
+                Vec3::new(r, g, b)
+                    .max(Vec3::ZERO)
+                    .min(Vec3::splat(Float::MAX))
+                    * self.strength
             }
         }
     }

@@ -164,6 +164,9 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// Light from infinitely far away, if the description set one.
     pub environment: Option<Environment>,
+    /// What camera rays that leave the scene see in path mode, if not the
+    /// environment.
+    pub background: Option<Vec3>,
     /// Half the diagonal of the scene's bounds: how far the environment's light
     /// reaches across the scene, for weighing it against the emitters.
     pub radius: Float,
@@ -346,6 +349,7 @@ impl Scene {
             lights,
             materials,
             environment,
+            background,
             mut warnings,
         } = description;
         let started = Mark::now();
@@ -552,6 +556,7 @@ impl Scene {
         let radius = (bounds.max - bounds.min).length() * 0.5;
         Scene {
             environment,
+            background,
             radius: if radius.is_finite() { radius } else { 0.0 },
             wide,
             packets,

@@ -1,0 +1,201 @@
+//! Path mode's environment against closed forms: a Lambertian sphere under an
+//! environment whose radiance is linear in direction, `L(d) = a + b.d`, has radiance
+//! `rho (a + 2/3 b.n)` (the cosine-weighted mean of `L` over the hemisphere about
+//! `n`), turned with the environment; camera rays that leave the scene see the map at
+//! their direction, looking along each axis; `--background` replaces what they see
+//! but not what lights the scene.
+
+use std::f32::consts::PI;
+use std::sync::Arc;
+
+use raytracer::bvh::BvhParams;
+use raytracer::description::{SceneDescription, SphereDesc};
+use raytracer::integrators::{Integrator, PathIntegrator};
+use raytracer::lights::environment::{EnvironmentDesc, EnvironmentRadiance};
+use raytracer::math::{Float, Ray, Vec3};
+use raytracer::sampler::PixelSampler;
+use raytracer::stats::RayCounts;
+use raytracer::textures::Texture;
+use raytracer::{Material, MaterialId, Mode, RenderOptions, Scene, render};
+
+/// An equirectangular map of `f` at its texel centres, with the mapping the issue
+/// gives (`u = 0.5 + atan2(z, x) / 2 pi`, `v = 0.5 + asin(y) / pi`, `v = 1` the top
+/// row), written here apart from the renderer's.
+fn map_of(width: u32, height: u32, f: impl Fn(Vec3) -> Vec3) -> Arc<Texture> {
+    let mut texels = Vec::new();
+    for row in 0..height {
+        let v = 1.0 - (row as Float + 0.5) / height as Float;
+        let latitude = (v - 0.5) * PI;
+        for column in 0..width {
+            let u = (column as Float + 0.5) / width as Float;
+            let phi = (u - 0.5) * 2.0 * PI;
+            let d = Vec3::new(
+                latitude.cos() * phi.cos(),
+                latitude.sin(),
+                latitude.cos() * phi.sin(),
+            );
+            let c = f(d);
+            texels.extend([c.x, c.y, c.z]);
+        }
+    }
+    Arc::new(Texture::from_f32("map.exr".into(), width, height, 3, texels).unwrap())
+}
+
+fn environment(map: Arc<Texture>, rotation_degrees: Float) -> EnvironmentDesc {
+    EnvironmentDesc {
+        radiance: EnvironmentRadiance::Map(map),
+        strength: 1.0,
+        rotation_degrees,
+    }
+}
+
+/// A unit sphere at the origin of MTL Lambertian `Kd = rho`, lit by `environment`.
+fn lambertian_sphere(rho: Float, environment: EnvironmentDesc) -> Scene {
+    let material = Material {
+        diffuse: Vec3::splat(rho),
+        ..Material::named("matte")
+    };
+    Scene::build(
+        SceneDescription {
+            spheres: vec![SphereDesc {
+                center: Vec3::ZERO,
+                radius: 1.0,
+                material: MaterialId(0),
+            }],
+            materials: vec![material],
+            environment: Some(environment),
+            ..SceneDescription::default()
+        },
+        &BvhParams::default(),
+    )
+}
+
+fn mean_radiance(scene: &Scene, ray: Ray, samples: u32) -> Vec3 {
+    let integrator = PathIntegrator::new(scene, 2, true);
+    let sampler = PixelSampler::new(samples, integrator.dimensions());
+    let mut rays = RayCounts::default();
+    let mut sum = Vec3::ZERO;
+    for s in 0..samples {
+        let mut sample = sampler.sample(7, s);
+        sum += integrator.radiance(scene, &ray, &mut sample, &mut rays);
+    }
+    sum / samples as Float
+}
+
+/// `v` turned by `degrees` about +Y, right-handed (+X goes to -Z at 90).
+fn turned(v: Vec3, degrees: Float) -> Vec3 {
+    let (sin, cos) = degrees.to_radians().sin_cos();
+    Vec3::new(v.x * cos + v.z * sin, v.y, -v.x * sin + v.z * cos)
+}
+
+#[test]
+fn a_lambertian_sphere_under_a_linear_environment_has_the_closed_form_radiance() {
+    let (a, b) = (1.0, Vec3::new(0.3, 0.5, -0.2));
+    let rho = 0.7;
+    let map = map_of(512, 256, |d| Vec3::splat(a + b.dot(d)));
+    for rotation in [0.0, 90.0, -30.0] {
+        let scene = lambertian_sphere(rho, environment(map.clone(), rotation));
+        // The environment turned by `rotation` is linear with b turned.
+        let b_seen = turned(b, rotation);
+        for n in [
+            Vec3::X,
+            -Vec3::X,
+            Vec3::Y,
+            -Vec3::Y,
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::new(0.6, -0.48, 0.64),
+        ] {
+            let ray = Ray::new(n * 5.0, -n);
+            let got = mean_radiance(&scene, ray, 20_000).x;
+            let expected = rho * (a + 2.0 / 3.0 * b_seen.dot(n));
+            assert!(
+                (got - expected).abs() < 0.01 * expected,
+                "rotation {rotation}, n {n}: {got} vs {expected}"
+            );
+        }
+    }
+}
+
+#[test]
+fn camera_rays_that_leave_see_the_map_at_their_direction_along_every_axis() {
+    // A colour that differs along every axis, smooth so that a pixel's footprint
+    // averages to its centre's value.
+    let f = |d: Vec3| (d + Vec3::ONE) * 0.5 + Vec3::new(0.1, 0.2, 0.3);
+    let scene = Scene::build(
+        SceneDescription {
+            environment: Some(environment(map_of(1024, 512, f), 0.0)),
+            ..SceneDescription::default()
+        },
+        &BvhParams::default(),
+    );
+    for (axis, up) in [
+        (Vec3::X, Vec3::Y),
+        (-Vec3::X, Vec3::Y),
+        (Vec3::Z, Vec3::Y),
+        (-Vec3::Z, Vec3::Y),
+        (Vec3::Y, Vec3::Z),
+        (-Vec3::Y, Vec3::Z),
+    ] {
+        let options = RenderOptions {
+            mode: Mode::Path,
+            width: 9,
+            height: 9,
+            fov_degrees: 2.0,
+            look_from: Vec3::ZERO,
+            look_to: axis,
+            up,
+            samples_per_pixel: 4,
+            depth: 4,
+            ..RenderOptions::default()
+        };
+        let film = render(&scene, &options);
+        let centre = film.pixels[4 * 9 + 4];
+        assert!(
+            (centre - f(axis)).abs().max_element() < 2e-3,
+            "looking along {axis}: {centre} vs {}",
+            f(axis)
+        );
+    }
+}
+
+#[test]
+fn a_background_replaces_what_the_camera_sees_but_not_the_light() {
+    let map = map_of(64, 32, |_| Vec3::splat(2.0));
+    let mut description = SceneDescription {
+        spheres: vec![SphereDesc {
+            center: Vec3::ZERO,
+            radius: 1.0,
+            material: MaterialId(0),
+        }],
+        materials: vec![Material {
+            diffuse: Vec3::splat(0.5),
+            ..Material::named("matte")
+        }],
+        environment: Some(environment(map, 0.0)),
+        ..SceneDescription::default()
+    };
+    description.background = Some(Vec3::new(0.1, 0.2, 0.3));
+    let scene = Scene::build(description, &BvhParams::default());
+    let options = RenderOptions {
+        mode: Mode::Path,
+        width: 16,
+        height: 16,
+        fov_degrees: 60.0,
+        look_from: Vec3::new(0.0, 0.0, 4.0),
+        look_to: Vec3::ZERO,
+        samples_per_pixel: 64,
+        depth: 4,
+        ..RenderOptions::default()
+    };
+    let film = render(&scene, &options);
+    // A corner misses the sphere; the centre sees it lit by the environment of 2.
+    assert!(
+        (film.pixels[0] - Vec3::new(0.1, 0.2, 0.3))
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    let centre = film.pixels[8 * 16 + 8];
+    assert!((centre - Vec3::ONE).abs().max_element() < 0.03, "{centre}");
+}

@@ -83,7 +83,7 @@ fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOption
 fn environment_flags(view: &ViewArgs, description: &mut SceneDescription) -> anyhow::Result<()> {
     use raytracer::formats::environment::{environment_colour, load_environment_map};
     let strength = view.env_strength.unwrap_or(1.0);
-    if !(strength >= 0.0) {
+    if strength.is_nan() || strength < 0.0 {
         anyhow::bail!("--env-strength {strength}: must be 0 or more");
     }
     if let Some(env) = &view.env {

@@ -199,3 +199,58 @@ fn a_background_replaces_what_the_camera_sees_but_not_the_light() {
     let centre = film.pixels[8 * 16 + 8];
     assert!((centre - Vec3::ONE).abs().max_element() < 0.03, "{centre}");
 }
+
+/// A scene file with `text` in a fresh folder (with `sky.png`, a 2 x 1 image), loaded.
+fn load_toml(text: &str) -> Result<raytracer::formats::LoadedScene, String> {
+    let folder = tempfile::tempdir().unwrap();
+    image::RgbImage::from_raw(2, 1, vec![255, 0, 0, 0, 0, 255])
+        .unwrap()
+        .save(folder.path().join("sky.png"))
+        .unwrap();
+    let path = folder.path().join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    raytracer::formats::load(&path).map_err(|e| {
+        e.to_string()
+            .replace(&folder.path().display().to_string(), "DIR")
+    })
+}
+
+#[test]
+fn a_scene_file_sets_the_environment_and_names_its_mistakes() {
+    let loaded = load_toml(
+        "[environment]\ncolor = [0.25, 0.5, 1.0]\nstrength = 2\nbackground = [0, 0, 0]\n",
+    )
+    .unwrap();
+    let scene = Scene::build(loaded.description, &BvhParams::default());
+    let environment = scene.environment.as_ref().unwrap();
+    assert_eq!(environment.radiance(Vec3::Y), Vec3::new(0.5, 1.0, 2.0));
+    assert_eq!(scene.background, Some(Vec3::ZERO));
+
+    // An 8-bit image, read as sRGB: its left half red, its right half blue.
+    let loaded = load_toml("[environment]\nfile = \"sky.png\"\nrotation = 90\n").unwrap();
+    let scene = Scene::build(loaded.description, &BvhParams::default());
+    let environment = scene.environment.as_ref().unwrap();
+    // Unturned, -Z (u = 0.25) is red and +Z (u = 0.75) blue; turned by 90 degrees
+    // what was along -Z is seen along -X.
+    let seen = environment.radiance(-Vec3::X);
+    assert!(seen.x > 0.99 && seen.z < 0.01, "{seen}");
+
+    for (text, expected) in [
+        ("[environment]\nfile = \"none.hdr\"\n", "environment.file"),
+        (
+            "[environment]\nfile = \"sky.png\"\ncolor = [1, 1, 1]\n",
+            "give a file or a color, not both",
+        ),
+        (
+            "[environment]\ncolor = 1\nstrength = -1\n",
+            "environment.strength",
+        ),
+        ("[environment]\ncolour = 1\n", "colour"),
+    ] {
+        let message = load_toml(text).unwrap_err();
+        assert!(
+            message.contains(expected) && message.contains("scene.toml"),
+            "{text}: {message}"
+        );
+    }
+}

@@ -158,6 +158,20 @@ struct SceneFile {
     light: Vec<LightTable>,
     #[serde(default)]
     materials: NamedMaterials,
+    environment: Option<EnvironmentTable>,
+}
+
+/// `[environment]`: an image `file` (relative to the scene file) or a `color`, with
+/// `strength`, `rotation` (degrees about +Y) and what camera rays see instead,
+/// `background`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentTable {
+    file: Option<Spanned<String>>,
+    color: Option<Spanned<Splat>>,
+    strength: Option<Spanned<Float>>,
+    rotation: Option<Float>,
+    background: Option<Splat>,
 }
 
 #[derive(Deserialize, Default)]
@@ -386,6 +400,9 @@ impl Builder<'_> {
                 position: light.position.0,
                 intensity: light.intensity.0,
             }));
+        if let Some(environment) = &file.environment {
+            self.add_environment(environment)?;
+        }
         Ok(LoadedScene {
             description: self.scene,
             options,
@@ -425,6 +442,64 @@ impl Builder<'_> {
             };
             Sourced::new((*v.get_ref()).into(), origin)
         })
+    }
+
+    fn add_environment(&mut self, table: &EnvironmentTable) -> Result<(), SceneError> {
+        use super::environment::{environment_colour, load_environment_map};
+        let strength = match &table.strength {
+            Some(s) if s.get_ref().is_nan() || *s.get_ref() < 0.0 => {
+                return Err(self.error(
+                    s.span(),
+                    "environment.strength",
+                    format!("{} is not 0 or more", s.get_ref()),
+                ));
+            }
+            Some(s) => *s.get_ref(),
+            None => 1.0,
+        };
+        let rotation = table.rotation.unwrap_or(0.0);
+        let mut desc = match (&table.file, &table.color) {
+            (Some(file), None) => {
+                let path = match self.path.parent() {
+                    Some(dir) => dir.join(file.get_ref()),
+                    None => file.get_ref().into(),
+                };
+                self.access
+                    .admit(&path)
+                    .map_err(|e| self.error(file.span(), "environment.file", e.to_string()))?;
+                let (desc, warning) = load_environment_map(&path, strength, rotation)
+                    .map_err(|e| self.error(file.span(), "environment.file", e))?;
+                self.scene.warnings.extend(warning);
+                desc
+            }
+            (None, Some(colour)) => {
+                let c = colour.get_ref().0;
+                if !c.is_finite() || c.min_element() < 0.0 {
+                    return Err(self.error(
+                        colour.span(),
+                        "environment.color",
+                        "components must be finite and 0 or more".into(),
+                    ));
+                }
+                environment_colour(c, strength)
+            }
+            (Some(file), Some(_)) => {
+                return Err(self.error(
+                    file.span(),
+                    "environment",
+                    "give a file or a color, not both".into(),
+                ));
+            }
+            // Only a background: the scene keeps its lighting.
+            (None, None) => {
+                self.scene.background = table.background.as_ref().map(|b| b.0);
+                return Ok(());
+            }
+        };
+        desc.rotation_degrees = rotation;
+        self.scene.environment = Some(desc);
+        self.scene.background = table.background.as_ref().map(|b| b.0);
+        Ok(())
     }
 
     fn add_mesh(&mut self, mesh: &MeshTable) -> Result<(), SceneError> {

@@ -122,21 +122,38 @@ impl SceneDescription {
         })
     }
 
-    /// Whether nothing lights the scene: no point light, and no shape whose material
-    /// emits (`Ke`, as [`crate::scene::Scene::build`] finds area lights).
+    /// Whether nothing lights the scene: no point light, and no shapes whose material
+    /// emits (`Ke`) enough to light it
+    /// ([`crate::lights::environment::emitters_light_the_scene`], by their area times
+    /// their mean `Ke`: a few LEDs on a model do not).
     pub fn is_unlit(&self) -> bool {
         if !self.lights.is_empty() {
             return false;
         }
-        let emitting: Vec<bool> = (self.materials.iter())
-            .map(|m| m.emission.max_element() > 0.0)
+        let emission: Vec<Float> = (self.materials.iter())
+            .map(|m| {
+                let e = m.emission.max(Vec3::ZERO);
+                (e.x + e.y + e.z) / 3.0
+            })
             .collect();
-        if !emitting.contains(&true) {
+        if !emission.iter().any(|&e| e > 0.0) {
             return true;
         }
-        let emits = |id: MaterialId| emitting.get(id.0 as usize).copied().unwrap_or(false);
-        !self.triangles.iter().any(|t| emits(t.material))
-            && !self.spheres.iter().any(|s| emits(s.material))
+        let of = |id: MaterialId| emission.get(id.0 as usize).copied().unwrap_or(0.0);
+        let mut power = 0.0f64;
+        for t in &self.triangles {
+            let e = of(t.material);
+            if e > 0.0 {
+                let [a, b, c] = t.positions.map(|i| self.positions[i as usize]);
+                power += f64::from(e * 0.5 * (b - a).cross(c - a).length());
+            }
+        }
+        for s in &self.spheres {
+            power += f64::from(of(s.material) * 4.0 * std::f32::consts::PI * s.radius * s.radius);
+        }
+        let bounds = self.bounds();
+        let radius = (bounds.max - bounds.min).length() * 0.5;
+        !crate::lights::environment::emitters_light_the_scene(power as Float, radius)
     }
 
     /// Lights a scene that has no light and no emitter ([`SceneDescription::is_unlit`])
@@ -148,7 +165,7 @@ impl SceneDescription {
     /// the rig's ambient light: exported models carry `Ka 1 1 1` (Blender, Wings 3D),
     /// which added in full would wash every colour out. A material whose `Ns` is below
     /// 1 (no highlight) loses its `Ks`, which SPEC's formula would add flat. Path mode lights an unlit scene
-    /// with a white sky instead ([`crate::integrators::path`]), under the same switch.
+    /// with a studio environment instead ([`crate::integrators::path`]), under the same switch.
     /// Depth and normal modes need no light.
     pub fn add_default_light(&mut self, options: &RenderOptions) {
         self.add_default_light_off_by(options, None);
@@ -178,7 +195,8 @@ impl SceneDescription {
             }
             (Mode::Full, false) => format!("full mode shows only its ambient colour (Ka){off}"),
             (Mode::Path, true) => {
-                "path mode lights it with a white sky (--no-default-light turns it off)".to_string()
+                "path mode lights it with a studio environment (--no-default-light turns it off)"
+                    .to_string()
             }
             (Mode::Path, false) => format!("path mode renders it black{off}"),
         };

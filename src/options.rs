@@ -114,7 +114,7 @@ pub struct RenderOptions {
     /// Whether a scene with no light and no emitter gets the default lighting: in
     /// full mode a light rig at the camera
     /// ([`SceneDescription::add_default_light`](crate::SceneDescription::add_default_light)),
-    /// in path mode a white sky. On by default; `--no-default-light` turns it off.
+    /// in path mode a studio environment. On by default; `--no-default-light` turns it off.
     pub default_light: bool,
 }
 

@@ -227,6 +227,12 @@ fn help_states_the_defaults_the_program_uses() {
         ("--exposure", full.exposure.to_string()),
         ("--seed", full.seed.to_string()),
         ("--threads", "0".to_string()),
+        // The environment is the scene's unless a flag sets it: strength 1 and no
+        // turn when neither does (tests/environment.rs).
+        ("--env", "the scene's; none".to_string()),
+        ("--env-strength", "the scene's; 1".to_string()),
+        ("--env-rotation", "the scene's; 0".to_string()),
+        ("--background", "the environment".to_string()),
     ];
     for (flag, value) in &expected {
         assert_eq!(

@@ -1,6 +1,6 @@
 //! A first image without flags: with no camera from flags or scene file, the camera
 //! frames the whole scene; a scene with no light and no emitter gets the default
-//! lighting (a light rig at the camera in full mode, a white sky in path mode) with one
+//! lighting (a light rig at the camera in full mode, a studio environment in path mode) with one
 //! warning, which `--no-default-light` turns off; under the rig, `Ka` is a fraction of
 //! the rig's ambient light, so that an exported model (`Ka 1 1 1`) is not washed out.
 
@@ -236,7 +236,7 @@ fn path_mode_lights_an_unlit_scene_with_a_white_sky_unless_told_not_to() {
     assert_eq!(
         stderr,
         format!(
-            "warning: the scene has no lights ('P' or 'Ke'): path mode lights it with a white sky (--no-default-light turns it off)\n{SCALED}"
+            "warning: the scene has no lights ('P' or 'Ke'): path mode lights it with a studio environment (--no-default-light turns it off)\n{SCALED}"
         )
     );
     assert!(rgb.iter().any(|&c| c > 0));

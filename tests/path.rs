@@ -156,11 +156,15 @@ fn options(mode: Mode, width: u32, height: u32, spp: u32) -> RenderOptions {
     }
 }
 
-/// A Lambertian sphere of albedo `albedo` at the origin, and nothing else: no light,
-/// so a uniform white sky.
+/// A Lambertian sphere of albedo `albedo` at the origin in a uniform white
+/// environment.
 fn sphere_of_albedo(albedo: Float) -> Scene {
     let mut description = formats::parse_obj(b"S 0 0 0 1\n", Path::new("sphere.obj")).unwrap();
     description.materials[0].diffuse = Vec3::splat(albedo);
+    description.environment = Some(raytracer::formats::environment::environment_colour(
+        Vec3::ONE,
+        1.0,
+    ));
     Scene::build(description, &BvhParams::default())
 }
 

@@ -159,7 +159,7 @@ pub struct ViewArgs {
     /// Render a scene with no light ('P', a scene file's [[light]]) and no emitter
     /// ('Ke') as it is: black but for its ambient colour in full mode, black in path
     /// mode. By default such a scene gets a light rig at the camera (full mode) or a
-    /// white sky (path mode), with a warning.
+    /// studio environment before a grey backdrop (path mode), with a warning.
     #[arg(long)]
     pub no_default_light: bool,
     /// Path mode's environment, lighting the scene from infinitely far away and seen

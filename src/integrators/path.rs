@@ -15,10 +15,12 @@
 //! far away: light sampling picks it or an area light in proportion to their power
 //! (the environment's over a disc of the scene's radius, as pbrt does), and a
 //! scattered ray that leaves the scene sees it, weighted against light sampling.
-//! With no light at all (no `Ke`, no `P`, no environment) the scene sits in a
-//! uniform white environment, so that a model without lights still shows: path
-//! mode's default lighting, as full mode's is a light rig at the camera;
-//! `--no-default-light` ([`crate::RenderOptions::default_light`]) turns both off.
+//! A scene with no point light, no environment and no emitters that light it much
+//! ([`emitters_light_the_scene`]: LEDs on a model do not) sits in a procedural
+//! studio ([`studio`]) before a neutral grey backdrop, so that a model without lights
+//! shows as a model viewer shows it: path mode's default lighting, as full mode's is
+//! a light rig at the camera; `--no-default-light`
+//! ([`crate::RenderOptions::default_light`]) turns both off.
 //!
 //! A path inside a volume (`KHR_materials_volume`) is attenuated by Beer-Lambert's
 //! law over the distance it travels there.
@@ -32,7 +34,10 @@ use crate::bxdfs::gltf::GltfBsdf;
 use crate::bxdfs::mtl::MtlMixture;
 use crate::camera::Camera;
 use crate::lights::LightSample;
-use crate::lights::environment::{Environment, EnvironmentDesc, EnvironmentRadiance};
+use crate::lights::environment::{
+    Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, emitters_light_the_scene,
+    studio,
+};
 use crate::material::Material;
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
@@ -66,7 +71,7 @@ pub struct PathIntegrator {
 
 impl PathIntegrator {
     /// A path tracer for `scene` following at most `max_depth` segments; an unlit
-    /// scene sits in a white sky if `default_light` says so, else in the dark.
+    /// scene sits in the studio if `default_light` says so, else in the dark.
     pub fn new(scene: &Scene, max_depth: u32, default_light: bool) -> PathIntegrator {
         let scattering = scene
             .materials
@@ -77,16 +82,21 @@ impl PathIntegrator {
             })
             .collect();
         let unlit = scene.lights.is_empty()
-            && scene.area_lights.is_empty()
             && scene.environment.is_none()
+            && !emitters_light_the_scene(scene.area_lights.total_power(), scene.radius)
             && default_light;
-        let environment = scene.environment.clone().or_else(|| unlit.then(white));
+        let (environment, background) = if unlit {
+            let backdrop = scene.background.unwrap_or(STUDIO_BACKDROP);
+            (Some(Environment::new(&studio())), Some(backdrop))
+        } else {
+            (scene.environment.clone(), scene.background)
+        };
         PathIntegrator {
             scattering,
             max_depth,
             environment_probability: 0.0,
             environment,
-            background: scene.background,
+            background,
         }
         .weighed(scene)
     }
@@ -139,15 +149,6 @@ impl PathIntegrator {
         };
         self
     }
-}
-
-/// The default environment of an unlit scene.
-fn white() -> Environment {
-    Environment::new(&EnvironmentDesc {
-        radiance: EnvironmentRadiance::Constant(Vec3::ONE),
-        strength: 1.0,
-        rotation_degrees: 0.0,
-    })
 }
 
 /// One path in flight: where it goes next and what it has gathered.

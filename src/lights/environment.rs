@@ -301,6 +301,55 @@ fn pick(cdf: &[Float], u: Float) -> (usize, Float) {
     (i, f)
 }
 
+/// What camera rays that leave an unlit scene see in path mode: a neutral mid grey,
+/// against which white and black models both stand out.
+pub const STUDIO_BACKDROP: Vec3 = Vec3::splat(0.2);
+
+/// Path mode's default light for a scene that has none: a procedural studio, +Y up,
+/// facing a camera on +Z (the default framing): a dome brighter above than below, a
+/// large soft key light above and to the left of the camera, a smaller fill to the
+/// right and a soft top light. Made as a 256 x 128 map, so it is sampled as any
+/// environment map is.
+pub fn studio() -> EnvironmentDesc {
+    let (width, height) = (256u32, 128u32);
+    let soft_box = |d: Vec3, centre: Vec3, radius_degrees: Float| {
+        let inner = radius_degrees.to_radians().cos();
+        let outer = (radius_degrees * 1.4).to_radians().cos();
+        let t = ((d.dot(centre.normalize()) - outer) / (inner - outer)).clamp(0.0, 1.0);
+        t * t * (3.0 - 2.0 * t)
+    };
+    let mut texels = Vec::with_capacity((width * height * 3) as usize);
+    for row in 0..height {
+        let v = 1.0 - (row as Float + 0.5) / height as Float;
+        for column in 0..width {
+            let u = (column as Float + 0.5) / width as Float;
+            let d = uv_to_direction(Vec2::new(u, v));
+            let t = ((d.y + 0.3) / 0.9).clamp(0.0, 1.0);
+            let dome = 0.3 + 0.5 * t * t * (3.0 - 2.0 * t);
+            let light = 5.0 * soft_box(d, Vec3::new(-0.6, 0.6, 0.55), 22.0)
+                + 2.0 * soft_box(d, Vec3::new(0.75, 0.3, 0.45), 16.0)
+                + 1.5 * soft_box(d, Vec3::Y, 25.0);
+            let c = dome + light;
+            texels.extend([c, c, c]);
+        }
+    }
+    let texture = Texture::from_f32("studio".into(), width, height, 3, texels)
+        .expect("the studio map's size matches its texels");
+    EnvironmentDesc {
+        radiance: EnvironmentRadiance::Map(Arc::new(texture)),
+        strength: 1.0,
+        rotation_degrees: 0.0,
+    }
+}
+
+/// Whether area lights of `power` (the sum of their areas times their mean
+/// emission) light a scene of bounding radius `radius` enough to do without a
+/// default light: as much as a disc the scene's size at 1% of the white sky's
+/// radiance would. LEDs and labels on a model are decorations, not lighting.
+pub fn emitters_light_the_scene(power: Float, radius: Float) -> bool {
+    power > 0.01 * PI * radius * radius
+}
+
 /// The equirectangular coordinates of the unit direction `d`.
 #[inline]
 pub fn direction_to_uv(d: Vec3) -> Vec2 {

@@ -19,6 +19,7 @@ pub mod environment;
 mod error;
 mod file;
 mod gltf;
+mod material_check;
 mod lex;
 mod mtl;
 mod obj;

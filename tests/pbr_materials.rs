@@ -68,13 +68,7 @@ impl Fixture {
             bin.extend(t.iter().flat_map(|x| x.to_le_bytes()));
         }
         std::fs::write(dir.path().join("tri.bin"), bin).unwrap();
-        write_png(
-            &dir.path().join("rgba.png"),
-            2,
-            2,
-            4,
-            &TEXELS.concat(),
-        );
+        write_png(&dir.path().join("rgba.png"), 2, 2, 4, &TEXELS.concat());
         write_png(&dir.path().join("grey.png"), 2, 2, 1, &[0, 85, 170, 255]);
         Fixture(dir)
     }
@@ -143,7 +137,10 @@ impl Fixture {
 }
 
 fn pbr(material: &Material) -> &raytracer::material::pbr::PbrMaterial {
-    material.pbr.as_deref().expect("a physically based material")
+    material
+        .pbr
+        .as_deref()
+        .expect("a physically based material")
 }
 
 #[test]
@@ -160,14 +157,21 @@ fn gltf_core_factors_and_the_metallic_roughness_texture_channels() {
         ],
         "",
     );
-    assert!(fixture.warnings(&loaded).is_empty(), "{:?}", loaded.description.warnings);
+    assert!(
+        fixture.warnings(&loaded).is_empty(),
+        "{:?}",
+        loaded.description.warnings
+    );
     let m = &loaded.description.materials;
     let plain = pbr(&m[0]);
     assert_eq!(plain.base_color, Vec3::new(0.5, 0.25, 1.0));
     assert_eq!((plain.metallic, plain.roughness), (0.5, 0.8));
     assert!(m[0].maps.is_none());
     // glTF's defaults: white metal, fully rough.
-    assert_eq!(*pbr(&m[2]), raytracer::material::pbr::PbrMaterial::default());
+    assert_eq!(
+        *pbr(&m[2]),
+        raytracer::material::pbr::PbrMaterial::default()
+    );
 
     let textured = &m[1];
     let maps = textured.maps.as_deref().unwrap();
@@ -178,7 +182,10 @@ fn gltf_core_factors_and_the_metallic_roughness_texture_channels() {
     let metallic = maps.pbr.metallic.as_ref().unwrap();
     assert_eq!(roughness.options.channel, Channel::Green);
     assert_eq!(metallic.options.channel, Channel::Blue);
-    assert!(std::sync::Arc::ptr_eq(&roughness.texture, &metallic.texture));
+    assert!(std::sync::Arc::ptr_eq(
+        &roughness.texture,
+        &metallic.texture
+    ));
     for (uv, texel) in [(TOP_LEFT, 0), (TOP_RIGHT, 1), (BOTTOM_RIGHT, 3)] {
         let values = textured.pbr_at(uv).unwrap();
         let [r, g, b, _] = TEXELS[texel];
@@ -264,7 +271,10 @@ fn gltf_extensions_land_in_the_material() {
     assert_eq!((coat.clearcoat, coat.clearcoat_roughness), (0.7, 0.3));
     let values = m[3].pbr_at(TOP_LEFT).unwrap();
     assert!(close(values.clearcoat, 0.7 * unit(10)), "{values:?}"); // red
-    assert!(close(values.clearcoat_roughness, 0.3 * unit(64)), "{values:?}"); // green
+    assert!(
+        close(values.clearcoat_roughness, 0.3 * unit(64)),
+        "{values:?}"
+    ); // green
 
     let velvet = pbr(&m[4]);
     assert_eq!(velvet.sheen_color, Vec3::new(0.9, 0.1, 0.2));
@@ -294,7 +304,11 @@ fn specular_glossiness_converts_as_blender_does() {
         ],
         r#""extensionsUsed": ["KHR_materials_pbrSpecularGlossiness"],"#,
     );
-    assert!(fixture.warnings(&loaded).is_empty(), "{:?}", loaded.description.warnings);
+    assert!(
+        fixture.warnings(&loaded).is_empty(),
+        "{:?}",
+        loaded.description.warnings
+    );
     let m = &loaded.description.materials;
     let factors = pbr(&m[0]);
     assert_eq!(factors.base_color, Vec3::new(0.5, 0.4, 0.3));
@@ -408,8 +422,10 @@ fn a_default_metal_whose_texture_says_dielectric_does_not_render_black() {
     );
     let path = fixture.gltf(
         "controller",
-        &[r#"{"name": "plastic", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1],
-            "metallicRoughnessTexture": {"index": 2}}}"#],
+        &[
+            r#"{"name": "plastic", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1],
+            "metallicRoughnessTexture": {"index": 2}}}"#,
+        ],
         r#""samplers": [], "#,
     );
     // Texture 2 is the new image.
@@ -523,7 +539,9 @@ fn mtl_pbr_statements_make_a_physically_based_material_and_others_stay_phong() {
     assert_eq!(
         library.warnings,
         [
-            format!("{p}: material 'blender': anisotropy ('aniso', 'anisor') is read but not rendered"),
+            format!(
+                "{p}: material 'blender': anisotropy ('aniso', 'anisor') is read but not rendered"
+            ),
             format!("{p}: material 'bad': metallic outside [0, 1], clamped"),
             format!("{p}: material 'bad': roughness outside [0, 1], clamped"),
             format!("{p}: material 'bad': ior below 1, read as 1"),
@@ -582,7 +600,10 @@ Kd = 0.5
 
     let e = pbr(&m[1]);
     assert_eq!(e.base_color, Vec3::splat(0.5));
-    assert_eq!((e.metallic, e.roughness, e.ior, e.specular), (0.7, 0.3, 1.33, 0.5));
+    assert_eq!(
+        (e.metallic, e.roughness, e.ior, e.specular),
+        (0.7, 0.3, 1.33, 0.5)
+    );
     assert_eq!(e.specular_color, Vec3::new(1.0, 0.5, 0.25));
     assert_eq!((e.transmission, e.thickness), (0.9, 1.0));
     assert_eq!(e.attenuation_color, Vec3::new(0.5, 0.6, 0.7));
@@ -609,7 +630,9 @@ Kd = 0.5
     assert_eq!(
         loaded.description.warnings,
         [
-            format!("{p}: material 'mixed': MTL keys (Kd, Ks) beside physically based keys are ignored"),
+            format!(
+                "{p}: material 'mixed': MTL keys (Kd, Ks) beside physically based keys are ignored"
+            ),
             format!("{p}: material 'bad': metallic is NaN, read as 1"),
             format!("{p}: material 'bad': roughness outside [0, 1], clamped"),
             format!(

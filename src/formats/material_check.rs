@@ -46,7 +46,11 @@ impl MaterialProblems {
                 if names.len() == 1 {
                     format!("material {}: {kind}", quoted[0])
                 } else {
-                    let more = if names.len() > NAMES_SHOWN { ", ..." } else { "" };
+                    let more = if names.len() > NAMES_SHOWN {
+                        ", ..."
+                    } else {
+                        ""
+                    };
                     format!(
                         "{} materials ({}{more}): {kind}",
                         names.len(),

@@ -158,8 +158,8 @@ pub fn parse_mtl_with(
             maps: &mut maps,
             warnings: &mut warnings,
         };
-        let clamped = parse_line(line, line_number, &mut read)
-            .map_err(|kind| at(line_number, kind))?;
+        let clamped =
+            parse_line(line, line_number, &mut read).map_err(|kind| at(line_number, kind))?;
         if clamped {
             let (_, count) = negative_ns.get_or_insert((line_number, 0));
             *count += 1;
@@ -270,7 +270,10 @@ fn physically_based(
         ..PbrMaterial::default()
     };
     if statements.anisotropy {
-        problems.note("anisotropy ('aniso', 'anisor') is read but not rendered", &material.name);
+        problems.note(
+            "anisotropy ('aniso', 'anisor') is read but not rendered",
+            &material.name,
+        );
     }
     check_pbr(&mut pbr, &material.name, problems);
     let name = std::mem::take(&mut material.name);
@@ -383,7 +386,11 @@ fn load_named(folder: &Path, file: &str, access: &FileAccess) -> Result<Arc<Text
         .map_or(first, |candidate| open(candidate))
 }
 
-fn parse_line(line: &[u8], line_number: usize, read: &mut Read<'_>) -> Result<bool, ParseErrorKind> {
+fn parse_line(
+    line: &[u8],
+    line_number: usize,
+    read: &mut Read<'_>,
+) -> Result<bool, ParseErrorKind> {
     let Read {
         materials,
         statements,
@@ -464,7 +471,11 @@ fn parse_line(line: &[u8], line_number: usize, read: &mut Read<'_>) -> Result<bo
         b"Pc" => pbr.clearcoat = one("Pc")?,
         b"Pcr" => pbr.clearcoat_roughness = one("Pcr")?,
         b"aniso" | b"anisor" => {
-            one(if keyword == b"aniso" { "aniso" } else { "anisor" })?;
+            one(if keyword == b"aniso" {
+                "aniso"
+            } else {
+                "anisor"
+            })?;
             pbr.anisotropy = true;
         }
         _ => {}

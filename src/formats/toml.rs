@@ -19,11 +19,11 @@ use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
 use super::error::{ParseErrorKind, SceneError};
+use super::material_check::{MaterialProblems, check_pbr};
 use super::{
     FileAccess, LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh_with,
     read_file,
 };
-use super::material_check::{MaterialProblems, check_pbr};
 use crate::material::pbr::PbrMaterial;
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
@@ -317,9 +317,15 @@ impl MaterialTable {
             emission_strength,
             ..
         } = self;
-        [base_color, specular_color, attenuation_color, sheen_color, emission_colour]
-            .iter()
-            .any(|c| c.is_some())
+        [
+            base_color,
+            specular_color,
+            attenuation_color,
+            sheen_color,
+            emission_colour,
+        ]
+        .iter()
+        .any(|c| c.is_some())
             || [
                 metallic,
                 roughness,
@@ -707,7 +713,11 @@ fn material(name: &str, table: &MaterialTable, problems: &mut MaterialProblems) 
 /// `d` and `al` are kept (as for MTL materials, path mode does not read them);
 /// `Ka`, `Kd`, `Ks` and `Ns` would contradict the physically based keys and are
 /// ignored, with one warning.
-fn physically_based(name: &str, table: &MaterialTable, problems: &mut MaterialProblems) -> Material {
+fn physically_based(
+    name: &str,
+    table: &MaterialTable,
+    problems: &mut MaterialProblems,
+) -> Material {
     let p = table;
     let defaults = PbrMaterial::default();
     let colour = |v: Option<Splat>, default: Vec3| v.map_or(default, |s| s.0);
@@ -760,7 +770,10 @@ fn physically_based(name: &str, table: &MaterialTable, problems: &mut MaterialPr
     let emission = if emission.is_finite() && emission.min_element() >= 0.0 {
         emission
     } else {
-        problems.note("an emission that is negative or not finite, read as 0", name);
+        problems.note(
+            "an emission that is negative or not finite, read as 0",
+            name,
+        );
         Vec3::ZERO
     };
     let mut m = Material::physically_based(name, pbr, emission, None);

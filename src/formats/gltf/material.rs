@@ -112,9 +112,10 @@ pub(super) fn convert(reader: &mut Reader<'_>, index: usize, json: &Value) -> Ma
     let emission = if emission.is_finite() && emission.min_element() >= 0.0 {
         emission
     } else {
-        reader
-            .problems
-            .note("an emission that is negative or not finite, read as 0", &name);
+        reader.problems.note(
+            "an emission that is negative or not finite, read as 0",
+            &name,
+        );
         Vec3::ZERO
     };
     Material::physically_based(
@@ -240,7 +241,10 @@ impl MaterialContext<'_, '_> {
     /// `alphaMode` and `alphaCutoff`: MASK cuts the surface out where alpha is below
     /// the cutoff; BLEND is approximated by a cutout at 0.5 (one warning).
     fn alpha_mode(&mut self, json: &Value) {
-        let mode = json.get("alphaMode").and_then(Value::as_str).unwrap_or("OPAQUE");
+        let mode = json
+            .get("alphaMode")
+            .and_then(Value::as_str)
+            .unwrap_or("OPAQUE");
         let cutoff = match mode {
             "OPAQUE" => return,
             "MASK" => self.number(json, "alphaCutoff", 0.5),
@@ -364,4 +368,5 @@ impl Reader<'_> {
                     .map_err(|e| format!("cannot read texture '{}': {e}", file.display()))
             }
         }
-    }}
+    }
+}

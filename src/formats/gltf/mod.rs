@@ -947,7 +947,6 @@ impl Reader<'_> {
         self.materials.insert(material.index(), id);
         id
     }
-
 }
 
 /// Vertex colours as a texture: each triangle gets a block of 2 x 2 texels holding

@@ -620,7 +620,7 @@ Kd = 0.5
     assert_eq!(m[2].emission, Vec3::splat(2.0));
 
     let bad = pbr(&m[3]);
-    assert_eq!((bad.roughness, bad.metallic), (1.0, 1.0));
+    assert_eq!((bad.roughness, bad.metallic), (1.0, 0.0));
     assert_eq!(bad.attenuation_distance, Float::INFINITY);
 
     assert!(m[4].pbr.is_none());
@@ -633,7 +633,7 @@ Kd = 0.5
             format!(
                 "{p}: material 'mixed': MTL keys (Kd, Ks) beside physically based keys are ignored"
             ),
-            format!("{p}: material 'bad': metallic is NaN, read as 1"),
+            format!("{p}: material 'bad': metallic is NaN, read as 0"),
             format!("{p}: material 'bad': roughness outside [0, 1], clamped"),
             format!(
                 "{p}: material 'bad': attenuation distance of 0 or less, read as infinite (no attenuation)"

@@ -63,11 +63,16 @@ impl MaterialProblems {
 }
 
 /// Checks `pbr` (of material `name`): a factor that should lie in [0, 1] is clamped
-/// into it, a NaN takes glTF's default, a negative colour channel is read as 0, an
+/// into it, a NaN takes the reader's default (`defaults`: glTF's, but for MTL and
+/// TOML a metallic of 0), a negative colour channel is read as 0, an
 /// `ior` below 1 is read as 1, a negative thickness as 0 and an attenuation distance
 /// of 0 or less as none (infinite); each is noted in `problems`.
-pub(crate) fn check_pbr(pbr: &mut PbrMaterial, name: &str, problems: &mut MaterialProblems) {
-    let defaults = PbrMaterial::default();
+pub(crate) fn check_pbr(
+    pbr: &mut PbrMaterial,
+    defaults: &PbrMaterial,
+    name: &str,
+    problems: &mut MaterialProblems,
+) {
     let mut unit = |value: &mut Float, default: Float, what: &str| {
         if value.is_nan() {
             *value = default;
@@ -145,7 +150,7 @@ mod tests {
                 roughness: 2.0,
                 ..PbrMaterial::default()
             };
-            check_pbr(&mut pbr, name, &mut problems);
+            check_pbr(&mut pbr, &PbrMaterial::default(), name, &mut problems);
             assert_eq!(pbr.roughness, 1.0);
         }
         let mut pbr = PbrMaterial {
@@ -154,7 +159,7 @@ mod tests {
             attenuation_distance: 0.0,
             ..PbrMaterial::default()
         };
-        check_pbr(&mut pbr, "e", &mut problems);
+        check_pbr(&mut pbr, &PbrMaterial::default(), "e", &mut problems);
         assert_eq!((pbr.ior, pbr.metallic), (1.0, 1.0));
         assert_eq!(pbr.attenuation_distance, Float::INFINITY);
         assert_eq!(

@@ -275,7 +275,11 @@ fn physically_based(
             &material.name,
         );
     }
-    check_pbr(&mut pbr, &material.name, problems);
+    let defaults = PbrMaterial {
+        metallic: 0.0,
+        ..PbrMaterial::default()
+    };
+    check_pbr(&mut pbr, &defaults, &material.name, problems);
     let name = std::mem::take(&mut material.name);
     let emission = material.emission;
     let (opacity, albedo) = (material.opacity, material.albedo);

@@ -719,11 +719,14 @@ fn physically_based(
     problems: &mut MaterialProblems,
 ) -> Material {
     let p = table;
-    let defaults = PbrMaterial::default();
+    let defaults = PbrMaterial {
+        metallic: 0.0,
+        ..PbrMaterial::default()
+    };
     let colour = |v: Option<Splat>, default: Vec3| v.map_or(default, |s| s.0);
     let mut pbr = PbrMaterial {
         base_color: colour(p.base_color, defaults.base_color),
-        metallic: p.metallic.unwrap_or(0.0),
+        metallic: p.metallic.unwrap_or(defaults.metallic),
         roughness: p.roughness.unwrap_or(defaults.roughness),
         ior: p
             .index_of_refraction
@@ -764,7 +767,7 @@ fn physically_based(
             name,
         );
     }
-    check_pbr(&mut pbr, name, problems);
+    check_pbr(&mut pbr, &defaults, name, problems);
     let strength = p.emission_strength.unwrap_or(1.0);
     let emission = colour(p.emission_colour.or(table.emission), Vec3::ZERO) * strength;
     let emission = if emission.is_finite() && emission.min_element() >= 0.0 {

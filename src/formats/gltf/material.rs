@@ -107,7 +107,12 @@ pub(super) fn convert(reader: &mut Reader<'_>, index: usize, json: &Value) -> Ma
         emission_strength,
         ..
     } = cx;
-    check_pbr(&mut pbr, &name, &mut reader.problems);
+    check_pbr(
+        &mut pbr,
+        &PbrMaterial::default(),
+        &name,
+        &mut reader.problems,
+    );
     let emission = emission * emission_strength;
     let emission = if emission.is_finite() && emission.min_element() >= 0.0 {
         emission

@@ -83,7 +83,11 @@ pub fn parse_gltf_with(
     let unsupported = check_extensions(&mut root).map_err(fail)?;
     let document = Document::from_json(root).map_err(invalid)?;
     // Materials are read from the file's own JSON (see `material`).
-    let raw_materials = raw_materials(bytes).map_err(invalid)?;
+    let raw_materials = if document.materials().len() == 0 {
+        Vec::new()
+    } else {
+        raw_materials(bytes).map_err(invalid)?
+    };
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let buffers = read_buffers(&document, blob, &folder, access).map_err(fail)?;

@@ -231,7 +231,10 @@ fn gltf_extensions_land_in_the_material() {
             r#"{"name": "lamp", "emissiveFactor": [1, 0.5, 0.25],
                 "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 8}}}"#,
             r#"{"name": "moved", "pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 0,
-                "extensions": {"KHR_texture_transform": {"scale": [2, 3]}}}}}"#,
+                "extensions": {"KHR_texture_transform": {"scale": [2, 3]}}}},
+                "normalTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [4, 5]}}},
+                "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 1, 1], "sheenColorTexture": {"index": 0,
+                "extensions": {"KHR_texture_transform": {"scale": [6, 7]}}}}}}"#,
         ],
         r#""extensionsUsed": ["KHR_materials_ior", "KHR_materials_specular", "KHR_materials_transmission",
             "KHR_materials_volume", "KHR_materials_clearcoat", "KHR_materials_sheen",
@@ -289,6 +292,11 @@ fn gltf_extensions_land_in_the_material() {
     for map in [&maps.pbr.roughness, &maps.pbr.metallic] {
         assert_eq!(map.as_ref().unwrap().options.scale, Vec2::new(2.0, 3.0));
     }
+    // And on the normal texture, and on an extension's texture.
+    let normal = maps.normal.as_ref().unwrap();
+    assert_eq!(normal.options.scale, Vec2::new(4.0, 5.0));
+    let sheen = maps.pbr.sheen_color.as_ref().unwrap();
+    assert_eq!(sheen.options.scale, Vec2::new(6.0, 7.0));
 }
 
 #[test]

@@ -278,6 +278,12 @@ impl Texture {
         (self.width, self.height)
     }
 
+    /// How many channels the image has: 1 (grey), 2 (grey, alpha), 3 (RGB) or 4
+    /// (RGBA).
+    pub fn channels(&self) -> u32 {
+        self.channels
+    }
+
     /// Whether the image has an alpha channel.
     pub fn has_alpha(&self) -> bool {
         self.channels == 2 || self.channels == 4

@@ -497,7 +497,7 @@ fn a_texture_transform_that_overflows_is_a_warning_and_is_ignored() {
     assert_eq!(
         loaded.description.warnings,
         [format!(
-            "{}: material 0: a texture transform that is not finite; ignored",
+            "{}: material 'checker': a texture transform that is not finite, ignored",
             path.display()
         )]
     );

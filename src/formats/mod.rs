@@ -20,6 +20,7 @@ mod error;
 mod file;
 mod gltf;
 mod lex;
+mod material_check;
 mod mtl;
 mod obj;
 mod ply;

@@ -1,6 +1,11 @@
 //! The MTL reader: `newmtl`, `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `Tr`, `al`, and
 //! the texture maps `map_Ka`, `map_Kd`, `map_Ks`, `map_Ke`, `map_Ns`, `map_d`,
-//! `bump`/`map_Bump` and `norm` with their options.
+//! `bump`/`map_Bump` and `norm` with their options; and the PBR statements Blender's
+//! OBJ exporter writes (as tinyobjloader reads them): `Pr`, `Pm`, `Ps`, `Pc`, `Pcr`,
+//! `aniso`, `anisor`, `Tf`, `map_Pr`, `map_Pm`, `map_Ps`. A material with any of
+//! `Pr`, `Pm`, `Ps`, `Pc`, `Pcr`, `map_Pr`, `map_Pm`, `map_Ps` becomes a
+//! [`Material::physically_based`] (see [`physically_based`] and
+//! `docs/scene-format.md`); any other stays SPEC's Phong material.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -9,7 +14,9 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::error::{ParseErrorKind, SceneError};
+use super::material_check::{MaterialProblems, check_pbr};
 use super::{FileAccess, lex};
+use crate::material::pbr::PbrMaterial;
 use crate::material::{Cutout, Material, MaterialMaps};
 use crate::math::{Float, Vec2, Vec3};
 use crate::textures::{Channel, Texture, TextureMap, TextureOptions, Wrap, load_texture};
@@ -35,6 +42,12 @@ enum MapKind {
     Alpha,
     Bump,
     Normal,
+    /// `map_Pr`.
+    Roughness,
+    /// `map_Pm`.
+    Metallic,
+    /// `map_Ps`.
+    Sheen,
 }
 
 impl MapKind {
@@ -51,8 +64,48 @@ impl MapKind {
             b"map_d" => MapKind::Alpha,
             b"bump" | b"map_bump" => MapKind::Bump,
             b"norm" | b"map_kn" => MapKind::Normal,
+            b"map_pr" => MapKind::Roughness,
+            b"map_pm" => MapKind::Metallic,
+            b"map_ps" => MapKind::Sheen,
             _ => return None,
         })
+    }
+}
+
+/// The statements of one material that matter to its physically based form: the
+/// PBR statements, and which classic ones were given.
+#[derive(Clone, Debug, Default)]
+struct PbrStatements {
+    roughness: Option<Float>,
+    metallic: Option<Float>,
+    sheen: Option<Float>,
+    clearcoat: Option<Float>,
+    clearcoat_roughness: Option<Float>,
+    /// `aniso` or `anisor`: read, not rendered.
+    anisotropy: bool,
+    /// `Tf`: Blender writes its transmission there (grey).
+    transmission: Option<Vec3>,
+    /// `map_Pr`, `map_Pm`, `map_Ps`.
+    roughness_map: bool,
+    metallic_map: bool,
+    sheen_map: bool,
+    /// Whether `Ks`, `Ns` and `Ni` were given.
+    specular: bool,
+    shininess: bool,
+    ior: bool,
+}
+
+impl PbrStatements {
+    /// Whether the material is physically based: any of the PBR statements.
+    fn any(&self) -> bool {
+        self.roughness.is_some()
+            || self.metallic.is_some()
+            || self.sheen.is_some()
+            || self.clearcoat.is_some()
+            || self.clearcoat_roughness.is_some()
+            || self.roughness_map
+            || self.metallic_map
+            || self.sheen_map
     }
 }
 
@@ -93,13 +146,20 @@ pub fn parse_mtl_with(
     };
     lex::check_text(text).map_err(|(line, kind)| at(line, kind))?;
     let mut materials: Vec<Material> = Vec::new();
+    let mut statements: Vec<PbrStatements> = Vec::new();
     let mut maps = Vec::new();
     let mut warnings = Vec::new();
     // The first line with a negative `Ns`, and how many there are: one warning.
     let mut negative_ns: Option<(usize, usize)> = None;
     for (line_number, line) in lex::lines(text) {
-        let clamped = parse_line(line, line_number, &mut materials, &mut maps, &mut warnings)
-            .map_err(|kind| at(line_number, kind))?;
+        let mut read = Read {
+            materials: &mut materials,
+            statements: &mut statements,
+            maps: &mut maps,
+            warnings: &mut warnings,
+        };
+        let clamped =
+            parse_line(line, line_number, &mut read).map_err(|kind| at(line_number, kind))?;
         if clamped {
             let (_, count) = negative_ns.get_or_insert((line_number, 0));
             *count += 1;
@@ -120,7 +180,117 @@ pub fn parse_mtl_with(
             .collect(),
     };
     load_maps(maps, path, access, &mut library);
+    let mut problems = MaterialProblems::default();
+    for (material, statements) in library.materials.iter_mut().zip(&statements) {
+        if statements.any() {
+            physically_based(material, statements, &mut problems);
+        }
+    }
+    library.warnings.extend(
+        problems
+            .messages()
+            .into_iter()
+            .map(|message| format!("{}: {message}", path.display())),
+    );
     Ok(library)
+}
+
+/// What one line adds to: the materials so far, their PBR statements, the map
+/// statements and the warnings.
+struct Read<'a> {
+    materials: &'a mut Vec<Material>,
+    statements: &'a mut Vec<PbrStatements>,
+    maps: &'a mut Vec<PendingMap>,
+    warnings: &'a mut Vec<(usize, String)>,
+}
+
+/// Turns `material`, read with `statements`, into its physically based form, as
+/// Blender's OBJ importer reads its exporter's statements:
+///
+/// - base colour `Kd` (`map_Kd` its map, sRGB), metallic `Pm` (0 if absent; 1 times
+///   `map_Pm` if only the map is given, as Blender then writes no `Pm`), roughness
+///   `Pr` (likewise with `map_Pr`; without either, from `Ns` by the inverse of
+///   Blender's `Ns = 1000 (1 - roughness)^2`);
+/// - `ior` from `Ni` (1.5 if absent); `specular` twice the mean of `Ks` (Blender
+///   writes its Specular, 0.5 for glTF's 4% at ior 1.5), at most 1, and `map_Ks`
+///   likewise twice; transmission the mean of `Tf` (Blender writes its transmission
+///   there, and only for PBR materials);
+/// - sheen colour `Ps` grey (`map_Ps` its map) at roughness 0.5 (Blender's default),
+///   clearcoat `Pc`, clearcoat roughness `Pcr`; `aniso` and `anisor` are read and
+///   not rendered (one warning);
+/// - emission `Ke` (which may exceed 1), `map_Ke`; `map_d` stays the cutout, and
+///   `bump`/`norm` the shading normal (`-bm` scaling a normal map's tilt, as
+///   Blender's normal map strength).
+///
+/// `Ka` is no ambient colour here (Blender writes the metallic value there): the
+/// ambient term is 0, and `map_Ka` and `map_Ns` are dropped.
+fn physically_based(
+    material: &mut Material,
+    statements: &PbrStatements,
+    problems: &mut MaterialProblems,
+) {
+    let mut maps = material.maps.take().map(|maps| *maps).unwrap_or_default();
+    maps.pbr.base_color = maps.diffuse.take();
+    maps.ambient = None;
+    maps.shininess = None;
+    maps.pbr.specular = maps.specular.take().map(|mut map| {
+        map.options.gain *= 2.0;
+        map.options.base *= 2.0;
+        map
+    });
+    let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+    // A map alone means the factor 1; neither, the default.
+    let factor = |value: Option<Float>, map: bool, default: Float| {
+        value.unwrap_or(if map { 1.0 } else { default })
+    };
+    let roughness = match statements.roughness {
+        Some(r) => r,
+        None if statements.roughness_map => 1.0,
+        None if statements.shininess => {
+            1.0 - (material.shininess.clamp(0.0, 1000.0) / 1000.0).sqrt()
+        }
+        None => 1.0,
+    };
+    let sheen = factor(statements.sheen, statements.sheen_map, 0.0);
+    let mut pbr = PbrMaterial {
+        base_color: material.diffuse,
+        metallic: factor(statements.metallic, statements.metallic_map, 0.0),
+        roughness,
+        ior: if statements.ior { material.ior } else { 1.5 },
+        specular: if statements.specular {
+            (2.0 * mean(material.specular)).min(1.0)
+        } else {
+            1.0
+        },
+        transmission: statements.transmission.map_or(0.0, mean),
+        clearcoat: statements.clearcoat.unwrap_or(0.0),
+        clearcoat_roughness: statements.clearcoat_roughness.unwrap_or(0.0),
+        sheen_color: Vec3::splat(sheen),
+        sheen_roughness: 0.5,
+        ..PbrMaterial::default()
+    };
+    if statements.anisotropy {
+        problems.note(
+            "anisotropy ('aniso', 'anisor') is read but not rendered",
+            &material.name,
+        );
+    }
+    let defaults = PbrMaterial {
+        metallic: 0.0,
+        ..PbrMaterial::default()
+    };
+    check_pbr(&mut pbr, &defaults, &material.name, problems);
+    let name = std::mem::take(&mut material.name);
+    let emission = material.emission;
+    let (opacity, albedo) = (material.opacity, material.albedo);
+    *material = Material::physically_based(
+        name,
+        pbr,
+        emission,
+        (!maps.is_empty()).then(|| Box::new(maps)),
+    );
+    material.opacity = opacity;
+    material.albedo = albedo;
 }
 
 /// Loads the images of `maps` (in parallel, each file once) and gives them to their
@@ -175,6 +345,9 @@ fn load_maps(
             MapKind::Shininess => &mut maps.shininess,
             MapKind::Bump => &mut maps.bump,
             MapKind::Normal => &mut maps.normal,
+            MapKind::Roughness => &mut maps.pbr.roughness,
+            MapKind::Metallic => &mut maps.pbr.metallic,
+            MapKind::Sheen => &mut maps.pbr.sheen_color,
             MapKind::Alpha => {
                 maps.cutout = Some(Cutout {
                     map: Some(texture_map),
@@ -220,10 +393,14 @@ fn load_named(folder: &Path, file: &str, access: &FileAccess) -> Result<Arc<Text
 fn parse_line(
     line: &[u8],
     line_number: usize,
-    materials: &mut Vec<Material>,
-    maps: &mut Vec<PendingMap>,
-    warnings: &mut Vec<(usize, String)>,
+    read: &mut Read<'_>,
 ) -> Result<bool, ParseErrorKind> {
+    let Read {
+        materials,
+        statements,
+        maps,
+        warnings,
+    } = read;
     let mut tokens = lex::tokens(line);
     let Some(keyword) = tokens.next() else {
         return Ok(false);
@@ -234,6 +411,13 @@ fn parse_line(
             .checked_sub(1)
             .ok_or_else(|| ParseErrorKind::PropertyBeforeNewmtl(lex::show(keyword)))?;
         let (options, file) = parse_map(line, keyword, tokens, warnings, line_number)?;
+        let pbr = &mut statements[material];
+        match kind {
+            MapKind::Roughness => pbr.roughness_map = true,
+            MapKind::Metallic => pbr.metallic_map = true,
+            MapKind::Sheen => pbr.sheen_map = true,
+            _ => {}
+        }
         maps.push(PendingMap {
             material,
             kind,
@@ -248,11 +432,28 @@ fn parse_line(
         // `usemtl` with none to use it): the empty name is a name.
         let name = lex::rest_of_line(line, b"newmtl");
         materials.push(Material::named(String::from_utf8_lossy(name)));
+        statements.push(PbrStatements::default());
         return Ok(false);
     }
     let known = matches!(
         keyword,
-        b"Ka" | b"Kd" | b"Ks" | b"Ke" | b"Ns" | b"Ni" | b"d" | b"Tr" | b"al"
+        b"Ka"
+            | b"Kd"
+            | b"Ks"
+            | b"Ke"
+            | b"Ns"
+            | b"Ni"
+            | b"d"
+            | b"Tr"
+            | b"al"
+            | b"Tf"
+            | b"Pr"
+            | b"Pm"
+            | b"Ps"
+            | b"Pc"
+            | b"Pcr"
+            | b"aniso"
+            | b"anisor"
     );
     if !known {
         return Ok(false);
@@ -265,23 +466,49 @@ fn parse_line(
     let material = materials
         .last_mut()
         .ok_or_else(|| ParseErrorKind::PropertyBeforeNewmtl(lex::show(keyword)))?;
+    let pbr = statements.last_mut().expect("one per material");
+    let mut one = |name: &'static str| lex::floats::<1>(name, &mut tokens).map(|[v]| Some(v));
+    match keyword {
+        b"Pr" => pbr.roughness = one("Pr")?,
+        b"Pm" => pbr.metallic = one("Pm")?,
+        b"Ps" => pbr.sheen = one("Ps")?,
+        b"Pc" => pbr.clearcoat = one("Pc")?,
+        b"Pcr" => pbr.clearcoat_roughness = one("Pcr")?,
+        b"aniso" | b"anisor" => {
+            one(if keyword == b"aniso" {
+                "aniso"
+            } else {
+                "anisor"
+            })?;
+            pbr.anisotropy = true;
+        }
+        _ => {}
+    }
     match keyword {
         b"Ka" => material.ambient = colour("Ka", &mut tokens)?,
         b"Kd" => material.diffuse = colour("Kd", &mut tokens)?,
-        b"Ks" => material.specular = colour("Ks", &mut tokens)?,
+        b"Ks" => {
+            material.specular = colour("Ks", &mut tokens)?;
+            pbr.specular = true;
+        }
         b"Ke" => material.emission = colour("Ke", &mut tokens)?,
+        b"Tf" => pbr.transmission = Some(colour("Tf", &mut tokens)?),
         b"Ns" => {
             // Some exporters write a negative exponent; other readers clamp it to 0
             // (a negative one would make highlights infinite where they should fade).
             let ns = lex::floats::<1>("Ns", &mut tokens)?[0];
             material.shininess = ns.max(0.0);
+            pbr.shininess = true;
             return Ok(ns < 0.0);
         }
-        b"Ni" => material.ior = lex::floats::<1>("Ni", &mut tokens)?[0],
+        b"Ni" => {
+            material.ior = lex::floats::<1>("Ni", &mut tokens)?[0];
+            pbr.ior = true;
+        }
         b"d" => material.opacity = lex::floats::<1>("d", &mut tokens)?[0],
         b"Tr" => material.opacity = 1.0 - lex::floats::<1>("Tr", &mut tokens)?[0],
         b"al" => material.albedo = colour("al", &mut tokens)?.into(),
-        _ => unreachable!("filtered by `known` above"),
+        _ => {}
     }
     Ok(false)
 }
@@ -396,6 +623,9 @@ fn map_statement(keyword: &[u8]) -> &'static str {
         b"map_d" => "map_d",
         b"bump" => "bump",
         b"map_bump" => "map_Bump",
+        b"map_pr" => "map_Pr",
+        b"map_pm" => "map_Pm",
+        b"map_ps" => "map_Ps",
         _ => "norm",
     }
 }

@@ -19,10 +19,12 @@ use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
 use super::error::{ParseErrorKind, SceneError};
+use super::material_check::{MaterialProblems, check_pbr};
 use super::{
     FileAccess, LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh_with,
     read_file,
 };
+use crate::material::pbr::PbrMaterial;
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
 use crate::options::{Mode, Origin, PartialOptions, Sourced};
@@ -248,7 +250,8 @@ struct LightTable {
     intensity: Splat,
 }
 
-/// A material's MTL fields, under their MTL names.
+/// A material's MTL fields, under their MTL names, and the physically based
+/// model's (glTF's) under theirs.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MaterialTable {
@@ -268,6 +271,77 @@ struct MaterialTable {
     opacity: Option<Finite>,
     #[serde(rename = "al")]
     albedo: Option<Splat>,
+    // The physically based keys (`docs/scene-format.md`). Numbers may be `nan` or
+    // `inf` here: the checks shared with the other readers warn about them (and
+    // `attenuation_distance = inf` means no attenuation).
+    base_color: Option<Splat>,
+    metallic: Option<Float>,
+    roughness: Option<Float>,
+    #[serde(rename = "ior")]
+    index_of_refraction: Option<Float>,
+    #[serde(rename = "specular")]
+    specular_weight: Option<Float>,
+    specular_color: Option<Splat>,
+    transmission: Option<Float>,
+    thickness: Option<Float>,
+    attenuation_color: Option<Splat>,
+    attenuation_distance: Option<Float>,
+    clearcoat: Option<Float>,
+    clearcoat_roughness: Option<Float>,
+    sheen_color: Option<Splat>,
+    sheen_roughness: Option<Float>,
+    #[serde(rename = "emission")]
+    emission_colour: Option<Splat>,
+    emission_strength: Option<Float>,
+}
+
+impl MaterialTable {
+    /// Whether any physically based key is given.
+    fn any_pbr(&self) -> bool {
+        let MaterialTable {
+            base_color,
+            metallic,
+            roughness,
+            index_of_refraction,
+            specular_weight,
+            specular_color,
+            transmission,
+            thickness,
+            attenuation_color,
+            attenuation_distance,
+            clearcoat,
+            clearcoat_roughness,
+            sheen_color,
+            sheen_roughness,
+            emission_colour,
+            emission_strength,
+            ..
+        } = self;
+        [
+            base_color,
+            specular_color,
+            attenuation_color,
+            sheen_color,
+            emission_colour,
+        ]
+        .iter()
+        .any(|c| c.is_some())
+            || [
+                metallic,
+                roughness,
+                index_of_refraction,
+                specular_weight,
+                transmission,
+                thickness,
+                attenuation_distance,
+                clearcoat,
+                clearcoat_roughness,
+                sheen_roughness,
+                emission_strength,
+            ]
+            .iter()
+            .any(|v| v.is_some())
+    }
 }
 
 /// `[materials.NAME]` tables in file order (which fixes their [`MaterialId`]s).
@@ -370,10 +444,18 @@ struct Builder<'a> {
 impl Builder<'_> {
     fn build(mut self, file: SceneFile) -> Result<LoadedScene, SceneError> {
         let options = self.options(&file.camera, &file.render);
+        let mut problems = MaterialProblems::default();
         for (name, table) in file.materials.0 {
             let id = MaterialId(self.scene.materials.len() as u32);
-            self.scene.materials.push(material(&name, &table));
+            self.scene
+                .materials
+                .push(material(&name, &table, &mut problems));
             self.material_ids.insert(name, id);
+        }
+        for message in problems.messages() {
+            self.scene
+                .warnings
+                .push(format!("{}: {message}", self.path.display()));
         }
         for mesh in &file.mesh {
             self.add_mesh(mesh)?;
@@ -605,8 +687,13 @@ impl Builder<'_> {
     }
 }
 
-/// A material from its table: MTL defaults for what is not given.
-fn material(name: &str, table: &MaterialTable) -> Material {
+/// A material from its table: MTL defaults for what is not given; a physically
+/// based material when any of its physically based keys is given (see
+/// [`physically_based`]).
+fn material(name: &str, table: &MaterialTable, problems: &mut MaterialProblems) -> Material {
+    if table.any_pbr() {
+        return physically_based(name, table, problems);
+    }
     let mut m = Material::named(name);
     let colour = |v: Option<Splat>, default: Vec3| v.map_or(default, |s| s.0);
     m.ambient = colour(table.ambient, m.ambient);
@@ -615,6 +702,84 @@ fn material(name: &str, table: &MaterialTable) -> Material {
     m.emission = colour(table.emission, m.emission);
     m.shininess = table.shininess.map_or(m.shininess, |v| v.0);
     m.ior = table.ior.map_or(m.ior, |v| v.0);
+    m.opacity = table.opacity.map_or(m.opacity, |v| v.0);
+    m.albedo = table.albedo.map_or(m.albedo, |v| v.0.into());
+    m
+}
+
+/// A physically based material from its table: glTF's defaults for what is not
+/// given, except `metallic`, 0 (a table giving `base_color` alone describes a
+/// plastic). `Ke` and `Ni` stand for `emission` and `ior` when those are not given;
+/// `d` and `al` are kept (as for MTL materials, path mode does not read them);
+/// `Ka`, `Kd`, `Ks` and `Ns` would contradict the physically based keys and are
+/// ignored, with one warning.
+fn physically_based(
+    name: &str,
+    table: &MaterialTable,
+    problems: &mut MaterialProblems,
+) -> Material {
+    let p = table;
+    let defaults = PbrMaterial {
+        metallic: 0.0,
+        ..PbrMaterial::default()
+    };
+    let colour = |v: Option<Splat>, default: Vec3| v.map_or(default, |s| s.0);
+    let mut pbr = PbrMaterial {
+        base_color: colour(p.base_color, defaults.base_color),
+        metallic: p.metallic.unwrap_or(defaults.metallic),
+        roughness: p.roughness.unwrap_or(defaults.roughness),
+        ior: p
+            .index_of_refraction
+            .or(table.ior.map(|v| v.0))
+            .unwrap_or(defaults.ior),
+        specular: p.specular_weight.unwrap_or(defaults.specular),
+        specular_color: colour(p.specular_color, defaults.specular_color),
+        transmission: p.transmission.unwrap_or(defaults.transmission),
+        thickness: p.thickness.unwrap_or(defaults.thickness),
+        attenuation_color: colour(p.attenuation_color, defaults.attenuation_color),
+        attenuation_distance: p
+            .attenuation_distance
+            .unwrap_or(defaults.attenuation_distance),
+        clearcoat: p.clearcoat.unwrap_or(defaults.clearcoat),
+        clearcoat_roughness: p
+            .clearcoat_roughness
+            .unwrap_or(defaults.clearcoat_roughness),
+        sheen_color: colour(p.sheen_color, defaults.sheen_color),
+        sheen_roughness: p.sheen_roughness.unwrap_or(defaults.sheen_roughness),
+    };
+    let phong_keys = [
+        ("Ka", table.ambient.is_some()),
+        ("Kd", table.diffuse.is_some()),
+        ("Ks", table.specular.is_some()),
+        ("Ns", table.shininess.is_some()),
+    ];
+    let given: Vec<&str> = phong_keys
+        .iter()
+        .filter(|(_, given)| *given)
+        .map(|(key, _)| *key)
+        .collect();
+    if !given.is_empty() {
+        problems.note(
+            format!(
+                "MTL keys ({}) beside physically based keys are ignored",
+                given.join(", ")
+            ),
+            name,
+        );
+    }
+    check_pbr(&mut pbr, &defaults, name, problems);
+    let strength = p.emission_strength.unwrap_or(1.0);
+    let emission = colour(p.emission_colour.or(table.emission), Vec3::ZERO) * strength;
+    let emission = if emission.is_finite() && emission.min_element() >= 0.0 {
+        emission
+    } else {
+        problems.note(
+            "an emission that is negative or not finite, read as 0",
+            name,
+        );
+        Vec3::ZERO
+    };
+    let mut m = Material::physically_based(name, pbr, emission, None);
     m.opacity = table.opacity.map_or(m.opacity, |v| v.0);
     m.albedo = table.albedo.map_or(m.albedo, |v| v.0.into());
     m
@@ -875,7 +1040,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[materials.m]\nTr = 0.5\n",
-                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`",
+                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`, `base_color`, `metallic`, `roughness`, `ior`, `specular`, `specular_color`, `transmission`, `thickness`, `attenuation_color`, `attenuation_distance`, `clearcoat`, `clearcoat_roughness`, `sheen_color`, `sheen_roughness`, `emission`, `emission_strength`",
             ),
             (
                 "[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n",

@@ -344,7 +344,7 @@ pub fn studio() -> EnvironmentDesc {
 
 /// Whether area lights of `power` (the sum of their areas times their mean
 /// emission) light a scene of bounding radius `radius` enough to do without a
-/// default light: as much as a disc the scene's size at 1% of the white sky's
+/// default light: as much as a disc the scene's size at 1% of a white sky's
 /// radiance would. LEDs and labels on a model are decorations, not lighting.
 pub fn emitters_light_the_scene(power: Float, radius: Float) -> bool {
     power > 0.01 * PI * radius * radius

@@ -67,7 +67,8 @@ pub struct MaterialMaps {
     pub bump: Option<TextureMap>,
     /// `norm`, a `bump` image that is a normal map, or glTF's normal texture: a
     /// tangent-space normal map (OpenGL's convention, as glTF's: red along `u`, green
-    /// along `v`, blue out of the surface), linear.
+    /// along `v`, blue out of the surface), linear. Its `-bm` (glTF's `scale`)
+    /// multiplies the normal's x and y before it is normalised.
     pub normal: Option<TextureMap>,
     /// The maps of the physically based material ([`Material::pbr`]).
     pub pbr: PbrMaps,
@@ -282,7 +283,10 @@ impl MaterialMaps {
     pub fn tangent_normal(&self, uv: Vec2) -> Option<Vec3> {
         if let Some(map) = &self.normal {
             let n = map.colour(uv, Encoding::Linear) * 2.0 - Vec3::ONE;
-            return crate::math::try_unit(n);
+            // `-bm` (glTF's normal texture `scale`, Blender's normal map strength)
+            // scales the tilt: x and y, as glTF says.
+            let scale = map.options.bump_multiplier;
+            return crate::math::try_unit(Vec3::new(n.x * scale, n.y * scale, n.z));
         }
         let map = self.bump.as_ref()?;
         let (width, height) = map.texture.size();

@@ -1,0 +1,50 @@
+//! glTF extensions, one file each. A material extension is an [`Extension`]: its
+//! name and what it does to a [`MaterialContext`] given its JSON object; adding one
+//! is a new file here and one line in [`MATERIAL_EXTENSIONS`]. Extensions named in
+//! a file's `extensionsUsed` that are in neither list get one warning each; those in
+//! `extensionsRequired` are an error (see [`super::check_extensions`]).
+
+pub(super) mod clearcoat;
+pub(super) mod emissive_strength;
+pub(super) mod ior;
+pub(super) mod pbr_specular_glossiness;
+pub(super) mod sheen;
+pub(super) mod specular;
+pub(super) mod texture_transform;
+pub(super) mod transmission;
+pub(super) mod volume;
+
+use gltf::json::Value;
+
+use super::material::MaterialContext;
+
+/// A material extension: applied, in the order of [`MATERIAL_EXTENSIONS`], to every
+/// material whose `extensions` object names it.
+pub(super) struct Extension {
+    /// The extension's name, as in `extensionsUsed`.
+    pub(super) name: &'static str,
+    /// Reads the extension's object into the material.
+    pub(super) apply: fn(&mut MaterialContext<'_, '_>, &Value),
+}
+
+/// The material extensions read, in the order they are applied: specular-glossiness
+/// first, since it replaces the core model's base colour, metallic and roughness.
+pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
+    pbr_specular_glossiness::EXTENSION,
+    ior::EXTENSION,
+    specular::EXTENSION,
+    transmission::EXTENSION,
+    volume::EXTENSION,
+    clearcoat::EXTENSION,
+    sheen::EXTENSION,
+    emissive_strength::EXTENSION,
+];
+
+/// The other extensions read: lights (by the scene walk) and texture transforms (on
+/// every texture reference).
+pub(super) const OTHER_EXTENSIONS: &[&str] = &["KHR_lights_punctual", texture_transform::NAME];
+
+/// Whether extension `name` is read.
+pub(super) fn supported(name: &str) -> bool {
+    OTHER_EXTENSIONS.contains(&name) || MATERIAL_EXTENSIONS.iter().any(|e| e.name == name)
+}

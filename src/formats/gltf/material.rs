@@ -1,0 +1,377 @@
+//! glTF materials: the core metallic-roughness model (`pbrMetallicRoughness`, the
+//! normal, emissive and occlusion textures, alpha modes) as a
+//! [`Material::physically_based`], with each `KHR_materials_*` extension applied by
+//! its file in [`super::extensions`]. Materials are read from the file's own JSON,
+//! so that every extension (the `gltf` crate has no types for clearcoat and sheen)
+//! and every texture reference (`KHR_texture_transform` included) is read the same
+//! way. `docs/scene-format.md` documents the mapping.
+
+use std::sync::Arc;
+
+use gltf::json::Value;
+
+use super::extensions::{self, MATERIAL_EXTENSIONS};
+use super::{Reader, file_of_uri, read_uri};
+use crate::formats::material_check::check_pbr;
+use crate::material::pbr::PbrMaterial;
+use crate::material::{Cutout, Material, MaterialMaps};
+use crate::math::{Float, Vec3};
+use crate::textures::{Channel, Texture, TextureMap, TextureOptions, Wrap, load_texture};
+
+/// A glTF material being read: what the core and each extension have set so far.
+pub(super) struct MaterialContext<'r, 'a> {
+    reader: &'r mut Reader<'a>,
+    /// The material's index in the file.
+    pub(super) index: usize,
+    /// Its name (`material3` when it has none).
+    pub(super) name: String,
+    pub(super) pbr: PbrMaterial,
+    pub(super) maps: MaterialMaps,
+    /// `emissiveFactor`.
+    pub(super) emission: Vec3,
+    /// `KHR_materials_emissive_strength`: multiplies `emission`.
+    pub(super) emission_strength: Float,
+    /// The base colour's alpha factor.
+    pub(super) alpha: Float,
+    /// The texture whose alpha is the base colour's alpha.
+    pub(super) alpha_map: Option<TextureMap>,
+}
+
+/// Converts glTF material `index` (its JSON object `json`) into a physically based
+/// material.
+pub(super) fn convert(reader: &mut Reader<'_>, index: usize, json: &Value) -> Material {
+    let name = json
+        .get("name")
+        .and_then(Value::as_str)
+        .map_or_else(|| format!("material{index}"), str::to_owned);
+    let mut cx = MaterialContext {
+        reader,
+        index,
+        name,
+        pbr: PbrMaterial::default(),
+        maps: MaterialMaps::default(),
+        emission: Vec3::ZERO,
+        emission_strength: 1.0,
+        alpha: 1.0,
+        alpha_map: None,
+    };
+    let empty = Value::Object(Default::default());
+    let core = json.get("pbrMetallicRoughness").unwrap_or(&empty);
+    let [r, g, b, a] = cx.colour4(core, "baseColorFactor", [1.0; 4]);
+    cx.pbr.base_color = Vec3::new(r, g, b);
+    cx.alpha = a;
+    cx.pbr.metallic = cx.number(core, "metallicFactor", 1.0);
+    cx.pbr.roughness = cx.number(core, "roughnessFactor", 1.0);
+    // Base colour: sRGB, into the physically based maps only (the Phong
+    // approximation reads it from there; `MaterialMaps::diffuse` would multiply it
+    // twice).
+    let base = cx.texture(core, "baseColorTexture");
+    cx.alpha_map.clone_from(&base);
+    cx.maps.pbr.base_color = base;
+    // One image, two maps: roughness from green, metallic from blue. A greyscale
+    // image reads its grey for both.
+    if let Some(map) = cx.texture(core, "metallicRoughnessTexture") {
+        cx.maps.pbr.roughness = Some(with_channel(&map, Channel::Green));
+        cx.maps.pbr.metallic = Some(with_channel(&map, Channel::Blue));
+    }
+    if let Some(mut map) = cx.texture(json, "normalTexture") {
+        if map.texture.channels() < 3 {
+            cx.note("a normal texture of fewer than 3 channels, ignored");
+        } else {
+            // `scale` multiplies the tangent-space normal's x and y.
+            let scale = json
+                .get("normalTexture")
+                .map_or(1.0, |info| cx.number(info, "scale", 1.0));
+            map.options.bump_multiplier = scale;
+            cx.maps.normal = Some(map);
+        }
+    }
+    cx.emission = cx.colour(json, "emissiveFactor", Vec3::ZERO);
+    cx.maps.emission = cx.texture(json, "emissiveTexture");
+    // `occlusionTexture` darkens indirect light in rasterisers; a path tracer traces
+    // that light, so it is ignored (documented, not warned about).
+    if let Some(used) = json.get("extensions").and_then(Value::as_object) {
+        for extension in MATERIAL_EXTENSIONS {
+            if let Some(value) = used.get(extension.name) {
+                (extension.apply)(&mut cx, value);
+            }
+        }
+    }
+    cx.alpha_mode(json);
+    let MaterialContext {
+        reader,
+        name,
+        mut pbr,
+        maps,
+        emission,
+        emission_strength,
+        ..
+    } = cx;
+    check_pbr(
+        &mut pbr,
+        &PbrMaterial::default(),
+        &name,
+        &mut reader.problems,
+    );
+    let emission = emission * emission_strength;
+    let emission = if emission.is_finite() && emission.min_element() >= 0.0 {
+        emission
+    } else {
+        reader.problems.note(
+            "an emission that is negative or not finite, read as 0",
+            &name,
+        );
+        Vec3::ZERO
+    };
+    Material::physically_based(
+        name,
+        pbr,
+        emission,
+        (!maps.is_empty()).then(|| Box::new(maps)),
+    )
+}
+
+/// `map` reading `channel`.
+pub(super) fn with_channel(map: &TextureMap, channel: Channel) -> TextureMap {
+    let mut map = map.clone();
+    map.options.channel = channel;
+    map
+}
+
+impl MaterialContext<'_, '_> {
+    /// Notes a problem of this material (one warning per kind, naming the materials).
+    pub(super) fn note(&mut self, kind: impl Into<String>) {
+        self.reader.problems.note(kind, &self.name);
+    }
+
+    /// A warning given once per file.
+    pub(super) fn warn_once(&mut self, kind: &'static str, message: String) {
+        self.reader.warn_once(kind, message);
+    }
+
+    /// Number `key` of `object`, `default` when absent; one that is not a number is
+    /// noted and read as `default`.
+    pub(super) fn number(&mut self, object: &Value, key: &str, default: Float) -> Float {
+        match object.get(key) {
+            None => default,
+            Some(value) => match value.as_f64() {
+                Some(v) if (v as Float).is_finite() => v as Float,
+                _ => {
+                    self.note(format!("'{key}' is not a finite number, read as {default}"));
+                    default
+                }
+            },
+        }
+    }
+
+    /// `N` numbers under `key`, `default` when absent; anything else is noted and
+    /// read as `default`.
+    pub(super) fn numbers<const N: usize>(
+        &mut self,
+        object: &Value,
+        key: &str,
+        default: [Float; N],
+    ) -> [Float; N] {
+        let Some(value) = object.get(key) else {
+            return default;
+        };
+        let read = value.as_array().filter(|a| a.len() == N).and_then(|a| {
+            let mut out = default;
+            for (o, v) in out.iter_mut().zip(a) {
+                *o = v.as_f64().map(|v| v as Float).filter(|v| v.is_finite())?;
+            }
+            Some(out)
+        });
+        read.unwrap_or_else(|| {
+            self.note(format!(
+                "'{key}' is not {N} finite numbers, read as the default"
+            ));
+            default
+        })
+    }
+
+    /// An RGB colour under `key`.
+    pub(super) fn colour(&mut self, object: &Value, key: &str, default: Vec3) -> Vec3 {
+        Vec3::from(self.numbers(object, key, default.to_array()))
+    }
+
+    /// An RGBA colour under `key`.
+    pub(super) fn colour4(&mut self, object: &Value, key: &str, default: [Float; 4]) -> [Float; 4] {
+        self.numbers(object, key, default)
+    }
+
+    /// The map of texture reference `key` of `object` (a glTF `textureInfo`: `index`,
+    /// `texCoord` and `KHR_texture_transform`), if there is one and its image can be
+    /// read (else a warning).
+    pub(super) fn texture(&mut self, object: &Value, key: &str) -> Option<TextureMap> {
+        let info = object.get(key)?;
+        let document = self.reader.document;
+        let Some(texture) = info
+            .get("index")
+            .and_then(Value::as_u64)
+            .and_then(|i| document.textures().nth(usize::try_from(i).ok()?))
+        else {
+            self.note(format!("'{key}' names no texture of the file, ignored"));
+            return None;
+        };
+        let transform = info
+            .get("extensions")
+            .and_then(|e| e.get(extensions::texture_transform::NAME));
+        let tex_coord = transform
+            .and_then(|t| t.get("texCoord"))
+            .or_else(|| info.get("texCoord"))
+            .and_then(Value::as_u64)
+            .unwrap_or(0);
+        let mut map = self
+            .reader
+            .texture_map(&texture, tex_coord as u32, self.index)?;
+        if let Some(transform) = transform {
+            extensions::texture_transform::apply(self, transform, &mut map);
+        }
+        Some(map)
+    }
+
+    /// A scalar texture reference read from `channel`.
+    pub(super) fn scalar_texture(
+        &mut self,
+        object: &Value,
+        key: &str,
+        channel: Channel,
+    ) -> Option<TextureMap> {
+        let mut map = self.texture(object, key)?;
+        map.options.channel = channel;
+        Some(map)
+    }
+
+    /// `alphaMode` and `alphaCutoff`: MASK cuts the surface out where alpha is below
+    /// the cutoff; BLEND is approximated by a cutout at 0.5 (one warning).
+    fn alpha_mode(&mut self, json: &Value) {
+        let mode = json
+            .get("alphaMode")
+            .and_then(Value::as_str)
+            .unwrap_or("OPAQUE");
+        let cutoff = match mode {
+            "OPAQUE" => return,
+            "MASK" => self.number(json, "alphaCutoff", 0.5),
+            "BLEND" => {
+                self.warn_once(
+                    "blend",
+                    format!(
+                        "material {}: alpha blending is approximated by a cutout at alpha 0.5",
+                        self.index
+                    ),
+                );
+                0.5
+            }
+            other => {
+                self.note(format!("unknown alphaMode '{other}', read as OPAQUE"));
+                return;
+            }
+        };
+        let map = self
+            .alpha_map
+            .as_ref()
+            .map(|map| with_channel(map, Channel::Alpha));
+        self.maps.cutout = Some(Cutout {
+            map,
+            factor: self.alpha,
+            cutoff,
+        });
+    }
+}
+
+impl Reader<'_> {
+    /// The map of glTF texture `texture`, if its image can be read (else a warning).
+    fn texture_map(
+        &mut self,
+        texture: &gltf::Texture<'_>,
+        tex_coord: u32,
+        material: usize,
+    ) -> Option<TextureMap> {
+        if tex_coord != 0 {
+            self.warn_once(
+                "texcoord",
+                format!(
+                    "material {material}: only TEXCOORD_0 is read; a texture on TEXCOORD_{tex_coord} uses it instead"
+                ),
+            );
+        }
+        let image = texture.source();
+        let loaded = match self.images.get(&image.index()) {
+            Some(loaded) => loaded.clone(),
+            None => {
+                let loaded = match self.load_image(&image) {
+                    Ok(texture) => Some(texture),
+                    Err(reason) => {
+                        self.warn(format!(
+                            "image {}: {reason}; the surface renders without it",
+                            image.index()
+                        ));
+                        None
+                    }
+                };
+                self.images.insert(image.index(), loaded.clone());
+                loaded
+            }
+        }?;
+        let wrap = |mode| match mode {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let sampler = texture.sampler();
+        Some(TextureMap {
+            texture: loaded,
+            options: TextureOptions {
+                wrap_u: wrap(sampler.wrap_s()),
+                wrap_v: wrap(sampler.wrap_t()),
+                ..TextureOptions::default()
+            },
+        })
+    }
+
+    fn load_image(&self, image: &gltf::Image<'_>) -> Result<Arc<Texture>, String> {
+        let name = self.path.with_file_name(format!(
+            "{}#image{}",
+            self.path.file_name().unwrap_or_default().to_string_lossy(),
+            image.index()
+        ));
+        // `Image::source` unwraps a missing `uri` (with no `bufferView`) and a missing
+        // `mimeType` (with one): the format is guessed from the bytes anyway.
+        let json = &self.document.as_json().images[image.index()];
+        if json.uri.is_none() && json.buffer_view.is_none() {
+            return Err("names neither a file nor a buffer view".into());
+        }
+        if json.buffer_view.is_some() && json.mime_type.is_none() {
+            return Err("has a buffer view but no mimeType".into());
+        }
+        match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let buffer = &self.buffers[view.buffer().index()];
+                let bytes = view
+                    .offset()
+                    .checked_add(view.length())
+                    .and_then(|end| buffer.get(view.offset()..end))
+                    .ok_or("its buffer view lies outside its buffer")?;
+                Texture::decode(bytes, &name)
+                    .map(Arc::new)
+                    .map_err(|e| format!("cannot decode: {e}"))
+            }
+            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                let bytes = read_uri(uri, &self.folder, self.access)?;
+                Texture::decode(&bytes, &name)
+                    .map(Arc::new)
+                    .map_err(|e| format!("cannot decode: {e}"))
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                let file = file_of_uri(uri)?;
+                let path = self.folder.join(&file);
+                self.access
+                    .admit(&path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|()| load_texture(&path))
+                    .map_err(|e| format!("cannot read texture '{}': {e}", file.display()))
+            }
+        }
+    }
+}

@@ -125,15 +125,24 @@ impl SceneDescription {
     /// Whether nothing lights the scene: no point light, and no shapes whose material
     /// emits (`Ke`) enough to light it
     /// ([`crate::lights::environment::emitters_light_the_scene`], by their area times
-    /// their mean `Ke`: a few LEDs on a model do not).
+    /// their mean `Ke`: a few LEDs on a model do not), emission through a texture map
+    /// not counting (a screen or LEDs painted on a model are decoration).
     pub fn is_unlit(&self) -> bool {
         if !self.lights.is_empty() {
             return false;
         }
+        // Emission through a texture (glTF's emissive maps: screens, LEDs, labels
+        // painted on a model) is decoration: it glows but is not what lights the
+        // model. Uniform emission counts by its area.
         let emission: Vec<Float> = (self.materials.iter())
             .map(|m| {
+                let textured = m.maps.as_ref().is_some_and(|maps| maps.emission.is_some());
                 let e = m.emission.max(Vec3::ZERO);
-                (e.x + e.y + e.z) / 3.0
+                if textured {
+                    0.0
+                } else {
+                    (e.x + e.y + e.z) / 3.0
+                }
             })
             .collect();
         if !emission.iter().any(|&e| e > 0.0) {

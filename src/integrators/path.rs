@@ -16,7 +16,7 @@
 //! (the environment's over a disc of the scene's radius, as pbrt does), and a
 //! scattered ray that leaves the scene sees it, weighted against light sampling.
 //! A scene with no point light, no environment and no emitters that light it much
-//! ([`emitters_light_the_scene`]: LEDs on a model do not) sits in a procedural
+//! ([`Scene::unlit`]: LEDs on a model do not) sits in a procedural
 //! studio ([`studio`]) before a neutral grey backdrop, so that a model without lights
 //! shows as a model viewer shows it: path mode's default lighting, as full mode's is
 //! a light rig at the camera; `--no-default-light`
@@ -35,8 +35,7 @@ use crate::bxdfs::mtl::MtlMixture;
 use crate::camera::Camera;
 use crate::lights::LightSample;
 use crate::lights::environment::{
-    Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, emitters_light_the_scene,
-    studio,
+    Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, studio,
 };
 use crate::material::Material;
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
@@ -81,10 +80,7 @@ impl PathIntegrator {
                 None => Bsdf::Mtl(MtlMixture::new(m).0),
             })
             .collect();
-        let unlit = scene.lights.is_empty()
-            && scene.environment.is_none()
-            && !emitters_light_the_scene(scene.area_lights.total_power(), scene.radius)
-            && default_light;
+        let unlit = scene.unlit && default_light;
         let (environment, background) = if unlit {
             let backdrop = scene.background.unwrap_or(STUDIO_BACKDROP);
             (Some(Environment::new(&studio())), Some(backdrop))

@@ -162,6 +162,10 @@ pub struct Scene {
     build_times: BuildTimes,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
+    /// Whether nothing lights the scene
+    /// ([`SceneDescription::is_unlit`](crate::SceneDescription::is_unlit)) and it has
+    /// no environment: path mode then lights it with its default studio.
+    pub unlit: bool,
     /// Light from infinitely far away, if the description set one.
     pub environment: Option<Environment>,
     /// What camera rays that leave the scene see in path mode, if not the
@@ -338,6 +342,7 @@ impl Scene {
     /// leaf order.
     pub fn build(description: SceneDescription, params: &BvhParams) -> Scene {
         let bounds = description.bounds();
+        let unlit = description.is_unlit() && description.environment.is_none();
         let SceneDescription {
             positions,
             normals,
@@ -555,6 +560,7 @@ impl Scene {
         let environment = environment.as_ref().map(Environment::new);
         let radius = (bounds.max - bounds.min).length() * 0.5;
         Scene {
+            unlit,
             environment,
             background,
             radius: if radius.is_finite() { radius } else { 0.0 },

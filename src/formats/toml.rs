@@ -25,7 +25,7 @@ use super::{
 };
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
-use crate::options::{Mode, Origin, PartialOptions, Sourced};
+use crate::options::{Mode, Origin, PartialOptions, Sourced, ToneMap};
 
 /// Reads a TOML scene file and the meshes it names (relative to its folder).
 ///
@@ -183,6 +183,8 @@ struct CameraTable {
     fov: Option<Spanned<Float>>,
     width: Option<Spanned<i64>>,
     height: Option<Spanned<i64>>,
+    aperture_radius: Option<Spanned<Float>>,
+    focus_distance: Option<Spanned<Float>>,
 }
 
 #[derive(Deserialize, Default)]
@@ -194,6 +196,27 @@ struct RenderTable {
     exposure: Option<Spanned<Float>>,
     seed: Option<Spanned<i64>>,
     default_light: Option<Spanned<bool>>,
+    tonemap: Option<Spanned<ToneMapName>>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum ToneMapName {
+    Standard,
+    KhronosNeutral,
+    Agx,
+    Aces,
+}
+
+impl From<ToneMapName> for ToneMap {
+    fn from(t: ToneMapName) -> ToneMap {
+        match t {
+            ToneMapName::Standard => ToneMap::Standard,
+            ToneMapName::KhronosNeutral => ToneMap::KhronosNeutral,
+            ToneMapName::Agx => ToneMap::Agx,
+            ToneMapName::Aces => ToneMap::Aces,
+        }
+    }
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -425,6 +448,10 @@ impl Builder<'_> {
             exposure: self.sourced(&render.exposure, "render.exposure"),
             seed: self.sourced(&render.seed, "render.seed"),
             default_light: self.sourced(&render.default_light, "render.default_light"),
+            tonemap: self.sourced(&render.tonemap, "render.tonemap"),
+            aperture_radius: self.sourced(&camera.aperture_radius, "camera.aperture_radius"),
+            focus_distance: self.sourced(&camera.focus_distance, "camera.focus_distance"),
+            projection: None,
         }
     }
 

@@ -331,6 +331,74 @@ mod tests {
         }
     }
 
+    /// Every ray of a thin lens through an image position passes through the pinhole
+    /// ray's point at the focus distance, from a point of the lens's disc; the
+    /// lens's centre gives the pinhole's ray; a radius of 0 is the pinhole.
+    #[test]
+    fn thin_lens_rays_meet_at_the_focus_plane() {
+        let pinhole = Camera::new(
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(0.0, 1.0, -2.0),
+            50.0,
+            64,
+            48,
+        );
+        assert_eq!(pinhole.with_thin_lens(0.0, 4.0), pinhole);
+        assert!(pinhole.is_pinhole());
+        let (radius, focus) = (0.25, 4.0);
+        let lens = pinhole.with_thin_lens(radius, focus);
+        assert!(!lens.is_pinhole());
+        let forward = -pinhole.backward;
+        for (x, y) in [(0.0, 0.0), (32.0, 24.0), (63.5, 10.25)] {
+            let centre = pinhole.ray(x, y);
+            let target = centre.origin + centre.dir * (focus / centre.dir.dot(forward));
+            let middle = lens.lens_ray(x, y, Vec2::splat(0.5), radius, focus);
+            assert!((middle.dir - centre.dir).length() < 1e-6);
+            for u in [Vec2::ZERO, Vec2::new(0.9, 0.1), Vec2::new(0.3, 0.99)] {
+                let ray = lens.lens_ray(x, y, u, radius, focus);
+                let offset = ray.origin - pinhole.origin;
+                assert!(offset.dot(forward).abs() < 1e-6 && offset.length() <= radius + 1e-6);
+                let at =
+                    ray.origin + ray.dir * ((focus - offset.dot(forward)) / ray.dir.dot(forward));
+                assert!((at - target).length() < 1e-4, "{at} {target}");
+            }
+        }
+    }
+
+    #[test]
+    fn concentric_disc_is_uniform_in_area() {
+        // A grid of the square, counted in four rings of equal area.
+        let n = 256;
+        let mut rings = [0u32; 4];
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new(i as Float + 0.5, j as Float + 0.5) / n as Float;
+                let p = concentric_disc(u);
+                assert!(p.length() <= 1.0 + 1e-6);
+                rings[((p.length_squared() * 4.0) as usize).min(3)] += 1;
+            }
+        }
+        let quarter = (n * n / 4) as f64;
+        for count in rings {
+            // The grid steps past a ring by up to one row: 2% at this size.
+            assert!((f64::from(count) / quarter - 1.0).abs() < 0.03, "{rings:?}");
+        }
+    }
+
+    /// Orthographic rays are parallel to the view direction, from the image rectangle
+    /// centred on the eye.
+    #[test]
+    fn orthographic_rays_are_parallel() {
+        let camera =
+            Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 60.0, 40, 20).orthographic(1.0);
+        assert!(!camera.is_pinhole());
+        let corner = camera.ray(0.0, 0.0);
+        assert_eq!(corner.dir, Vec3::NEG_Z);
+        assert!((corner.origin - Vec3::new(-2.0, 1.0, 5.0)).length() < 1e-6);
+        let centre = camera.pixel_ray(20, 10);
+        assert!((centre.origin - Vec3::new(0.05, -0.05, 5.0)).length() < 1e-6);
+    }
+
     #[test]
     fn tile_rays_are_the_pixel_rays_bit_for_bit() {
         let cameras = [

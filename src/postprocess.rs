@@ -391,6 +391,32 @@ mod tests {
         assert_eq!(film.to_image(standard).rgb, exposed(0.0));
     }
 
+    /// Full mode keeps SPEC's tone map whatever tone map is asked for; path mode's
+    /// operators each give their own bytes.
+    #[test]
+    fn the_tone_map_is_path_modes_alone() {
+        let film = Film {
+            width: 3,
+            height: 1,
+            pixels: vec![Vec3::splat(0.3), Vec3::new(4.0, 1.0, 0.2), Vec3::splat(0.9)],
+        };
+        let with = |mode, tonemap| {
+            film.to_image(PostProcessing {
+                mode,
+                exposure: 0.0,
+                tonemap,
+            })
+            .rgb
+        };
+        let mut path = Vec::new();
+        for (_, tonemap) in ToneMap::NAMES {
+            assert_eq!(with(Mode::Full, tonemap), film.to_image(Mode::Full).rgb);
+            path.push(with(Mode::Path, tonemap));
+        }
+        path.dedup();
+        assert_eq!(path.len(), ToneMap::NAMES.len());
+    }
+
     #[test]
     fn depth_normalizes_by_farthest_hit_and_misses_are_white() {
         let film = Film {

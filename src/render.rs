@@ -177,8 +177,7 @@ fn render_region(
                 max_depth: options.depth,
             };
             // Packets of pixel centres' rays need the pinhole's shared eye.
-            if options.samples_per_pixel_in_mode() == 1
-                && Camera::for_options(options).is_pinhole()
+            if options.samples_per_pixel_in_mode() == 1 && Camera::for_options(options).is_pinhole()
             {
                 render_whitted_packets(scene, options, &whitted, tile, row_done, timed)
             } else {

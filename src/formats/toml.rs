@@ -854,7 +854,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[camera]\nzoom = 2\n",
-                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`",
+                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`, `aperture_radius`, `focus_distance`",
             ),
             (
                 "title = \"x\"\n",

@@ -19,8 +19,8 @@
 use glam::Mat3;
 
 use super::srgb;
-pub use crate::options::ToneMap;
 use crate::math::{Float, Vec3};
+pub use crate::options::ToneMap;
 
 impl ToneMap {
     /// `v` (linear, after the exposure) as display values in `[0, 1]`, sRGB-encoded.
@@ -152,10 +152,18 @@ mod tests {
     #[test]
     fn khronos_neutral_keeps_base_colours_and_compresses_highlights() {
         let c = Vec3::new(0.08, 0.5, 0.8);
-        assert!((khronos_neutral(c) - (c - Vec3::splat(0.04))).abs().max_element() < 1e-6);
+        assert!(
+            (khronos_neutral(c) - (c - Vec3::splat(0.04)))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
         for peak in [1.0, 10.0, 1e4] {
             let out = khronos_neutral(Vec3::new(peak, peak * 0.5, 0.1));
-            assert!(out.max_element() <= 1.0 && out.min_element() >= 0.0, "{out}");
+            assert!(
+                out.max_element() <= 1.0 && out.min_element() >= 0.0,
+                "{out}"
+            );
             let grey = khronos_neutral(Vec3::splat(peak));
             assert!((grey.x - grey.y).abs() < 1e-6 && (grey.y - grey.z).abs() < 1e-6);
         }
@@ -169,7 +177,10 @@ mod tests {
         for (input, expected) in [
             (Vec3::splat(0.18), [0.214_524_3, 0.214_520_4, 0.214_514_5]),
             (Vec3::splat(1.0), [0.590_195_8, 0.590_161, 0.590_123_6]),
-            (Vec3::new(2.0, 0.5, 0.1), [0.816_254_6, 0.453_823, 0.263_108_1]),
+            (
+                Vec3::new(2.0, 0.5, 0.1),
+                [0.816_254_6, 0.453_823, 0.263_108_1],
+            ),
             (Vec3::ZERO, [0.0, 0.0, 0.0]),
         ] {
             let got = agx(input);
@@ -185,7 +196,10 @@ mod tests {
         for (input, expected) in [
             (Vec3::splat(0.18), [0.213_105_4, 0.213_105_4, 0.213_103_3]),
             (Vec3::splat(1.0), [0.763_397_4, 0.763_397_4, 0.763_389_8]),
-            (Vec3::new(2.0, 0.5, 0.1), [0.982_303_9, 0.604_406_3, 0.224_429_2]),
+            (
+                Vec3::new(2.0, 0.5, 0.1),
+                [0.982_303_9, 0.604_406_3, 0.224_429_2],
+            ),
             (Vec3::ZERO, [0.0, 0.0, 0.0]),
         ] {
             let got = aces(input);

@@ -153,21 +153,25 @@ pub struct ViewArgs {
     /// the sRGB curve (-64..=64) [default: 0].
     #[arg(long, value_name = "STOPS", allow_hyphen_values = true, value_parser = number)]
     pub exposure: Option<Float>,
-    /// Path mode's tone map of PNG output, after the exposure: standard clamps at 1
-    /// (earlier versions' look), khronos-neutral keeps base colours and rolls
-    /// highlights off to white, agx and aces are the filmic curves of Blender and
-    /// three.js. Full mode keeps SPEC's tone map and ignores this; EXR output stays
-    /// linear [default: khronos-neutral].
+    /// Path mode's tone map of PNG output, after the exposure [default: khronos-neutral].
+    ///
+    /// standard clamps at 1 (earlier versions' look), khronos-neutral keeps base colours
+    /// and rolls highlights off to white, agx and aces are the filmic curves of Blender
+    /// and three.js. Full mode keeps SPEC's tone map and ignores this; EXR output stays
+    /// linear.
     #[arg(long, value_enum, value_name = "OPERATOR")]
     pub tonemap: Option<ToneMapArg>,
-    /// Radius of the camera's thin lens in scene units (0 or more): points off the
-    /// focus distance blur into discs. 0 is a pinhole, everything sharp. Full and path
-    /// modes only; take more --spp to smooth the blur [default: 0].
+    /// Radius of the camera's thin lens in scene units, 0 or more [default: 0].
+    ///
+    /// Points nearer or farther than --focus-distance blur into discs; 0 is a pinhole,
+    /// everything sharp. Full and path modes only (depth and normal modes and
+    /// orthographic cameras keep a pinhole); take more --spp to smooth the blur.
     #[arg(long, value_name = "R", allow_hyphen_values = true, value_parser = number)]
     pub aperture_radius: Option<Float>,
     /// Distance in scene units from the lens to the plane in focus, along the view
-    /// direction (greater than 0); used with --aperture-radius [default: the distance
-    /// from --look-from to --look-to].
+    /// direction, greater than 0 [default: the distance from --look-from to --look-to].
+    ///
+    /// Used with --aperture-radius.
     #[arg(long, value_name = "D", allow_hyphen_values = true, value_parser = number)]
     pub focus_distance: Option<Float>,
     /// Seed of the random numbers (0..=4294967295): another seed, another equally

@@ -9,7 +9,7 @@ use std::process::{Command, Output};
 
 use raytracer::math::{Float, Vec3};
 use raytracer::options::{Origin, PartialOptions, Projection, Sourced};
-use raytracer::{BvhParams, Mode, RenderOptions, Scene, formats, render};
+use raytracer::{BvhParams, Mode, RenderOptions, Scene, Tile, formats, render, render_tile};
 
 fn raytracer(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_raytracer"))
@@ -260,6 +260,47 @@ fn radius_zero_is_the_pinhole_bit_for_bit() {
             .collect()
     };
     assert_eq!(bits(&pinhole), bits(&zero));
+}
+
+/// With a lens, as without: a tile is bit for bit the same pixels of the whole image
+/// (the lens value is a pure function of pixel and sample), in full mode at one sample
+/// per pixel (which then leaves the packet loop) and in path mode.
+#[test]
+fn lens_tiles_are_the_whole_images_pixels() {
+    let scene = support::cornell_scene();
+    for (mode, spp) in [(Mode::Full, 1), (Mode::Path, 2)] {
+        let options = RenderOptions {
+            aperture_radius: 0.05,
+            focus_distance: Some(1.2),
+            ..support::cornell_options(23, 17, mode, spp)
+        };
+        let whole = render(&scene, &options);
+        let tile = Tile {
+            x: 5,
+            y: 3,
+            width: 9,
+            height: 11,
+        };
+        let part = render_tile(&scene, &options, tile).unwrap();
+        for row in 0..tile.height {
+            let start = ((tile.y + row) * options.width + tile.x) as usize;
+            let got = &part.pixels[(row * tile.width) as usize..][..tile.width as usize];
+            assert_eq!(
+                got,
+                &whole.pixels[start..][..tile.width as usize],
+                "{mode:?}"
+            );
+        }
+        // The lens changes the image.
+        let pinhole = render(
+            &scene,
+            &RenderOptions {
+                aperture_radius: 0.0,
+                ..options
+            },
+        );
+        assert_ne!(pinhole.pixels, whole.pixels, "{mode:?}");
+    }
 }
 
 #[test]

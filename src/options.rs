@@ -855,6 +855,26 @@ impl PartialOptions {
         })
     }
 
+    /// The checks of [`PartialOptions::resolve`] that need no scene, for flags checked
+    /// before a long load: a camera position given without a target is checked alone,
+    /// as [`PartialOptions::framed`] will aim it at the scene's centre.
+    ///
+    /// # Errors
+    /// As [`PartialOptions::resolve`], but for the pair of camera points then.
+    pub fn check_before_loading(&self) -> Result<(), OptionsError> {
+        let mut options = self.clone();
+        if let (Some(from), None) = (&options.look_from, &options.look_to) {
+            // Some other point: the scene will give the target.
+            let elsewhere = if from.value == Vec3::ZERO {
+                Vec3::ONE
+            } else {
+                Vec3::ZERO
+            };
+            options.look_to = Some(Sourced::new(elsewhere, Origin::Framed));
+        }
+        options.resolve().map(drop)
+    }
+
     /// The width and height these options give over the defaults: as set; one alone
     /// with the other at the default aspect ratio; neither, the defaults.
     fn image_size(&self) -> (Sourced<i64>, Sourced<i64>) {

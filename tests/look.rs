@@ -453,4 +453,20 @@ fn a_lone_look_from_aims_at_the_scene_centre() {
         images.push(support::read_png(&out));
     }
     assert_eq!(images[0], images[1]);
+    // The default target is no target then: a position there is fine (the flags are
+    // checked before the load without the pair of points).
+    let out = dir.path().join("there.png");
+    let output = raytracer(&[
+        "render",
+        cornell.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--look-from",
+        "0,0,-1",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
 }

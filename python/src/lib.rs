@@ -782,7 +782,7 @@ fn render<'py>(
             SceneFormat::require(&path)?,
             SceneFormat::Toml | SceneFormat::Gltf
         ) {
-            flags.resolve()?;
+            flags.check_before_loading()?;
         }
         let loaded = Loaded::read(&path, &formats::FileAccess::anywhere())?;
         let options = loaded.resolve(flags)?;

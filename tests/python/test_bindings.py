@@ -131,7 +131,7 @@ def test_a_valid_argument_replaces_a_bad_value_of_the_file(tmp_path, run_cli):
         (dict(fov=float("nan")), ["--fov", "NaN"]),
         (dict(depth=65), ["--depth", "65"]),
         (dict(spp=0), ["--spp", "0"]),
-        (dict(look_from=(0, 0, -1)), ["--look-from", "0,0,-1"]),
+        (dict(look_to=(0, 0, 0)), ["--look-to", "0,0,0"]),
         (dict(look_from=(1, 2, 3), look_to=(1, 2, 3)), ["--look-from", "1,2,3", "--look-to", "1,2,3"]),
         (dict(up=(0, 0, 0)), ["--up", "0,0,0"]),
         (dict(mode="path", depth=2000), ["--mode", "path", "--depth", "2000"]),

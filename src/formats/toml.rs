@@ -858,7 +858,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "title = \"x\"\n",
-                "DIR/s.toml:1: title: unknown field `title`, expected one of `camera`, `render`, `mesh`, `sphere`, `light`, `materials`",
+                "DIR/s.toml:1: title: unknown field `title`, expected one of `camera`, `render`, `mesh`, `sphere`, `light`, `materials`, `environment`",
             ),
             (
                 "[camera]\nlook_from = [1, 2]\n",

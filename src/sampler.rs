@@ -15,6 +15,10 @@
 //! other and of the camera position. A path tracer takes, say, two per bounce for the
 //! BSDF, two for the light and one for Russian roulette.
 //!
+//! **Lens positions** ([`PixelSample::lens`]): one uniform point in `[0, 1)^2` per
+//! camera ray for a thin lens, hashed apart from both of the above, so that a lens
+//! changes none of an integrator's dimensions.
+//!
 //! Every value comes from a hash of the pixel index, the sample index and (for the
 //! further dimensions) the dimension's pair, not from a generator with state, as pbrt's
 //! `IndependentSampler` seeds from a hash of the pixel: every pixel is a pure function

@@ -1,13 +1,28 @@
 //! The pinhole LookAt camera of SPEC: focal length 1, vertical field of view, square
-//! pixels, rays through pixel centres, row 0 at the top.
+//! pixels, rays through pixel centres, row 0 at the top. Also a thin lens (depth of
+//! field, [`Camera::with_thin_lens`]) and an orthographic projection
+//! ([`Camera::orthographic`]).
 
 use wide::f32x16;
 
 use crate::bvh::PACKET_SIZE;
-use crate::math::{Float, Ray, Vec3, dot_lanes, try_unit};
-use crate::options::RenderOptions;
+use crate::math::{Float, Ray, Vec2, Vec3, dot_lanes, try_unit};
+use crate::options::{Mode, Projection, RenderOptions};
+use crate::sampler::PixelSample;
 
-/// A pinhole camera placed by LookAt.
+/// What the rays leave from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Lens {
+    /// Every ray from the eye: SPEC's camera.
+    Pinhole,
+    /// A thin lens of `radius` focused at `focus` (both in scene units, positive).
+    Thin { radius: Float, focus: Float },
+    /// Parallel rays along the view direction from the image rectangle (whose
+    /// half-extents are then in scene units).
+    Orthographic,
+}
+
+/// A camera placed by LookAt: a pinhole, a thin lens or orthographic.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     origin: Vec3,
@@ -21,6 +36,7 @@ pub struct Camera {
     half_width: Float,
     width: u32,
     height: u32,
+    lens: Lens,
 }
 
 impl Camera {
@@ -40,16 +56,65 @@ impl Camera {
         Camera::with_up(look_from, look_to, Vec3::Y, fov_degrees, width, height)
     }
 
-    /// The camera `options` describe (position, target, up, field of view, size).
+    /// The camera `options` describe (position, target, up, field of view, size,
+    /// projection, and in full and path modes the lens: depth and normal modes keep a
+    /// pinhole, one exact value per pixel).
     pub fn for_options(options: &RenderOptions) -> Camera {
-        Camera::with_up(
+        let camera = Camera::with_up(
             options.look_from,
             options.look_to,
             options.up,
             options.fov_degrees,
             options.width,
             options.height,
-        )
+        );
+        if let Projection::Orthographic { half_height } = options.projection {
+            return camera.orthographic(half_height);
+        }
+        match options.mode {
+            Mode::Full | Mode::Path if options.aperture_radius > 0.0 => {
+                let focus = options
+                    .focus_distance
+                    .unwrap_or_else(|| options.look_from.distance(options.look_to));
+                camera.with_thin_lens(options.aperture_radius, focus)
+            }
+            _ => camera,
+        }
+    }
+
+    /// This camera with a thin lens of radius `radius` focused at distance `focus`
+    /// along the view direction (scene units): a point at distance `z` is seen as a
+    /// uniform disc of radius `radius * |z - focus| / (z * focus)` on the image plane
+    /// at distance 1 (times the focal length in pixels, `height / (2 tan(fov / 2))`,
+    /// in pixels). A radius of 0 (or a focus that is not a positive finite number)
+    /// leaves the pinhole.
+    pub fn with_thin_lens(self, radius: Float, focus: Float) -> Camera {
+        let lens = if radius > 0.0 && focus > 0.0 && focus.is_finite() {
+            Lens::Thin { radius, focus }
+        } else {
+            Lens::Pinhole
+        };
+        Camera { lens, ..self }
+    }
+
+    /// This camera made orthographic: rays parallel to the view direction from the
+    /// points of an image rectangle `2 * half_height` scene units high (as wide as the
+    /// image's aspect ratio makes it) centred on the eye. glTF's `ymag` is
+    /// `half_height`.
+    pub fn orthographic(self, half_height: Float) -> Camera {
+        Camera {
+            half_height,
+            half_width: half_height * self.width as Float / self.height as Float,
+            lens: Lens::Orthographic,
+            ..self
+        }
+    }
+
+    /// Whether every ray leaves from the eye through its pixel position
+    /// ([`Camera::ray`] is the whole story): the pinhole of SPEC, which
+    /// [`Camera::tile_rays`] computes in packets.
+    pub fn is_pinhole(&self) -> bool {
+        self.lens == Lens::Pinhole
     }
 
     /// As [`Camera::new`] with world up `up` (any non-zero length) instead of +y.
@@ -85,17 +150,48 @@ impl Camera {
             half_width,
             width,
             height,
+            lens: Lens::Pinhole,
         }
     }
 
     /// The ray through image position (`x`, `y`) in pixels from the top-left corner:
     /// pixel (i, j) has its centre at (i + 0.5, j + 0.5).
+    ///
+    /// Through the centre of a thin lens: a camera with a lens takes its rays from
+    /// [`Camera::sample_ray`].
     #[inline]
     pub fn ray(&self, x: Float, y: Float) -> Ray {
         let sx = (2.0 * x / self.width as Float - 1.0) * self.half_width;
         let sy = (1.0 - 2.0 * y / self.height as Float) * self.half_height;
+        if self.lens == Lens::Orthographic {
+            let origin = self.origin + self.right * sx + self.up * sy;
+            return Ray::new(origin, -self.backward);
+        }
         let dir = self.right * sx + self.up * sy - self.backward;
         Ray::new(self.origin, dir)
+    }
+
+    /// The camera ray through image position (`x`, `y`) of a camera sample: for a
+    /// thin lens, from the point of the lens that the sample's lens value
+    /// ([`PixelSample::lens`]) picks; otherwise [`Camera::ray`], bit for bit.
+    #[inline]
+    pub fn sample_ray(&self, x: Float, y: Float, sample: &PixelSample) -> Ray {
+        match self.lens {
+            Lens::Thin { radius, focus } => self.lens_ray(x, y, sample.lens(), radius, focus),
+            _ => self.ray(x, y),
+        }
+    }
+
+    /// The ray through image position (`x`, `y`) from the lens point that `u` (in
+    /// `[0, 1)^2`) picks, uniformly over the lens's disc: the pinhole ray's point at
+    /// distance `focus` along the view direction stays where it is.
+    fn lens_ray(&self, x: Float, y: Float, u: Vec2, radius: Float, focus: Float) -> Ray {
+        let sx = (2.0 * x / self.width as Float - 1.0) * self.half_width;
+        let sy = (1.0 - 2.0 * y / self.height as Float) * self.half_height;
+        let on_plane = self.right * (sx * focus) + self.up * (sy * focus) - self.backward * focus;
+        let disc = concentric_disc(u) * radius;
+        let from = self.right * disc.x + self.up * disc.y;
+        Ray::new(self.origin + from, on_plane - from)
     }
 
     /// The ray through the centre of pixel (`column`, `row`).
@@ -148,6 +244,23 @@ impl Camera {
             };
         }
     }
+}
+
+/// Shirley and Chiu's concentric map of `[0, 1)^2` onto the unit disc, uniform in
+/// area (*Physically Based Rendering*, 4th ed., `SampleUniformDiskConcentric`).
+#[inline]
+pub fn concentric_disc(u: Vec2) -> Vec2 {
+    let o = u * 2.0 - Vec2::ONE;
+    if o == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let quarter = std::f32::consts::FRAC_PI_4;
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, quarter * (o.y / o.x))
+    } else {
+        (o.y, 2.0 * quarter - quarter * (o.x / o.y))
+    };
+    Vec2::new(theta.cos(), theta.sin()) * r
 }
 
 #[cfg(test)]
@@ -216,6 +329,74 @@ mod tests {
             assert!((centre + from.normalize()).length() < 1e-6);
             assert!(corner.dot(centre) < 0.99);
         }
+    }
+
+    /// Every ray of a thin lens through an image position passes through the pinhole
+    /// ray's point at the focus distance, from a point of the lens's disc; the
+    /// lens's centre gives the pinhole's ray; a radius of 0 is the pinhole.
+    #[test]
+    fn thin_lens_rays_meet_at_the_focus_plane() {
+        let pinhole = Camera::new(
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(0.0, 1.0, -2.0),
+            50.0,
+            64,
+            48,
+        );
+        assert_eq!(pinhole.with_thin_lens(0.0, 4.0), pinhole);
+        assert!(pinhole.is_pinhole());
+        let (radius, focus) = (0.25, 4.0);
+        let lens = pinhole.with_thin_lens(radius, focus);
+        assert!(!lens.is_pinhole());
+        let forward = -pinhole.backward;
+        for (x, y) in [(0.0, 0.0), (32.0, 24.0), (63.5, 10.25)] {
+            let centre = pinhole.ray(x, y);
+            let target = centre.origin + centre.dir * (focus / centre.dir.dot(forward));
+            let middle = lens.lens_ray(x, y, Vec2::splat(0.5), radius, focus);
+            assert!((middle.dir - centre.dir).length() < 1e-6);
+            for u in [Vec2::ZERO, Vec2::new(0.9, 0.1), Vec2::new(0.3, 0.99)] {
+                let ray = lens.lens_ray(x, y, u, radius, focus);
+                let offset = ray.origin - pinhole.origin;
+                assert!(offset.dot(forward).abs() < 1e-6 && offset.length() <= radius + 1e-6);
+                let at =
+                    ray.origin + ray.dir * ((focus - offset.dot(forward)) / ray.dir.dot(forward));
+                assert!((at - target).length() < 1e-4, "{at} {target}");
+            }
+        }
+    }
+
+    #[test]
+    fn concentric_disc_is_uniform_in_area() {
+        // A grid of the square, counted in four rings of equal area.
+        let n = 256;
+        let mut rings = [0u32; 4];
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new(i as Float + 0.5, j as Float + 0.5) / n as Float;
+                let p = concentric_disc(u);
+                assert!(p.length() <= 1.0 + 1e-6);
+                rings[((p.length_squared() * 4.0) as usize).min(3)] += 1;
+            }
+        }
+        let quarter = (n * n / 4) as f64;
+        for count in rings {
+            // The grid steps past a ring by up to one row: 2% at this size.
+            assert!((f64::from(count) / quarter - 1.0).abs() < 0.03, "{rings:?}");
+        }
+    }
+
+    /// Orthographic rays are parallel to the view direction, from the image rectangle
+    /// centred on the eye.
+    #[test]
+    fn orthographic_rays_are_parallel() {
+        let camera =
+            Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 60.0, 40, 20).orthographic(1.0);
+        assert!(!camera.is_pinhole());
+        let corner = camera.ray(0.0, 0.0);
+        assert_eq!(corner.dir, Vec3::NEG_Z);
+        assert!((corner.origin - Vec3::new(-2.0, 1.0, 5.0)).length() < 1e-6);
+        let centre = camera.pixel_ray(20, 10);
+        assert!((centre.origin - Vec3::new(0.05, -0.05, 5.0)).length() < 1e-6);
     }
 
     #[test]

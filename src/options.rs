@@ -78,6 +78,74 @@ impl std::str::FromStr for Mode {
     }
 }
 
+/// How path mode's PNG maps radiance (after the exposure) to display values: the
+/// operators are in [`crate::postprocess`]. Full mode keeps SPEC's tone map whatever
+/// this says; depth and normal modes have their own mappings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ToneMap {
+    /// Clamp to 1, then the sRGB curve: the mapping of earlier versions.
+    Standard,
+    /// Khronos PBR Neutral: base colours under white light come out as they are
+    /// (less 0.04) up to 0.8, highlights are compressed towards white keeping their
+    /// hue; then the sRGB curve. The default.
+    #[default]
+    KhronosNeutral,
+    /// AgX as Blender and three.js apply it (three.js's `AgXToneMapping`), to sRGB.
+    Agx,
+    /// Stephen Hill's fit of ACES as three.js's `ACESFilmicToneMapping` (with its
+    /// 1/0.6 brightening), then the sRGB curve.
+    Aces,
+}
+
+impl ToneMap {
+    /// Every operator by its name on the command line and in scene files.
+    pub const NAMES: [(&'static str, ToneMap); 4] = [
+        ("standard", ToneMap::Standard),
+        ("khronos-neutral", ToneMap::KhronosNeutral),
+        ("agx", ToneMap::Agx),
+        ("aces", ToneMap::Aces),
+    ];
+
+    /// The operator's name, as [`ToneMap::NAMES`] spells it.
+    pub fn name(self) -> &'static str {
+        ToneMap::NAMES
+            .iter()
+            .find(|(_, t)| *t == self)
+            .map_or("khronos-neutral", |(name, _)| name)
+    }
+}
+
+impl std::str::FromStr for ToneMap {
+    type Err = String;
+
+    /// An operator by its name in [`ToneMap::NAMES`], in any letter case.
+    fn from_str(name: &str) -> Result<ToneMap, String> {
+        ToneMap::NAMES
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name.trim()))
+            .map(|&(_, t)| t)
+            .ok_or_else(|| {
+                let names: Vec<&str> = ToneMap::NAMES.iter().map(|(n, _)| *n).collect();
+                format!("unknown tone map '{name}' (one of {})", names.join(", "))
+            })
+    }
+}
+
+/// How the camera projects the scene onto the image.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub enum Projection {
+    /// From a point (or a thin lens), with [`RenderOptions::fov_degrees`].
+    #[default]
+    Perspective,
+    /// Parallel rays along the view direction (glTF's orthographic cameras): the
+    /// image spans `2 * half_height` scene units vertically, and the width in
+    /// proportion to the image's aspect ratio.
+    Orthographic {
+        /// Half the image's height in scene units (glTF's `ymag`), positive.
+        half_height: Float,
+    },
+}
+
 /// Options of one render. Build with [`Default`] and field updates, then
 /// [`RenderOptions::validate`]; or from scene files and flags with [`PartialOptions`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -116,6 +184,17 @@ pub struct RenderOptions {
     /// ([`SceneDescription::add_default_light`](crate::SceneDescription::add_default_light)),
     /// in path mode a studio environment. On by default; `--no-default-light` turns it off.
     pub default_light: bool,
+    /// Path mode's tone map of its PNG ([`ToneMap`]); other modes ignore it.
+    pub tonemap: ToneMap,
+    /// Radius of the camera's thin lens in scene units; 0 (the default) is a pinhole,
+    /// everything sharp. Depth and normal modes, and orthographic cameras, ignore it.
+    pub aperture_radius: Float,
+    /// Distance from the lens to the plane in focus, along the view direction, in
+    /// scene units; `None` is the distance from [`RenderOptions::look_from`] to
+    /// [`RenderOptions::look_to`]. Only a lens with a radius uses it.
+    pub focus_distance: Option<Float>,
+    /// Perspective (the default) or orthographic.
+    pub projection: Projection,
 }
 
 impl Default for RenderOptions {
@@ -133,6 +212,10 @@ impl Default for RenderOptions {
             exposure: 0.0,
             seed: 0,
             default_light: true,
+            tonemap: ToneMap::default(),
+            aperture_radius: 0.0,
+            focus_distance: None,
+            projection: Projection::Perspective,
         }
     }
 }
@@ -270,6 +353,9 @@ enum Field {
     Spp,
     Exposure,
     Seed,
+    Aperture,
+    Focus,
+    Projection,
 }
 
 impl Field {
@@ -285,6 +371,10 @@ impl Field {
             Field::Spp => "--spp",
             Field::Exposure => "--exposure",
             Field::Seed => "--seed",
+            Field::Aperture => "--aperture-radius",
+            Field::Focus => "--focus-distance",
+            // No flag sets it: only a glTF camera's `ymag`.
+            Field::Projection => "camera.ymag",
         }
     }
 
@@ -309,6 +399,10 @@ struct Values {
     exposure: Float,
     seed: i64,
     default_light: bool,
+    tonemap: ToneMap,
+    aperture_radius: Float,
+    focus_distance: Option<Float>,
+    projection: Projection,
 }
 
 impl From<&RenderOptions> for Values {
@@ -326,6 +420,10 @@ impl From<&RenderOptions> for Values {
             exposure: o.exposure,
             seed: o.seed.into(),
             default_light: o.default_light,
+            tonemap: o.tonemap,
+            aperture_radius: o.aperture_radius,
+            focus_distance: o.focus_distance,
+            projection: o.projection,
         }
     }
 }
@@ -407,6 +505,34 @@ impl Values {
                 format!("{} is not in 0..={}", self.seed, u32::MAX),
             )
         })?;
+        if !(self.aperture_radius.is_finite() && self.aperture_radius >= 0.0) {
+            return Err(single_error(
+                Field::Aperture,
+                origin(Field::Aperture),
+                format!(
+                    "{} is not a finite radius of 0 or more (0 is a pinhole)",
+                    self.aperture_radius
+                ),
+            ));
+        }
+        if let Some(focus) = self.focus_distance
+            && !(focus.is_finite() && focus > 0.0)
+        {
+            return Err(single_error(
+                Field::Focus,
+                origin(Field::Focus),
+                format!("{focus} is not a finite distance greater than 0"),
+            ));
+        }
+        if let Projection::Orthographic { half_height } = self.projection
+            && !(half_height.is_finite() && half_height > 0.0)
+        {
+            return Err(single_error(
+                Field::Projection,
+                origin(Field::Projection),
+                format!("{half_height} is not a finite half-height greater than 0"),
+            ));
+        }
         let max_depth = match self.mode {
             Mode::Path => MAX_PATH_DEPTH,
             _ => MAX_RECURSION_DEPTH,
@@ -429,6 +555,10 @@ impl Values {
             exposure: self.exposure,
             seed,
             default_light: self.default_light,
+            tonemap: self.tonemap,
+            aperture_radius: self.aperture_radius,
+            focus_distance: self.focus_distance,
+            projection: self.projection,
         })
     }
 }
@@ -562,6 +692,14 @@ pub struct PartialOptions {
     pub seed: Option<Sourced<i64>>,
     /// Whether an unlit scene gets the default lighting.
     pub default_light: Option<Sourced<bool>>,
+    /// Path mode's tone map.
+    pub tonemap: Option<Sourced<ToneMap>>,
+    /// Radius of the thin lens.
+    pub aperture_radius: Option<Sourced<Float>>,
+    /// Distance to the plane in focus.
+    pub focus_distance: Option<Sourced<Float>>,
+    /// Perspective or orthographic.
+    pub projection: Option<Sourced<Projection>>,
 }
 
 impl PartialOptions {
@@ -597,6 +735,10 @@ impl PartialOptions {
             exposure: self.exposure.or(fallback.exposure),
             seed: self.seed.or(fallback.seed),
             default_light: self.default_light.or(fallback.default_light),
+            tonemap: self.tonemap.or(fallback.tonemap),
+            aperture_radius: self.aperture_radius.or(fallback.aperture_radius),
+            focus_distance: self.focus_distance.or(fallback.focus_distance),
+            projection: self.projection.or(fallback.projection),
         }
     }
 
@@ -608,10 +750,18 @@ impl PartialOptions {
     /// image size these options give). Both points then come from
     /// [`Origin::Framed`]. An empty box (an empty scene) leaves the defaults.
     ///
+    /// A camera position given without a target (a lone `--look-from`) looks at the
+    /// centre of the box, from [`Origin::Framed`]; a target given alone is kept, with
+    /// the default position.
+    ///
     /// Call it last, after [`PartialOptions::or`]: the framing depends on the field of
     /// view and the aspect ratio.
     pub fn framed(mut self, bounds: Aabb) -> PartialOptions {
-        if self.look_from.is_some() || self.look_to.is_some() || bounds.is_empty() {
+        if self.look_to.is_some() || bounds.is_empty() {
+            return self;
+        }
+        if self.look_from.is_some() {
+            self.look_to = Some(Sourced::new(bounds.center(), Origin::Framed));
             return self;
         }
         let d = RenderOptions::default();
@@ -683,6 +833,10 @@ impl PartialOptions {
             exposure: value_or(&self.exposure, d.exposure),
             seed: value_or(&self.seed, d.seed.into()),
             default_light: value_or(&self.default_light, d.default_light),
+            tonemap: value_or(&self.tonemap, d.tonemap),
+            aperture_radius: value_or(&self.aperture_radius, d.aperture_radius),
+            focus_distance: self.focus_distance.as_ref().map(|f| f.value),
+            projection: value_or(&self.projection, d.projection),
         };
         values.check(&|field| match field {
             Field::Width => width.origin.clone(),
@@ -695,7 +849,30 @@ impl PartialOptions {
             Field::Spp => origin_of(&self.samples_per_pixel),
             Field::Exposure => origin_of(&self.exposure),
             Field::Seed => origin_of(&self.seed),
+            Field::Aperture => origin_of(&self.aperture_radius),
+            Field::Focus => origin_of(&self.focus_distance),
+            Field::Projection => origin_of(&self.projection),
         })
+    }
+
+    /// The checks of [`PartialOptions::resolve`] that need no scene, for flags checked
+    /// before a long load: a camera position given without a target is checked alone,
+    /// as [`PartialOptions::framed`] will aim it at the scene's centre.
+    ///
+    /// # Errors
+    /// As [`PartialOptions::resolve`], but for the pair of camera points then.
+    pub fn check_before_loading(&self) -> Result<(), OptionsError> {
+        let mut options = self.clone();
+        if let (Some(from), None) = (&options.look_from, &options.look_to) {
+            // Some other point: the scene will give the target.
+            let elsewhere = if from.value == Vec3::ZERO {
+                Vec3::ONE
+            } else {
+                Vec3::ZERO
+            };
+            options.look_to = Some(Sourced::new(elsewhere, Origin::Framed));
+        }
+        options.resolve().map(drop)
     }
 
     /// The width and height these options give over the defaults: as set; one alone

@@ -1,9 +1,13 @@
 //! Post-processing: a linear [`Film`] to an 8-bit [`Image`] as each mode displays it
 //! (SPEC's tone map and gamma in full mode, distance over the farthest in depth mode,
-//! `n / 2 + 1/2` in normal mode, an exposure and the sRGB curve in path mode).
+//! `n / 2 + 1/2` in normal mode, an exposure and a tone map ([`ToneMap`], in
+//! [`tonemap`]) in path mode).
 //! Encoding to a file is [`crate::output`]'s job.
 
 mod gamma;
+pub mod tonemap;
+
+pub use tonemap::ToneMap;
 
 use rayon::prelude::*;
 use wide::f32x16;
@@ -12,21 +16,24 @@ use crate::film::Film;
 use crate::math::{Float, Vec3};
 use crate::options::{Mode, RenderOptions};
 
-/// How a film is shown: its mode and, in path mode, the exposure.
+/// How a film is shown: its mode and, in path mode, the exposure and tone map.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PostProcessing {
     /// The mode the film was rendered in.
     pub mode: Mode,
     /// Path mode's exposure in stops ([`RenderOptions::exposure`]).
     pub exposure: Float,
+    /// Path mode's tone map ([`RenderOptions::tonemap`]); other modes ignore it.
+    pub tonemap: ToneMap,
 }
 
 impl From<Mode> for PostProcessing {
-    /// `mode` with no exposure change.
+    /// `mode` with no exposure change and the default tone map.
     fn from(mode: Mode) -> PostProcessing {
         PostProcessing {
             mode,
             exposure: 0.0,
+            tonemap: ToneMap::default(),
         }
     }
 }
@@ -36,6 +43,7 @@ impl From<&RenderOptions> for PostProcessing {
         PostProcessing {
             mode: options.mode,
             exposure: options.exposure,
+            tonemap: options.tonemap,
         }
     }
 }
@@ -55,8 +63,8 @@ impl Film {
     /// Post-processes the film for its mode (a [`Mode`], or [`PostProcessing`] with
     /// an exposure) into 8 bits per channel: depth divides by the largest distance
     /// (misses white), normal maps `n` to `n / 2 + 1/2` (misses black), full applies
-    /// SPEC's tone mapping and gamma, path multiplies by `2^exposure` and applies the
-    /// sRGB curve, clamped.
+    /// SPEC's tone mapping and gamma, path multiplies by `2^exposure` and applies its
+    /// [`ToneMap`] (which ends in the sRGB curve).
     ///
     /// See also [`Film::write`], which also writes linear OpenEXR files.
     pub fn to_image(&self, post: impl Into<PostProcessing>) -> Image {
@@ -110,6 +118,7 @@ impl Film {
             },
             Mode::Path => Encoding::Exposed {
                 scale: post.exposure.exp2(),
+                tonemap: post.tonemap,
             },
         }
     }
@@ -193,9 +202,10 @@ enum Encoding {
     Normal,
     /// Tone mapping by the brightest channel, then gamma 2.2.
     Full { brightest: Float },
-    /// Radiance times `scale`, clamped to 1, through the sRGB curve: one bright
-    /// sample cannot darken the rest of the image, as a maximum-based map would.
-    Exposed { scale: Float },
+    /// Radiance times `scale`, through a tone map that ends in the sRGB curve: one
+    /// bright sample cannot darken the rest of the image, as a maximum-based map
+    /// would.
+    Exposed { scale: Float, tonemap: ToneMap },
 }
 
 /// Full mode's bytes of the channel values `values` into `bytes`: bit for bit
@@ -250,7 +260,7 @@ impl Encoding {
                 }
             }
             Encoding::Full { brightest } => tone_map(v, brightest).powf(1.0 / 2.2),
-            Encoding::Exposed { scale } => (v * scale).clamp(Vec3::ZERO, Vec3::ONE).map(srgb),
+            Encoding::Exposed { scale, tonemap } => tonemap.apply(v * scale),
         }
     }
 }
@@ -363,6 +373,7 @@ mod tests {
             film.to_image(PostProcessing {
                 mode: Mode::Path,
                 exposure: stops,
+                tonemap: ToneMap::Standard,
             })
             .rgb
         };
@@ -373,7 +384,37 @@ mod tests {
             [188, 188, 188, 7, 0, 0, 255, 255, 255, 0, 0, 0]
         );
         assert_eq!(&exposed(0.0)[..3], [137, 137, 137]);
-        assert_eq!(film.to_image(Mode::Path).rgb, exposed(0.0));
+        let standard = PostProcessing {
+            tonemap: ToneMap::Standard,
+            ..PostProcessing::from(Mode::Path)
+        };
+        assert_eq!(film.to_image(standard).rgb, exposed(0.0));
+    }
+
+    /// Full mode keeps SPEC's tone map whatever tone map is asked for; path mode's
+    /// operators each give their own bytes.
+    #[test]
+    fn the_tone_map_is_path_modes_alone() {
+        let film = Film {
+            width: 3,
+            height: 1,
+            pixels: vec![Vec3::splat(0.3), Vec3::new(4.0, 1.0, 0.2), Vec3::splat(0.9)],
+        };
+        let with = |mode, tonemap| {
+            film.to_image(PostProcessing {
+                mode,
+                exposure: 0.0,
+                tonemap,
+            })
+            .rgb
+        };
+        let mut path = Vec::new();
+        for (_, tonemap) in ToneMap::NAMES {
+            assert_eq!(with(Mode::Full, tonemap), film.to_image(Mode::Full).rgb);
+            path.push(with(Mode::Path, tonemap));
+        }
+        path.dedup();
+        assert_eq!(path.len(), ToneMap::NAMES.len());
     }
 
     #[test]

@@ -176,7 +176,9 @@ fn render_region(
             let whitted = WhittedIntegrator {
                 max_depth: options.depth,
             };
-            if options.samples_per_pixel_in_mode() == 1 {
+            // Packets of pixel centres' rays need the pinhole's shared eye.
+            if options.samples_per_pixel_in_mode() == 1 && Camera::for_options(options).is_pinhole()
+            {
                 render_whitted_packets(scene, options, &whitted, tile, row_done, timed)
             } else {
                 untimed(render_with(scene, options, &whitted, tile, row_done))

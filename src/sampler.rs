@@ -15,6 +15,10 @@
 //! other and of the camera position. A path tracer takes, say, two per bounce for the
 //! BSDF, two for the light and one for Russian roulette.
 //!
+//! **Lens positions** ([`PixelSample::lens`]): one uniform point in `[0, 1)^2` per
+//! camera ray for a thin lens, hashed apart from both of the above, so that a lens
+//! changes none of an integrator's dimensions.
+//!
 //! Every value comes from a hash of the pixel index, the sample index and (for the
 //! further dimensions) the dimension's pair, not from a generator with state, as pbrt's
 //! `IndependentSampler` seeds from a hash of the pixel: every pixel is a pure function
@@ -34,6 +38,10 @@ const SEED: u64 = 0x5EED_A11A_5ED0_0001;
 /// Mixed into the hash of the further dimensions, so that they are unrelated to the
 /// camera positions.
 const DIMENSION_SEED: u64 = 0xD1CE_5EED_0F0D_1235;
+
+/// Mixed into the hash of the lens positions ([`PixelSample::lens`]), so that they are
+/// unrelated to the camera positions and the further dimensions.
+const LENS_SEED: u64 = 0x1E25_5EED_D15C_0003;
 
 /// SplitMix64's increment, the golden ratio in 64 bits.
 const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
@@ -208,6 +216,17 @@ impl PixelSample {
         };
         self.dimension += 1;
         unit(bits)
+    }
+
+    /// Where on a thin lens this camera sample's ray starts: a uniform point in
+    /// `[0, 1)^2`, a pure function of the pixel and sample (and seed) like the rest,
+    /// hashed apart from the further dimensions, so it draws none of them: an
+    /// integrator's dimensions are the same with and without a lens, and the lens
+    /// value is independent of them and of the position in the pixel.
+    #[inline]
+    pub fn lens(&self) -> Vec2 {
+        let h = mix64(mix64(self.stream) ^ LENS_SEED);
+        Vec2::new(unit(h >> 40), unit(h >> 8))
     }
 
     /// The next two dimensions: a uniform point in `[0, 1)^2`, exactly the values of

@@ -225,6 +225,13 @@ fn help_states_the_defaults_the_program_uses() {
             both(full.samples_per_pixel, path.samples_per_pixel),
         ),
         ("--exposure", full.exposure.to_string()),
+        ("--tonemap", path.tonemap.name().to_string()),
+        ("--aperture-radius", full.aperture_radius.to_string()),
+        // None: the distance to the target (tests/look.rs checks the lens).
+        (
+            "--focus-distance",
+            "the distance from --look-from to --look-to".to_string(),
+        ),
         ("--seed", full.seed.to_string()),
         ("--threads", "0".to_string()),
         // The environment is the scene's unless a flag sets it: strength 1 and no

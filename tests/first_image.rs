@@ -120,7 +120,7 @@ fn a_flat_scene_is_framed_face_on() {
 }
 
 #[test]
-fn a_camera_from_flags_or_file_is_not_framed() {
+fn a_camera_from_flags_or_file_is_not_framed_and_a_lone_position_aims_at_the_centre() {
     let bounds = Aabb {
         min: Vec3::splat(5.0),
         max: Vec3::splat(6.0),
@@ -131,7 +131,15 @@ fn a_camera_from_flags_or_file_is_not_framed() {
     };
     let options = flags.framed(bounds).resolve().unwrap();
     assert_eq!(options.look_from, Vec3::ONE);
-    assert_eq!(options.look_to, RenderOptions::default().look_to);
+    // A lone position looks at the scene's centre.
+    assert_eq!(options.look_to, Vec3::splat(5.5));
+    let target = PartialOptions {
+        look_to: Some(Sourced::new(Vec3::ONE, Origin::Flag("--look-to"))),
+        ..PartialOptions::default()
+    };
+    let options = target.framed(bounds).resolve().unwrap();
+    assert_eq!(options.look_to, Vec3::ONE);
+    assert_eq!(options.look_from, RenderOptions::default().look_from);
     // An empty scene keeps the defaults.
     let options = PartialOptions::default()
         .framed(Aabb::EMPTY)

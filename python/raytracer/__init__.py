@@ -29,7 +29,7 @@ The package is a thin layer over the Rust library (the ``raytracer`` command's):
 
 Every render call takes the keyword options named in :data:`OPTIONS` (``width``,
 ``height``, ``fov``, ``look_from``, ``look_to``, ``up``, ``mode``, ``depth``, ``spp``,
-``exposure``, ``seed``). They behave as the command line's flags: each one given
+``exposure``, ``seed``, ``tonemap``, ``aperture_radius``, ``focus_distance``). They behave as the command line's flags: each one given
 replaces the TOML scene file's value, each one left out (``None``) keeps it, and the
 defaults apply last.
 Errors are exceptions with the command line's messages: ``ValueError`` for bad options,

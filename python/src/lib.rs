@@ -29,7 +29,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use raytracer::formats::{self, ParseErrorKind, SceneFormat};
 use raytracer::math::{Float, Vec3};
-use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced};
+use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced, ToneMap};
 use raytracer::output::{self, UnknownFormatError, WriteError};
 use raytracer::postprocess::PostProcessing;
 use raytracer::{BvhParams, Film, Image, ImageFormat, Mode, RenderOptions, Scene, Tile, TileError};
@@ -82,7 +82,7 @@ impl From<OptionsError> for Error {
 
 /// The names of the render options every render call takes as keyword arguments, in
 /// the order the documentation lists them (exported as ``raytracer.OPTIONS``).
-const OPTION_NAMES: [&str; 11] = [
+const OPTION_NAMES: [&str; 14] = [
     "width",
     "height",
     "fov",
@@ -94,6 +94,9 @@ const OPTION_NAMES: [&str; 11] = [
     "spp",
     "exposure",
     "seed",
+    "tonemap",
+    "aperture_radius",
+    "focus_distance",
 ];
 
 /// The render options of one Python call, as given: `None` for each one left out.
@@ -112,6 +115,9 @@ struct Given<'py> {
     spp: Option<Bound<'py, PyAny>>,
     exposure: Option<Bound<'py, PyAny>>,
     seed: Option<Bound<'py, PyAny>>,
+    tonemap: Option<Bound<'py, PyAny>>,
+    aperture_radius: Option<Bound<'py, PyAny>>,
+    focus_distance: Option<Bound<'py, PyAny>>,
 }
 
 impl<'py> Given<'py> {
@@ -134,6 +140,9 @@ impl<'py> Given<'py> {
                 "spp" => &mut given.spp,
                 "exposure" => &mut given.exposure,
                 "seed" => &mut given.seed,
+                "tonemap" => &mut given.tonemap,
+                "aperture_radius" => &mut given.aperture_radius,
+                "focus_distance" => &mut given.focus_distance,
                 _ => {
                     return Err(PyTypeError::new_err(format!(
                         "{function}() got an unexpected keyword argument '{name}'"
@@ -177,6 +186,11 @@ impl Given<'_> {
             samples_per_pixel: flag(self.spp.as_ref(), "--spp", whole_number)?,
             exposure: flag(self.exposure.as_ref(), "--exposure", number)?,
             seed: flag(self.seed.as_ref(), "--seed", whole_number)?,
+            tonemap: flag(self.tonemap.as_ref(), "--tonemap", |v, _| {
+                parse_tonemap(&v.extract::<String>()?)
+            })?,
+            aperture_radius: flag(self.aperture_radius.as_ref(), "--aperture-radius", number)?,
+            focus_distance: flag(self.focus_distance.as_ref(), "--focus-distance", number)?,
             ..PartialOptions::default()
         })
     }
@@ -241,6 +255,12 @@ fn parse_mode(name: &str) -> PyResult<Mode> {
     }
 }
 
+/// The tone map called `name` (as `--tonemap` spells it, in any letter case).
+fn parse_tonemap(name: &str) -> PyResult<ToneMap> {
+    name.parse()
+        .map_err(|message| PyValueError::new_err(format!("invalid --tonemap: {message}")))
+}
+
 /// `text` as a TOML basic string, quoted and escaped.
 fn toml_string(text: &str) -> String {
     let mut quoted = String::with_capacity(text.len() + 2);
@@ -257,16 +277,22 @@ fn toml_string(text: &str) -> String {
     quoted
 }
 
-/// The post-processing of `mode` with `exposure` (stops, path mode only), checked as
-/// the command line checks `--exposure`.
-fn post_processing(mode: &str, exposure: Float) -> PyResult<PostProcessing> {
+/// The post-processing of `mode` with `exposure` (stops) and `tonemap` (its name;
+/// `None` for the default), both for path mode only, checked as the command line
+/// checks `--exposure` and `--tonemap`.
+fn post_processing(mode: &str, exposure: Float, tonemap: Option<&str>) -> PyResult<PostProcessing> {
     let mode = parse_mode(mode)?;
     let options = RenderOptions {
         exposure,
         ..RenderOptions::default()
     };
     options.validate().map_err(Error::Options)?;
-    Ok(PostProcessing { mode, exposure })
+    let tonemap = tonemap.map(parse_tonemap).transpose()?.unwrap_or_default();
+    Ok(PostProcessing {
+        mode,
+        exposure,
+        tonemap,
+    })
 }
 
 /// The name of `mode` as the command line and scene files spell it: `full`.
@@ -557,7 +583,9 @@ impl PyScene {
     /// else the scene file's value, else the default. A dict with the keys ``width``,
     /// ``height``, ``fov``, ``look_from``, ``look_to``, ``up`` (tuples), ``mode`` (its
     /// name), ``depth``, ``spp``, ``spp_in_mode`` (the samples per pixel the mode
-    /// takes: 1 in depth and normal modes), ``exposure`` and ``seed``. Raises
+    /// takes: 1 in depth and normal modes), ``exposure``, ``seed``, ``tonemap`` (its
+    /// name), ``aperture_radius`` and ``focus_distance`` (the distance in use: the
+    /// distance from ``look_from`` to ``look_to`` unless given). Raises
     /// ``ValueError`` as a render would.
     #[pyo3(signature = (**options))]
     fn options<'py>(
@@ -581,6 +609,12 @@ impl PyScene {
         dict.set_item("spp_in_mode", options.samples_per_pixel_in_mode())?;
         dict.set_item("exposure", options.exposure)?;
         dict.set_item("seed", options.seed)?;
+        dict.set_item("tonemap", options.tonemap.name())?;
+        dict.set_item("aperture_radius", options.aperture_radius)?;
+        let focus = options
+            .focus_distance
+            .unwrap_or_else(|| options.look_from.distance(options.look_to));
+        dict.set_item("focus_distance", focus)?;
         Ok(dict)
     }
 
@@ -708,13 +742,18 @@ impl PyScene {
 /// flags: ``width``, ``height`` (pixels), ``fov`` (vertical, degrees), ``look_from``,
 /// ``look_to``, ``up`` (three numbers each), ``mode`` (``"full"``, ``"depth"``,
 /// ``"normal"``, ``"path"``), ``depth`` (recursion depth), ``spp`` (samples per
-/// pixel), ``exposure`` (path mode's, in stops: used by post-processing only) and
-/// ``seed`` (of the random numbers). Each one left out (``None``) takes the TOML scene
-/// file's value (or a glTF file's camera), else the default: 640x480, fov 90, a
-/// camera that frames the scene (looking along -z at the centre of its bounds, from
-/// as close as lets them fit the view) when neither ``look_from`` nor ``look_to`` is
-/// set, otherwise from (0, 0, 0) to (0, 0, -1); up (0, 1, 0), full mode, depth 4 and 1 sample per pixel (64 and 64 in path mode),
-/// exposure 0, seed 0; a width or height alone keeps the aspect ratio.
+/// pixel), ``exposure`` (path mode's, in stops: used by post-processing only),
+/// ``seed`` (of the random numbers), ``tonemap`` (path mode's: ``"standard"``,
+/// ``"khronos-neutral"``, ``"agx"``, ``"aces"``; used by post-processing only),
+/// ``aperture_radius`` and ``focus_distance`` (the thin lens, scene units). Each one
+/// left out (``None``) takes the TOML scene file's value (or a glTF file's camera),
+/// else the default: 640x480, fov 90, a camera that frames the scene (looking along
+/// -z at the centre of its bounds, from as close as lets them fit the view) when
+/// neither ``look_from`` nor ``look_to`` is set, ``look_from`` alone looking at that
+/// centre, otherwise from (0, 0, 0); up (0, 1, 0), full mode, depth 4 and 1 sample per
+/// pixel (64 and 64 in path mode), exposure 0, seed 0, tone map khronos-neutral, a
+/// pinhole (aperture radius 0; the focus at ``look_to``); a width or height alone
+/// keeps the aspect ratio.
 /// ``tile=(x, y, w, h)`` returns only those pixels, shape ``(h, w, 3)``, bit-identical
 /// to the same pixels of the whole image.
 ///
@@ -743,7 +782,7 @@ fn render<'py>(
             SceneFormat::require(&path)?,
             SceneFormat::Toml | SceneFormat::Gltf
         ) {
-            flags.resolve()?;
+            flags.check_before_loading()?;
         }
         let loaded = Loaded::read(&path, &formats::FileAccess::anywhere())?;
         let options = loaded.resolve(flags)?;
@@ -757,20 +796,23 @@ fn render<'py>(
 /// before writing a PNG: full mode tone maps by the image-wide brightest channel, then
 /// applies gamma 2.2; depth mode divides by the farthest distance (misses white);
 /// normal mode maps ``n`` to ``n / 2 + 1/2`` (misses black); path mode multiplies by
-/// ``2 ** exposure`` and applies the sRGB curve. Returns a ``uint8`` array of shape
+/// ``2 ** exposure`` and applies the tone map ``tonemap`` (``None``: the default,
+/// ``"khronos-neutral"``; ``"standard"`` clamps and applies the sRGB curve; also
+/// ``"agx"`` and ``"aces"``; other modes ignore it). Returns a ``uint8`` array of shape
 /// ``(height, width, 3)``.
 ///
 /// ``linear`` is an array of shape ``(height, width, 3)``, converted to ``float32``.
 /// The maxima are image-wide: merge tiles in linear space first, then post-process.
 #[pyfunction]
-#[pyo3(signature = (linear, mode="full", exposure=0.0))]
+#[pyo3(signature = (linear, mode="full", exposure=0.0, tonemap=None))]
 fn postprocess<'py>(
     py: Python<'py>,
     linear: PyArrayLike3<'py, f32, AllowTypeChange>,
     mode: &str,
     exposure: Float,
+    tonemap: Option<&str>,
 ) -> PyResult<Bound<'py, PyArray3<u8>>> {
-    let post = post_processing(mode, exposure)?;
+    let post = post_processing(mode, exposure, tonemap)?;
     let film = array_film(linear.as_array())?;
     let image = py.detach(move || film.to_image(post));
     Ok(
@@ -781,7 +823,7 @@ fn postprocess<'py>(
 }
 
 /// Writes a linear image as ``raytracer render`` does: ``.png`` post-processed for
-/// ``mode`` and ``exposure`` (as :func:`postprocess`), ``.exr`` the linear values as 32-bit floats
+/// ``mode``, ``exposure`` and ``tonemap`` (as :func:`postprocess`), ``.exr`` the linear values as 32-bit floats
 /// (depth mode: the single channel ``Z``). The extension, in any letter case, picks
 /// the format; any other is a ``ValueError``.
 ///
@@ -789,15 +831,16 @@ fn postprocess<'py>(
 /// ``path`` once complete, so ``path`` holds either the previous file or the whole new
 /// image. Raises ``OSError`` when the file cannot be written.
 #[pyfunction]
-#[pyo3(signature = (linear, path, mode="full", exposure=0.0))]
+#[pyo3(signature = (linear, path, mode="full", exposure=0.0, tonemap=None))]
 fn write_image(
     py: Python<'_>,
     linear: PyArrayLike3<'_, f32, AllowTypeChange>,
     path: PathBuf,
     mode: &str,
     exposure: Float,
+    tonemap: Option<&str>,
 ) -> PyResult<()> {
-    let post = post_processing(mode, exposure)?;
+    let post = post_processing(mode, exposure, tonemap)?;
     let format = ImageFormat::from_path(&path).map_err(Error::Format)?;
     let film = array_film(linear.as_array())?;
     py.detach(move || film.write(post, format, &path))

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand, ValueEnum};
 use raytracer::Mode;
 use raytracer::math::{Float, Vec3};
-use raytracer::options::{Origin, PartialOptions, Sourced};
+use raytracer::options::{Origin, PartialOptions, Sourced, ToneMap};
 
 use super::values::{
     BACKGROUND, LOOK_FROM, LOOK_TO, UP, number, thread_count, vector, whole_number,
@@ -121,13 +121,14 @@ pub struct ViewArgs {
     /// When neither --look-from nor --look-to is given (here or in a scene file), the
     /// camera frames the scene: it looks along -z (-x or -y at a scene flat in x or y)
     /// at the centre of the scene's bounds, from as close as lets the bounding sphere
-    /// fit the view. An empty scene, or --look-to alone, keeps 0,0,0.
+    /// fit the view. Given alone, it looks at that centre. An empty scene, or --look-to
+    /// alone, keeps 0,0,0.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_FROM))]
     pub look_from: Option<Vec3>,
     /// Point the camera looks at [default: framed].
     ///
     /// The centre of the scene's bounds when the camera frames the scene (see
-    /// --look-from); 0,0,-1 when only --look-from is given or the scene is empty.
+    /// --look-from) or only --look-from is given; 0,0,-1 when the scene is empty.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_TO))]
     pub look_to: Option<Vec3>,
     /// World up direction of the camera [default: 0,1,0].
@@ -152,6 +153,27 @@ pub struct ViewArgs {
     /// the sRGB curve (-64..=64) [default: 0].
     #[arg(long, value_name = "STOPS", allow_hyphen_values = true, value_parser = number)]
     pub exposure: Option<Float>,
+    /// Path mode's tone map of PNG output, after the exposure [default: khronos-neutral].
+    ///
+    /// standard clamps at 1 (earlier versions' look), khronos-neutral keeps base colours
+    /// and rolls highlights off to white, agx and aces are the filmic curves of Blender
+    /// and three.js. Full mode keeps SPEC's tone map and ignores this; EXR output stays
+    /// linear.
+    #[arg(long, value_enum, value_name = "OPERATOR")]
+    pub tonemap: Option<ToneMapArg>,
+    /// Radius of the camera's thin lens in scene units, 0 or more [default: 0].
+    ///
+    /// Points nearer or farther than --focus-distance blur into discs; 0 is a pinhole,
+    /// everything sharp. Full and path modes only (depth and normal modes and
+    /// orthographic cameras keep a pinhole); take more --spp to smooth the blur.
+    #[arg(long, value_name = "R", allow_hyphen_values = true, value_parser = number)]
+    pub aperture_radius: Option<Float>,
+    /// Distance in scene units from the lens to the plane in focus, along the view
+    /// direction, greater than 0 [default: the distance from --look-from to --look-to].
+    ///
+    /// Used with --aperture-radius.
+    #[arg(long, value_name = "D", allow_hyphen_values = true, value_parser = number)]
+    pub focus_distance: Option<Float>,
     /// Seed of the random numbers (0..=4294967295): another seed, another equally
     /// valid image; the same seed, the same image on any number of threads [default: 0].
     #[arg(long, value_name = "N", allow_hyphen_values = true, value_parser = whole_number)]
@@ -205,6 +227,29 @@ pub enum ModeArg {
     Path,
 }
 
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ToneMapArg {
+    /// Exposure, clamp at 1, sRGB curve.
+    Standard,
+    /// Khronos PBR Neutral: true base colours, highlights compressed towards white.
+    KhronosNeutral,
+    /// AgX (Blender, three.js): filmic, desaturates bright colours.
+    Agx,
+    /// ACES filmic (Stephen Hill's fit, as three.js).
+    Aces,
+}
+
+impl From<ToneMapArg> for ToneMap {
+    fn from(t: ToneMapArg) -> ToneMap {
+        match t {
+            ToneMapArg::Standard => ToneMap::Standard,
+            ToneMapArg::KhronosNeutral => ToneMap::KhronosNeutral,
+            ToneMapArg::Agx => ToneMap::Agx,
+            ToneMapArg::Aces => ToneMap::Aces,
+        }
+    }
+}
+
 impl From<ModeArg> for Mode {
     fn from(m: ModeArg) -> Mode {
         match m {
@@ -238,6 +283,10 @@ impl ViewArgs {
             default_light: self
                 .no_default_light
                 .then(|| Sourced::new(false, Origin::Flag("--no-default-light"))),
+            tonemap: flag(self.tonemap.map(ToneMap::from), "--tonemap"),
+            aperture_radius: flag(self.aperture_radius, "--aperture-radius"),
+            focus_distance: flag(self.focus_distance, "--focus-distance"),
+            projection: None,
         }
     }
 }

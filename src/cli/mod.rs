@@ -71,7 +71,7 @@ fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOption
         SceneFormat::require(&view.scene)?,
         SceneFormat::Toml | SceneFormat::Gltf
     ) {
-        flags.resolve()?;
+        flags.check_before_loading()?;
     }
     let mut loaded = formats::load(&view.scene)?;
     environment_flags(view, &mut loaded.description)?;

@@ -92,8 +92,9 @@ pub fn resolve_options(
     bounds: impl FnOnce() -> crate::math::Aabb,
 ) -> Result<RenderOptions, OptionsError> {
     let mut options = flags.or(file);
-    // The bounds cost a pass over the triangles: only when they are needed.
-    if options.look_from.is_none() && options.look_to.is_none() {
+    // The bounds cost a pass over the triangles: only when they are needed (no
+    // target: a lone position looks at the scene's centre).
+    if options.look_to.is_none() {
         options = options.framed(bounds());
     }
     options.resolve()

@@ -27,7 +27,7 @@ use super::{
 use crate::material::pbr::PbrMaterial;
 use crate::material::{Material, MaterialId, PointLight};
 use crate::math::{Float, Vec3};
-use crate::options::{Mode, Origin, PartialOptions, Sourced};
+use crate::options::{Mode, Origin, PartialOptions, Sourced, ToneMap};
 
 /// Reads a TOML scene file and the meshes it names (relative to its folder).
 ///
@@ -185,6 +185,8 @@ struct CameraTable {
     fov: Option<Spanned<Float>>,
     width: Option<Spanned<i64>>,
     height: Option<Spanned<i64>>,
+    aperture_radius: Option<Spanned<Float>>,
+    focus_distance: Option<Spanned<Float>>,
 }
 
 #[derive(Deserialize, Default)]
@@ -196,6 +198,27 @@ struct RenderTable {
     exposure: Option<Spanned<Float>>,
     seed: Option<Spanned<i64>>,
     default_light: Option<Spanned<bool>>,
+    tonemap: Option<Spanned<ToneMapName>>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum ToneMapName {
+    Standard,
+    KhronosNeutral,
+    Agx,
+    Aces,
+}
+
+impl From<ToneMapName> for ToneMap {
+    fn from(t: ToneMapName) -> ToneMap {
+        match t {
+            ToneMapName::Standard => ToneMap::Standard,
+            ToneMapName::KhronosNeutral => ToneMap::KhronosNeutral,
+            ToneMapName::Agx => ToneMap::Agx,
+            ToneMapName::Aces => ToneMap::Aces,
+        }
+    }
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -507,6 +530,10 @@ impl Builder<'_> {
             exposure: self.sourced(&render.exposure, "render.exposure"),
             seed: self.sourced(&render.seed, "render.seed"),
             default_light: self.sourced(&render.default_light, "render.default_light"),
+            tonemap: self.sourced(&render.tonemap, "render.tonemap"),
+            aperture_radius: self.sourced(&camera.aperture_radius, "camera.aperture_radius"),
+            focus_distance: self.sourced(&camera.focus_distance, "camera.focus_distance"),
+            projection: None,
         }
     }
 
@@ -992,7 +1019,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[camera]\nzoom = 2\n",
-                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`",
+                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`, `aperture_radius`, `focus_distance`",
             ),
             (
                 "title = \"x\"\n",

@@ -55,7 +55,8 @@ pub trait Integrator: Sync {
     ) -> Vec3 {
         sampler.average(column, row, width, |x: Float, y: Float, sample| {
             rays.primary += 1;
-            self.radiance(scene, &camera.ray(x, y), sample, rays)
+            let ray = camera.sample_ray(x, y, sample);
+            self.radiance(scene, &ray, sample, rays)
         })
     }
 }

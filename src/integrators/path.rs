@@ -476,8 +476,9 @@ impl Integrator for PathIntegrator {
             let mut paths: [PathState; BATCH] = std::array::from_fn(|i| {
                 let sample = first + (i as u32).min(size as u32 - 1);
                 let offset = sampler.offset(pixel_index, sample);
-                let ray = camera.ray(x0 + offset.x, y0 + offset.y);
-                PathState::new(ray, sampler.sample(pixel_index, sample))
+                let values = sampler.sample(pixel_index, sample);
+                let ray = camera.sample_ray(x0 + offset.x, y0 + offset.y, &values);
+                PathState::new(ray, values)
             });
             rays.primary += size as u64;
             self.trace_batch(scene, &mut paths, size, rays);

@@ -131,7 +131,7 @@ def test_a_valid_argument_replaces_a_bad_value_of_the_file(tmp_path, run_cli):
         (dict(fov=float("nan")), ["--fov", "NaN"]),
         (dict(depth=65), ["--depth", "65"]),
         (dict(spp=0), ["--spp", "0"]),
-        (dict(look_from=(0, 0, -1)), ["--look-from", "0,0,-1"]),
+        (dict(look_to=(0, 0, 0)), ["--look-to", "0,0,0"]),
         (dict(look_from=(1, 2, 3), look_to=(1, 2, 3)), ["--look-from", "1,2,3", "--look-to", "1,2,3"]),
         (dict(up=(0, 0, 0)), ["--up", "0,0,0"]),
         (dict(mode="path", depth=2000), ["--mode", "path", "--depth", "2000"]),
@@ -353,3 +353,27 @@ def test_a_scene_confined_to_a_folder_opens_nothing_outside_it(tmp_path):
     assert any(f"{folder / 'm.mtl'}:3: cannot read texture" in w and "outside the scene's folder" in w for w in warnings)
     with pytest.raises(raytracer.SceneError, match="missing"):
         raytracer.Scene(obj, confined_to=tmp_path / "missing")
+
+
+def test_tonemap_and_lens_keywords_are_the_command_lines(tmp_path, run_cli):
+    size = {"width": 20, "height": 15, "mode": "path", "spp": 2}
+    lens = {"aperture_radius": 0.05, "focus_distance": 1.5}
+    linear = raytracer.render(CORNELL_OBJ, **size, **lens, **CAMERA)
+    flags = ["--width", 20, "--height", 15, "--mode", "path", "--spp", 2, *CAMERA_FLAGS]
+    flags += ["--aperture-radius", 0.05, "--focus-distance", 1.5, "--tonemap", "agx"]
+    out = tmp_path / "cli.png"
+    result = run_cli("render", CORNELL_OBJ, "-o", out, "-q", *flags)
+    assert result.returncode == 0, result.stderr
+    mine = tmp_path / "python.png"
+    raytracer.write_image(linear, mine, "path", 0.0, "agx")
+    assert mine.read_bytes() == out.read_bytes()
+    # The default tone map is khronos-neutral; tone maps differ.
+    default = raytracer.postprocess(linear, "path")
+    assert np.array_equal(default, raytracer.postprocess(linear, "path", 0.0, "khronos-neutral"))
+    assert not np.array_equal(default, raytracer.postprocess(linear, "path", 0.0, "agx"))
+    with pytest.raises(ValueError, match="invalid --tonemap"):
+        raytracer.postprocess(linear, "path", 0.0, "filmic")
+    with pytest.raises(ValueError, match="invalid --aperture-radius"):
+        raytracer.render(CORNELL_OBJ, aperture_radius=-1, **CAMERA)
+    info = raytracer.Scene(CORNELL_OBJ).options(tonemap="ACES", aperture_radius=0.25, **CAMERA)
+    assert (info["tonemap"], info["aperture_radius"], info["focus_distance"]) == ("aces", 0.25, 1.75)

@@ -77,7 +77,8 @@ def render(
     The result is the same array as ``raytracer.render(scene, **options)``: ``float32``,
     shape ``(height, width, 3)``, bit-identical. ``options`` are those of
     :func:`raytracer.render` (``width``, ``height``, ``fov``, ``look_from``,
-    ``look_to``, ``up``, ``mode``, ``depth``, ``spp``, ``exposure``, ``seed``);
+    ``look_to``, ``up``, ``mode``, ``depth``, ``spp``, ``exposure``, ``seed``,
+    ``tonemap``, ``aperture_radius``, ``focus_distance``);
     ``None`` or left out keeps the TOML scene file's value, else the default.
 
     ``client`` is a synchronous ``dask.distributed.Client``. ``tile_size`` is the side

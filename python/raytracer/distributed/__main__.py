@@ -89,6 +89,18 @@ def parser() -> argparse.ArgumentParser:
     view.add_argument("--spp", type=int, metavar="N", help="samples per pixel [default: 1; 64 in path mode]")
     view.add_argument("--exposure", type=float, metavar="STOPS", help="path mode's exposure for PNG [default: 0]")
     view.add_argument("--seed", type=int, metavar="N", help="seed of the random numbers [default: 0]")
+    view.add_argument(
+        "--tonemap", metavar="OPERATOR",
+        help="path mode's tone map for PNG: standard, khronos-neutral, agx or aces [default: khronos-neutral]",
+    )
+    view.add_argument(
+        "--aperture-radius", type=float, metavar="R",
+        help="radius of the camera's thin lens in scene units; 0 is a pinhole [default: 0]",
+    )
+    view.add_argument(
+        "--focus-distance", type=float, metavar="D",
+        help="distance to the plane in focus [default: the distance from --look-from to --look-to]",
+    )
     return p
 
 
@@ -164,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
             )
         for warning in info["warnings"]:
             print(f"warning: {warning}", file=sys.stderr)
-    raytracer.write_image(linear, args.output, info["mode"], info["exposure"])
+    raytracer.write_image(linear, args.output, info["mode"], info["exposure"], info["tonemap"])
     return 0
 
 

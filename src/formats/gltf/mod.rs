@@ -27,7 +27,7 @@ use super::material_check::MaterialProblems;
 use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
 use crate::material::{Material, MaterialId, MaterialMaps, PointLight};
 use crate::math::{Float, Vec2, Vec3};
-use crate::options::{Origin, PartialOptions, RenderOptions, Sourced};
+use crate::options::{Origin, PartialOptions, Projection, RenderOptions, Sourced};
 use crate::textures::{Texture, TextureMap, TextureOptions, Wrap};
 
 /// Reads a glTF file (`.gltf` or `.glb`) and the buffers and images it names,
@@ -862,16 +862,6 @@ impl Reader<'_> {
         if self.camera_found {
             return;
         }
-        let gltf::camera::Projection::Perspective(perspective) = camera.projection() else {
-            self.warn_once(
-                "orthographic",
-                format!(
-                    "camera {}: orthographic cameras are not supported; ignored",
-                    camera.index()
-                ),
-            );
-            return;
-        };
         self.camera_found = true;
         let origin = |key| Origin::File {
             path: self.path.to_path_buf(),
@@ -886,11 +876,26 @@ impl Reader<'_> {
         options.look_from = Some(Sourced::new(eye, origin("camera node")));
         options.look_to = Some(Sourced::new(eye + forward, origin("camera node")));
         options.up = Some(Sourced::new(up, origin("camera node")));
-        options.fov_degrees = Some(Sourced::new(
-            perspective.yfov().to_degrees(),
-            origin("camera.yfov"),
-        ));
-        if let Some(aspect) = perspective.aspect_ratio()
+        let aspect = match camera.projection() {
+            gltf::camera::Projection::Perspective(perspective) => {
+                options.fov_degrees = Some(Sourced::new(
+                    perspective.yfov().to_degrees(),
+                    origin("camera.yfov"),
+                ));
+                perspective.aspect_ratio()
+            }
+            // `xmag` and `ymag` are half the view's width and height in the camera's
+            // units; the node's scale along y, if any, scales them to the scene's.
+            gltf::camera::Projection::Orthographic(ortho) => {
+                let half_height = ortho.ymag() * up.length();
+                options.projection = Some(Sourced::new(
+                    Projection::Orthographic { half_height },
+                    origin("camera.ymag"),
+                ));
+                Some(ortho.xmag() / ortho.ymag())
+            }
+        };
+        if let Some(aspect) = aspect
             && aspect.is_finite()
             && aspect > 0.0
         {

@@ -109,10 +109,15 @@ pub struct LightSample {
     pub direction: Vec3,
     /// Distance from the shading point to `point`.
     pub distance: Float,
-    /// Radiance leaving `point` towards the shading point.
+    /// Radiance leaving `point` towards the shading point (for a point light, the
+    /// irradiance it gives: `I / d^2`).
     pub radiance: Vec3,
-    /// Density of `direction` in solid angle.
+    /// Density of `direction` in solid angle (for a point light, the probability of
+    /// choosing it).
     pub pdf: Float,
+    /// Whether the light is a point, which no scattered ray can hit: its sample is
+    /// not weighed against scattering.
+    pub delta: bool,
 }
 
 /// The scene's emitting primitives and the table that picks one by power.
@@ -282,6 +287,7 @@ impl AreaLights {
             distance,
             radiance,
             pdf,
+            delta: false,
         })
     }
 

@@ -61,9 +61,12 @@ pub struct PathIntegrator {
     /// What rays that leave the scene see: the scene's environment, or white when the
     /// scene has no light.
     environment: Option<Environment>,
-    /// The probability that light sampling picks the environment rather than an
-    /// area light.
+    /// The probabilities that light sampling picks the environment, and an area
+    /// light; the point lights share the rest.
     environment_probability: Float,
+    area_probability: Float,
+    /// Where each point light's share of the rest ends, in [0, 1], by power.
+    point_cdf: Vec<Float>,
     /// What camera rays that leave the scene see, if not the environment.
     background: Option<Vec3>,
 }
@@ -91,6 +94,8 @@ impl PathIntegrator {
             scattering,
             max_depth,
             environment_probability: 0.0,
+            area_probability: 0.0,
+            point_cdf: Vec::new(),
             environment,
             background,
         }
@@ -121,28 +126,54 @@ impl PathIntegrator {
         }
     }
 
-    /// Sets the chance of sampling the environment rather than an area light (0 for a
-    /// uniform environment), by their power: an area light's is `pi` times its area times its radiance, the
-    /// environment's `pi r^2` times its irradiance-weighted mean radiance `4 pi L`.
+    /// Sets the chances of light sampling picking the environment (0 for a uniform
+    /// one, which scattering finds as well), an area light or a point light, in
+    /// proportion to their power, as pbrt's power light sampler: an area light's is
+    /// `pi` times its area times its radiance, the environment's `pi r^2` times its
+    /// mean radiance times `4 pi` (`r` the scene's radius), a point light's `4 pi I`.
     fn weighed(mut self, scene: &Scene) -> PathIntegrator {
-        self.environment_probability = match &self.environment {
-            // A uniform environment is left to scattering, which finds it as well as
-            // light sampling could (exactly, behind a Lambertian surface).
-            None => 0.0,
-            Some(environment) if environment.is_constant() => 0.0,
-            Some(_) if scene.area_lights.is_empty() => 1.0,
-            Some(environment) => {
+        let environment_power = match &self.environment {
+            Some(environment) if !environment.is_constant() => {
                 let r = scene.radius;
-                let environment_power = PI * r * r * 4.0 * PI * environment.mean_radiance();
-                let area_power = PI * scene.area_lights.total_power();
-                let total = environment_power + area_power;
-                if total > 0.0 && total.is_finite() {
-                    environment_power / total
-                } else {
-                    0.5
-                }
+                (PI * r * r * 4.0 * PI * environment.mean_radiance()).max(Float::MIN_POSITIVE)
             }
+            _ => 0.0,
         };
+        let area_power = PI * scene.area_lights.total_power();
+        let point_powers: Vec<Float> = (scene.lights.iter())
+            .map(|l| 4.0 * PI * mean(l.intensity.max(Vec3::ZERO)))
+            .collect();
+        let point_power: Float = point_powers.iter().sum();
+        let total = environment_power + area_power + point_power;
+        if total > 0.0 && total.is_finite() {
+            self.environment_probability = environment_power / total;
+            self.area_probability = area_power / total;
+        } else {
+            // Powers of absurd size: an equal chance for each kind present.
+            let kinds = [
+                environment_power > 0.0,
+                !scene.area_lights.is_empty(),
+                !scene.lights.is_empty(),
+            ];
+            let count = kinds.iter().filter(|&&k| k).count().max(1) as Float;
+            self.environment_probability = Float::from(u8::from(kinds[0])) / count;
+            self.area_probability = Float::from(u8::from(kinds[1])) / count;
+        }
+        let mut running = 0.0;
+        self.point_cdf = point_powers
+            .iter()
+            .map(|&p| {
+                running += if point_power > 0.0 && point_power.is_finite() {
+                    p / point_power
+                } else {
+                    1.0 / point_powers.len() as Float
+                };
+                running
+            })
+            .collect();
+        if let Some(last) = self.point_cdf.last_mut() {
+            *last = 1.0;
+        }
         self
     }
 }
@@ -241,7 +272,7 @@ impl PathIntegrator {
                 1.0
             } else {
                 let cos_light = hit.n.dot(-ray.dir);
-                let light_pdf = (1.0 - self.environment_probability)
+                let light_pdf = self.area_probability
                     * scene
                         .area_lights
                         .pdf(hit.material, path.previous_point, hit.p, cos_light);
@@ -280,31 +311,19 @@ impl PathIntegrator {
                     let distance =
                         light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
                     rays.shadow += 1;
-                    let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n, hit.front);
-                    let weight = power_heuristic(light.pdf, bsdf_pdf);
+                    let weight = if light.delta {
+                        1.0
+                    } else {
+                        let bsdf_pdf =
+                            scattering.pdf(wo, light.direction, hit.ns, hit.n, hit.front);
+                        power_heuristic(light.pdf, bsdf_pdf)
+                    };
                     path.unoccluded = path.throughput
                         * f
                         * light.radiance
                         * (light.direction.dot(hit.ns).abs() * weight / light.pdf);
                     // The light's own surface must not block the ray to it.
                     shadow = Some((shadow_ray, distance * (1.0 - 1e-3)));
-                }
-            }
-            for light in &scene.lights {
-                let to_light = light.position - hit.p;
-                let distance_squared = to_light.length_squared();
-                let direction = to_light / distance_squared.sqrt();
-                let f = scattering.eval(wo, direction, hit.ns, hit.n, hit.front);
-                if f == Vec3::ZERO || !distance_squared.is_normal() {
-                    continue;
-                }
-                let (shadow_ray, distance) = hit.spawn_ray_to(light.position);
-                rays.shadow += 1;
-                if !scene.occluded(&shadow_ray, distance) {
-                    path.radiance += path.throughput
-                        * f
-                        * light.intensity
-                        * (direction.dot(hit.ns).abs() / distance_squared);
                 }
             }
         }
@@ -350,9 +369,9 @@ impl PathIntegrator {
         Step { shadow, alive }
     }
 
-    /// A point on a light seen from `from`: on the environment with probability
-    /// `environment_probability` (`u_pick` below it), else on an area light, its
-    /// density including the choice.
+    /// A point on a light seen from `from`, the light chosen by power: the
+    /// environment (`u_pick` below its probability), an area light, or a point
+    /// light; its density includes the choice.
     #[inline(always)]
     fn sample_light(
         &self,
@@ -361,22 +380,54 @@ impl PathIntegrator {
         u_pick: Float,
         u: Vec2,
     ) -> Option<LightSample> {
-        let p = self.environment_probability;
-        if u_pick < p {
+        let (p_environment, p_area) = (self.environment_probability, self.area_probability);
+        if u_pick < p_environment {
             let (direction, radiance, pdf) = self.environment.as_ref()?.sample(u)?;
             return Some(LightSample {
                 point: from + direction,
                 direction,
                 distance: Float::INFINITY,
                 radiance,
-                pdf: pdf * p,
+                pdf: pdf * p_environment,
+                delta: false,
             });
         }
-        let mut light = scene
-            .area_lights
-            .sample(from, (u_pick - p) / (1.0 - p), u)?;
-        light.pdf *= 1.0 - p;
-        Some(light)
+        let u_pick = u_pick - p_environment;
+        if u_pick < p_area {
+            let mut light = scene.area_lights.sample(from, u_pick / p_area, u)?;
+            light.pdf *= p_area;
+            return Some(light);
+        }
+        if self.point_cdf.is_empty() {
+            return None;
+        }
+        let p_points = 1.0 - p_environment - p_area;
+        let u_point = ((u_pick - p_area) / p_points).clamp(0.0, 1.0);
+        let index = self
+            .point_cdf
+            .partition_point(|&c| c <= u_point)
+            .min(self.point_cdf.len() - 1);
+        let below = if index == 0 {
+            0.0
+        } else {
+            self.point_cdf[index - 1]
+        };
+        let probability = p_points * (self.point_cdf[index] - below);
+        let light = &scene.lights[index];
+        let to_light = light.position - from;
+        let distance_squared = to_light.length_squared();
+        if !distance_squared.is_normal() || probability <= 0.0 {
+            return None;
+        }
+        let distance = distance_squared.sqrt();
+        Some(LightSample {
+            point: light.position,
+            direction: to_light / distance,
+            distance,
+            radiance: light.intensity / distance_squared,
+            pdf: probability,
+            delta: true,
+        })
     }
 
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,
@@ -535,6 +586,11 @@ fn power_heuristic(pdf: Float, other: Float) -> Float {
     } else {
         0.0
     }
+}
+
+#[inline]
+fn mean(v: Vec3) -> Float {
+    (v.x + v.y + v.z) / 3.0
 }
 
 #[cfg(test)]

@@ -297,34 +297,32 @@ impl PathIntegrator {
         let wo = -ray.dir;
         let sample = &mut path.sample;
 
-        // Next-event estimation: one point on an area light, and every point light.
+        // Next-event estimation: one light, chosen by power.
         let u_pick = sample.next_1d();
         let u_light = sample.next_2d();
         let mut shadow = None;
-        if scattering.has_smooth_lobes() {
-            if let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light) {
-                let f = scattering.eval(wo, light.direction, hit.ns, hit.n, hit.front);
-                if f != Vec3::ZERO {
-                    // The light point lies `light.distance` along `light.direction`
-                    // from the hit point: a little less from the offset origin.
-                    let shadow_ray = hit.spawn_unit_ray(light.direction);
-                    let distance =
-                        light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
-                    rays.shadow += 1;
-                    let weight = if light.delta {
-                        1.0
-                    } else {
-                        let bsdf_pdf =
-                            scattering.pdf(wo, light.direction, hit.ns, hit.n, hit.front);
-                        power_heuristic(light.pdf, bsdf_pdf)
-                    };
-                    path.unoccluded = path.throughput
-                        * f
-                        * light.radiance
-                        * (light.direction.dot(hit.ns).abs() * weight / light.pdf);
-                    // The light's own surface must not block the ray to it.
-                    shadow = Some((shadow_ray, distance * (1.0 - 1e-3)));
-                }
+        if scattering.has_smooth_lobes()
+            && let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light)
+        {
+            let f = scattering.eval(wo, light.direction, hit.ns, hit.n, hit.front);
+            if f != Vec3::ZERO {
+                // The light point lies `light.distance` along `light.direction` from
+                // the hit point: a little less from the offset origin.
+                let shadow_ray = hit.spawn_unit_ray(light.direction);
+                let distance = light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
+                rays.shadow += 1;
+                let weight = if light.delta {
+                    1.0
+                } else {
+                    let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n, hit.front);
+                    power_heuristic(light.pdf, bsdf_pdf)
+                };
+                path.unoccluded = path.throughput
+                    * f
+                    * light.radiance
+                    * (light.direction.dot(hit.ns).abs() * weight / light.pdf);
+                // The light's own surface must not block the ray to it.
+                shadow = Some((shadow_ray, distance * (1.0 - 1e-3)));
             }
         }
 

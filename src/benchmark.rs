@@ -389,11 +389,8 @@ mod tests {
     #[test]
     fn rays_come_tile_by_tile_in_their_packets() {
         use crate::description::{SceneDescription, TriangleDesc};
-        use crate::material::{MaterialId, PointLight};
-        let light = |x: Float| PointLight {
-            position: Vec3::new(x, 3.0, 0.0),
-            intensity: Vec3::ONE,
-        };
+        use crate::material::{Light, MaterialId};
+        let light = |x: Float| Light::point(Vec3::new(x, 3.0, 0.0), Vec3::ONE);
         let description = SceneDescription {
             positions: vec![
                 Vec3::new(-9.0, -1.0, -9.0),

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use crate::material::{Material, MaterialId, PointLight};
+use crate::material::{Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Vec2, Vec3, try_unit};
 use crate::options::{Mode, RenderOptions};
 
@@ -61,7 +61,7 @@ pub struct SceneDescription {
     /// `S` spheres.
     pub spheres: Vec<SphereDesc>,
     /// `P` lights.
-    pub lights: Vec<PointLight>,
+    pub lights: Vec<Light>,
     /// Materials of all `mtllib` files in order, then the fallback material if any
     /// shape needed it.
     pub materials: Vec<Material>,
@@ -229,14 +229,11 @@ impl SceneDescription {
             let distance = to_target.as_dvec3().length();
             key = (eye.as_dvec3() + distance * offset.as_dvec3()).as_vec3();
         }
-        self.lights.push(PointLight {
-            position: if key.is_finite() { key } else { eye },
-            intensity: Vec3::splat(rig.key),
-        });
-        self.lights.push(PointLight {
-            position: eye,
-            intensity: Vec3::splat(rig.fill),
-        });
+        self.lights.push(Light::point(
+            if key.is_finite() { key } else { eye },
+            Vec3::splat(rig.key),
+        ));
+        self.lights.push(Light::point(eye, Vec3::splat(rig.fill)));
         for material in &mut self.materials {
             material.ambient *= rig.ambient;
             // An exponent below 1 defines no highlight: SPEC's formula would add `Ks`

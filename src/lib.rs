@@ -84,7 +84,7 @@ pub use description::SceneDescription;
 pub use film::Film;
 pub use formats::SceneError;
 pub use integrators::Integrator;
-pub use material::{Material, MaterialId, PointLight};
+pub use material::{Light, LightKind, Material, MaterialId};
 pub use options::{Mode, RenderOptions};
 pub use output::ImageFormat;
 pub use postprocess::Image;

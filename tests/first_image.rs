@@ -10,7 +10,7 @@ use std::path::Path;
 
 use assert_cmd::Command;
 use raytracer::formats::LoadedScene;
-use raytracer::material::PointLight;
+use raytracer::material::Light;
 use raytracer::math::{Aabb, Vec3};
 use raytracer::options::{Origin, PartialOptions, Sourced};
 use raytracer::{Material, Mode, RenderOptions, SceneDescription};
@@ -265,10 +265,7 @@ fn a_scene_with_lights_keeps_the_spec_formula_exactly() {
         diffuse: Vec3::new(0.8, 0.1, 0.1),
         ..Material::named("red")
     };
-    let light = PointLight {
-        position: Vec3::ONE,
-        intensity: Vec3::ONE,
-    };
+    let light = Light::point(Vec3::ONE, Vec3::ONE);
     let lit = SceneDescription {
         lights: vec![light],
         materials: vec![material.clone()],

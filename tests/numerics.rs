@@ -14,8 +14,7 @@ use raytracer::description::{SphereDesc, TriangleDesc};
 use raytracer::material::MaterialId;
 use raytracer::math::{Float, Ray, Vec3};
 use raytracer::{
-    BvhParams, Film, Material, Mode, PointLight, RenderOptions, Scene, SceneDescription, formats,
-    render,
+    BvhParams, Film, Light, Material, Mode, RenderOptions, Scene, SceneDescription, formats, render,
 };
 
 const MODES: [Mode; 3] = [Mode::Depth, Mode::Normal, Mode::Full];
@@ -145,10 +144,8 @@ fn random_scene(seed: u64) -> SceneDescription {
     }
     // Sometimes no lights; lights may sit inside objects or be very bright.
     for _ in 0..r.below(4) {
-        d.lights.push(PointLight {
-            position: r.vec(2.0),
-            intensity: r.vec(1.0).abs() * r.magnitude(),
-        });
+        d.lights
+            .push(Light::point(r.vec(2.0), r.vec(1.0).abs() * r.magnitude()));
     }
     d
 }

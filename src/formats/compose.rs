@@ -4,7 +4,7 @@ use glam::Mat3;
 
 use super::SceneDescription;
 use super::error::ParseErrorKind;
-use crate::material::MaterialId;
+use crate::material::{LightKind, MaterialId};
 use crate::math::{Float, Vec3};
 
 /// Where a mesh goes in the world: `world_from_object = translate * rotate * scale`,
@@ -130,6 +130,13 @@ impl SceneDescription {
         }
         for l in &mut mesh.lights {
             l.position = transform.point(l.position);
+            if let LightKind::Spot { direction, .. } | LightKind::Directional { direction } =
+                &mut l.kind
+            {
+                // Turned with the mesh; the scale is non-zero on every axis, so the
+                // direction stays non-zero.
+                *direction = (transform.linear * *direction).normalize();
+            }
         }
         for t in mesh.triangle_texcoords.iter_mut().flatten() {
             *t = t.map(|i| i + texcoord_offset);
@@ -177,7 +184,7 @@ fn append<T>(to: &mut Vec<T>, mut from: Vec<T>) {
 mod tests {
     use super::*;
     use crate::description::{SphereDesc, TriangleDesc};
-    use crate::material::{Material, PointLight};
+    use crate::material::{Light, Material};
 
     fn close(a: Vec3, b: Vec3) -> bool {
         (a - b).length() < 1e-5
@@ -228,10 +235,7 @@ mod tests {
                 radius: 1.0,
                 material: MaterialId(0),
             }],
-            lights: vec![PointLight {
-                position: Vec3::Y,
-                intensity: Vec3::ONE,
-            }],
+            lights: vec![Light::point(Vec3::Y, Vec3::ONE)],
             materials: vec![Material::named("m")],
             ..SceneDescription::default()
         };

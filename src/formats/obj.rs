@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
 use super::{FileAccess, SceneDescription, SphereDesc, TriangleDesc, file, lex, mtl, read_file};
-use crate::material::{Material, MaterialId, PointLight};
+use crate::material::{Light, Material, MaterialId};
 use crate::math::{Vec2, Vec3};
 use crate::memory;
 use faces::{ChunkFaces, INHERITED_GROUP, Shaping};
@@ -741,7 +741,7 @@ struct Chunk {
     /// Normal indices of each triangle, in step with `triangles`.
     triangle_normals: Vec<Option<[u32; 3]>>,
     spheres: Vec<SphereDesc>,
-    lights: Vec<PointLight>,
+    lights: Vec<Light>,
     events: Vec<Event>,
     /// Line of the first shape using slot 0, for the "no usemtl" warning.
     first_inherited_shape: Option<usize>,
@@ -861,10 +861,8 @@ impl Chunk {
             b"s" => self.smoothing = Some(smoothing_group(tokens.next())?),
             b"P" => {
                 let [x, y, z, r, g, b] = lex::floats::<6>("P", &mut tokens)?;
-                self.lights.push(PointLight {
-                    position: Vec3::new(x, y, z),
-                    intensity: Vec3::new(r, g, b),
-                });
+                self.lights
+                    .push(Light::point(Vec3::new(x, y, z), Vec3::new(r, g, b)));
             }
             b"mtllib" => {
                 let mut any = false;

@@ -25,7 +25,7 @@ use super::{
     read_file,
 };
 use crate::material::pbr::PbrMaterial;
-use crate::material::{Material, MaterialId, PointLight};
+use crate::material::{Light, LightKind, Material, MaterialId};
 use crate::math::{Float, Vec3};
 use crate::options::{Mode, Origin, PartialOptions, Sourced, ToneMap};
 
@@ -157,7 +157,7 @@ struct SceneFile {
     #[serde(default)]
     sphere: Vec<SphereTable>,
     #[serde(default)]
-    light: Vec<LightTable>,
+    light: Vec<Spanned<LightTable>>,
     #[serde(default)]
     materials: NamedMaterials,
     environment: Option<EnvironmentTable>,
@@ -266,11 +266,27 @@ struct SphereTable {
     material: Option<Spanned<String>>,
 }
 
+/// A light: `type` (point by default), and the keys of its type.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct LightTable {
-    position: Point,
-    intensity: Splat,
+    #[serde(rename = "type")]
+    kind: Option<Spanned<LightType>>,
+    position: Option<Spanned<Point>>,
+    direction: Option<Spanned<Point>>,
+    color: Option<Spanned<Splat>>,
+    intensity: Option<Spanned<Splat>>,
+    inner_cone: Option<Spanned<Finite>>,
+    outer_cone: Option<Spanned<Finite>>,
+    range: Option<Spanned<Finite>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq)]
+#[serde(rename_all = "lowercase")]
+enum LightType {
+    Point,
+    Spot,
+    Directional,
 }
 
 /// A material's MTL fields, under their MTL names, and the physically based
@@ -499,12 +515,10 @@ impl Builder<'_> {
                 material,
             });
         }
-        self.scene
-            .lights
-            .extend(file.light.iter().map(|light| PointLight {
-                position: light.position.0,
-                intensity: light.intensity.0,
-            }));
+        for light in &file.light {
+            let light = self.light(light)?;
+            self.scene.lights.push(light);
+        }
         if let Some(environment) = &file.environment {
             self.add_environment(environment)?;
         }
@@ -700,6 +714,142 @@ impl Builder<'_> {
                     format!("unknown material '{}'", name.get_ref()),
                 )
             })
+    }
+
+    /// A `[[light]]` table as a light, its keys checked against its type.
+    fn light(&self, table: &Spanned<LightTable>) -> Result<Light, SceneError> {
+        let light = table.get_ref();
+        let kind = light
+            .kind
+            .as_ref()
+            .map_or(LightType::Point, |k| *k.get_ref());
+        let type_name = match kind {
+            LightType::Point => "point",
+            LightType::Spot => "spot",
+            LightType::Directional => "directional",
+        };
+        // A key the type does not use is an error: it was surely meant to do something.
+        let unused = |span: Option<Range<usize>>, key: &str| match span {
+            Some(span) => Err(self.error(
+                span,
+                &format!("light.{key}"),
+                format!("a {type_name} light has no {key}"),
+            )),
+            None => Ok(()),
+        };
+        let colour = |value: &Option<Spanned<Splat>>, key: &str| match value {
+            None => Ok(Vec3::ONE),
+            Some(v) if v.get_ref().0.cmplt(Vec3::ZERO).any() => Err(self.error(
+                v.span(),
+                &format!("light.{key}"),
+                format!("{} is negative", v.get_ref().0),
+            )),
+            Some(v) => Ok(v.get_ref().0),
+        };
+        let intensity = colour(&light.color, "color")? * colour(&light.intensity, "intensity")?;
+        let position = match (&light.position, kind) {
+            (Some(p), LightType::Point | LightType::Spot) => p.get_ref().0,
+            (None, LightType::Point | LightType::Spot) => {
+                return Err(self.error(
+                    table.span(),
+                    "light.position",
+                    format!("a {type_name} light needs a position"),
+                ));
+            }
+            (p, LightType::Directional) => {
+                unused(p.as_ref().map(Spanned::span), "position")?;
+                Vec3::ZERO
+            }
+        };
+        let direction = match (&light.direction, kind) {
+            (None, LightType::Spot | LightType::Directional) => {
+                return Err(self.error(
+                    table.span(),
+                    "light.direction",
+                    format!("a {type_name} light needs a direction"),
+                ));
+            }
+            (Some(d), LightType::Spot | LightType::Directional) => {
+                match d.get_ref().0.try_normalize() {
+                    Some(unit) => unit,
+                    None => {
+                        return Err(self.error(
+                            d.span(),
+                            "light.direction",
+                            "a direction of zero length".to_owned(),
+                        ));
+                    }
+                }
+            }
+            (d, LightType::Point) => {
+                unused(d.as_ref().map(Spanned::span), "direction")?;
+                Vec3::NEG_Z
+            }
+        };
+        let range = match (&light.range, kind) {
+            (Some(r), LightType::Directional) => {
+                unused(Some(r.span()), "range")?;
+                None
+            }
+            (Some(r), _) if r.get_ref().0 <= 0.0 => {
+                return Err(self.error(
+                    r.span(),
+                    "light.range",
+                    format!("{} is not positive", r.get_ref().0),
+                ));
+            }
+            (r, _) => r.as_ref().map(|r| r.get_ref().0),
+        };
+        let kind = match kind {
+            LightType::Point | LightType::Directional => {
+                unused(light.inner_cone.as_ref().map(Spanned::span), "inner_cone")?;
+                unused(light.outer_cone.as_ref().map(Spanned::span), "outer_cone")?;
+                if kind == LightType::Point {
+                    LightKind::Point
+                } else {
+                    LightKind::Directional { direction }
+                }
+            }
+            LightType::Spot => {
+                // glTF's defaults: 0 and 45 degrees.
+                let outer = light.outer_cone.as_ref().map_or(45.0, |c| c.get_ref().0);
+                let inner = light.inner_cone.as_ref().map_or(0.0, |c| c.get_ref().0);
+                let span =
+                    |c: &Option<Spanned<Finite>>| c.as_ref().map_or(table.span(), Spanned::span);
+                if !(outer > 0.0 && outer <= 90.0) {
+                    return Err(self.error(
+                        span(&light.outer_cone),
+                        "light.outer_cone",
+                        format!("{outer} degrees is not in (0, 90]"),
+                    ));
+                }
+                if inner < 0.0 {
+                    return Err(self.error(
+                        span(&light.inner_cone),
+                        "light.inner_cone",
+                        format!("{inner} degrees is negative"),
+                    ));
+                }
+                if inner > outer {
+                    return Err(self.error(
+                        span(&light.inner_cone),
+                        "light.inner_cone",
+                        format!("{inner} degrees is wider than outer_cone ({outer} degrees)"),
+                    ));
+                }
+                LightKind::Spot {
+                    direction,
+                    cos_inner: inner.to_radians().cos(),
+                    cos_outer: outer.to_radians().cos(),
+                }
+            }
+        };
+        Ok(Light {
+            position,
+            intensity,
+            kind,
+            range,
+        })
     }
 
     fn error(&self, span: Range<usize>, key: &str, message: String) -> SceneError {

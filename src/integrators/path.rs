@@ -37,7 +37,7 @@ use crate::lights::LightSample;
 use crate::lights::environment::{
     Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, studio,
 };
-use crate::material::Material;
+use crate::material::{LightKind, Material};
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
 use crate::scene::{BATCH, Hit, Scene};
@@ -130,7 +130,8 @@ impl PathIntegrator {
     /// one, which scattering finds as well), an area light or a point light, in
     /// proportion to their power, as pbrt's power light sampler: an area light's is
     /// `pi` times its area times its radiance, the environment's `pi r^2` times its
-    /// mean radiance times `4 pi` (`r` the scene's radius), a point light's `4 pi I`.
+    /// mean radiance times `4 pi` (`r` the scene's radius), a point light's (and a
+    /// spot's) `4 pi I`, a directional light's `pi r^2 E`.
     fn weighed(mut self, scene: &Scene) -> PathIntegrator {
         let environment_power = match &self.environment {
             Some(environment) if !environment.is_constant() => {
@@ -141,7 +142,15 @@ impl PathIntegrator {
         };
         let area_power = PI * scene.area_lights.total_power();
         let point_powers: Vec<Float> = (scene.lights.iter())
-            .map(|l| 4.0 * PI * mean(l.intensity.max(Vec3::ZERO)))
+            .map(|l| {
+                let intensity = mean(l.intensity.max(Vec3::ZERO));
+                match l.kind {
+                    // Illuminance over a disc of the scene's size.
+                    LightKind::Directional { .. } => PI * scene.radius * scene.radius * intensity,
+                    // A spot's cone is not counted: its power is at most a point's.
+                    _ => 4.0 * PI * intensity,
+                }
+            })
             .collect();
         let point_power: Float = point_powers.iter().sum();
         let total = environment_power + area_power + point_power;
@@ -412,17 +421,22 @@ impl PathIntegrator {
         };
         let probability = p_points * (self.point_cdf[index] - below);
         let light = &scene.lights[index];
-        let to_light = light.position - from;
-        let distance_squared = to_light.length_squared();
-        if !distance_squared.is_normal() || probability <= 0.0 {
+        let incident = light.incident(from)?;
+        if probability <= 0.0 {
             return None;
         }
-        let distance = distance_squared.sqrt();
+        // A point or spot gives `I / d^2` times its falloff, a directional light its
+        // illuminance `E` from infinitely far away.
+        let spread = if incident.distance.is_finite() {
+            incident.distance * incident.distance
+        } else {
+            1.0
+        };
         Some(LightSample {
             point: light.position,
-            direction: to_light / distance,
-            distance,
-            radiance: light.intensity / distance_squared,
+            direction: incident.direction,
+            distance: incident.distance,
+            radiance: light.intensity * (incident.falloff / spread),
             pdf: probability,
             delta: true,
         })

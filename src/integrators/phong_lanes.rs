@@ -13,7 +13,7 @@
 use wide::f32x16;
 
 use crate::bvh::{PACKET_SIZE, lanes_of};
-use crate::material::{Colours, PointLight};
+use crate::material::{Colours, Light};
 use crate::math::{Float, Ray, Vec3, dot_lanes as dot};
 use crate::scene::{Hit, SPAWN_OFFSET};
 
@@ -101,7 +101,7 @@ impl HitLanes {
     #[inline(always)]
     pub(super) fn light(
         &self,
-        light: &PointLight,
+        light: &Light,
         shadow_rays: &mut [Ray],
         distances: &mut [Float],
     ) -> ([f32x16; 3], u32) {

@@ -8,7 +8,7 @@ use wide::f32x16;
 use super::Integrator;
 use super::phong_lanes::HitLanes;
 use crate::bvh::PACKET_SIZE;
-use crate::material::{Colours, PointLight};
+use crate::material::{Colours, Light};
 use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
 use crate::sampler::PixelSample;
 use crate::scene::{Hit, Scene};
@@ -154,6 +154,10 @@ fn direct_light(
 ) -> Vec3 {
     let mut local = Vec3::ZERO;
     for light in &scene.lights {
+        if !light.is_plain_point() {
+            local += other_light(scene, ray, hit, surface, light, rays);
+            continue;
+        }
         let lit = light_term(ray, hit, surface, light);
         // Shading first, shadow ray second: a light that would add nothing (behind
         // a diffuse surface, say) needs no visibility test. The image is the same.
@@ -169,13 +173,53 @@ fn direct_light(
     local
 }
 
+/// What a light that is not a plain point light (a spot, a directional light, a
+/// point light with a range) adds at `hit`, its shadow ray traced: SPEC's Phong
+/// terms towards it, times its intensity, cone attenuation and range window (full
+/// mode's point lights do not fall off with distance, so neither do these).
+#[inline(never)]
+fn other_light(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    surface: &impl Colours,
+    light: &Light,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let Some(incident) = light.incident(hit.p) else {
+        return Vec3::ZERO;
+    };
+    let lit = light.intensity * incident.falloff * phong(ray, hit, surface, incident.direction);
+    if lit == Vec3::ZERO {
+        return Vec3::ZERO;
+    }
+    let (shadow_ray, distance) = if incident.distance.is_finite() {
+        hit.spawn_ray_to(light.position)
+    } else {
+        (hit.spawn_ray(incident.direction), Float::INFINITY)
+    };
+    rays.shadow += 1;
+    if scene.occluded(&shadow_ray, distance) {
+        Vec3::ZERO
+    } else {
+        lit
+    }
+}
+
 /// What `light` adds at `hit` if nothing blocks it (zero if nothing).
 #[inline(always)]
-fn light_term(ray: &Ray, hit: &Hit, surface: &impl Colours, light: &PointLight) -> Vec3 {
+fn light_term(ray: &Ray, hit: &Hit, surface: &impl Colours, light: &Light) -> Vec3 {
     // A light exactly at the hit point lights it from no direction.
     let Some(to_light) = try_unit(light.position - hit.p) else {
         return Vec3::ZERO;
     };
+    light.intensity * phong(ray, hit, surface, to_light)
+}
+
+/// SPEC's Phong terms, `Kd cos + Ks cos_mirror^Ns`, for light arriving at `hit` from
+/// the unit direction `to_light`.
+#[inline(always)]
+fn phong(ray: &Ray, hit: &Hit, surface: &impl Colours, to_light: Vec3) -> Vec3 {
     let to_eye = -ray.dir;
     let cos_light = hit.ns.dot(to_light);
     let mirrored = 2.0 * cos_light * hit.ns - to_light;
@@ -184,7 +228,7 @@ fn light_term(ray: &Ray, hit: &Hit, surface: &impl Colours, light: &PointLight) 
     // large `Ns` would raise to infinity.
     let cos_mirror = to_eye.dot(mirrored).clamp(0.0, 1.0);
     let specular = surface.specular() * cos_mirror.powf(surface.shininess());
-    light.intensity * (diffuse + specular)
+    diffuse + specular
 }
 
 /// Room for [`WhittedIntegrator::radiance_packet`]'s shadow rays, made once per run of
@@ -247,6 +291,21 @@ impl WhittedIntegrator {
         let mut hits = [None; PACKET_SIZE];
         let hits = &mut hits[..count];
         scratch.trace(|_| scene.intersect_packet(camera_rays, hits));
+
+        // Spots, directional lights and ranges are shaded hit by hit
+        // (`direct_light`); the lanes know plain point lights only.
+        if !scene.lights.iter().all(Light::is_plain_point) {
+            for ((ray, hit), value) in camera_rays.iter().zip(hits.iter()).zip(out) {
+                *value = match hit {
+                    None => Vec3::ZERO,
+                    Some(hit) => {
+                        let direct = ShadowRays { scene, ray, hit };
+                        shade(scene, ray, hit, self.max_depth, false, rays, direct)
+                    }
+                };
+            }
+            return;
+        }
 
         // The hits the point lights shade (those of materials with `al0 != 0`), with
         // their colours there, as lanes.
@@ -383,20 +442,11 @@ mod tests {
         }
         d.lights.extend([
             // Under the height field: behind most surfaces the camera sees.
-            PointLight {
-                position: Vec3::new(0.2, -0.8, 0.1),
-                intensity: Vec3::new(0.9, 0.2, 0.4),
-            },
+            Light::point(Vec3::new(0.2, -0.8, 0.1), Vec3::new(0.9, 0.2, 0.4)),
             // On the height field's plane, among the random triangles.
-            PointLight {
-                position: Vec3::new(0.0, 0.3, 0.0),
-                intensity: Vec3::splat(0.25),
-            },
+            Light::point(Vec3::new(0.0, 0.3, 0.0), Vec3::splat(0.25)),
             // So bright that sums overflow to infinity.
-            PointLight {
-                position: Vec3::new(-0.3, 3.0, 1.0),
-                intensity: Vec3::new(3e38, 0.0, 1.0),
-            },
+            Light::point(Vec3::new(-0.3, 3.0, 1.0), Vec3::new(3e38, 0.0, 1.0)),
         ]);
         Scene::build(d, &BvhParams::default())
     }
@@ -497,17 +547,17 @@ mod tests {
         };
         let (mut lit_lanes, mut powers) = (0, 0);
         for round in 0..4000 {
-            let light = PointLight {
-                position: Vec3::new(
+            let light = Light::point(
+                Vec3::new(
                     rng.random_range(-3.0..3.0),
                     rng.random_range(-3.0..3.0),
                     rng.random_range(-3.0..3.0),
                 ),
-                intensity: match round % 5 {
+                match round % 5 {
                     0 => Vec3::new(3e38, 1.0, 0.0),
                     _ => Vec3::new(0.7, 0.5, rng.random_range(0.0..2.0)),
                 },
-            };
+            );
             let mut lanes = HitLanes::new();
             let mut cases = Vec::new();
             for lane in 0..PACKET_SIZE {

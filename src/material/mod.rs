@@ -2,7 +2,10 @@
 //! shades, with its texture maps, and optionally a physically based material
 //! ([`pbr`]) that path mode scatters by instead.
 
+mod light;
 pub mod pbr;
+
+pub use light::{Incident, Light, LightKind};
 
 use crate::math::{Float, Vec2, Vec3};
 use crate::textures::{Encoding, TextureMap};
@@ -316,13 +319,4 @@ impl Material {
             ..Material::named("default")
         }
     }
-}
-
-/// A point light.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PointLight {
-    /// Position.
-    pub position: Vec3,
-    /// Intensity per channel; may exceed 1.
-    pub intensity: Vec3,
 }

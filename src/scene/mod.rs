@@ -20,7 +20,7 @@ use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::environment::Environment;
 use crate::lights::{AreaLights, AreaLightsBuilder};
-use crate::material::{Material, MaterialId, PointLight};
+use crate::material::{Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
@@ -155,7 +155,7 @@ pub struct Scene {
     /// The materials, indexed by [`MaterialId`].
     pub materials: Vec<Material>,
     /// The point lights.
-    pub lights: Vec<PointLight>,
+    pub lights: Vec<Light>,
     /// The triangles and spheres whose material emits (`Ke`), for path mode.
     pub area_lights: AreaLights,
     summary: BvhSummary,

@@ -316,7 +316,7 @@ fn sphere_blockers(prims: &TrianglePacket, rays: &[Ray], open: u32, t_max: &f32x
 pub(crate) mod tests {
     use super::*;
     use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
-    use crate::material::{Material, MaterialId, PointLight};
+    use crate::material::{Light, Material, MaterialId};
     use crate::math::Vec3;
     use crate::{BvhParams, Camera};
     use rand::{Rng, SeedableRng};
@@ -407,14 +407,8 @@ pub(crate) mod tests {
         glass.ior = 1.5;
         d.materials = vec![diffuse, mirror, glass];
         d.lights = vec![
-            PointLight {
-                position: Vec3::new(0.5, 2.0, 0.5),
-                intensity: Vec3::splat(0.8),
-            },
-            PointLight {
-                position: Vec3::new(-1.5, 1.0, -0.2),
-                intensity: Vec3::new(0.3, 0.4, 0.5),
-            },
+            Light::point(Vec3::new(0.5, 2.0, 0.5), Vec3::splat(0.8)),
+            Light::point(Vec3::new(-1.5, 1.0, -0.2), Vec3::new(0.3, 0.4, 0.5)),
         ];
         d
     }

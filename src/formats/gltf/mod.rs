@@ -2,7 +2,7 @@
 //! the `gltf` crate: the meshes of the default scene under their node transforms,
 //! materials as physically based ones ([`material`], with one file per extension in
 //! [`extensions`]; see `docs/scene-format.md`), the scene's first camera as render
-//! settings, and `KHR_lights_punctual` point lights.
+//! settings, and `KHR_lights_punctual` point, spot and directional lights.
 //!
 //! Buffers and images are read here rather than by the crate's importer, so that
 //! every problem (a missing `.bin`, a truncated `.glb`, a view outside its buffer, an
@@ -25,7 +25,7 @@ use super::error::SceneError;
 use super::file::read_regular_file;
 use super::material_check::MaterialProblems;
 use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
-use crate::material::{Material, MaterialId, MaterialMaps, PointLight};
+use crate::material::{Light, LightKind, Material, MaterialId, MaterialMaps};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, Projection, RenderOptions, Sourced};
 use crate::textures::{Texture, TextureMap, TextureOptions, Wrap};
@@ -907,33 +907,94 @@ impl Reader<'_> {
         }
     }
 
+    /// A `KHR_lights_punctual` light at its node: placed at the node's origin,
+    /// shining along the node's -Z, with its colour times its intensity (candela,
+    /// or lux for a directional light) as is, the spot's cone and the range (if
+    /// given). Values the extension forbids are warned about, naming the key, and
+    /// mended where there is an obvious reading (a cone over 90 degrees is 90, an
+    /// inner cone wider than the outer one is the outer one) or the light skipped.
     fn add_light(&mut self, light: &gltf::khr_lights_punctual::Light<'_>, world: &Mat4) {
         use gltf::khr_lights_punctual::Kind;
         let name = format!("light {}", light.index());
-        match light.kind() {
-            Kind::Directional => {
-                self.warn_once(
-                    "directional",
-                    format!("{name}: directional lights are not supported; skipped"),
-                );
-                return;
-            }
-            Kind::Spot { .. } => self.warn_once(
-                "spot",
-                format!("{name}: spot lights are read as point lights (the cone is ignored)"),
-            ),
-            Kind::Point => {}
-        }
-        // Intensity in candela, used as is: the convention of glTF viewers, whose
-        // point lights give an irradiance of `intensity / d^2`.
         let intensity = Vec3::from(light.color()) * light.intensity();
         if !intensity.is_finite() {
             self.warn(format!("{name}: an intensity that is not finite; skipped"));
             return;
         }
-        self.scene.lights.push(PointLight {
+        if light.intensity() < 0.0 || light.color().iter().any(|&c| c < 0.0) {
+            self.warn(format!(
+                "{name}: intensity: negative light ({} times colour {:?}); skipped",
+                light.intensity(),
+                light.color()
+            ));
+            return;
+        }
+        let direction = world.transform_vector3(Vec3::NEG_Z);
+        let direction = match direction.try_normalize() {
+            Some(d) => d,
+            None if matches!(light.kind(), Kind::Point) => Vec3::NEG_Z,
+            None => {
+                self.warn(format!(
+                    "{name}: its node's transform gives it no direction (a zero scale); skipped"
+                ));
+                return;
+            }
+        };
+        let kind = match light.kind() {
+            Kind::Point => LightKind::Point,
+            Kind::Directional => LightKind::Directional { direction },
+            Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let right = std::f32::consts::FRAC_PI_2;
+                let mut outer = outer_cone_angle;
+                if !(outer > 0.0 && outer <= right) {
+                    self.warn(format!(
+                        "{name}: spot.outerConeAngle: {outer} is not in (0, pi/2]; read as {}",
+                        outer.clamp(0.0, right)
+                    ));
+                    outer = if outer.is_nan() {
+                        right
+                    } else {
+                        outer.clamp(0.0, right)
+                    };
+                }
+                let mut inner = inner_cone_angle;
+                if !(inner >= 0.0 && inner <= outer) {
+                    let mended = if inner.is_nan() {
+                        0.0
+                    } else {
+                        inner.clamp(0.0, outer)
+                    };
+                    self.warn(format!(
+                        "{name}: spot.innerConeAngle: {inner} is not in [0, outerConeAngle = {outer}]; read as {mended}"
+                    ));
+                    inner = mended;
+                }
+                LightKind::Spot {
+                    direction,
+                    cos_inner: inner.cos(),
+                    cos_outer: outer.cos(),
+                }
+            }
+        };
+        let range = match light.range() {
+            // A directional light is infinitely far away: `range` means nothing.
+            Some(_) if matches!(kind, LightKind::Directional { .. }) => None,
+            Some(range) if !(range > 0.0 && range.is_finite()) => {
+                self.warn(format!(
+                    "{name}: range: {range} is not a positive number; the light has no range"
+                ));
+                None
+            }
+            range => range,
+        };
+        self.scene.lights.push(Light {
             position: world.transform_point3(Vec3::ZERO),
             intensity,
+            kind,
+            range,
         });
     }
 

@@ -22,14 +22,14 @@ use crate::sampler::MAX_SAMPLES_PER_PIXEL;
 pub const FRAMED_FOV_DEGREES: Float = 40.0;
 /// How far above the horizontal a camera that frames the scene looks down at it, in
 /// degrees.
-pub const FRAMED_ELEVATION_DEGREES: f64 = 20.0;
+pub const FRAMED_ELEVATION_DEGREES: f64 = 22.0;
 /// How far a camera that frames the scene is turned from straight in front of the
 /// model towards its +x side (to the viewer's right), in degrees: a figure facing +z
 /// is seen three-quarter from the front.
 pub const FRAMED_AZIMUTH_DEGREES: f64 = 30.0;
-/// The fraction of the image's half-width and half-height that the projection of the
-/// framed box reaches on its limiting side: a margin of 5% of the image each side.
-pub const FRAMED_FILL: f64 = 0.9;
+/// The fraction of the image's width or height that the projection of the framed
+/// box spans in its limiting dimension: a margin of 4% of the image each side.
+pub const FRAMED_FILL: f64 = 0.92;
 
 /// Largest width or height accepted.
 pub const MAX_DIMENSION: u32 = 65_536;
@@ -773,8 +773,8 @@ impl PartialOptions {
     ///   [`FRAMED_FOV_DEGREES`] (vertical), from [`Origin::Framed`];
     /// - from the distance, and aimed at the point, at which the projections of the
     ///   box's 8 corners fit the image (of the size these options give) with
-    ///   [`FRAMED_FILL`] of it on the limiting side: the box, and so the scene, is never
-    ///   cut, and its projection is centred in the image.
+    ///   [`FRAMED_FILL`] of it in the limiting dimension, centred (computed exactly, in
+    ///   closed form): the box, and so the scene, is never cut.
     ///
     /// Both points then come from [`Origin::Framed`]. An empty box (an empty scene)
     /// leaves the defaults.
@@ -808,52 +808,39 @@ impl PartialOptions {
             (backward.as_dvec3(), right.as_dvec3(), camera_up.as_dvec3());
         // In f64: the diagonal of a box of 1e30 overflows f32 when squared.
         let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
-        let corners: [DVec3; 8] = std::array::from_fn(|i| {
-            DVec3::new(
-                if i & 1 == 0 { min.x } else { max.x },
-                if i & 2 == 0 { min.y } else { max.y },
-                if i & 4 == 0 { min.z } else { max.z },
-            )
-        });
+        // The largest p.w over the box's corners p.
+        let support = |w: DVec3| (min * w).max(max * w).element_sum();
         let mut size = (max - min).length();
         if size.is_nan() || size <= 0.0 {
             // A single point (or a degenerate box): any distance shows it.
             size = (min.abs().max_element().max(1.0)) * 1e-3;
         }
-        // The eye at `target + backward * distance` sees a corner p at depth
-        // `distance - (p - target).backward`, at (p - target).right / (depth tan_h) of
-        // the image's half-width: inside FRAMED_FILL of it from the distance below on,
-        // as up. The eye also stays a little outside the box.
-        let fit = |target: DVec3| {
-            corners
-                .iter()
-                .map(|&p| {
-                    let d = p - target;
-                    let sideways = (d.dot(right).abs() / (FRAMED_FILL * tan_h))
-                        .max(d.dot(camera_up).abs() / (FRAMED_FILL * tan_v))
-                        .max(0.05 * size);
-                    d.dot(backward) + sideways
-                })
-                .fold(f64::NEG_INFINITY, f64::max)
-        };
-        // Aimed at the box's centre, its nearer corners project farther out than the
-        // far ones: move the aim (and the eye, parallel) to centre the projection.
-        let mut target = bounds.center().as_dvec3();
-        let mut distance = fit(target);
-        for _ in 0..4 {
-            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-            for &p in &corners {
-                let d = p - target;
-                let depth = distance - d.dot(backward);
-                let q = DVec3::new(d.dot(right) / tan_h, d.dot(camera_up) / tan_v, 0.0) / depth;
-                (lo, hi) = (lo.min(q), hi.max(q));
-            }
-            let mid = (lo + hi) / 2.0 * distance;
-            target += right * (mid.x * tan_h) + camera_up * (mid.y * tan_v);
-            distance = fit(target);
-        }
+        // A point p is at most FRAMED_FILL of the half-width right of the image's
+        // centre when (p - eye).right <= k (eye - p).backward, k = FRAMED_FILL tan_h:
+        // p.(right + k backward) <= eye.(right + k backward); so every corner is when
+        // the eye's coordinates (x, y, z) along right, up and backward satisfy
+        // x + k z >= support(right + k backward), and likewise on the left, top and
+        // bottom. The closest eye has both planes of the limiting dimension touching
+        // the box (its projection spans exactly FRAMED_FILL of the image, centred),
+        // and the other dimension centred between its planes.
+        let (k_h, k_v) = (FRAMED_FILL * tan_h, FRAMED_FILL * tan_v);
+        let [right_side, left_side, top, bottom] = [
+            right + backward * k_h,
+            -right + backward * k_h,
+            camera_up + backward * k_v,
+            -camera_up + backward * k_v,
+        ]
+        .map(support);
+        let z = ((right_side + left_side) / (2.0 * k_h))
+            .max((top + bottom) / (2.0 * k_v))
+            // The eye a little outside the box.
+            .max(support(backward) + 0.05 * size);
+        let (x, y) = ((right_side - left_side) / 2.0, (top - bottom) / 2.0);
+        let eye = right * x + camera_up * y + backward * z;
+        // The target on the axis of view, level with the box's centre.
+        let target = eye - backward * (z - bounds.center().as_dvec3().dot(backward));
         let look_to = target.as_vec3();
-        let look_from = (target + backward * distance).as_vec3();
+        let look_from = eye.as_vec3();
         // A box near the largest f32, or one so small against its distance from the
         // origin that the step rounds away: the defaults stay (and a flag can fix them).
         if !look_from.is_finite() || !look_to.is_finite() || look_from == look_to {

@@ -11,8 +11,8 @@ use std::fmt;
 use std::path::PathBuf;
 
 use crate::math::{Aabb, Float, Vec3, try_unit};
-use glam::DVec3;
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
+use glam::DVec3;
 
 /// Vertical field of view in degrees of a camera that frames the scene
 /// ([`PartialOptions::framed`]) when neither a flag nor the scene file sets one: a
@@ -981,8 +981,8 @@ fn framing_direction(bounds: Aabb, up: Vec3) -> Vec3 {
         FRAMED_ELEVATION_DEGREES.to_radians(),
         FRAMED_AZIMUTH_DEGREES.to_radians(),
     );
-    let direction = (front * azimuth.cos() + right * azimuth.sin()) * elevation.cos()
-        + up * elevation.sin();
+    let direction =
+        (front * azimuth.cos() + right * azimuth.sin()) * elevation.cos() + up * elevation.sin();
     direction.normalize().as_vec3()
 }
 

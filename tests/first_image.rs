@@ -151,7 +151,10 @@ fn the_bundled_gltf_box_is_framed_and_fills_the_frame() {
     let loaded = raytracer::formats::load(&path).unwrap();
     let bounds = loaded.description.bounds();
     let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
-    assert_eq!((options.width, options.height, options.fov_degrees), (640, 480, 40.0));
+    assert_eq!(
+        (options.width, options.height, options.fov_degrees),
+        (640, 480, 40.0)
+    );
     assert_framed_like_a_model_viewer(&options, bounds.min, bounds.max);
 }
 
@@ -315,7 +318,8 @@ fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
     // a modeller's viewport shows it); with `Ka 1 1 1` added in full it was 0.77.
     // Seen from above and to the right, the faces away from the key light show the
     // rig's grey ambient light more: still red, none white.
-    let red = |p: &&[u8], percent: u32| p[0] > 40 && u32::from(p[1]) * 100 < u32::from(p[0]) * percent;
+    let red =
+        |p: &&[u8], percent: u32| p[0] > 40 && u32::from(p[1]) * 100 < u32::from(p[0]) * percent;
     let reds = rgb.chunks(3).filter(|p| red(p, 60)).count();
     assert!(reds * 4 > lit * 3, "{reds} of {lit} lit pixels are red");
     let reddish = rgb.chunks(3).filter(|p| red(p, 90)).count();
@@ -380,7 +384,16 @@ fn render_warns_when_the_image_is_nearly_black_and_only_then() {
     let output = Command::cargo_bin("raytracer")
         .unwrap()
         .current_dir(dir.path())
-        .args(["render", "model.obj", "-o", "out.exr", "--width", "16", "--height", "12"])
+        .args([
+            "render",
+            "model.obj",
+            "-o",
+            "out.exr",
+            "--width",
+            "16",
+            "--height",
+            "12",
+        ])
         .args(["--mode", "path", "--spp", "1", "--no-default-light"])
         .output()
         .unwrap();
@@ -394,7 +407,16 @@ fn render_warns_when_the_image_is_nearly_black_and_only_then() {
     let output = Command::cargo_bin("raytracer")
         .unwrap()
         .current_dir(dir.path())
-        .args(["render", "model.obj", "-o", "out.png", "--width", "16", "--height", "12"])
+        .args([
+            "render",
+            "model.obj",
+            "-o",
+            "out.png",
+            "--width",
+            "16",
+            "--height",
+            "12",
+        ])
         .arg("--no-default-light")
         .output()
         .unwrap();
@@ -404,7 +426,11 @@ fn render_warns_when_the_image_is_nearly_black_and_only_then() {
         "{stderr}"
     );
     // Lit renders, in both modes, and normal mode: no such warning.
-    for args in [&[][..], &["--mode", "path", "--spp", "4"], &["--mode", "normal"]] {
+    for args in [
+        &[][..],
+        &["--mode", "path", "--spp", "4"],
+        &["--mode", "normal"],
+    ] {
         let (stderr, _) = render_model(args);
         assert!(!stderr.contains("nearly black"), "{args:?}: {stderr}");
     }

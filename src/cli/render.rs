@@ -141,8 +141,12 @@ fn warn_if_nearly_black(image: &Image, options: &RenderOptions, warn: &impl Fn(&
         return;
     }
     let what_to_try = match options.mode {
-        Mode::Full => "try --mode path (lit by --env, or by the studio environment when the scene has no lights), or lights in the scene",
-        Mode::Path => "try --exposure 2 (or more), --env R,G,B or --env FILE.hdr (an environment lighting the scene), or lights in the scene",
+        Mode::Full => {
+            "try --mode path (lit by --env, or by the studio environment when the scene has no lights), or lights in the scene"
+        }
+        Mode::Path => {
+            "try --exposure 2 (or more), --env R,G,B or --env FILE.hdr (an environment lighting the scene), or lights in the scene"
+        }
         Mode::Depth | Mode::Normal => return,
     };
     warn(&format!(

@@ -510,3 +510,21 @@ fn a_scene_file_can_turn_the_default_light_off() {
     // unset, so the scene is framed.
     assert!(options.look_from.z > 6.0, "{}", options.look_from);
 }
+
+#[test]
+fn a_z_up_scene_is_framed_from_its_front_minus_y_and_above() {
+    // Blender's convention: +z up, the front view looks from -y.
+    let (min, max) = (Vec3::new(-1.0, -0.5, 0.0), Vec3::new(1.0, 0.5, 3.0));
+    let flags = PartialOptions {
+        up: Some(Sourced::new(Vec3::Z, Origin::Flag("--up"))),
+        ..PartialOptions::default()
+    };
+    let options = flags.framed(Aabb { min, max }).resolve().unwrap();
+    let back = (options.look_from - options.look_to).normalize();
+    let elevation = back.z.asin().to_degrees();
+    assert!((15.0..=30.0).contains(&elevation), "{back}");
+    // In front (-y), turned to the right (+x).
+    assert!(back.y < -0.5 && back.x > 0.2, "{back}");
+    let (x, y) = fill(&options, &corners(min, max));
+    assert!(x.max(y) >= 0.6, "{x} x {y}");
+}

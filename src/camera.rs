@@ -132,13 +132,7 @@ impl Camera {
     ) -> Camera {
         // `try_unit` keeps points 1e-30 apart apart; `validate` refused the rest.
         let backward = try_unit(look_from - look_to).unwrap_or(Vec3::Z);
-        let up = try_unit(up).unwrap_or(Vec3::Y);
-        let right = up.cross(backward).try_normalize().unwrap_or_else(|| {
-            (Vec3::X - backward * Vec3::X.dot(backward))
-                .try_normalize()
-                .unwrap_or(Vec3::Z)
-        });
-        let up = backward.cross(right);
+        let (right, up) = view_basis(backward, up);
         let half_height = (fov_degrees.to_radians() * 0.5).tan();
         let half_width = half_height * width as Float / height as Float;
         Camera {
@@ -261,6 +255,20 @@ pub fn concentric_disc(u: Vec2) -> Vec2 {
         (o.y, 2.0 * quarter - quarter * (o.x / o.y))
     };
     Vec2::new(theta.cos(), theta.sin()) * r
+}
+
+/// The camera's right and up directions for the unit direction `backward` (from the
+/// point looked at to the eye) and world up `up` (any non-zero length), as
+/// [`Camera::with_up`] takes them: when `backward` is parallel to `up`, `right` is +x
+/// made perpendicular to `backward`, or +z if the camera looks along x.
+pub fn view_basis(backward: Vec3, up: Vec3) -> (Vec3, Vec3) {
+    let up = try_unit(up).unwrap_or(Vec3::Y);
+    let right = up.cross(backward).try_normalize().unwrap_or_else(|| {
+        (Vec3::X - backward * Vec3::X.dot(backward))
+            .try_normalize()
+            .unwrap_or(Vec3::Z)
+    });
+    (right, backward.cross(right))
 }
 
 #[cfg(test)]

@@ -12,6 +12,24 @@ use std::path::PathBuf;
 
 use crate::math::{Aabb, Float, Vec3, try_unit};
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
+use glam::DVec3;
+
+/// Vertical field of view in degrees of a camera that frames the scene
+/// ([`PartialOptions::framed`]) when neither a flag nor the scene file sets one: a
+/// model viewer's (three.js's `<model-viewer>` takes 30, Blender's default camera
+/// about 40), where [`RenderOptions::default`]'s 90 (SPEC's) would show the model small
+/// and distorted.
+pub const FRAMED_FOV_DEGREES: Float = 40.0;
+/// How far above the horizontal a camera that frames the scene looks down at it, in
+/// degrees.
+pub const FRAMED_ELEVATION_DEGREES: f64 = 22.0;
+/// How far a camera that frames the scene is turned from straight in front of the
+/// model towards its +x side (to the viewer's right), in degrees: a figure facing +z
+/// is seen three-quarter from the front.
+pub const FRAMED_AZIMUTH_DEGREES: f64 = 30.0;
+/// The fraction of the image's width or height that the projection of the framed
+/// box spans in its limiting dimension: a margin of 4% of the image each side.
+pub const FRAMED_FILL: f64 = 0.92;
 
 /// Largest width or height accepted.
 pub const MAX_DIMENSION: u32 = 65_536;
@@ -742,20 +760,32 @@ impl PartialOptions {
         }
     }
 
-    /// These options with a camera that frames `bounds`, if neither the camera's
-    /// position nor its target is set (by a flag or a scene file): it looks along -z
-    /// (or, at a scene that lies flat in a plane x = c or y = c, which -z would see
-    /// edge-on, along -x or -y) at the centre of the box, from as close as lets the box's bounding sphere fit
-    /// both the vertical and the horizontal field of view (of the field of view and
-    /// image size these options give). Both points then come from
-    /// [`Origin::Framed`]. An empty box (an empty scene) leaves the defaults.
+    /// These options with a camera that frames `bounds` as a model viewer does, if
+    /// neither the camera's position nor its target is set (by a flag or a scene file):
+    ///
+    /// - it looks from the front and slightly above ([`FRAMED_ELEVATION_DEGREES`]
+    ///   above the horizontal, [`FRAMED_AZIMUTH_DEGREES`] to the right), "front"
+    ///   being +z as glTF's models face it (+y up), or -y when the world up
+    ///   direction is z (Blender's front view of a z-up scene); a scene flat in a plane
+    ///   x = c, y = c or z = c (one polygon, a floor), which an angle would show
+    ///   foreshortened, is seen face-on along -x, -y or -z;
+    /// - unless a flag or the file sets the field of view, it is
+    ///   [`FRAMED_FOV_DEGREES`] (vertical), from [`Origin::Framed`];
+    /// - from the distance, and aimed at the point, at which the projections of the
+    ///   box's 8 corners fit the image (of the size these options give) with
+    ///   [`FRAMED_FILL`] of it in the limiting dimension, centred (computed exactly, in
+    ///   closed form): the box, and so the scene, is never cut.
+    ///
+    /// Both points then come from [`Origin::Framed`]. An empty box (an empty scene)
+    /// leaves the defaults.
     ///
     /// A camera position given without a target (a lone `--look-from`) looks at the
-    /// centre of the box, from [`Origin::Framed`]; a target given alone is kept, with
-    /// the default position.
+    /// centre of the box, from [`Origin::Framed`], with the field of view as given
+    /// (else [`RenderOptions::default`]'s); a target given alone is kept, with the
+    /// default position.
     ///
     /// Call it last, after [`PartialOptions::or`]: the framing depends on the field of
-    /// view and the aspect ratio.
+    /// view, the aspect ratio and the world up direction.
     pub fn framed(mut self, bounds: Aabb) -> PartialOptions {
         if self.look_to.is_some() || bounds.is_empty() {
             return self;
@@ -764,43 +794,63 @@ impl PartialOptions {
             self.look_to = Some(Sourced::new(bounds.center(), Origin::Framed));
             return self;
         }
-        let d = RenderOptions::default();
+        let fov = value_or(&self.fov_degrees, FRAMED_FOV_DEGREES);
         let (width, height) = self.image_size();
         let aspect = width.value.max(1) as f64 / height.value.max(1) as f64;
-        let half_vertical =
-            f64::from(value_or(&self.fov_degrees, d.fov_degrees)).to_radians() / 2.0;
-        let half_horizontal = (half_vertical.tan() * aspect).atan();
-        let half_angle = half_vertical.min(half_horizontal);
-        let center = bounds.center();
+        // (An invalid field of view gives a nonsense camera here; resolving reports
+        // the field of view.)
+        let tan_v = (f64::from(fov).to_radians() / 2.0).tan();
+        let tan_h = tan_v * aspect;
+        let up = value_or(&self.up, RenderOptions::default().up);
+        let backward = framing_direction(bounds, up);
+        let (right, camera_up) = crate::camera::view_basis(backward, up);
+        let (backward, right, camera_up) =
+            (backward.as_dvec3(), right.as_dvec3(), camera_up.as_dvec3());
         // In f64: the diagonal of a box of 1e30 overflows f32 when squared.
-        let mut radius = (bounds.max - bounds.min).as_dvec3().length() / 2.0;
-        if radius.is_nan() || radius <= 0.0 {
+        let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+        // The largest p.w over the box's corners p.
+        let support = |w: DVec3| (min * w).max(max * w).element_sum();
+        let mut size = (max - min).length();
+        if size.is_nan() || size <= 0.0 {
             // A single point (or a degenerate box): any distance shows it.
-            radius = f64::from(center.abs().max_element().max(1.0)) * 1e-3;
+            size = (min.abs().max_element().max(1.0)) * 1e-3;
         }
-        // The sphere fits when the cone of half-angle `half_angle` from the eye
-        // touches it: distance * sin(half_angle) = radius. (An invalid field of view
-        // gives a nonsense distance here; resolving reports the field of view.)
-        let distance = radius / half_angle.sin();
-        // Along -z, unless the scene lies flat in a plane x = c or y = c (a single
-        // polygon, a floor), which -z would see edge-on: then face-on, along -x or -y.
-        let extent = bounds.max - bounds.min;
-        let flat = |e: Float| e <= 1e-6 * extent.max_element();
-        let axis = if flat(extent.x) && !flat(extent.z) {
-            Vec3::X
-        } else if flat(extent.y) && !flat(extent.z) {
-            Vec3::Y
-        } else {
-            Vec3::Z
-        };
-        let look_from = center + axis * distance as Float;
+        // A point p is at most FRAMED_FILL of the half-width right of the image's
+        // centre when (p - eye).right <= k (eye - p).backward, k = FRAMED_FILL tan_h:
+        // p.(right + k backward) <= eye.(right + k backward); so every corner is when
+        // the eye's coordinates (x, y, z) along right, up and backward satisfy
+        // x + k z >= support(right + k backward), and likewise on the left, top and
+        // bottom. The closest eye has both planes of the limiting dimension touching
+        // the box (its projection spans exactly FRAMED_FILL of the image, centred),
+        // and the other dimension centred between its planes.
+        let (k_h, k_v) = (FRAMED_FILL * tan_h, FRAMED_FILL * tan_v);
+        let [right_side, left_side, top, bottom] = [
+            right + backward * k_h,
+            -right + backward * k_h,
+            camera_up + backward * k_v,
+            -camera_up + backward * k_v,
+        ]
+        .map(support);
+        let z = ((right_side + left_side) / (2.0 * k_h))
+            .max((top + bottom) / (2.0 * k_v))
+            // The eye a little outside the box.
+            .max(support(backward) + 0.05 * size);
+        let (x, y) = ((right_side - left_side) / 2.0, (top - bottom) / 2.0);
+        let eye = right * x + camera_up * y + backward * z;
+        // The target on the axis of view, level with the box's centre.
+        let target = eye - backward * (z - bounds.center().as_dvec3().dot(backward));
+        let look_to = target.as_vec3();
+        let look_from = eye.as_vec3();
         // A box near the largest f32, or one so small against its distance from the
         // origin that the step rounds away: the defaults stay (and a flag can fix them).
-        if !look_from.is_finite() || look_from == center {
+        if !look_from.is_finite() || !look_to.is_finite() || look_from == look_to {
             return self;
         }
         self.look_from = Some(Sourced::new(look_from, Origin::Framed));
-        self.look_to = Some(Sourced::new(center, Origin::Framed));
+        self.look_to = Some(Sourced::new(look_to, Origin::Framed));
+        if self.fov_degrees.is_none() {
+            self.fov_degrees = Some(Sourced::new(FRAMED_FOV_DEGREES, Origin::Framed));
+        }
         self
     }
 
@@ -906,6 +956,34 @@ fn keep_aspect(given: &Sourced<i64>, before: i64, other: Sourced<i64>) -> Source
         i64::try_from(rounded).unwrap_or(i64::MAX).max(1),
         Origin::Aspect(Box::new(given.origin.clone())),
     )
+}
+
+/// The unit direction from the centre of `bounds` to the eye of the camera that
+/// frames them ([`PartialOptions::framed`]), for the world up direction `up`.
+fn framing_direction(bounds: Aabb, up: Vec3) -> Vec3 {
+    let extent = bounds.max - bounds.min;
+    let flat = |e: Float| e <= 1e-6 * extent.max_element();
+    match [flat(extent.x), flat(extent.y), flat(extent.z)] {
+        [true, false, false] => return Vec3::X,
+        [false, true, false] => return Vec3::Y,
+        [false, false, true] => return Vec3::Z,
+        _ => {}
+    }
+    let up = try_unit(up).unwrap_or(Vec3::Y).as_dvec3();
+    let front = [DVec3::Z, DVec3::NEG_Y]
+        .into_iter()
+        .map(|f| f - up * f.dot(up))
+        .find(|f| f.length() > 0.1)
+        .unwrap_or(DVec3::X)
+        .normalize();
+    let right = up.cross(front);
+    let (elevation, azimuth) = (
+        FRAMED_ELEVATION_DEGREES.to_radians(),
+        FRAMED_AZIMUTH_DEGREES.to_radians(),
+    );
+    let direction =
+        (front * azimuth.cos() + right * azimuth.sin()) * elevation.cos() + up * elevation.sin();
+    direction.normalize().as_vec3()
 }
 
 fn value_or<T: Copy>(value: &Option<Sourced<T>>, default: T) -> T {

@@ -59,6 +59,31 @@ pub struct Image {
     pub rgb: Vec<u8>,
 }
 
+impl Image {
+    /// The fraction of the pixels whose every channel is below `threshold` (0 for an
+    /// image without pixels): `render` warns when it is above
+    /// [`NEARLY_BLACK_FRACTION`] with [`NEARLY_BLACK_THRESHOLD`].
+    pub fn dark_fraction(&self, threshold: u8) -> f64 {
+        let pixels = self.rgb.len() / 3;
+        if pixels == 0 {
+            return 0.0;
+        }
+        let dark = self
+            .rgb
+            .chunks_exact(3)
+            .filter(|p| p.iter().all(|&c| c < threshold))
+            .count();
+        dark as f64 / pixels as f64
+    }
+}
+
+/// The 8-bit value below which `render` counts a channel as black (about 0.1% of
+/// white in linear light, after the sRGB curve).
+pub const NEARLY_BLACK_THRESHOLD: u8 = 8;
+/// The fraction of black pixels (see [`NEARLY_BLACK_THRESHOLD`]) above which `render`
+/// warns that the image is nearly black.
+pub const NEARLY_BLACK_FRACTION: f64 = 0.99;
+
 impl Film {
     /// Post-processes the film for its mode (a [`Mode`], or [`PostProcessing`] with
     /// an exposure) into 8 bits per channel: depth divides by the largest distance

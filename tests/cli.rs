@@ -208,12 +208,28 @@ fn help_states_the_defaults_the_program_uses() {
     }
     .resolve()
     .unwrap();
+    // A camera that frames a scene takes a field of view of its own.
+    let cube = raytracer::math::Aabb {
+        min: raytracer::math::Vec3::ZERO,
+        max: raytracer::math::Vec3::ONE,
+    };
+    let framed_fov = PartialOptions::default()
+        .framed(cube)
+        .resolve()
+        .unwrap()
+        .fov_degrees;
     let vector = |v: raytracer::math::Vec3| format!("{},{},{}", v.x, v.y, v.z);
     let both = |full: u32, path: u32| format!("{full}; {path} in path mode");
     let expected = [
         ("--width", full.width.to_string()),
         ("--height", full.height.to_string()),
-        ("--fov", full.fov_degrees.to_string()),
+        (
+            "--fov",
+            format!(
+                "{}; {framed_fov} when the camera frames the scene",
+                full.fov_degrees
+            ),
+        ),
         // Left out, the camera frames the scene (tests/first_image.rs checks it).
         ("--look-from", "framed".to_string()),
         ("--look-to", "framed".to_string()),

@@ -747,10 +747,10 @@ impl PyScene {
 /// ``"khronos-neutral"``, ``"agx"``, ``"aces"``; used by post-processing only),
 /// ``aperture_radius`` and ``focus_distance`` (the thin lens, scene units). Each one
 /// left out (``None``) takes the TOML scene file's value (or a glTF file's camera),
-/// else the default: 640x480, fov 90, a camera that frames the scene (looking along
-/// -z at the centre of its bounds, from as close as lets them fit the view) when
-/// neither ``look_from`` nor ``look_to`` is set, ``look_from`` alone looking at that
-/// centre, otherwise from (0, 0, 0); up (0, 1, 0), full mode, depth 4 and 1 sample per
+/// else the default: 640x480, fov 90, a camera that frames the scene as a model viewer
+/// does (from the front and above, fov 40, as close as lets the corners of its bounds
+/// fill 92% of the image, centred) when neither ``look_from`` nor ``look_to`` is set,
+/// ``look_from`` alone looking at the centre of the bounds, otherwise from (0, 0, 0); up (0, 1, 0), full mode, depth 4 and 1 sample per
 /// pixel (64 and 64 in path mode), exposure 0, seed 0, tone map khronos-neutral, a
 /// pinhole (aperture radius 0; the focus at ``look_to``); a width or height alone
 /// keeps the aspect ratio.

@@ -113,22 +113,30 @@ pub struct ViewArgs {
     /// renders 320x240.
     #[arg(long, value_name = "PIXELS", allow_hyphen_values = true, value_parser = whole_number)]
     pub height: Option<i64>,
-    /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90].
+    /// Vertical field of view in degrees, strictly between 0 and 180 [default: 90; 40
+    /// when the camera frames the scene].
+    ///
+    /// The scene file's field of view, if it sets one, wins over both. The narrower
+    /// field of view of a camera that frames the scene (see --look-from) is a model
+    /// viewer's: the model is seen with little distortion.
     #[arg(long, value_name = "DEGREES", allow_hyphen_values = true, value_parser = number)]
     pub fov: Option<Float>,
     /// Camera position, three numbers with commas and no spaces [default: framed].
     ///
     /// When neither --look-from nor --look-to is given (here or in a scene file), the
-    /// camera frames the scene: it looks along -z (-x or -y at a scene flat in x or y)
-    /// at the centre of the scene's bounds, from as close as lets the bounding sphere
-    /// fit the view. Given alone, it looks at that centre. An empty scene, or --look-to
-    /// alone, keeps 0,0,0.
+    /// camera frames the scene as a model viewer does: from the front (+z, where glTF
+    /// models face; -y when --up is 0,0,1) and above, 22 degrees up and 30 degrees to
+    /// the right, from as close as lets the corners of the scene's bounds fit 92% of
+    /// the image's limiting dimension, centred; a scene flat in x, y or z (one polygon,
+    /// a floor) is seen face-on, along -x, -y or -z. Given alone, it looks at the
+    /// centre of the bounds. An empty scene, or --look-to alone, keeps 0,0,0.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_FROM))]
     pub look_from: Option<Vec3>,
     /// Point the camera looks at [default: framed].
     ///
-    /// The centre of the scene's bounds when the camera frames the scene (see
-    /// --look-from) or only --look-from is given; 0,0,-1 when the scene is empty.
+    /// When the camera frames the scene (see --look-from), the point level with the
+    /// centre of the scene's bounds that centres their projection; the centre itself
+    /// when only --look-from is given; 0,0,-1 when the scene is empty.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = vector(LOOK_TO))]
     pub look_to: Option<Vec3>,
     /// World up direction of the camera [default: 0,1,0].

@@ -3,9 +3,10 @@
 use std::time::Duration;
 
 use raytracer::integrators::path::material_warnings;
+use raytracer::postprocess::{Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD};
 use raytracer::stats::{Mark, RayCounts, Usage, peak_memory_bytes};
 use raytracer::{
-    BvhParams, ImageFormat, Mode, RenderTimes, Scene, output, render_with_progress,
+    BvhParams, ImageFormat, Mode, RenderOptions, RenderTimes, Scene, output, render_with_progress,
     render_with_stats,
 };
 
@@ -90,6 +91,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         ImageFormat::Png => {
             let image = film.to_image(options);
             let processed = Mark::now();
+            warn_if_nearly_black(&image, options, &warn);
             let bytes = image.encode_png().map_err(|error| output::WriteError {
                 path: args.output.clone(),
                 error,
@@ -101,7 +103,10 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         // OpenEXR holds the film as rendered: no post-processing; encoded while written.
         ImageFormat::Exr => {
             film.write(options, format, &args.output)?;
-            (rendered, Mark::now())
+            let written = Mark::now();
+            // The check sees what a PNG would show.
+            warn_if_nearly_black(&film.to_image(options), options, &warn);
+            (rendered, written)
         }
     };
     let written = Mark::now();
@@ -125,6 +130,29 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         print_stats(&scene, &stages, &rays, samples, format, file_bytes);
     }
     Ok(())
+}
+
+/// Warns, in one line with what to try, when a full or path mode image is nearly
+/// black after post-processing: more than [`NEARLY_BLACK_FRACTION`] of its pixels
+/// below [`NEARLY_BLACK_THRESHOLD`] in every channel.
+fn warn_if_nearly_black(image: &Image, options: &RenderOptions, warn: &impl Fn(&str)) {
+    let dark = image.dark_fraction(NEARLY_BLACK_THRESHOLD);
+    if dark <= NEARLY_BLACK_FRACTION {
+        return;
+    }
+    let what_to_try = match options.mode {
+        Mode::Full => {
+            "try --mode path (lit by --env, or by the studio environment when the scene has no lights), or lights in the scene"
+        }
+        Mode::Path => {
+            "try --exposure 2 (or more), --env R,G,B or --env FILE.hdr (an environment lighting the scene), or lights in the scene"
+        }
+        Mode::Depth | Mode::Normal => return,
+    };
+    warn(&format!(
+        "the image is nearly black ({:.1}% of its pixels below {NEARLY_BLACK_THRESHOLD}/255): {what_to_try}",
+        dark * 100.0
+    ));
 }
 
 /// What a stage spent: wall time, and CPU time on all threads and page faults where

@@ -154,33 +154,21 @@ impl Bsdf {
     /// `f(wo, wi)` of the non-delta lobes. `ns` is the unit shading normal facing
     /// `wo`, `ng` the geometric one (also facing `wo`); `front` says whether `wo` is
     /// on the side the geometric normal of the surface faces (outside a volume).
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Vec3 {
         match self {
             Bsdf::Mtl(m) => m.eval(wo, wi, ns, ng),
-            Bsdf::Gltf(g) => {
-                let frame = Frame::from_normal(ns);
-                if !agrees(wi, ns, ng) {
-                    return Vec3::ZERO;
-                }
-                g.eval_sided(frame.to_local(wo), frame.to_local(wi), front)
-            }
+            Bsdf::Gltf(g) => gltf_eval(g, wo, wi, ns, ng, front),
         }
     }
 
     /// The density (solid angle) with which [`Bsdf::sample`] picks `wi` through its
     /// non-delta lobes (arguments as [`Bsdf::eval`]'s).
-    #[inline]
+    #[inline(always)]
     pub fn pdf(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Float {
         match self {
             Bsdf::Mtl(m) => m.pdf(wo, wi, ns, ng),
-            Bsdf::Gltf(g) => {
-                let frame = Frame::from_normal(ns);
-                if !agrees(wi, ns, ng) {
-                    return 0.0;
-                }
-                g.pdf_sided(frame.to_local(wo), frame.to_local(wi), front)
-            }
+            Bsdf::Gltf(g) => gltf_pdf(g, wo, wi, ns, ng, front),
         }
     }
 
@@ -200,23 +188,7 @@ impl Bsdf {
     ) -> Option<ScatterSample> {
         match self {
             Bsdf::Mtl(m) => m.sample(wo, ns, ng, front, u_lobe, u),
-            Bsdf::Gltf(g) => {
-                let frame = Frame::from_normal(ns);
-                let s = g.sample(frame.to_local(wo), front, u_lobe, u)?;
-                let wi = frame.to_world(s.wi);
-                // Both normals must agree on the side `wi` leaves to, or light would
-                // leak through the surface where the shading normal bends away.
-                if !s.delta && !agrees(wi, ns, ng) {
-                    return None;
-                }
-                Some(ScatterSample {
-                    wi,
-                    weight: s.weight,
-                    pdf: s.pdf,
-                    delta: s.delta,
-                    eta: s.eta,
-                })
-            }
+            Bsdf::Gltf(g) => gltf_sample(g, wo, ns, ng, front, u_lobe, u),
         }
     }
 
@@ -230,6 +202,55 @@ impl Bsdf {
             Bsdf::Gltf(g) => g.attenuation(),
         }
     }
+}
+
+// The glTF material's calls in world space, out of line: the MTL material's are
+// inlined into the path tracer's loop, which they keep small (a Lambertian scene
+// renders as fast as before the glTF BSDF existed).
+
+#[inline(never)]
+fn gltf_eval(g: &gltf::GltfBsdf, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Vec3 {
+    if !agrees(wi, ns, ng) {
+        return Vec3::ZERO;
+    }
+    let frame = Frame::from_normal(ns);
+    g.eval_sided(frame.to_local(wo), frame.to_local(wi), front)
+}
+
+#[inline(never)]
+fn gltf_pdf(g: &gltf::GltfBsdf, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Float {
+    if !agrees(wi, ns, ng) {
+        return 0.0;
+    }
+    let frame = Frame::from_normal(ns);
+    g.pdf_sided(frame.to_local(wo), frame.to_local(wi), front)
+}
+
+#[inline(never)]
+fn gltf_sample(
+    g: &gltf::GltfBsdf,
+    wo: Vec3,
+    ns: Vec3,
+    ng: Vec3,
+    front: bool,
+    u_lobe: Float,
+    u: Vec2,
+) -> Option<ScatterSample> {
+    let frame = Frame::from_normal(ns);
+    let s = g.sample(frame.to_local(wo), front, u_lobe, u)?;
+    let wi = frame.to_world(s.wi);
+    // Both normals must agree on the side `wi` leaves to, or light would leak
+    // through the surface where the shading normal bends away.
+    if !s.delta && !agrees(wi, ns, ng) {
+        return None;
+    }
+    Some(ScatterSample {
+        wi,
+        weight: s.weight,
+        pdf: s.pdf,
+        delta: s.delta,
+        eta: s.eta,
+    })
 }
 
 /// Whether `wi` lies on the same side of the shading and the geometric surface.

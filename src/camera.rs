@@ -6,7 +6,7 @@
 use wide::f32x16;
 
 use crate::bvh::PACKET_SIZE;
-use crate::math::{Float, Ray, Vec2, Vec3, dot_lanes, try_unit};
+use crate::math::{Float, Ray, Vec2, Vec3, dot_lanes, try_unit, view_basis};
 use crate::options::{Mode, Projection, RenderOptions};
 use crate::sampler::PixelSample;
 
@@ -255,20 +255,6 @@ pub fn concentric_disc(u: Vec2) -> Vec2 {
         (o.y, 2.0 * quarter - quarter * (o.x / o.y))
     };
     Vec2::new(theta.cos(), theta.sin()) * r
-}
-
-/// The camera's right and up directions for the unit direction `backward` (from the
-/// point looked at to the eye) and world up `up` (any non-zero length), as
-/// [`Camera::with_up`] takes them: when `backward` is parallel to `up`, `right` is +x
-/// made perpendicular to `backward`, or +z if the camera looks along x.
-pub fn view_basis(backward: Vec3, up: Vec3) -> (Vec3, Vec3) {
-    let up = try_unit(up).unwrap_or(Vec3::Y);
-    let right = up.cross(backward).try_normalize().unwrap_or_else(|| {
-        (Vec3::X - backward * Vec3::X.dot(backward))
-            .try_normalize()
-            .unwrap_or(Vec3::Z)
-    });
-    (right, backward.cross(right))
 }
 
 #[cfg(test)]

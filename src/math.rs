@@ -140,6 +140,20 @@ pub fn refract(d: Vec3, n: Vec3, eta: Float) -> Option<Vec3> {
     try_unit(t)
 }
 
+/// The camera's right and up directions for the unit direction `backward` (from the
+/// point looked at to the eye) and world up `up` (any non-zero length), as
+/// `Camera::with_up` takes them: when `backward` is parallel to `up`, `right` is +x
+/// made perpendicular to `backward`, or +z if the camera looks along x.
+pub fn view_basis(backward: Vec3, up: Vec3) -> (Vec3, Vec3) {
+    let up = try_unit(up).unwrap_or(Vec3::Y);
+    let right = up.cross(backward).try_normalize().unwrap_or_else(|| {
+        (Vec3::X - backward * Vec3::X.dot(backward))
+            .try_normalize()
+            .unwrap_or(Vec3::Z)
+    });
+    (right, backward.cross(right))
+}
+
 /// The unit vector along `v`, or `None` if `v` is zero or not finite.
 ///
 /// Unlike glam's `try_normalize` it also works when the squared length of `v`

@@ -803,7 +803,7 @@ impl PartialOptions {
         let tan_h = tan_v * aspect;
         let up = value_or(&self.up, RenderOptions::default().up);
         let backward = framing_direction(bounds, up);
-        let (right, camera_up) = crate::camera::view_basis(backward, up);
+        let (right, camera_up) = crate::math::view_basis(backward, up);
         let (backward, right, camera_up) =
             (backward.as_dvec3(), right.as_dvec3(), camera_up.as_dvec3());
         // In f64: the diagonal of a box of 1e30 overflows f32 when squared.

@@ -91,7 +91,9 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         ImageFormat::Png => {
             let image = film.to_image(options);
             let processed = Mark::now();
-            warn_if_nearly_black(&image, options, &warn);
+            if scene.prim_count() > 0 {
+                warn_if_nearly_black(&image, options, &warn);
+            }
             let bytes = image.encode_png().map_err(|error| output::WriteError {
                 path: args.output.clone(),
                 error,
@@ -104,8 +106,11 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         ImageFormat::Exr => {
             film.write(options, format, &args.output)?;
             let written = Mark::now();
-            // The check sees what a PNG would show.
-            warn_if_nearly_black(&film.to_image(options), options, &warn);
+            // The check sees what a PNG would show (an empty scene is warned of as
+            // such already).
+            if scene.prim_count() > 0 {
+                warn_if_nearly_black(&film.to_image(options), options, &warn);
+            }
             (rendered, written)
         }
     };
@@ -132,8 +137,8 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Warns, in one line with what to try, when a full or path mode image is nearly
-/// black after post-processing: more than [`NEARLY_BLACK_FRACTION`] of its pixels
+/// Warns, in one line with what to try, when a full or path mode image of a scene
+/// with shapes is nearly black after post-processing: more than [`NEARLY_BLACK_FRACTION`] of its pixels
 /// below [`NEARLY_BLACK_THRESHOLD`] in every channel.
 fn warn_if_nearly_black(image: &Image, options: &RenderOptions, warn: &impl Fn(&str)) {
     let dark = image.dark_fraction(NEARLY_BLACK_THRESHOLD);

@@ -3,19 +3,9 @@
 
 mod support;
 
+use support::{raytracer, stderr};
+
 use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn raytracer(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raytracer"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
 
 fn box_scene() -> PathBuf {
     support::reference_dir().join("scenes/box/cube.obj")

@@ -4,23 +4,13 @@
 
 mod support;
 
+use support::{raytracer, stderr};
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use raytracer::math::{Float, Vec3};
 use raytracer::options::{Origin, PartialOptions, Projection, Sourced};
 use raytracer::{BvhParams, Mode, RenderOptions, Scene, Tile, formats, render, render_tile};
-
-fn raytracer(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raytracer"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
 
 /// Renders the Cornell box in path mode with `extra` flags to `out`.
 fn render_cornell(out: &Path, extra: &[&str]) {

@@ -5,10 +5,11 @@
 
 mod support;
 
+use support::raytracer;
+
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use raytracer::formats::{self, LoadedScene};
 use raytracer::math::{Ray, Vec3};
@@ -187,13 +188,6 @@ fn a_transformed_mesh_renders_like_the_mesh_transformed_beforehand() {
         }
     }
     assert!(hits > 400, "{hits} hits");
-}
-
-fn raytracer(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_raytracer"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]

@@ -3,6 +3,19 @@
 
 use std::path::{Path, PathBuf};
 
+/// Runs the `raytracer` binary with `args`, to its end.
+pub fn raytracer(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_raytracer"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// What a finished run printed on stderr.
+pub fn stderr(output: &std::process::Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
 /// The folder of the copied reference suite.
 pub fn reference_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/reference")

@@ -3,6 +3,10 @@
 //! physically based keys, and the warnings and errors about bad values. Every glTF
 //! fixture is written here: one triangle per material, from a `.bin` beside it.
 
+mod support;
+
+use support::write_png;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -10,22 +14,6 @@ use raytracer::formats::{self, LoadedScene};
 use raytracer::material::Material;
 use raytracer::math::{Float, Vec2, Vec3};
 use raytracer::textures::{Channel, srgb_to_linear};
-
-/// Writes an 8-bit PNG of `channels` channels, rows top to bottom.
-fn write_png(path: &Path, width: u32, height: u32, channels: u32, texels: &[u8]) {
-    assert_eq!(texels.len(), (width * height * channels) as usize);
-    let file = std::fs::File::create(path).unwrap();
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
-    encoder.set_color(match channels {
-        1 => png::ColorType::Grayscale,
-        2 => png::ColorType::GrayscaleAlpha,
-        3 => png::ColorType::Rgb,
-        _ => png::ColorType::Rgba,
-    });
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().unwrap();
-    writer.write_image_data(texels).unwrap();
-}
 
 /// A 2 x 2 RGBA texture, texels top left, top right, bottom left, bottom right.
 const TEXELS: [[u8; 4]; 4] = [

@@ -2,28 +2,15 @@
 //! sRGB decoding, MTL map options, cutouts, missing files, and what the integrators
 //! make of textured values. Each test writes its own tiny images and scene.
 
+mod support;
+
+use support::write_png;
+
 use std::path::{Path, PathBuf};
 
 use raytracer::material::Material;
 use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::{BvhParams, Film, Mode, RenderOptions, Scene, formats, render};
-
-/// Writes an 8-bit PNG of `channels` channels (1 grey, 2 grey + alpha, 3 RGB,
-/// 4 RGBA), rows top to bottom.
-fn write_png(path: &Path, width: u32, height: u32, channels: u32, texels: &[u8]) {
-    assert_eq!(texels.len(), (width * height * channels) as usize);
-    let file = std::fs::File::create(path).unwrap();
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
-    encoder.set_color(match channels {
-        1 => png::ColorType::Grayscale,
-        2 => png::ColorType::GrayscaleAlpha,
-        3 => png::ColorType::Rgb,
-        _ => png::ColorType::Rgba,
-    });
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().unwrap();
-    writer.write_image_data(texels).unwrap();
-}
 
 /// A unit square at `z` from (-1, -1) to (1, 1), texture coordinates (0, 0) at the
 /// bottom left to `(u_max, v_max)` at the top right, as OBJ text starting after

@@ -21,6 +21,23 @@ pub fn reference_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/reference")
 }
 
+/// Writes an 8-bit PNG of `channels` channels (1 grey, 2 grey + alpha, 3 RGB,
+/// 4 RGBA), rows top to bottom.
+pub fn write_png(path: &Path, width: u32, height: u32, channels: u32, texels: &[u8]) {
+    assert_eq!(texels.len(), (width * height * channels) as usize);
+    let file = std::fs::File::create(path).unwrap();
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(match channels {
+        1 => png::ColorType::Grayscale,
+        2 => png::ColorType::GrayscaleAlpha,
+        3 => png::ColorType::Rgb,
+        _ => png::ColorType::Rgba,
+    });
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().unwrap();
+    writer.write_image_data(texels).unwrap();
+}
+
 /// Decodes a PNG into (width, height, RGB bytes), dropping alpha if present.
 pub fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
     let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

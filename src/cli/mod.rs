@@ -121,8 +121,12 @@ fn environment_flags(view: &ViewArgs, description: &mut SceneDescription) -> any
             .warnings
             .push("--env-strength and --env-rotation apply to an environment (--env, or a scene file's [environment]); the scene has none".into());
     }
-    if let Some(background) = view.background {
-        description.background = Some(background);
+    match view.background {
+        Some(values::Background::Colour(colour)) => description.background = Some(colour),
+        // Premultiplied: a camera ray that leaves the scene adds nothing to the colour,
+        // its pixel's alpha says how much of it was covered.
+        Some(values::Background::Transparent) => description.background = Some(Vec3::ZERO),
+        None => {}
     }
     Ok(())
 }

@@ -4,6 +4,7 @@
 
 mod batch;
 mod info;
+mod objects;
 mod packet;
 mod stream;
 #[cfg(test)]
@@ -144,6 +145,8 @@ pub struct Scene {
     /// order, then its spheres. Read only to answer [`Scene::source_index`], so it
     /// stays out of the caches that rays use.
     source: Vec<u32>,
+    /// Which object each primitive belongs to ([`Scene::object_names`]).
+    objects: objects::Objects,
     /// Indices into `texcoords` of each primitive's corners (leaf order), or
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
     /// scenes neither store nor interpolate texture coordinates.
@@ -355,8 +358,10 @@ impl Scene {
             materials,
             environment,
             background,
+            objects,
             mut warnings,
         } = description;
+        let objects = objects::Objects::new(objects, triangles.len(), spheres.len());
         let started = Mark::now();
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
@@ -570,6 +575,7 @@ impl Scene {
             vertex_normals,
             texcoords,
             source: order,
+            objects,
             prim_texcoords,
             has_cutouts,
             materials,

@@ -631,6 +631,7 @@ mod tests {
                     n,
                     ns,
                     uv: Vec2::ZERO,
+                    coat_ns: Vec3::ZERO,
                     material: MaterialId(0),
                     front: true,
                 };

@@ -92,12 +92,16 @@ const NPY_BALL: [f64; 16] = [
     0.0, 0.0, 0.0, 1.0,
 ];
 
-/// A `.npy` file of one float64 matrix.
+/// A `.npy` file of float64 matrices.
 fn write_npy(path: &Path, matrices: &[[f64; 16]]) {
-    let mut header = format!(
-        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 4, 4), }}",
-        matrices.len()
-    );
+    let shape = format!("({}, 4, 4)", matrices.len());
+    fs::write(path, npy_bytes("<f8", &shape, matrices)).unwrap();
+}
+
+/// The bytes of a `.npy` file whose header says `descr` and `shape`, followed by
+/// `matrices` as float64 values whatever the header says.
+fn npy_bytes(descr: &str, shape: &str, matrices: &[[f64; 16]]) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     while !(10 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
@@ -110,7 +114,7 @@ fn write_npy(path: &Path, matrices: &[[f64; 16]]) {
             bytes.extend(v.to_le_bytes());
         }
     }
-    fs::write(path, bytes).unwrap();
+    bytes
 }
 
 const HEAD: &str = "[camera]\nlook_from = [0, 2.5, 7]\nlook_to = [0, 0.3, 0]\nfov = 50\n\
@@ -268,4 +272,124 @@ fn normals_are_placed_with_the_inverse_transpose() {
     let a = render(&instanced, &dir.path().join("a.png"), &flags);
     let b = render(&flat, &dir.path().join("b.png"), &flags);
     assert_same_image(&a, &b, "normal");
+}
+
+/// The error loading `toml` (beside the meshes of [`write_meshes`]), with the
+/// folder's path replaced by `DIR`.
+fn load_error(dir: &Path, toml: &str) -> String {
+    let path = dir.join("bad.toml");
+    fs::write(&path, toml).unwrap();
+    match raytracer::formats::load(&path) {
+        Ok(_) => panic!("{toml}: loaded"),
+        Err(e) => e.to_string().replace(&dir.display().to_string(), "DIR"),
+    }
+}
+
+#[test]
+fn bad_placements_are_errors_naming_file_line_and_entry() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_meshes(d);
+    fs::write(d.join("ball.obj.txt"), "").unwrap();
+    let mesh = "[[mesh]]\nfile = \"ball.obj\"\nid = \"ball\"\n";
+    let cases: Vec<(String, &str)> = vec![
+        (
+            format!("{mesh}[[instance]]\nmesh = \"cube\"\n"),
+            "DIR/bad.toml:5: instance.mesh: unknown mesh 'cube' (no [[mesh]] has this id)",
+        ),
+        (
+            format!(
+                "{mesh}[[instance]]\nmesh = \"ball\"\nmatrix = [1,0,0,0, 0,1,0,0, 0,2,0,0, 0,0,0,1]\n"
+            ),
+            "DIR/bad.toml:6: instance.matrix: singular matrix (determinant 0): it flattens the mesh",
+        ),
+        (
+            format!(
+                "{mesh}[[instance]]\nmesh = \"ball\"\nmatrix = [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,1,1]\n"
+            ),
+            "DIR/bad.toml:6: instance.matrix: the last row is 0 0 1 1, not 0 0 0 1 (an affine placement)",
+        ),
+        (
+            format!(
+                "{mesh}[[instance]]\nmesh = \"ball\"\nmatrix = [1,0,0,0, 0,1,0,0, 0,0,1e300,0, 0,0,0,1]\n"
+            ),
+            "DIR/bad.toml:6: instance.matrix: non-finite value 1e300 in the matrix",
+        ),
+        (
+            format!("{mesh}[[instance]]\nmesh = \"ball\"\nmatrix = [1,0,0,0]\n"),
+            "DIR/bad.toml:6: instance.matrix: 4 numbers: a matrix is 16 numbers, row-major world from object",
+        ),
+        (
+            format!(
+                "{mesh}[[instance]]\nmesh = \"ball\"\ntransform = {{ scale = 2 }}\nmatrix = [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n"
+            ),
+            "DIR/bad.toml:7: instance.matrix: give either transform or matrix, not both",
+        ),
+        (
+            format!("{mesh}[[instance]]\nmesh = \"ball\"\ntransform = {{ scale = [1, 0, 1] }}\n"),
+            "DIR/bad.toml:6: instance.transform.scale: scale components must not be zero",
+        ),
+        (
+            "[[mesh]]\nfile = \"ball.obj\"\nid = \"ball\"\ntransform = { scale = 2 }\n".into(),
+            "DIR/bad.toml:3: mesh.transform: a mesh with an id is placed by its instances: give the transform to each [[instance]]",
+        ),
+        (
+            format!("{mesh}[[mesh]]\nfile = \"lamp.obj\"\nid = \"ball\"\n"),
+            "DIR/bad.toml:6: mesh.id: mesh id 'ball' is given twice",
+        ),
+        (
+            format!("{mesh}[[instances]]\nmesh = \"ball\"\nfile = \"missing.npy\"\n"),
+            "DIR/bad.toml:6: instances.file: DIR/missing.npy: No such file or directory (os error 2)",
+        ),
+    ];
+    for (toml, expected) in cases {
+        assert_eq!(load_error(d, &toml), expected, "for {toml}");
+    }
+    // A `.npy` file: its wrong shape, size, dtype or matrix, named with the line of
+    // the TOML that names it.
+    let npy_case = |bytes: Vec<u8>| {
+        fs::write(d.join("p.npy"), bytes).unwrap();
+        load_error(
+            d,
+            &format!("{mesh}[[instances]]\nmesh = \"ball\"\nfile = \"p.npy\"\n"),
+        )
+    };
+    write_npy(&d.join("good.npy"), &[NPY_BALL, NPY_BALL]);
+    let good = fs::read(d.join("good.npy")).unwrap();
+    assert_eq!(
+        npy_case(good[..good.len() - 8].to_vec()),
+        "DIR/bad.toml:6: instances.file: DIR/p.npy:1: shape (2, 4, 4) of 8-byte values needs 256 bytes of data, the file has 248"
+    );
+    assert!(
+        npy_case(npy_bytes("<f2", "(2, 4, 4)", &[NPY_BALL, NPY_BALL])).contains(
+            "DIR/p.npy:1: dtype '<f2': the matrices must be little-endian float32 ('<f4') or float64 ('<f8')"
+        )
+    );
+    let mut singular = NPY_BALL;
+    singular[10] = 0.0;
+    write_npy(&d.join("p2.npy"), &[NPY_BALL, singular]);
+    assert_eq!(
+        npy_case(fs::read(d.join("p2.npy")).unwrap()),
+        "DIR/bad.toml:6: instances.file: DIR/p.npy: matrix 1: singular matrix (determinant 0): it flattens the mesh"
+    );
+    assert!(
+        npy_case(npy_bytes("<f8", "(4, 4)", &[]))
+            .contains("shape (4, 4): the placements must be an (N, 4, 4) array")
+    );
+}
+
+#[test]
+fn info_counts_unique_and_instanced_triangles() {
+    let (dir, instanced, _) = scenes();
+    let output = raytracer(&["info", instanced.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    // Floor 2, ball 120, lamp 2 stored once; four balls and two lamps placed.
+    // The ball's top ring meets at its pole: ten triangles without area.
+    assert!(text.contains("triangles  124 (10 degenerate)\n"), "{text}");
+    assert!(
+        text.contains("instanced  486 triangles (6 instances of 2 meshes stored once)"),
+        "{text}"
+    );
+    drop(dir);
 }

@@ -187,7 +187,7 @@ pub fn affine_from_rows(m: &[f64; 16]) -> Result<Affine3A, String> {
         .iter()
         .find(|v| !v.is_finite() || !(**v as f32).is_finite())
     {
-        return Err(format!("non-finite value {bad} in the matrix"));
+        return Err(format!("non-finite value {bad:e} in the matrix"));
     }
     if m[12..] != [0.0, 0.0, 0.0, 1.0] {
         return Err(format!(

@@ -31,6 +31,23 @@ fn quad_obj(dir: &Path, name: &str, corners: [[Float; 3]; 4], kd: [Float; 3]) ->
     file
 }
 
+/// [`quad_obj`] without its point light: an unlit model.
+fn unlit_quad_obj(dir: &Path, name: &str, kd: [Float; 3]) -> String {
+    let corners = [
+        [-1.0, -1.0, -4.0],
+        [1.0, -1.0, -4.0],
+        [1.0, 1.0, -4.0],
+        [-1.0, 1.0, -4.0],
+    ];
+    let file = quad_obj(dir, name, corners, kd);
+    let path = dir.join(&file);
+    let obj = fs::read_to_string(&path)
+        .unwrap()
+        .replace("P 0 0 0 1 1 1\n", "");
+    fs::write(&path, obj).unwrap();
+    file
+}
+
 /// A camera at the origin looking down -z with a vertical field of view of 60
 /// degrees, `width` x `height` pixels.
 fn options(width: u32, height: u32, samples_per_pixel: u32) -> RenderOptions {
@@ -420,4 +437,91 @@ fn bad_aov_names_and_non_exr_outputs_are_refused_by_name() {
         support::stderr(&outcome)
     );
     assert!(!png.exists() && !out.exists());
+}
+
+/// `raytracer render` of `scene` at 20x20 from the origin down -z, 4 samples per
+/// pixel, with `extra` flags: the RGBA bytes of the PNG.
+fn render_png(scene: &Path, out: &Path, extra: &[&str]) -> Vec<u8> {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "20",
+        "--height",
+        "20",
+        "--look-from",
+        "0,0,0",
+        "--look-to",
+        "0,0,-1",
+        "--spp",
+        "4",
+    ];
+    args.extend(extra);
+    let run = support::raytracer(&args);
+    assert!(run.status.success(), "{}", support::stderr(&run));
+    let mut decoder = png::Decoder::new(std::io::BufReader::new(fs::File::open(out).unwrap()));
+    decoder.set_transformations(png::Transformations::ALPHA);
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut pixels).unwrap();
+    pixels
+}
+
+/// Full mode's default light rig shows the studio's grey backdrop where camera rays
+/// miss, composited after SPEC's tone map: a black model stands out, and its
+/// pixels are those it has without a backdrop (a transparent render's colour). A
+/// scene with a light of its own keeps black misses.
+#[test]
+fn an_unlit_model_in_full_mode_stands_out_against_a_grey_backdrop() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir
+        .path()
+        .join(unlit_quad_obj(dir.path(), "dark", [0.02, 0.02, 0.02]));
+    let out = dir.path().join("out.png");
+    let grey = raytracer::postprocess::default_backdrop();
+    assert!(grey.iter().all(|&c| (60..200).contains(&c)), "{grey:?}");
+    let backdrop = render_png(&scene, &out, &[]);
+    let transparent = render_png(&scene, &out, &["--background", "transparent"]);
+    let at = |pixels: &[u8], x: usize, y: usize| -> [u8; 4] {
+        pixels[(y * 20 + x) * 4..][..4].try_into().unwrap()
+    };
+    assert_eq!(at(&backdrop, 0, 0), [grey[0], grey[1], grey[2], 255]);
+    let model = at(&backdrop, 10, 10);
+    assert!(
+        model[..3].iter().all(|&c| c + 40 < grey[0]),
+        "{model:?} on {grey:?}"
+    );
+    let (mut covered, mut edges) = (0, 0);
+    for y in 0..20 {
+        for x in 0..20 {
+            let (b, t) = (at(&backdrop, x, y), at(&transparent, x, y));
+            match t[3] {
+                255 => {
+                    assert_eq!(b, t, "({x}, {y}): the model's pixels are its own");
+                    covered += 1;
+                }
+                0 => assert_eq!(b, [grey[0], grey[1], grey[2], 255], "({x}, {y})"),
+                _ => edges += 1,
+            }
+        }
+    }
+    assert!(
+        covered > 10 && edges > 4,
+        "{covered} covered, {edges} on edges"
+    );
+    // With a light of its own, the scene is SPEC's: misses stay black.
+    let lit = dir.path().join(quad_obj(
+        dir.path(),
+        "lit",
+        [
+            [-1.0, -1.0, -4.0],
+            [1.0, -1.0, -4.0],
+            [1.0, 1.0, -4.0],
+            [-1.0, 1.0, -4.0],
+        ],
+        [0.02, 0.02, 0.02],
+    ));
+    assert_eq!(at(&render_png(&lit, &out, &[]), 0, 0), [0, 0, 0, 255]);
 }

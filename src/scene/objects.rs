@@ -92,6 +92,28 @@ impl Scene {
         };
         Some((hit, self.objects.of_source(self.source_index(prim))))
     }
+
+    /// [`Scene::intersect_object`] of each of `rays` (at most
+    /// [`crate::bvh::PACKET_SIZE`], coherent: a tile of camera rays) into `hits`,
+    /// traced as one packet ([`Scene::intersect_packet`]), bit for bit the same.
+    ///
+    /// # Panics
+    /// If `rays` is empty, longer than a packet, or not as long as `hits`.
+    pub fn intersect_object_packet(&self, rays: &[Ray], hits: &mut [Option<(Hit, u32)>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        let found = self.closest_lanes_packet(rays);
+        for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
+            *hit = found.and_then(|(packet, lane, found)| {
+                let prim = self.packets[packet as usize].prim(lane)?;
+                let hit = if self.prim_texcoords.is_empty() {
+                    self.hit_details(ray, packet, lane, found)
+                } else {
+                    self.textured_hit_details(ray, packet, lane, found)
+                };
+                Some((hit, self.objects.of_source(self.source_index(prim))))
+            });
+        }
+    }
 }
 
 #[cfg(test)]

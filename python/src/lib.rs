@@ -898,8 +898,10 @@ impl PyScene {
         let (origins, directions) = py.detach(move || {
             let camera = raytracer::Camera::for_options(&options);
             let pixels = width as usize * height as usize;
-            let (mut origins, mut directions) =
-                (Vec::with_capacity(pixels * 3), Vec::with_capacity(pixels * 3));
+            let (mut origins, mut directions) = (
+                Vec::with_capacity(pixels * 3),
+                Vec::with_capacity(pixels * 3),
+            );
             for row in 0..height {
                 for column in 0..width {
                     let ray = camera.pixel_ray(column, row);

@@ -129,7 +129,7 @@ def test_the_toml_camera_matrix_and_intrinsics_are_the_keywords(tmp_path):
         (np.diag([1.0, 1.0, -1.0, 1.0]), "mirror image"),
         # Unit columns 0.1 radians from perpendicular.
         (np.array([[1, np.sin(0.1), 0, 0], [0, np.cos(0.1), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]), "not perpendicular"),
-        (np.where(np.eye(4) == 1, np.nan, 0.0), "element \\[0\\]\\[0\\] is nan"),
+        (np.where(np.eye(4) == 1, np.nan, 0.0), "element \\[0\\]\\[0\\] is NaN"),
         (np.eye(4) + np.array([[0, 0, 0, 0]] * 3 + [[0, 0, 1, 0]]), "the last row"),
         (np.eye(3), "4x4 matrix"),
     ],

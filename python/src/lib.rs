@@ -809,6 +809,79 @@ impl PyScene {
         })
     }
 
+    /// A scene of meshes held as arrays, with materials, lights and an environment as
+    /// the TOML scene format gives them (``docs/scene-format.md``), read from no file.
+    ///
+    /// ``meshes`` is a list of dicts: ``vertices`` ``(n, 3)`` and ``faces`` ``(m, 3)``
+    /// (integers, rows of ``vertices``), optional ``normals`` ``(n, 3)`` (shading
+    /// normals), ``uvs`` ``(n, 2)`` (texture coordinates, v up), ``material`` (a dict
+    /// of the TOML material keys, ``Kd``, ``Ks``, ``Ns``, ``Ke``, ``base_color``,
+    /// ``metallic``, ``roughness``, ...; ``map_Kd`` or ``base_color_texture``: the base
+    /// colour map, an image file's path or a numpy image, ``uint8`` sRGB or float
+    /// linear, ``(h, w, 3)``; default: grey diffuse) and ``transforms`` (``(k, 4, 4)``
+    /// or ``(4, 4)``: the mesh placed ``k`` times, each matrix applied to column
+    /// vectors; flattened into one mesh for now). ``lights`` is a list of dicts of the
+    /// TOML ``[[light]]`` keys; ``environment`` a dict of the ``[environment]`` keys
+    /// (``file`` a path or a numpy image, or ``color``; ``strength``, ``rotation``,
+    /// ``background``). Triangles are numbered mesh after mesh, copy after copy.
+    ///
+    /// Raises ``ValueError`` naming the argument and its first bad element: arrays of
+    /// the wrong shape or dtype, indices out of range, values that are not finite, a
+    /// singular transform, an unknown key.
+    #[staticmethod]
+    #[pyo3(signature = (meshes=None, lights=None, environment=None))]
+    fn from_arrays<'py>(
+        py: Python<'py>,
+        meshes: Option<Bound<'py, PyAny>>,
+        lights: Option<Bound<'py, PyAny>>,
+        environment: Option<Bound<'py, PyAny>>,
+    ) -> PyResult<PyScene> {
+        let composed = py.import("raytracer._arrays")?.getattr("compose")?.call1((
+            meshes,
+            lights,
+            environment,
+        ))?;
+        let text: String = composed.get_item(0)?.extract()?;
+        let mut arrays = Vec::new();
+        for item in composed.get_item(2)?.try_iter()? {
+            let item = item?;
+            arrays.push(mesh::ArrayMesh {
+                vertices: item.get_item(0)?.extract()?,
+                faces: item.get_item(1)?.extract()?,
+                normals: item.get_item(2)?.extract()?,
+                uvs: item.get_item(3)?.extract()?,
+                material: item.get_item(4)?.extract()?,
+                texture: item.get_item(5)?.extract()?,
+            });
+        }
+        // Every file the document names is an absolute path: messages name the
+        // keyword, `from_arrays:LINE: materials.meshes[0].Kx: ...`, not a folder.
+        let document = PathBuf::from("from_arrays");
+        let loaded = py
+            .detach(|| formats::parse_toml(text.as_bytes(), &document))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let description = mesh::arrays_description(loaded.description, &arrays)?;
+        drop(arrays);
+        let options = loaded.options;
+        let loaded = py.detach(|| Loaded::build(None, description, options));
+        warn(py, &loaded.scene.warnings)?;
+        Ok(PyScene {
+            loaded: Arc::new(loaded),
+        })
+    }
+
+    /// A scene of a ``trimesh.Trimesh`` or ``trimesh.Scene`` (``pip install
+    /// trimesh``): its meshes with their transforms, vertex normals when the mesh
+    /// has them, texture coordinates and materials (a ``SimpleMaterial``'s colours,
+    /// glossiness and image; a ``PBRMaterial``'s base colour, metallic, roughness,
+    /// emission and base colour texture), through :meth:`from_arrays`, without a file.
+    #[staticmethod]
+    fn from_trimesh<'py>(py: Python<'py>, mesh: Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("raytracer._arrays")?
+            .getattr("from_trimesh")?
+            .call1((mesh,))
+    }
+
     /// The scene file, as it was named; ``None`` for a scene made by ``from_mesh``.
     #[getter]
     fn path(&self) -> Option<PathBuf> {

@@ -1,7 +1,9 @@
 //! The pinhole LookAt camera of SPEC: focal length 1, vertical field of view, square
 //! pixels, rays through pixel centres, row 0 at the top. Also a thin lens (depth of
-//! field, [`Camera::with_thin_lens`]) and an orthographic projection
-//! ([`Camera::orthographic`]).
+//! field, [`Camera::with_thin_lens`]), an orthographic projection
+//! ([`Camera::orthographic`]), OpenCV's pinhole intrinsics ([`Camera::with_intrinsics`])
+//! and poses given as camera-to-world matrices ([`pose_from_matrix`]), which become
+//! LookAt values so that every mode sees the same camera either way.
 
 use wide::f32x16;
 
@@ -22,6 +24,21 @@ enum Lens {
     Orthographic,
 }
 
+/// How an image position becomes a point of the image plane at distance 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Screen {
+    /// SPEC's: the vertical field of view spans the image height, square pixels.
+    Fov,
+    /// OpenCV's pinhole intrinsics in pixels: focal lengths `fx`, `fy` and the
+    /// principal point (`cx`, `cy`), the top-left pixel's centre being (0, 0).
+    Intrinsics {
+        fx: Float,
+        fy: Float,
+        cx: Float,
+        cy: Float,
+    },
+}
+
 /// A camera placed by LookAt: a pinhole, a thin lens or orthographic.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -37,6 +54,7 @@ pub struct Camera {
     width: u32,
     height: u32,
     lens: Lens,
+    screen: Screen,
 }
 
 impl Camera {
@@ -68,9 +86,11 @@ impl Camera {
             options.width,
             options.height,
         );
-        if let Projection::Orthographic { half_height } = options.projection {
-            return camera.orthographic(half_height);
-        }
+        let camera = match options.projection {
+            Projection::Orthographic { half_height } => return camera.orthographic(half_height),
+            Projection::Intrinsics { fx, fy, cx, cy } => camera.with_intrinsics(fx, fy, cx, cy),
+            Projection::Perspective => camera,
+        };
         match options.mode {
             Mode::Full | Mode::Path if options.aperture_radius > 0.0 => {
                 let focus = options
@@ -110,6 +130,38 @@ impl Camera {
         }
     }
 
+    /// This camera with OpenCV's pinhole intrinsics in pixels instead of its field of
+    /// view: focal lengths `fx`, `fy` and principal point (`cx`, `cy`), where the
+    /// top-left pixel's centre is (0, 0), so `cx = (width - 1) / 2` is the image's
+    /// centre. The camera-space point (x, y, z) (OpenCV's axes: +x right, +y down, +z
+    /// ahead) is seen at pixel (`fx x / z + cx`, `fy y / z + cy`).
+    pub fn with_intrinsics(self, fx: Float, fy: Float, cx: Float, cy: Float) -> Camera {
+        Camera {
+            screen: Screen::Intrinsics { fx, fy, cx, cy },
+            ..self
+        }
+    }
+
+    /// The image plane's horizontal coordinate (at distance 1, along `right`) of
+    /// image position `x` in pixels from the left edge.
+    #[inline]
+    fn screen_x(&self, x: Float) -> Float {
+        match self.screen {
+            Screen::Fov => (2.0 * x / self.width as Float - 1.0) * self.half_width,
+            Screen::Intrinsics { fx, cx, .. } => (x - 0.5 - cx) / fx,
+        }
+    }
+
+    /// The image plane's vertical coordinate (along `up`) of image position `y` in
+    /// pixels from the top edge.
+    #[inline]
+    fn screen_y(&self, y: Float) -> Float {
+        match self.screen {
+            Screen::Fov => (1.0 - 2.0 * y / self.height as Float) * self.half_height,
+            Screen::Intrinsics { fy, cy, .. } => (cy - (y - 0.5)) / fy,
+        }
+    }
+
     /// Whether every ray leaves from the eye through its pixel position
     /// ([`Camera::ray`] is the whole story): the pinhole of SPEC, which
     /// [`Camera::tile_rays`] computes in packets.
@@ -145,6 +197,7 @@ impl Camera {
             width,
             height,
             lens: Lens::Pinhole,
+            screen: Screen::Fov,
         }
     }
 
@@ -155,8 +208,7 @@ impl Camera {
     /// [`Camera::sample_ray`].
     #[inline]
     pub fn ray(&self, x: Float, y: Float) -> Ray {
-        let sx = (2.0 * x / self.width as Float - 1.0) * self.half_width;
-        let sy = (1.0 - 2.0 * y / self.height as Float) * self.half_height;
+        let (sx, sy) = (self.screen_x(x), self.screen_y(y));
         if self.lens == Lens::Orthographic {
             let origin = self.origin + self.right * sx + self.up * sy;
             return Ray::new(origin, -self.backward);
@@ -180,8 +232,7 @@ impl Camera {
     /// `[0, 1)^2`) picks, uniformly over the lens's disc: the pinhole ray's point at
     /// distance `focus` along the view direction stays where it is.
     fn lens_ray(&self, x: Float, y: Float, u: Vec2, radius: Float, focus: Float) -> Ray {
-        let sx = (2.0 * x / self.width as Float - 1.0) * self.half_width;
-        let sy = (1.0 - 2.0 * y / self.height as Float) * self.half_height;
+        let (sx, sy) = (self.screen_x(x), self.screen_y(y));
         let on_plane = self.right * (sx * focus) + self.up * (sy * focus) - self.backward * focus;
         let disc = concentric_disc(u) * radius;
         let from = self.right * disc.x + self.up * disc.y;
@@ -216,11 +267,10 @@ impl Camera {
             columns <= 4 && rows <= 4 && rays.len() >= count,
             "a tile of at most 4 x 4 pixels"
         );
-        let offset = |pixel: u32, size: u32| 2.0 * (pixel as Float + 0.5) / size as Float;
-        let sx: [Float; 4] =
-            std::array::from_fn(|c| (offset(left + c as u32, self.width) - 1.0) * self.half_width);
-        let sy: [Float; 4] =
-            std::array::from_fn(|r| (1.0 - offset(top + r as u32, self.height)) * self.half_height);
+        // The same operations as `pixel_ray`'s, so the same bits.
+        let centre = |pixel: u32| pixel as Float + 0.5;
+        let sx: [Float; 4] = std::array::from_fn(|c| self.screen_x(centre(left + c as u32)));
+        let sy: [Float; 4] = std::array::from_fn(|r| self.screen_y(centre(top + r as u32)));
         let (mut x, mut y) = ([0.0; PACKET_SIZE], [0.0; PACKET_SIZE]);
         for k in 0..count {
             x[k] = sx[k % columns as usize];

@@ -162,6 +162,19 @@ pub enum Projection {
         /// Half the image's height in scene units (glTF's `ymag`), positive.
         half_height: Float,
     },
+    /// From a point, with OpenCV's pinhole intrinsics in pixels instead of
+    /// [`RenderOptions::fov_degrees`] (see [`crate::camera::Camera::with_intrinsics`]):
+    /// `[camera] intrinsics`, Python's `intrinsics=`.
+    Intrinsics {
+        /// Horizontal focal length in pixels, positive.
+        fx: Float,
+        /// Vertical focal length in pixels, positive.
+        fy: Float,
+        /// Principal point's column, the top-left pixel's centre being 0.
+        cx: Float,
+        /// Principal point's row.
+        cy: Float,
+    },
 }
 
 /// Options of one render. Build with [`Default`] and field updates, then
@@ -374,6 +387,7 @@ enum Field {
     Aperture,
     Focus,
     Projection,
+    Intrinsics,
 }
 
 impl Field {
@@ -393,6 +407,8 @@ impl Field {
             Field::Focus => "--focus-distance",
             // No flag sets it: only a glTF camera's `ymag`.
             Field::Projection => "camera.ymag",
+            // No flag sets it: TOML's `camera.intrinsics`, Python's `intrinsics=`.
+            Field::Intrinsics => "--intrinsics",
         }
     }
 
@@ -549,6 +565,18 @@ impl Values {
                 Field::Projection,
                 origin(Field::Projection),
                 format!("{half_height} is not a finite half-height greater than 0"),
+            ));
+        }
+        if let Projection::Intrinsics { fx, fy, cx, cy } = self.projection
+            && !(fx.is_finite() && fx > 0.0 && fy.is_finite() && fy > 0.0)
+                | !(cx.is_finite() && cy.is_finite())
+        {
+            return Err(single_error(
+                Field::Intrinsics,
+                origin(Field::Intrinsics),
+                format!(
+                    "({fx}, {fy}, {cx}, {cy}) are not intrinsics (fx, fy, cx, cy): focal lengths finite and greater than 0, a finite principal point"
+                ),
             ));
         }
         let max_depth = match self.mode {
@@ -901,7 +929,7 @@ impl PartialOptions {
             Field::Seed => origin_of(&self.seed),
             Field::Aperture => origin_of(&self.aperture_radius),
             Field::Focus => origin_of(&self.focus_distance),
-            Field::Projection => origin_of(&self.projection),
+            Field::Projection | Field::Intrinsics => origin_of(&self.projection),
         })
     }
 
@@ -992,6 +1020,97 @@ fn value_or<T: Copy>(value: &Option<Sourced<T>>, default: T) -> T {
 
 fn origin_of<T>(value: &Option<Sourced<T>>) -> Origin {
     value.as_ref().map_or(Origin::Default, |v| v.origin.clone())
+}
+
+/// A camera pose as LookAt values: what a camera-to-world matrix says.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    /// The camera's position.
+    pub look_from: Vec3,
+    /// A point the camera looks at, straight ahead.
+    pub look_to: Vec3,
+    /// The camera's up direction in world space.
+    pub up: Vec3,
+}
+
+/// How far a camera-to-world matrix's rotation may be from orthonormal (per column
+/// length and per dot product): matrices written with 6 or 7 digits pass.
+const POSE_TOLERANCE: f64 = 1e-4;
+
+/// The LookAt pose of a camera-to-world matrix `m` (rows of four: `m[row][column]`)
+/// in OpenGL's and glTF's convention: the camera looks down its -Z axis with +Y up,
+/// so the columns are the camera's right, up and backward directions in world space
+/// and its position. The camera then looks at `position - backward * s` (with `s =
+/// |position| + 1`, so the difference that gives the view direction back is exact
+/// to rounding however far the camera is) with up the matrix's up column: a camera
+/// whose matrix is exact in floating point (a quarter turn) renders bit for bit as
+/// the LookAt camera of the same pose.
+///
+/// # Errors
+/// A message (to follow the argument's name) when a value is not finite, the last
+/// row is not `0 0 0 1`, the rotation part is singular, or it is not a rotation (a
+/// column's length or two columns' dot product more than 1e-4 from a rotation's, or
+/// a mirror image).
+pub fn pose_from_matrix(m: [[f64; 4]; 4]) -> Result<Pose, String> {
+    for (r, row) in m.iter().enumerate() {
+        for (c, v) in row.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(format!("element [{r}][{c}] is {v}, not a finite number"));
+            }
+        }
+    }
+    if m[3] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(format!(
+            "the last row is {:?}, not [0, 0, 0, 1] (a camera-to-world matrix is a rotation and a translation)",
+            m[3]
+        ));
+    }
+    let column = |c: usize| [m[0][c], m[1][c], m[2][c]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let [right, up, backward] = [column(0), column(1), column(2)];
+    let det = dot(cross(right, up), backward);
+    if det.abs() < 1e-12 {
+        return Err(format!(
+            "the rotation part (the upper-left 3x3) is singular (determinant {det:e})"
+        ));
+    }
+    let names = ["right (column 0)", "up (column 1)", "backward (column 2)"];
+    for (axis, name) in [right, up, backward].iter().zip(names) {
+        let length = dot(*axis, *axis).sqrt();
+        if (length - 1.0).abs() > POSE_TOLERANCE {
+            return Err(format!(
+                "the {name} axis has length {length}, not 1: the upper-left 3x3 must be a rotation (no scale)"
+            ));
+        }
+    }
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        let d = dot(column(a), column(b));
+        if d.abs() > POSE_TOLERANCE {
+            return Err(format!(
+                "columns {a} and {b} are not perpendicular (dot product {d}): the upper-left 3x3 must be a rotation"
+            ));
+        }
+    }
+    if det < 0.0 {
+        return Err(
+            "the upper-left 3x3 is a mirror image (determinant -1), not a rotation".to_string(),
+        );
+    }
+    let vec = |v: [f64; 3]| Vec3::new(v[0] as Float, v[1] as Float, v[2] as Float);
+    let position = vec(column(3));
+    let reach = position.length() + 1.0;
+    Ok(Pose {
+        look_from: position,
+        look_to: position - vec(backward) * reach,
+        up: vec(up),
+    })
 }
 
 #[cfg(test)]

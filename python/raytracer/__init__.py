@@ -28,16 +28,27 @@ The package is a thin layer over the Rust library (the ``raytracer`` command's):
   "raytracer[distributed]"``); ``python -m raytracer.distributed`` is its command.
 
 Every render call takes the keyword options named in :data:`OPTIONS` (``width``,
-``height``, ``fov``, ``look_from``, ``look_to``, ``up``, ``mode``, ``depth``, ``spp``,
-``exposure``, ``seed``, ``tonemap``, ``aperture_radius``, ``focus_distance``). They behave as the command line's flags: each one given
-replaces the TOML scene file's value, each one left out (``None``) keeps it, and the
-defaults apply last.
-Errors are exceptions with the command line's messages: ``ValueError`` for bad options,
-:class:`SceneError` (an ``OSError``) for unreadable or malformed scenes.
+``height``, ``fov``, ``look_from``, ``look_to``, ``up``, ``camera_to_world``,
+``intrinsics``, ``mode``, ``depth``, ``spp``, ``exposure``, ``seed``, ``tonemap``,
+``aperture_radius``, ``focus_distance``, ``default_light``, ``env``, ``env_strength``,
+``env_rotation``, ``background``) and ``progress``. They behave as the command line's
+flags: each one given replaces the TOML scene file's value, each one left out
+(``None``) keeps it, and the defaults apply last.
+Errors are exceptions with the command line's messages, naming the keyword:
+``ValueError`` for bad options, :class:`SceneError` (an ``OSError``) for unreadable or
+malformed scenes. Warnings are :class:`RaytracerWarning` warnings. Ctrl-C raises
+``KeyboardInterrupt`` within a fraction of a second. Rendered images are
+:class:`Image` arrays, which Jupyter shows as their PNG.
 """
 
+# numpy first: the extension module makes numpy arrays, and importing numpy late (in
+# the middle of a call) could fail on a pending KeyboardInterrupt.
+import numpy as _numpy  # noqa: F401
+
+from ._image import Image
 from ._raytracer import (
     OPTIONS,
+    RaytracerWarning,
     Scene,
     SceneError,
     __version__,
@@ -50,6 +61,8 @@ from ._raytracer import (
 
 __all__ = [
     "OPTIONS",
+    "Image",
+    "RaytracerWarning",
     "Scene",
     "SceneError",
     "__version__",

@@ -24,19 +24,33 @@ use std::time::{Duration, Instant};
 use numpy::ndarray::{Array3, ArrayView3};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray3, PyArrayLike3, TypeMustMatch};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyTuple};
+use raytracer::formats::environment::{EnvironmentNames, EnvironmentOptions};
 use raytracer::formats::{self, ParseErrorKind, SceneFormat};
 use raytracer::math::{Float, Vec3};
-use raytracer::options::{OptionsError, Origin, PartialOptions, Sourced, ToneMap};
+use raytracer::options::{
+    OptionsError, Origin, PartialOptions, Projection, Sourced, ToneMap, pose_from_matrix,
+};
 use raytracer::output::{self, UnknownFormatError, WriteError};
 use raytracer::postprocess::PostProcessing;
 use raytracer::{BvhParams, Film, Image, ImageFormat, Mode, RenderOptions, Scene, Tile, TileError};
 
 mod mesh;
 mod rays;
+mod run;
 use rays::{RAY_ROWS, Reach, blocked_rays, closest_hits, numbers_of, ray_rows};
+
+create_exception!(
+    raytracer,
+    RaytracerWarning,
+    PyUserWarning,
+    "What the renderer warns of while reading, building or rendering a scene (a \
+     texture it cannot read, degenerate triangles, options that do nothing): the \
+     command line's warnings, through Python's ``warnings`` module. Filter them as any \
+     warning: ``warnings.simplefilter(\"ignore\", raytracer.RaytracerWarning)``."
+);
 
 create_exception!(
     raytracer,
@@ -48,8 +62,10 @@ create_exception!(
 
 /// Every failure of the library, turned into a Python exception once the interpreter
 /// is attached again.
-enum Error {
+pub(crate) enum Error {
     Scene(formats::SceneError),
+    /// An environment option that cannot be used, its message naming the keyword.
+    Environment(String),
     Options(OptionsError),
     Tile(TileError),
     Format(UnknownFormatError),
@@ -60,7 +76,8 @@ impl From<Error> for PyErr {
     fn from(error: Error) -> PyErr {
         match error {
             Error::Scene(e) => SceneError::new_err(e.to_string()),
-            Error::Options(e) => PyValueError::new_err(e.to_string()),
+            Error::Options(e) => PyValueError::new_err(python_message(&e.to_string())),
+            Error::Environment(message) => PyValueError::new_err(message),
             Error::Tile(e) => PyValueError::new_err(e.to_string()),
             Error::Format(e) => PyValueError::new_err(e.to_string()),
             Error::Write(e) => PyOSError::new_err(e.to_string()),
@@ -82,13 +99,15 @@ impl From<OptionsError> for Error {
 
 /// The names of the render options every render call takes as keyword arguments, in
 /// the order the documentation lists them (exported as ``raytracer.OPTIONS``).
-const OPTION_NAMES: [&str; 14] = [
+const OPTION_NAMES: [&str; 21] = [
     "width",
     "height",
     "fov",
     "look_from",
     "look_to",
     "up",
+    "camera_to_world",
+    "intrinsics",
     "mode",
     "depth",
     "spp",
@@ -97,11 +116,21 @@ const OPTION_NAMES: [&str; 14] = [
     "tonemap",
     "aperture_radius",
     "focus_distance",
+    "default_light",
+    "env",
+    "env_strength",
+    "env_rotation",
+    "background",
 ];
+
+/// The options among [`OPTION_NAMES`] that belong to the scene rather than to one
+/// render: a [`Scene`] is built with them (they change what the scene emits).
+const SCENE_OPTION_NAMES: [&str; 4] = ["env", "env_strength", "env_rotation", "background"];
 
 /// The render options of one Python call, as given: `None` for each one left out.
 /// Converted to [`PartialOptions`] whose values come from the matching command-line
-/// flag ([`Origin::Flag`]), so that messages are the command line's.
+/// flag ([`Origin::Flag`]), so that messages are the command line's; [`python_message`]
+/// then names the keywords instead.
 #[derive(Default)]
 struct Given<'py> {
     width: Option<Bound<'py, PyAny>>,
@@ -110,6 +139,8 @@ struct Given<'py> {
     look_from: Option<Bound<'py, PyAny>>,
     look_to: Option<Bound<'py, PyAny>>,
     up: Option<Bound<'py, PyAny>>,
+    camera_to_world: Option<Bound<'py, PyAny>>,
+    intrinsics: Option<Bound<'py, PyAny>>,
     mode: Option<Bound<'py, PyAny>>,
     depth: Option<Bound<'py, PyAny>>,
     spp: Option<Bound<'py, PyAny>>,
@@ -118,13 +149,24 @@ struct Given<'py> {
     tonemap: Option<Bound<'py, PyAny>>,
     aperture_radius: Option<Bound<'py, PyAny>>,
     focus_distance: Option<Bound<'py, PyAny>>,
+    default_light: Option<Bound<'py, PyAny>>,
+    env: Option<Bound<'py, PyAny>>,
+    env_strength: Option<Bound<'py, PyAny>>,
+    env_rotation: Option<Bound<'py, PyAny>>,
+    background: Option<Bound<'py, PyAny>>,
+    /// `progress=`: not an option of the image, taken by render calls only.
+    progress: Option<Bound<'py, PyAny>>,
 }
 
 impl<'py> Given<'py> {
     /// The options among the keyword arguments of a call of `function`: one named
     /// outside [`OPTION_NAMES`] is a `TypeError`, as Python raises for any function;
-    /// `None` counts as left out.
-    fn from_keywords(function: &str, keywords: Option<&Bound<'py, PyDict>>) -> PyResult<Self> {
+    /// `None` counts as left out. `progress` is taken when `with_progress`.
+    fn from_keywords(
+        function: &str,
+        keywords: Option<&Bound<'py, PyDict>>,
+        with_progress: bool,
+    ) -> PyResult<Self> {
         let mut given = Given::default();
         for (key, value) in keywords.into_iter().flat_map(|k| k.iter()) {
             let name: String = key.extract()?;
@@ -135,6 +177,8 @@ impl<'py> Given<'py> {
                 "look_from" => &mut given.look_from,
                 "look_to" => &mut given.look_to,
                 "up" => &mut given.up,
+                "camera_to_world" => &mut given.camera_to_world,
+                "intrinsics" => &mut given.intrinsics,
                 "mode" => &mut given.mode,
                 "depth" => &mut given.depth,
                 "spp" => &mut given.spp,
@@ -143,6 +187,12 @@ impl<'py> Given<'py> {
                 "tonemap" => &mut given.tonemap,
                 "aperture_radius" => &mut given.aperture_radius,
                 "focus_distance" => &mut given.focus_distance,
+                "default_light" => &mut given.default_light,
+                "env" => &mut given.env,
+                "env_strength" => &mut given.env_strength,
+                "env_rotation" => &mut given.env_rotation,
+                "background" => &mut given.background,
+                "progress" if with_progress => &mut given.progress,
                 _ => {
                     return Err(PyTypeError::new_err(format!(
                         "{function}() got an unexpected keyword argument '{name}'"
@@ -155,12 +205,85 @@ impl<'py> Given<'py> {
         }
         Ok(given)
     }
+
+    /// Refuses the scene's options ([`SCENE_OPTION_NAMES`]) in a call on a scene
+    /// already built.
+    fn refuse_scene_options(&self, function: &str) -> PyResult<()> {
+        let given = [
+            &self.env,
+            &self.env_strength,
+            &self.env_rotation,
+            &self.background,
+        ];
+        match SCENE_OPTION_NAMES
+            .iter()
+            .zip(given)
+            .find(|(_, v)| v.is_some())
+        {
+            Some((name, _)) => Err(PyTypeError::new_err(format!(
+                "{function}() of a Scene cannot take {name}: the environment and background \
+                 belong to the scene; give them to raytracer.Scene(...) or \
+                 Scene.from_arrays(...), or to raytracer.render(path, ...)"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The environment options given (`env`, `env_strength`, `env_rotation`,
+    /// `background`).
+    fn environment(&self) -> PyResult<EnvironmentOptions> {
+        let env = self
+            .env
+            .as_ref()
+            .map(|v| -> PyResult<String> {
+                if let Ok(path) = v.extract::<PathBuf>() {
+                    return Ok(path.to_string_lossy().into_owned());
+                }
+                let colour = vector(v, "--env").map_err(|_| {
+                    PyTypeError::new_err(format!(
+                        "env must be an image file's path or a colour (r, g, b), not {v}"
+                    ))
+                })?;
+                Ok(format!("{},{},{}", colour.x, colour.y, colour.z))
+            })
+            .transpose()?;
+        Ok(EnvironmentOptions {
+            env,
+            strength: self
+                .env_strength
+                .as_ref()
+                .map(|v| number(v, "--env-strength"))
+                .transpose()?,
+            rotation: self
+                .env_rotation
+                .as_ref()
+                .map(|v| number(v, "--env-rotation"))
+                .transpose()?,
+            background: self
+                .background
+                .as_ref()
+                .map(|v| vector(v, "--background"))
+                .transpose()?,
+        })
+    }
 }
+
+/// How Python's keywords name the environment options in messages.
+const ENVIRONMENT_KEYWORDS: EnvironmentNames = EnvironmentNames {
+    env: "env",
+    strength: "env_strength",
+    rotation: "env_rotation",
+};
 
 impl Given<'_> {
     /// The given values, converted but not range-checked: ranges are checked once,
-    /// after merging over the scene file's values.
+    /// after merging over the scene file's values. Messages name the keywords.
     fn options(&self) -> PyResult<PartialOptions> {
+        self.options_as_flags().map_err(keyword_error)
+    }
+
+    /// [`Given::options`] with messages naming the command line's flags.
+    fn options_as_flags(&self) -> PyResult<PartialOptions> {
         fn flag<T>(
             value: Option<&Bound<'_, PyAny>>,
             name: &'static str,
@@ -170,9 +293,7 @@ impl Given<'_> {
                 .map(|v| Ok(Sourced::new(convert(v, name)?, Origin::Flag(name))))
                 .transpose()
         }
-        // Options the library gains stay "not given" until added here.
-        #[allow(clippy::needless_update)]
-        Ok(PartialOptions {
+        let mut options = PartialOptions {
             width: flag(self.width.as_ref(), "--width", whole_number)?,
             height: flag(self.height.as_ref(), "--height", whole_number)?,
             fov_degrees: flag(self.fov.as_ref(), "--fov", number)?,
@@ -186,14 +307,122 @@ impl Given<'_> {
             samples_per_pixel: flag(self.spp.as_ref(), "--spp", whole_number)?,
             exposure: flag(self.exposure.as_ref(), "--exposure", number)?,
             seed: flag(self.seed.as_ref(), "--seed", whole_number)?,
+            default_light: flag(self.default_light.as_ref(), "--default-light", |v, _| {
+                v.extract::<bool>()
+                    .map_err(|e| PyTypeError::new_err(format!("default_light: {e}")))
+            })?,
             tonemap: flag(self.tonemap.as_ref(), "--tonemap", |v, _| {
                 parse_tonemap(&v.extract::<String>()?)
             })?,
             aperture_radius: flag(self.aperture_radius.as_ref(), "--aperture-radius", number)?,
             focus_distance: flag(self.focus_distance.as_ref(), "--focus-distance", number)?,
-            ..PartialOptions::default()
-        })
+            projection: flag(self.intrinsics.as_ref(), "--intrinsics", intrinsics)?,
+        };
+        if let Some(matrix) = &self.camera_to_world {
+            if let Some(name) = [
+                ("look_from", &self.look_from),
+                ("look_to", &self.look_to),
+                ("up", &self.up),
+            ]
+            .iter()
+            .find_map(|(name, v)| v.is_some().then_some(name))
+            {
+                return Err(PyValueError::new_err(format!(
+                    "give camera_to_world or look_from, look_to and up, not both \
+                     (camera_to_world and {name} given)"
+                )));
+            }
+            let pose = pose_from_matrix(camera_matrix(matrix)?)
+                .map_err(|e| PyValueError::new_err(format!("invalid camera_to_world: {e}")))?;
+            let from = |v: Vec3| Some(Sourced::new(v, Origin::Flag("--camera-to-world")));
+            options.look_from = from(pose.look_from);
+            options.look_to = from(pose.look_to);
+            options.up = from(pose.up);
+        }
+        Ok(options)
     }
+}
+
+/// A 4x4 matrix of numbers (a numpy array or nested sequences).
+fn camera_matrix(value: &Bound<'_, PyAny>) -> PyResult<[[f64; 4]; 4]> {
+    let rows = numbers_of(value, "camera_to_world", "a 4x4 matrix of numbers")?;
+    let rows = rows.as_array();
+    if rows.shape() != [4, 4] {
+        return Err(PyValueError::new_err(format!(
+            "invalid camera_to_world: a 4x4 matrix, not of the shape {}",
+            rays::shape_text(rows.shape())
+        )));
+    }
+    // In f64 from the caller's values: float32 would round the rotation.
+    let numpy = value.py().import("numpy")?;
+    let doubles = numpy.call_method1("asarray", (value, "float64"))?;
+    let doubles: Vec<Vec<f64>> = doubles.call_method0("tolist")?.extract()?;
+    Ok(std::array::from_fn(|r| {
+        std::array::from_fn(|c| doubles[r][c])
+    }))
+}
+
+/// OpenCV's pinhole intrinsics `(fx, fy, cx, cy)` in pixels.
+fn intrinsics(value: &Bound<'_, PyAny>, _: &'static str) -> PyResult<Projection> {
+    let numbers = value
+        .extract::<Vec<f64>>()
+        .map_err(|e| PyTypeError::new_err(format!("intrinsics: {e}")))?;
+    match numbers[..] {
+        [fx, fy, cx, cy] => Ok(Projection::Intrinsics {
+            fx: fx as Float,
+            fy: fy as Float,
+            cx: cx as Float,
+            cy: cy as Float,
+        }),
+        _ => Err(PyValueError::new_err(format!(
+            "invalid intrinsics: four numbers (fx, fy, cx, cy), not {}",
+            numbers.len()
+        ))),
+    }
+}
+
+/// `error` with [`python_message`]'s names if it is a `ValueError` or `TypeError`.
+fn keyword_error(error: PyErr) -> PyErr {
+    Python::attach(|py| {
+        let message = python_message(&error.value(py).to_string());
+        if error.is_instance_of::<PyValueError>(py) {
+            PyValueError::new_err(message)
+        } else if error.is_instance_of::<PyTypeError>(py) {
+            PyTypeError::new_err(message)
+        } else {
+            error
+        }
+    })
+}
+
+/// A message of the library's, with each command-line flag (`--look-from`) named as
+/// the Python keyword that sets it (`look_from`).
+fn python_message(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(at) = rest.find("--") {
+        let starts_word = at == 0
+            || rest[..at]
+                .chars()
+                .next_back()
+                .is_some_and(|c| matches!(c, ' ' | '/' | '(' | ','));
+        out.push_str(&rest[..at]);
+        let name_end = rest[at + 2..]
+            .find(|c: char| !(c.is_ascii_lowercase() || c == '-'))
+            .map_or(rest.len(), |n| at + 2 + n);
+        let flag = &rest[at..name_end];
+        if starts_word && flag.len() > 2 {
+            out.push_str(&match flag {
+                "--no-default-light" => "default_light=False".to_string(),
+                flag => argument(flag),
+            });
+        } else {
+            out.push_str(flag);
+        }
+        rest = &rest[name_end..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// The Python argument name of a flag: `--look-from` is `look_from`.
@@ -281,6 +510,15 @@ fn toml_string(text: &str) -> String {
 /// `None` for the default), both for path mode only, checked as the command line
 /// checks `--exposure` and `--tonemap`.
 fn post_processing(mode: &str, exposure: Float, tonemap: Option<&str>) -> PyResult<PostProcessing> {
+    post_processing_as_flags(mode, exposure, tonemap).map_err(keyword_error)
+}
+
+/// [`post_processing`] with messages naming the command line's flags.
+fn post_processing_as_flags(
+    mode: &str,
+    exposure: Float,
+    tonemap: Option<&str>,
+) -> PyResult<PostProcessing> {
     let mode = parse_mode(mode)?;
     let options = RenderOptions {
         exposure,
@@ -329,7 +567,7 @@ fn tile(value: &Bound<'_, PyAny>) -> PyResult<Tile> {
 
 /// A scene file read and built, with the options the file gives; or a mesh given as
 /// arrays, built.
-struct Loaded {
+pub(crate) struct Loaded {
     /// The scene file, as named (none for a mesh given as arrays).
     path: Option<PathBuf>,
     scene: Scene,
@@ -342,10 +580,18 @@ struct Loaded {
 }
 
 impl Loaded {
-    /// Reads and builds the scene at `path`. Call detached from the interpreter.
-    fn read(path: &Path, access: &formats::FileAccess) -> Result<Loaded, Error> {
+    /// Reads the scene at `path`, sets the environment options `environment` over
+    /// the file's, and builds it. Call detached from the interpreter.
+    fn read(
+        path: &Path,
+        access: &formats::FileAccess,
+        environment: &EnvironmentOptions,
+    ) -> Result<Loaded, Error> {
         test_gate("RAYTRACER_TEST_GATE_LOAD");
-        let loaded = formats::load_with(path, access)?;
+        let mut loaded = formats::load_with(path, access)?;
+        environment
+            .apply(&mut loaded.description, ENVIRONMENT_KEYWORDS)
+            .map_err(Error::Environment)?;
         Ok(Loaded::build(
             Some(path.to_path_buf()),
             loaded.description,
@@ -381,21 +627,17 @@ impl Loaded {
         )?)
     }
 
-    /// Renders the whole image or `tile` of it as the command line would: a scene
-    /// without lights gets the default lighting for this camera first.
-    fn render(&self, options: &RenderOptions, tile: Option<Tile>) -> Result<Film, Error> {
-        test_gate("RAYTRACER_TEST_GATE_RENDER");
+    /// The scene lit for `options`, if it needs lights it lacks: as the command line
+    /// does, a scene without lights rendered in full mode gets the default lighting
+    /// for this camera. Call detached from the interpreter.
+    pub(crate) fn lit_for(&self, options: &RenderOptions) -> Option<Scene> {
         match &self.unlit {
             Some(description) if options.mode == raytracer::Mode::Full && options.default_light => {
                 let mut description = description.clone();
                 description.add_default_light(options);
-                render_film(
-                    &Scene::build(description, &BvhParams::default()),
-                    options,
-                    tile,
-                )
+                Some(Scene::build(description, &BvhParams::default()))
             }
-            _ => render_film(&self.scene, options, tile),
+            _ => None,
         }
     }
 }
@@ -405,7 +647,7 @@ impl Loaded {
 /// When the environment variable `variable` names a file, the (detached) call writes
 /// the marker `<file>.<process id>` and waits until `<file>` exists, for a minute at
 /// most. Without the variable it costs one look-up per load, render or ray array.
-fn test_gate(variable: &str) {
+pub(crate) fn test_gate(variable: &str) {
     let Some(gate) = std::env::var_os(variable) else {
         return;
     };
@@ -421,14 +663,6 @@ fn test_gate(variable: &str) {
     let deadline = Instant::now() + Duration::from_secs(60);
     while !gate.exists() && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(1));
-    }
-}
-
-/// Renders the whole image, or `tile` of it. Call detached from the interpreter.
-fn render_film(scene: &Scene, options: &RenderOptions, tile: Option<Tile>) -> Result<Film, Error> {
-    match tile {
-        None => Ok(raytracer::render(scene, options)),
-        Some(tile) => raytracer::render_tile(scene, options, tile).map_err(Error::Tile),
     }
 }
 
@@ -499,6 +733,10 @@ fn array_film(linear: ArrayView3<'_, f32>) -> PyResult<Film> {
 /// malformed. A TOML file's camera and render values are kept: they apply to every
 /// render unless an argument replaces them.
 ///
+/// ``env``, ``env_strength``, ``env_rotation`` and ``background`` set path mode's
+/// environment and background over the file's, as :func:`raytracer.render` takes them.
+/// The scene's warnings are :class:`RaytracerWarning` warnings (and ``warnings``).
+///
 /// ``Scene(path, confined_to=folder)`` opens no file outside ``folder``, whatever the
 /// scene names (an absolute path, ``..``, a link): such a library, mesh or buffer is
 /// an error, such a texture a warning, each naming the file and line that named it.
@@ -511,8 +749,26 @@ struct PyScene {
 #[pymethods]
 impl PyScene {
     #[new]
-    #[pyo3(signature = (path, *, confined_to=None))]
-    fn new(py: Python<'_>, path: PathBuf, confined_to: Option<PathBuf>) -> PyResult<PyScene> {
+    #[pyo3(signature = (path, *, confined_to=None, env=None, env_strength=None, env_rotation=None, background=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new<'py>(
+        py: Python<'py>,
+        path: PathBuf,
+        confined_to: Option<PathBuf>,
+        env: Option<Bound<'py, PyAny>>,
+        env_strength: Option<Bound<'py, PyAny>>,
+        env_rotation: Option<Bound<'py, PyAny>>,
+        background: Option<Bound<'py, PyAny>>,
+    ) -> PyResult<PyScene> {
+        let environment = Given {
+            env,
+            env_strength,
+            env_rotation,
+            background,
+            ..Given::default()
+        }
+        .environment()
+        .map_err(keyword_error)?;
         let loaded = py.detach(|| {
             let access = match confined_to {
                 Some(folder) => formats::FileAccess::confined_to(&folder).map_err(|error| {
@@ -523,8 +779,9 @@ impl PyScene {
                 })?,
                 None => formats::FileAccess::anywhere(),
             };
-            Loaded::read(&path, &access)
+            Loaded::read(&path, &access, &environment)
         })?;
+        warn(py, &loaded.scene.warnings)?;
         Ok(PyScene {
             loaded: Arc::new(loaded),
         })
@@ -552,6 +809,79 @@ impl PyScene {
         })
     }
 
+    /// A scene of meshes held as arrays, with materials, lights and an environment as
+    /// the TOML scene format gives them (``docs/scene-format.md``), read from no file.
+    ///
+    /// ``meshes`` is a list of dicts: ``vertices`` ``(n, 3)`` and ``faces`` ``(m, 3)``
+    /// (integers, rows of ``vertices``), optional ``normals`` ``(n, 3)`` (shading
+    /// normals), ``uvs`` ``(n, 2)`` (texture coordinates, v up), ``material`` (a dict
+    /// of the TOML material keys, ``Kd``, ``Ks``, ``Ns``, ``Ke``, ``base_color``,
+    /// ``metallic``, ``roughness``, ...; ``map_Kd`` or ``base_color_texture``: the base
+    /// colour map, an image file's path or a numpy image, ``uint8`` sRGB or float
+    /// linear, ``(h, w, 3)``; default: grey diffuse) and ``transforms`` (``(k, 4, 4)``
+    /// or ``(4, 4)``: the mesh placed ``k`` times, each matrix applied to column
+    /// vectors; flattened into one mesh for now). ``lights`` is a list of dicts of the
+    /// TOML ``[[light]]`` keys; ``environment`` a dict of the ``[environment]`` keys
+    /// (``file`` a path or a numpy image, or ``color``; ``strength``, ``rotation``,
+    /// ``background``). Triangles are numbered mesh after mesh, copy after copy.
+    ///
+    /// Raises ``ValueError`` naming the argument and its first bad element: arrays of
+    /// the wrong shape or dtype, indices out of range, values that are not finite, a
+    /// singular transform, an unknown key.
+    #[staticmethod]
+    #[pyo3(signature = (meshes=None, lights=None, environment=None))]
+    fn from_arrays<'py>(
+        py: Python<'py>,
+        meshes: Option<Bound<'py, PyAny>>,
+        lights: Option<Bound<'py, PyAny>>,
+        environment: Option<Bound<'py, PyAny>>,
+    ) -> PyResult<PyScene> {
+        let composed = py.import("raytracer._arrays")?.getattr("compose")?.call1((
+            meshes,
+            lights,
+            environment,
+        ))?;
+        let text: String = composed.get_item(0)?.extract()?;
+        let mut arrays = Vec::new();
+        for item in composed.get_item(2)?.try_iter()? {
+            let item = item?;
+            arrays.push(mesh::ArrayMesh {
+                vertices: item.get_item(0)?.extract()?,
+                faces: item.get_item(1)?.extract()?,
+                normals: item.get_item(2)?.extract()?,
+                uvs: item.get_item(3)?.extract()?,
+                material: item.get_item(4)?.extract()?,
+                texture: item.get_item(5)?.extract()?,
+            });
+        }
+        // Every file the document names is an absolute path: messages name the
+        // keyword, `from_arrays:LINE: materials.meshes[0].Kx: ...`, not a folder.
+        let document = PathBuf::from("from_arrays");
+        let loaded = py
+            .detach(|| formats::parse_toml(text.as_bytes(), &document))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let description = mesh::arrays_description(loaded.description, &arrays)?;
+        drop(arrays);
+        let options = loaded.options;
+        let loaded = py.detach(|| Loaded::build(None, description, options));
+        warn(py, &loaded.scene.warnings)?;
+        Ok(PyScene {
+            loaded: Arc::new(loaded),
+        })
+    }
+
+    /// A scene of a ``trimesh.Trimesh`` or ``trimesh.Scene`` (``pip install
+    /// trimesh``): its meshes with their transforms, vertex normals when the mesh
+    /// has them, texture coordinates and materials (a ``SimpleMaterial``'s colours,
+    /// glossiness and image; a ``PBRMaterial``'s base colour, metallic, roughness,
+    /// emission and base colour texture), through :meth:`from_arrays`, without a file.
+    #[staticmethod]
+    fn from_trimesh<'py>(py: Python<'py>, mesh: Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("raytracer._arrays")?
+            .getattr("from_trimesh")?
+            .call1((mesh,))
+    }
+
     /// The scene file, as it was named; ``None`` for a scene made by ``from_mesh``.
     #[getter]
     fn path(&self) -> Option<PathBuf> {
@@ -565,17 +895,20 @@ impl PyScene {
         self.loaded.scene.warnings.clone()
     }
 
-    /// Renders the scene: the linear image before post-processing, a ``float32``
-    /// array of shape ``(height, width, 3)``; see :func:`raytracer.render`, which
-    /// takes the same arguments.
+    /// Renders the scene: the linear image before post-processing, a
+    /// :class:`raytracer.Image` (a ``float32`` array of shape ``(height, width, 3)``);
+    /// see :func:`raytracer.render`, which takes the same arguments but those of the
+    /// environment (``env``, ``env_strength``, ``env_rotation``, ``background``),
+    /// which belong to the scene: give them to ``Scene(...)``.
     #[pyo3(signature = (*, tile=None, **options))]
     fn render<'py>(
         &self,
         py: Python<'py>,
         tile: Option<&Bound<'py, PyAny>>,
         options: Option<&Bound<'py, PyDict>>,
-    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let given = Given::from_keywords("render", options)?;
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let given = Given::from_keywords("render", options, true)?;
+        given.refuse_scene_options("render")?;
         self.render_given(py, &given, tile)
     }
 
@@ -593,7 +926,8 @@ impl PyScene {
         py: Python<'py>,
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let given = Given::from_keywords("options", options)?;
+        let given = Given::from_keywords("options", options, false)?;
+        given.refuse_scene_options("options")?;
         let options = self.resolve(&given)?;
         let dict = PyDict::new(py);
         dict.set_item("width", options.width)?;
@@ -615,6 +949,44 @@ impl PyScene {
             .focus_distance
             .unwrap_or_else(|| options.look_from.distance(options.look_to));
         dict.set_item("focus_distance", focus)?;
+        Ok(dict)
+    }
+
+    /// The camera rays through the pixel centres of a render with these arguments
+    /// (the same as :meth:`render` takes, ``tile`` and ``progress`` aside), as a
+    /// dict of ``float32`` arrays of shape ``(height, width, 3)``: ``"origins"`` and
+    /// unit ``"directions"``, row 0 at the top: what the camera sees at each pixel,
+    /// for ray casting of your own (:meth:`intersect`) or to check a camera. A thin
+    /// lens's rays are given through its centre.
+    #[pyo3(signature = (**options))]
+    fn camera_rays<'py>(
+        &self,
+        py: Python<'py>,
+        options: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let given = Given::from_keywords("camera_rays", options, false)?;
+        given.refuse_scene_options("camera_rays")?;
+        let options = self.resolve(&given)?;
+        let (width, height) = (options.width, options.height);
+        let (origins, directions) = py.detach(move || {
+            let camera = raytracer::Camera::for_options(&options);
+            let pixels = width as usize * height as usize;
+            let (mut origins, mut directions) = (
+                Vec::with_capacity(pixels * 3),
+                Vec::with_capacity(pixels * 3),
+            );
+            for row in 0..height {
+                for column in 0..width {
+                    let ray = camera.pixel_ray(column, row);
+                    origins.extend_from_slice(&ray.origin.to_array());
+                    directions.extend_from_slice(&ray.dir.to_array());
+                }
+            }
+            (origins, directions)
+        });
+        let dict = PyDict::new(py);
+        dict.set_item("origins", film_array(py, width, height, origins))?;
+        dict.set_item("directions", film_array(py, width, height, directions))?;
         Ok(dict)
     }
 
@@ -720,46 +1092,94 @@ impl PyScene {
         py: Python<'py>,
         given: &Given<'py>,
         tile_value: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    ) -> PyResult<Bound<'py, PyAny>> {
         let options = self.resolve(given)?;
         let tile = tile_value.map(tile).transpose()?;
-        let loaded = Arc::clone(&self.loaded);
-        let (width, height, values) = py.detach(move || {
-            let film = loaded.render(&options, tile)?;
-            Ok::<_, Error>((film.width, film.height, film_values(&film)))
-        })?;
-        Ok(film_array(py, width, height, values))
+        let progress = run::Progress::of(given.progress.as_ref())?;
+        let film = run::render(py, Arc::clone(&self.loaded), options, tile, &progress)?;
+        image_of(py, film, &options)
     }
 }
 
+/// A film as the package's image: a `float32` numpy array of shape `(height, width,
+/// 3)` (the class `raytracer.Image`, which shows itself in Jupyter as the PNG would
+/// show it, post-processed for `options`' mode, exposure and tone map).
+fn image_of<'py>(
+    py: Python<'py>,
+    film: Film,
+    options: &RenderOptions,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (width, height) = (film.width, film.height);
+    let values = py.detach(move || film_values(&film));
+    let array = film_array(py, width, height, values);
+    py.import("raytracer._image")?
+        .getattr("Image")?
+        .call_method1(
+            "_wrap",
+            (
+                array,
+                mode_name(options.mode),
+                options.exposure,
+                options.tonemap.name(),
+            ),
+        )
+}
+
+/// Each of `messages` as a [`RaytracerWarning`], through Python's `warnings` module
+/// (which may turn one into an exception: then it is raised).
+fn warn(py: Python<'_>, messages: &[String]) -> PyResult<()> {
+    let category = py.get_type::<RaytracerWarning>();
+    for message in messages {
+        let text = std::ffi::CString::new(message.replace('\0', " ")).expect("no NUL left");
+        PyErr::warn(py, category.as_any(), &text, 1)?;
+    }
+    Ok(())
+}
+
 /// Renders a scene file and returns the linear image before post-processing (what
-/// ``raytracer render`` writes to an ``.exr`` file): a ``float32`` array of shape
-/// ``(height, width, 3)``, row 0 at the top.
+/// ``raytracer render`` writes to an ``.exr`` file): a :class:`raytracer.Image`, a
+/// ``float32`` numpy array of shape ``(height, width, 3)``, row 0 at the top, which
+/// Jupyter shows as the PNG would look.
 ///
 /// ``scene`` is a path (``str`` or ``os.PathLike``) to an OBJ, PLY, glTF 2.0
 /// (``.gltf``, ``.glb``) or TOML scene file (any of them gzip-compressed), or a
 /// :class:`Scene` already read. The other arguments are the command line's
 /// flags: ``width``, ``height`` (pixels), ``fov`` (vertical, degrees), ``look_from``,
-/// ``look_to``, ``up`` (three numbers each), ``mode`` (``"full"``, ``"depth"``,
+/// ``look_to``, ``up`` (three numbers each), ``camera_to_world`` (a 4x4 pose matrix in
+/// OpenGL's convention, the camera looking down its -Z with +Y up, instead of
+/// ``look_from``, ``look_to`` and ``up``), ``intrinsics`` (``(fx, fy, cx, cy)`` in
+/// pixels, OpenCV's pinhole model with the top-left pixel's centre at (0, 0), instead
+/// of ``fov``), ``mode`` (``"full"``, ``"depth"``,
 /// ``"normal"``, ``"path"``), ``depth`` (recursion depth), ``spp`` (samples per
 /// pixel), ``exposure`` (path mode's, in stops: used by post-processing only),
 /// ``seed`` (of the random numbers), ``tonemap`` (path mode's: ``"standard"``,
 /// ``"khronos-neutral"``, ``"agx"``, ``"aces"``; used by post-processing only),
-/// ``aperture_radius`` and ``focus_distance`` (the thin lens, scene units). Each one
+/// ``aperture_radius`` and ``focus_distance`` (the thin lens, scene units),
+/// ``default_light`` (``False``: a scene without lights stays unlit, as
+/// ``--no-default-light``), ``env`` (path mode's environment: an image file's path or
+/// a colour ``(r, g, b)``), ``env_strength``, ``env_rotation`` (degrees about +Y) and
+/// ``background`` (``(r, g, b)`` seen instead of the environment). Each one
 /// left out (``None``) takes the TOML scene file's value (or a glTF file's camera),
 /// else the default: 640x480, fov 90, a camera that frames the scene as a model viewer
 /// does (from the front and above, fov 40, as close as lets the corners of its bounds
 /// fill 92% of the image, centred) when neither ``look_from`` nor ``look_to`` is set,
 /// ``look_from`` alone looking at the centre of the bounds, otherwise from (0, 0, 0); up (0, 1, 0), full mode, depth 4 and 1 sample per
 /// pixel (64 and 64 in path mode), exposure 0, seed 0, tone map khronos-neutral, a
-/// pinhole (aperture radius 0; the focus at ``look_to``); a width or height alone
+/// pinhole (aperture radius 0; the focus at ``look_to``, 1 unit ahead with
+/// ``camera_to_world``), the default light on, no environment (path mode lights an
+/// unlit scene with its studio), strength 1, rotation 0; a width or height alone
 /// keeps the aspect ratio.
 /// ``tile=(x, y, w, h)`` returns only those pixels, shape ``(h, w, 3)``, bit-identical
-/// to the same pixels of the whole image.
+/// to the same pixels of the whole image. ``progress`` is ``None`` (the default: no
+/// report), ``True`` (a tqdm bar; ``pip install tqdm``) or a callable taking ``(done,
+/// total)`` in rows, called from the calling thread; an exception it raises stops the
+/// render and is raised.
 ///
-/// Raises ``ValueError`` for a bad option and :class:`SceneError` (an ``OSError``)
-/// for a scene file that cannot be read or is malformed, with the command line's
-/// message. The interpreter is released while the scene loads and renders.
+/// Raises ``ValueError`` for a bad option (naming the keyword) and :class:`SceneError`
+/// (an ``OSError``) for a scene file that cannot be read or is malformed, with the
+/// command line's message. The scene's warnings are :class:`RaytracerWarning` warnings.
+/// The interpreter is released while the scene loads and renders; Ctrl-C raises
+/// ``KeyboardInterrupt`` within a fraction of a second and stops the render.
 #[pyfunction]
 #[pyo3(signature = (scene, *, tile=None, **options))]
 fn render<'py>(
@@ -767,15 +1187,18 @@ fn render<'py>(
     scene: &Bound<'py, PyAny>,
     tile: Option<&Bound<'py, PyAny>>,
     options: Option<&Bound<'py, PyDict>>,
-) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let given = Given::from_keywords("render", options)?;
+) -> PyResult<Bound<'py, PyAny>> {
+    let given = Given::from_keywords("render", options, true)?;
     if let Ok(scene) = scene.cast::<PyScene>() {
+        given.refuse_scene_options("render")?;
         return scene.get().render_given(py, &given, tile);
     }
     let path: PathBuf = scene.extract()?;
     let flags = given.options()?;
+    let environment = given.environment().map_err(keyword_error)?;
     let tile = tile.map(self::tile).transpose()?;
-    let (width, height, values) = py.detach(move || {
+    let progress = run::Progress::of(given.progress.as_ref())?;
+    let (loaded, options) = py.detach(move || {
         // As the command line: OBJ and PLY files set no options, so the arguments are
         // checked before a long load; a TOML file's values are merged first.
         if !matches!(
@@ -784,12 +1207,33 @@ fn render<'py>(
         ) {
             flags.check_before_loading()?;
         }
-        let loaded = Loaded::read(&path, &formats::FileAccess::anywhere())?;
+        let loaded = Loaded::read(&path, &formats::FileAccess::anywhere(), &environment)?;
         let options = loaded.resolve(flags)?;
-        let film = loaded.render(&options, tile)?;
-        Ok::<_, Error>((film.width, film.height, film_values(&film)))
+        Ok::<_, Error>((loaded, options))
     })?;
-    Ok(film_array(py, width, height, values))
+    warn(py, &loaded.scene.warnings)?;
+    let film = run::render(py, Arc::new(loaded), options, tile, &progress)?;
+    image_of(py, film, &options)
+}
+
+/// Post-processes a linear image (a ``float32`` array of shape ``(height, width, 3)``)
+/// for display and encodes it as the bytes of a PNG file, as :meth:`Image._repr_png_`
+/// shows it in Jupyter.
+#[pyfunction]
+#[pyo3(signature = (linear, mode="full", exposure=0.0, tonemap=None))]
+fn _png<'py>(
+    py: Python<'py>,
+    linear: PyArrayLike3<'py, f32, AllowTypeChange>,
+    mode: &str,
+    exposure: Float,
+    tonemap: Option<&str>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let post = post_processing(mode, exposure, tonemap)?;
+    let film = array_film(linear.as_array())?;
+    let bytes = py
+        .detach(move || film.to_image(post).encode_png())
+        .map_err(|e| PyOSError::new_err(e.to_string()))?;
+    Ok(PyBytes::new(py, &bytes))
 }
 
 /// Post-processes a linear image for display, exactly as ``raytracer render`` does
@@ -926,6 +1370,7 @@ fn _committed(path: PathBuf) -> bool {
 #[pymodule]
 fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SceneError", m.py().get_type::<SceneError>())?;
+    m.add("RaytracerWarning", m.py().get_type::<RaytracerWarning>())?;
     m.add_class::<PyScene>()?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(postprocess, m)?)?;
@@ -933,6 +1378,7 @@ fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_png, m)?)?;
     m.add_function(wrap_pyfunction!(check_output, m)?)?;
     m.add_function(wrap_pyfunction!(_committed, m)?)?;
+    m.add_function(wrap_pyfunction!(_png, m)?)?;
     m.add_function(wrap_pyfunction!(_scene_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("OPTIONS", PyTuple::new(m.py(), OPTION_NAMES)?)?;

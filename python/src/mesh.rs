@@ -1,6 +1,8 @@
 //! A triangle mesh given as arrays (`Scene.from_mesh`): vertices and faces checked,
 //! row by row, into a scene description.
 
+use std::path::PathBuf;
+
 use numpy::PyReadonlyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -94,4 +96,132 @@ fn indices_of<'py>(faces: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py
         .call_method1("astype", ("int64",))?
         .extract()
         .map_err(|e: PyErr| refuse(e.to_string()))
+}
+
+/// One mesh of `Scene.from_arrays`, as `raytracer._arrays` hands it over: checked
+/// there (shapes, dtypes, finite values, indices in range; transforms applied), and
+/// checked again here only as far as memory safety needs.
+pub(crate) struct ArrayMesh<'py> {
+    /// `(n, 3)` `float32`, C order.
+    pub vertices: PyReadonlyArrayDyn<'py, f32>,
+    /// `(m, 3)` `uint32`, C order.
+    pub faces: PyReadonlyArrayDyn<'py, u32>,
+    /// `(n, 3)` `float32`, or none.
+    pub normals: Option<PyReadonlyArrayDyn<'py, f32>>,
+    /// `(n, 2)` `float32`, or none.
+    pub uvs: Option<PyReadonlyArrayDyn<'py, f32>>,
+    /// The name of its material among the TOML document's, or none for the default.
+    pub material: Option<String>,
+    /// The image file of its base colour map, or none.
+    pub texture: Option<PathBuf>,
+}
+
+/// The scene of `meshes` and of `loaded` (a TOML document's materials, lights and
+/// environment; [`formats::parse_toml`]).
+///
+/// # Errors
+/// A `ValueError` naming the mesh for arrays of a wrong shape, indices out of range
+/// or a texture that cannot be read.
+pub(crate) fn arrays_description(
+    mut description: SceneDescription,
+    meshes: &[ArrayMesh<'_>],
+) -> PyResult<SceneDescription> {
+    let any_normals = meshes.iter().any(|m| m.normals.is_some());
+    let any_uvs = meshes.iter().any(|m| m.uvs.is_some());
+    let mut fallback = None;
+    for (k, mesh) in meshes.iter().enumerate() {
+        let bad = |what: String| PyValueError::new_err(format!("meshes[{k}]: {what}"));
+        let vertices = mesh.vertices.as_slice().map_err(|e| bad(e.to_string()))?;
+        let faces = mesh.faces.as_slice().map_err(|e| bad(e.to_string()))?;
+        if vertices.len() % 3 != 0 || faces.len() % 3 != 0 {
+            return Err(bad("vertices and faces must have three columns".into()));
+        }
+        let count = vertices.len() / 3;
+        let base = u32::try_from(description.positions.len())
+            .ok()
+            .filter(|b| (*b as usize) + count <= u32::MAX as usize)
+            .ok_or_else(|| bad("more than 2^32 vertices in all".into()))?;
+        if let Some(i) = faces.iter().position(|&i| i as usize >= count) {
+            return Err(bad(format!(
+                "faces[{}]: vertex index {} is not in 0..{count}",
+                i / 3,
+                faces[i]
+            )));
+        }
+        let material = match &mesh.material {
+            Some(name) => MaterialId(
+                description
+                    .materials
+                    .iter()
+                    .position(|m| &m.name == name)
+                    .ok_or_else(|| bad(format!("no material {name:?}")))? as u32,
+            ),
+            None => *fallback.get_or_insert_with(|| {
+                description.materials.push(Material::fallback());
+                MaterialId(description.materials.len() as u32 - 1)
+            }),
+        };
+        if let Some(path) = &mesh.texture {
+            let texture = raytracer::textures::load_texture(path)
+                .map_err(|e| bad(format!("texture: {e}")))?;
+            let map = raytracer::textures::TextureMap::new(texture);
+            let target = &mut description.materials[material.0 as usize];
+            let maps = target.maps.get_or_insert_with(Default::default);
+            maps.diffuse = Some(map.clone());
+            if target.pbr.is_some() {
+                maps.pbr.base_color = Some(map);
+            }
+        }
+        let rows = |values: &[f32], width: usize, name: &str| -> PyResult<()> {
+            if values.len() != count * width {
+                return Err(bad(format!(
+                    "{name} must have one row of {width} per vertex ({count})"
+                )));
+            }
+            Ok(())
+        };
+        description.positions.extend(
+            vertices
+                .chunks_exact(3)
+                .map(|v| Vec3::new(v[0], v[1], v[2])),
+        );
+        let normal_base = description.normals.len() as u32;
+        if let Some(normals) = &mesh.normals {
+            let normals = normals.as_slice().map_err(|e| bad(e.to_string()))?;
+            rows(normals, 3, "normals")?;
+            description
+                .normals
+                .extend(normals.chunks_exact(3).map(|v| Vec3::new(v[0], v[1], v[2])));
+        }
+        let uv_base = description.texcoords.len() as u32;
+        if let Some(uvs) = &mesh.uvs {
+            let uvs = uvs.as_slice().map_err(|e| bad(e.to_string()))?;
+            rows(uvs, 2, "uvs")?;
+            description.texcoords.extend(
+                uvs.chunks_exact(2)
+                    .map(|v| raytracer::math::Vec2::new(v[0], v[1])),
+            );
+        }
+        for face in faces.chunks_exact(3) {
+            let corners = [face[0], face[1], face[2]];
+            description
+                .triangles
+                .push(raytracer::description::TriangleDesc {
+                    positions: corners.map(|i| base + i),
+                    material,
+                });
+            if any_normals {
+                let n = mesh
+                    .normals
+                    .as_ref()
+                    .map(|_| corners.map(|i| normal_base + i));
+                description.triangle_normals.push(n);
+            }
+            if any_uvs {
+                let t = mesh.uvs.as_ref().map(|_| corners.map(|i| uv_base + i));
+                description.triangle_texcoords.push(t);
+            }
+        }
+    }
+    Ok(description)
 }

@@ -15,9 +15,7 @@ use args::{Cli, Command, ViewArgs};
 use anyhow::Context;
 use clap::{Parser, error::ErrorKind};
 use raytracer::formats::{self, SceneFormat};
-use raytracer::math::{Float, Vec3};
 use raytracer::{RenderOptions, SceneDescription};
-use std::path::Path;
 
 /// The command line, parsed; on an error, prints it and exits with status 2 (help and
 /// version print and exit 0), as clap does. A vector flag given as separate numbers
@@ -93,52 +91,19 @@ fn load_scene_noting_rig(
 /// Sets the environment `--env` names (a file or a colour), and applies
 /// `--env-strength`, `--env-rotation` and `--background` over the scene's.
 fn environment_flags(view: &ViewArgs, description: &mut SceneDescription) -> anyhow::Result<()> {
-    use raytracer::formats::environment::{environment_colour, load_environment_map};
-    let strength = view.env_strength.unwrap_or(1.0);
-    if strength.is_nan() || strength < 0.0 {
-        anyhow::bail!("--env-strength {strength}: must be 0 or more");
+    use raytracer::formats::environment::{EnvironmentNames, EnvironmentOptions};
+    EnvironmentOptions {
+        env: view.env.clone(),
+        strength: view.env_strength,
+        rotation: view.env_rotation,
+        background: match view.background {
+            Some(values::Background::Colour(colour)) => Some(colour),
+            // Premultiplied: a camera ray that leaves the scene adds nothing to the
+            // colour, its pixel's alpha says how much of it was covered.
+            Some(values::Background::Transparent) => Some(raytracer::math::Vec3::ZERO),
+            None => None,
+        },
     }
-    if let Some(env) = &view.env {
-        let colour: Vec<Float> = env
-            .split(',')
-            .filter_map(|c| c.trim().parse().ok())
-            .collect();
-        description.environment = Some(match colour[..] {
-            [r, g, b] if env.split(',').count() == 3 => {
-                let colour = Vec3::new(r, g, b);
-                if !colour.is_finite() || colour.min_element() < 0.0 {
-                    anyhow::bail!(
-                        "--env {env}: a colour's components must be finite and 0 or more"
-                    );
-                }
-                environment_colour(colour, strength)
-            }
-            _ => {
-                let (desc, warning) = load_environment_map(Path::new(env), strength, 0.0)
-                    .map_err(|e| anyhow::anyhow!("--env {e}"))?;
-                description.warnings.extend(warning);
-                desc
-            }
-        });
-    }
-    if let Some(environment) = &mut description.environment {
-        if let Some(strength) = view.env_strength {
-            environment.strength = strength;
-        }
-        if let Some(rotation) = view.env_rotation {
-            environment.rotation_degrees = rotation;
-        }
-    } else if view.env_strength.is_some() || view.env_rotation.is_some() {
-        description
-            .warnings
-            .push("--env-strength and --env-rotation apply to an environment (--env, or a scene file's [environment]); the scene has none".into());
-    }
-    match view.background {
-        Some(values::Background::Colour(colour)) => description.background = Some(colour),
-        // Premultiplied: a camera ray that leaves the scene adds nothing to the colour,
-        // its pixel's alpha says how much of it was covered.
-        Some(values::Background::Transparent) => description.background = Some(Vec3::ZERO),
-        None => {}
-    }
-    Ok(())
+    .apply(description, EnvironmentNames::FLAGS)
+    .map_err(anyhow::Error::msg)
 }

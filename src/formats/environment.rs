@@ -5,9 +5,117 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use crate::description::SceneDescription;
 use crate::lights::environment::{EnvironmentDesc, EnvironmentRadiance};
 use crate::math::{Float, Vec3};
 use crate::textures::Texture;
+
+/// The environment and background a command line (`--env`, `--env-strength`,
+/// `--env-rotation`, `--background`) or a Python call (`env=`, ...) gives, applied
+/// over a scene file's by [`EnvironmentOptions::apply`]: one place for both, so their
+/// rules cannot drift apart.
+#[derive(Clone, Debug, Default)]
+pub struct EnvironmentOptions {
+    /// An image file, or a colour `R,G,B`.
+    pub env: Option<String>,
+    /// Multiplies the environment's radiance (0 or more).
+    pub strength: Option<Float>,
+    /// Turns the environment about +Y, in degrees.
+    pub rotation: Option<Float>,
+    /// What camera rays that leave the scene see instead of the environment.
+    pub background: Option<Vec3>,
+}
+
+/// How the caller spells each of [`EnvironmentOptions`]' values in messages: the
+/// command line's flags or Python's keywords.
+#[derive(Clone, Copy, Debug)]
+pub struct EnvironmentNames {
+    /// `--env` or `env`.
+    pub env: &'static str,
+    /// `--env-strength` or `env_strength`.
+    pub strength: &'static str,
+    /// `--env-rotation` or `env_rotation`.
+    pub rotation: &'static str,
+}
+
+impl EnvironmentNames {
+    /// The command line's flags.
+    pub const FLAGS: EnvironmentNames = EnvironmentNames {
+        env: "--env",
+        strength: "--env-strength",
+        rotation: "--env-rotation",
+    };
+}
+
+impl EnvironmentOptions {
+    /// Whether no value is given.
+    pub fn is_empty(&self) -> bool {
+        self.env.is_none()
+            && self.strength.is_none()
+            && self.rotation.is_none()
+            && self.background.is_none()
+    }
+
+    /// Sets the environment `env` names (a colour `R,G,B`, else a file) and applies
+    /// the strength, rotation and background over the scene's; a strength or rotation
+    /// with no environment to apply to is a warning in `description.warnings`.
+    ///
+    /// # Errors
+    /// A negative or NaN strength, a colour that is not finite and 0 or more, a file
+    /// that [`load_environment_map`] refuses; each message names the value as `names`
+    /// spells it.
+    pub fn apply(
+        &self,
+        description: &mut SceneDescription,
+        names: EnvironmentNames,
+    ) -> Result<(), String> {
+        let strength = self.strength.unwrap_or(1.0);
+        if strength.is_nan() || strength < 0.0 {
+            return Err(format!("{} {strength}: must be 0 or more", names.strength));
+        }
+        if let Some(env) = &self.env {
+            let colour: Vec<Float> = env
+                .split(',')
+                .filter_map(|c| c.trim().parse().ok())
+                .collect();
+            description.environment = Some(match colour[..] {
+                [r, g, b] if env.split(',').count() == 3 => {
+                    let colour = Vec3::new(r, g, b);
+                    if !colour.is_finite() || colour.min_element() < 0.0 {
+                        return Err(format!(
+                            "{} {env}: a colour's components must be finite and 0 or more",
+                            names.env
+                        ));
+                    }
+                    environment_colour(colour, strength)
+                }
+                _ => {
+                    let (desc, warning) = load_environment_map(Path::new(env), strength, 0.0)
+                        .map_err(|e| format!("{} {e}", names.env))?;
+                    description.warnings.extend(warning);
+                    desc
+                }
+            });
+        }
+        if let Some(environment) = &mut description.environment {
+            if let Some(strength) = self.strength {
+                environment.strength = strength;
+            }
+            if let Some(rotation) = self.rotation {
+                environment.rotation_degrees = rotation;
+            }
+        } else if self.strength.is_some() || self.rotation.is_some() {
+            description.warnings.push(format!(
+                "{} and {} apply to an environment ({}, or a scene file's [environment]); the scene has none",
+                names.strength, names.rotation, names.env
+            ));
+        }
+        if let Some(background) = self.background {
+            description.background = Some(background);
+        }
+        Ok(())
+    }
+}
 
 /// The environment of the image file `path`, times `strength`, turned by
 /// `rotation_degrees` about +Y; with a warning if some texels are NaN, infinite or

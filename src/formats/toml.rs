@@ -27,7 +27,9 @@ use super::{
 use crate::material::pbr::PbrMaterial;
 use crate::material::{Light, LightKind, Material, MaterialId};
 use crate::math::{Float, Vec3};
-use crate::options::{Mode, Origin, PartialOptions, Sourced, ToneMap};
+use crate::options::{
+    Mode, Origin, PartialOptions, Projection, Sourced, ToneMap, pose_from_matrix,
+};
 
 /// Reads a TOML scene file and the meshes it names (relative to its folder).
 ///
@@ -192,6 +194,11 @@ struct CameraTable {
     height: Option<Spanned<i64>>,
     aperture_radius: Option<Spanned<Float>>,
     focus_distance: Option<Spanned<Float>>,
+    /// A camera-to-world matrix, four rows of four (OpenGL's convention), instead of
+    /// `look_from`, `look_to` and `up`.
+    matrix: Option<Spanned<[[f64; 4]; 4]>>,
+    /// OpenCV's pinhole intrinsics `[fx, fy, cx, cy]` in pixels, instead of `fov`.
+    intrinsics: Option<Spanned<[Float; 4]>>,
 }
 
 #[derive(Deserialize, Default)]
@@ -509,7 +516,7 @@ struct Builder<'a> {
 
 impl Builder<'_> {
     fn build(mut self, file: SceneFile) -> Result<LoadedScene, SceneError> {
-        let options = self.options(&file.camera, &file.render);
+        let options = self.options(&file.camera, &file.render)?;
         let mut problems = MaterialProblems::default();
         for (name, table) in file.materials.0 {
             let id = MaterialId(self.scene.materials.len() as u32);
@@ -562,8 +569,51 @@ impl Builder<'_> {
     }
 
     /// The file's render settings, each with its line. Not checked here: a flag
-    /// may replace a bad value.
-    fn options(&self, camera: &CameraTable, render: &RenderTable) -> PartialOptions {
+    /// may replace a bad value. A camera `matrix` is read here (into `look_from`,
+    /// `look_to` and `up`, by [`pose_from_matrix`]), and refused with a LookAt key.
+    fn options(
+        &self,
+        camera: &CameraTable,
+        render: &RenderTable,
+    ) -> Result<PartialOptions, SceneError> {
+        let mut options = self.look_options(camera, render);
+        if let Some(matrix) = &camera.matrix {
+            let key = "camera.matrix";
+            if camera.look_from.is_some() || camera.look_to.is_some() || camera.up.is_some() {
+                return Err(self.error(
+                    matrix.span(),
+                    key,
+                    "give either a matrix or look_from, look_to and up, not both".into(),
+                ));
+            }
+            let pose = pose_from_matrix(*matrix.get_ref())
+                .map_err(|e| self.error(matrix.span(), key, e))?;
+            let sourced = |v: Vec3| Some(Sourced::new(v, self.origin(matrix.span(), key)));
+            options.look_from = sourced(pose.look_from);
+            options.look_to = sourced(pose.look_to);
+            options.up = sourced(pose.up);
+        }
+        if let Some(k) = &camera.intrinsics {
+            let [fx, fy, cx, cy] = *k.get_ref();
+            options.projection = Some(Sourced::new(
+                Projection::Intrinsics { fx, fy, cx, cy },
+                self.origin(k.span(), "camera.intrinsics"),
+            ));
+        }
+        Ok(options)
+    }
+
+    /// Where the value at `span` of `key` came from.
+    fn origin(&self, span: Range<usize>, key: &'static str) -> Origin {
+        Origin::File {
+            path: self.path.to_path_buf(),
+            line: line_of(self.text.as_bytes(), span.start),
+            key,
+        }
+    }
+
+    /// The settings other than a matrix and intrinsics.
+    fn look_options(&self, camera: &CameraTable, render: &RenderTable) -> PartialOptions {
         PartialOptions {
             width: self.sourced(&camera.width, "camera.width"),
             height: self.sourced(&camera.height, "camera.height"),
@@ -590,14 +640,9 @@ impl Builder<'_> {
         value: &Option<Spanned<T>>,
         key: &'static str,
     ) -> Option<Sourced<U>> {
-        value.as_ref().map(|v| {
-            let origin = Origin::File {
-                path: self.path.to_path_buf(),
-                line: line_of(self.text.as_bytes(), v.span().start),
-                key,
-            };
-            Sourced::new((*v.get_ref()).into(), origin)
-        })
+        value
+            .as_ref()
+            .map(|v| Sourced::new((*v.get_ref()).into(), self.origin(v.span(), key)))
     }
 
     fn add_environment(&mut self, table: &EnvironmentTable) -> Result<(), SceneError> {
@@ -1320,7 +1365,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[camera]\nzoom = 2\n",
-                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`, `aperture_radius`, `focus_distance`",
+                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`, `aperture_radius`, `focus_distance`, `matrix`, `intrinsics`",
             ),
             (
                 "title = \"x\"\n",

@@ -58,8 +58,9 @@ import raytracer
 
 __all__ = ["forget", "render", "scene_files", "tiles"]
 
-#: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`.
-OPTIONS = raytracer.OPTIONS
+#: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`: all
+#: of :data:`raytracer.OPTIONS` but the environment's, which belong to the scene file.
+OPTIONS = tuple(name for name in raytracer.OPTIONS if name not in ("env", "env_strength", "env_rotation", "background"))
 
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import signal
 import sys
 from typing import Optional, Sequence
@@ -119,6 +120,17 @@ def joined_vectors(argv: Sequence[str]) -> "list[str]":
     return out
 
 
+def as_flags(message: str) -> str:
+    """A message of the package's, which names keywords (``invalid look_from: ...``),
+    as ``raytracer render`` says it, naming flags (``invalid --look-from: ...``)."""
+    if not message.startswith("invalid "):
+        return message
+    head, colon, rest = message.partition(": ")
+    names = "|".join(sorted(raytracer.OPTIONS, key=len, reverse=True))
+    head = re.sub(rf"\b({names})\b", lambda m: "--" + m.group(1).replace("_", "-"), head)
+    return head + colon + rest
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Runs the command; returns the exit status."""
     args = parser().parse_args(joined_vectors(sys.argv[1:] if argv is None else argv))
@@ -142,7 +154,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return 0
         print(f"interrupted; {args.output} left as it was", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except (OSError, ValueError, TypeError) as error:
+    except ValueError as error:
+        print(f"error: {as_flags(str(error))}", file=sys.stderr)
+        return EXIT_ERROR
+    except (OSError, TypeError) as error:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_ERROR
     except Exception as error:  # noqa: BLE001 - Dask's own errors, such as KilledWorker
@@ -162,7 +177,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"invalid --workers: {args.workers} is not at least 1")
     if args.threads < 0:
         raise ValueError(f"invalid --threads: {args.threads} is not at least 0")
-    options = {name: getattr(args, name) for name in raytracer.distributed.OPTIONS}
+    # Options without a flag here (camera_to_world, intrinsics) are left to the file.
+    options = {name: getattr(args, name, None) for name in raytracer.distributed.OPTIONS}
     with cluster_client(args) as client:
         linear, info = raytracer.distributed._render(
             args.scene, client, tile_size=args.tile_size, ship=args.ship, on_tile=None, options=options

@@ -1,0 +1,108 @@
+"""Type stubs of the extension module ``raytracer._raytracer`` (re-exported by
+``raytracer``). The docstrings, with every default, are the functions' own."""
+
+import os
+from typing import Any, Callable, Dict, Literal, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+from ._image import Image
+
+StrPath = Union[str, "os.PathLike[str]"]
+Vector = Union[Sequence[float], npt.NDArray[np.floating]]
+Mode = Literal["full", "depth", "normal", "path"]
+ToneMap = Literal["standard", "khronos-neutral", "agx", "aces"]
+Progress = Union[bool, None, Callable[[int, int], Any]]
+
+__version__: str
+#: The keyword options every render call takes, in documentation order.
+OPTIONS: Tuple[str, ...]
+
+class SceneError(OSError): ...
+class RaytracerWarning(UserWarning): ...
+
+class Scene:
+    def __init__(
+        self,
+        path: StrPath,
+        *,
+        confined_to: Optional[StrPath] = None,
+        env: Union[StrPath, Vector, None] = None,
+        env_strength: Optional[float] = None,
+        env_rotation: Optional[float] = None,
+        background: Optional[Vector] = None,
+    ) -> None: ...
+    @staticmethod
+    def from_mesh(vertices: npt.ArrayLike, faces: npt.ArrayLike) -> "Scene": ...
+    @property
+    def path(self) -> Optional[str]: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    def render(
+        self,
+        *,
+        tile: Optional[Tuple[int, int, int, int]] = None,
+        progress: Progress = None,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
+        fov: Optional[float] = None,
+        look_from: Optional[Vector] = None,
+        look_to: Optional[Vector] = None,
+        up: Optional[Vector] = None,
+        camera_to_world: Optional[npt.ArrayLike] = None,
+        intrinsics: Optional[Tuple[float, float, float, float]] = None,
+        mode: Optional[Mode] = None,
+        depth: Optional[int] = None,
+        spp: Optional[int] = None,
+        exposure: Optional[float] = None,
+        seed: Optional[int] = None,
+        tonemap: Optional[ToneMap] = None,
+        aperture_radius: Optional[float] = None,
+        focus_distance: Optional[float] = None,
+        default_light: Optional[bool] = None,
+    ) -> Image: ...
+    def options(self, **options: Any) -> Dict[str, Any]: ...
+    def intersect(self, origins: npt.ArrayLike, directions: npt.ArrayLike) -> Dict[str, np.ndarray]: ...
+    def occluded(
+        self, origins: npt.ArrayLike, directions: npt.ArrayLike, t_max: Union[float, npt.ArrayLike, None] = None
+    ) -> npt.NDArray[np.bool_]: ...
+
+def render(
+    scene: Union[StrPath, Scene],
+    *,
+    tile: Optional[Tuple[int, int, int, int]] = None,
+    progress: Progress = None,
+    width: Optional[int] = None,
+    height: Optional[int] = None,
+    fov: Optional[float] = None,
+    look_from: Optional[Vector] = None,
+    look_to: Optional[Vector] = None,
+    up: Optional[Vector] = None,
+    camera_to_world: Optional[npt.ArrayLike] = None,
+    intrinsics: Optional[Tuple[float, float, float, float]] = None,
+    mode: Optional[Mode] = None,
+    depth: Optional[int] = None,
+    spp: Optional[int] = None,
+    exposure: Optional[float] = None,
+    seed: Optional[int] = None,
+    tonemap: Optional[ToneMap] = None,
+    aperture_radius: Optional[float] = None,
+    focus_distance: Optional[float] = None,
+    default_light: Optional[bool] = None,
+    env: Union[StrPath, Vector, None] = None,
+    env_strength: Optional[float] = None,
+    env_rotation: Optional[float] = None,
+    background: Optional[Vector] = None,
+) -> Image: ...
+def postprocess(
+    linear: npt.ArrayLike, mode: Mode = "full", exposure: float = 0.0, tonemap: Optional[ToneMap] = None
+) -> npt.NDArray[np.uint8]: ...
+def write_image(
+    linear: npt.ArrayLike, path: StrPath, mode: Mode = "full", exposure: float = 0.0, tonemap: Optional[ToneMap] = None
+) -> None: ...
+def write_png(rgb: npt.NDArray[np.uint8], path: StrPath) -> None: ...
+def check_output(path: StrPath) -> Literal["png", "exr"]: ...
+def _png(linear: npt.ArrayLike, mode: str = "full", exposure: float = 0.0, tonemap: Optional[str] = None) -> bytes: ...
+def _committed(path: StrPath) -> bool: ...
+def _scene_files(path: StrPath, confined: bool) -> Dict[str, Any]: ...

@@ -20,7 +20,7 @@ use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::environment::Environment;
 use crate::lights::{AreaLights, AreaLightsBuilder};
-use crate::material::{Light, Material, MaterialId};
+use crate::material::{Cutout, Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
@@ -816,6 +816,7 @@ impl Scene {
     fn closest_lane_with_cutouts(&self, ray: &Ray) -> Option<(u32, usize, PrimHit)> {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
+        let key = Cutout::ray_key(ray.origin, ray.dir);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
         self.wide
@@ -825,7 +826,7 @@ impl Scene {
                     let found = if packet.holds_spheres() {
                         packet.intersect_any_kind(&lanes, *t_max)
                     } else {
-                        self.nearest_kept_lane(packet, &lanes, *t_max)
+                        self.nearest_kept_lane(packet, &lanes, *t_max, key)
                     };
                     if let Some((lane, hit)) = found {
                         *t_max = hit.t;
@@ -845,6 +846,7 @@ impl Scene {
         packet: &TrianglePacket,
         lanes: &PacketRay,
         t_max: Float,
+        key: u64,
     ) -> Option<(usize, PrimHit)> {
         let (mut mask, t, u, v) = packet.hits(lanes, t_max);
         while let Some(best) = nearest_in_mask(mask, &t) {
@@ -854,23 +856,24 @@ impl Scene {
                 v: v[best],
             };
             match packet.prim(best) {
-                Some(prim) if self.keeps(prim, hit.u, hit.v) => return Some((best, hit)),
+                Some(prim) if self.keeps(prim, hit.u, hit.v, key) => return Some((best, hit)),
                 _ => mask &= !(1 << best),
             }
         }
         None
     }
 
-    /// Whether primitive `prim` (a triangle) is there at barycentrics `u`, `v`: not
-    /// cut out by its material's alpha.
+    /// Whether primitive `prim` (a triangle) is there at barycentrics `u`, `v` for
+    /// the ray of key `ray` ([`Cutout::ray_key`]): not cut out by its material's
+    /// alpha.
     #[inline]
-    fn keeps(&self, prim: u32, u: Float, v: Float) -> bool {
+    fn keeps(&self, prim: u32, u: Float, v: Float, ray: u64) -> bool {
         if !self.has_cutouts {
             return true;
         }
         let material = &self.materials[self.shading.get(prim).material.0 as usize];
         match material.cutout() {
-            Some(cutout) => cutout.keeps(self.uv_at(prim, u, v)),
+            Some(cutout) => cutout.keeps(self.uv_at(prim, u, v), ray, prim),
             None => true,
         }
     }
@@ -999,6 +1002,7 @@ impl Scene {
     #[inline(never)]
     fn occluded_with_cutouts(&self, ray: &Ray, t_max: Float) -> bool {
         let query = RayQuery::new(ray);
+        let key = Cutout::ray_key(ray.origin, ray.dir);
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
         self.wide
@@ -1015,7 +1019,7 @@ impl Scene {
                             mask &= mask - 1;
                             if packet
                                 .prim(lane)
-                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane]))
+                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane], key))
                             {
                                 return true;
                             }
@@ -1028,6 +1032,7 @@ impl Scene {
     /// The closest hit by testing every primitive with the scalar kernels: the slow
     /// reference for tests.
     pub fn intersect_linear(&self, ray: &Ray) -> Option<Hit> {
+        let key = Cutout::ray_key(ray.origin, ray.dir);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
         for (index, packet) in self.packets.iter().enumerate() {
@@ -1039,7 +1044,7 @@ impl Scene {
                     && (matches!(shape, Shape::Sphere(_))
                         || packet
                             .prim(lane)
-                            .is_some_and(|p| self.keeps(p, hit.u, hit.v)))
+                            .is_some_and(|p| self.keeps(p, hit.u, hit.v, key)))
                 {
                     t_max = hit.t;
                     closest = Some((index as u32, lane, hit));

@@ -591,6 +591,7 @@ clearcoat = 0.4
 clearcoat_roughness = 0.2
 sheen_color = [0.1, 0.2, 0.3]
 sheen_roughness = 0.6
+multiple_scattering = true
 emission = [1, 0.5, 0]
 emission_strength = 4
 
@@ -630,6 +631,7 @@ Kd = 0.5
     assert_eq!((e.clearcoat, e.clearcoat_roughness), (0.4, 0.2));
     assert_eq!(e.sheen_color, Vec3::new(0.1, 0.2, 0.3));
     assert_eq!(e.sheen_roughness, 0.6);
+    assert!(e.multiple_scattering && !plastic.multiple_scattering);
     assert_eq!(m[1].emission, Vec3::new(4.0, 2.0, 0.0));
 
     // Ke and Ni stand for emission and ior; Kd and Ks are ignored.

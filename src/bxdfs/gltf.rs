@@ -103,12 +103,7 @@ impl GltfBsdf {
     /// Whether some lobe is not a delta.
     #[inline]
     pub fn has_smooth_lobes(&self) -> bool {
-        let p = self.at(Vec3::Z, true, None).p;
-        p[DIFFUSE] > 0.0
-            || p[SHEEN] > 0.0
-            || (p[SPECULAR] > 0.0 && !self.ggx.is_delta())
-            || (p[TRANSMISSION] > 0.0 && !self.ggx.is_delta())
-            || (p[CLEARCOAT] > 0.0 && !self.coat.is_delta())
+        self.at(Vec3::Z, true, None).has_smooth_lobes()
     }
 
     /// The attenuation coefficient inside the volume this surface bounds, if it
@@ -138,10 +133,16 @@ impl GltfBsdf {
             coat_frame,
             sheen_albedo: 0.0,
             compensation: Compensation::NONE,
+            visibility_o: 0.0,
+            g1_o: 0.0,
         };
         if wo.z <= 0.0 {
             return at;
         }
+        let a2 = self.ggx.alpha * self.ggx.alpha;
+        at.visibility_o = (a2 + (1.0 - a2) * wo.z * wo.z).sqrt();
+        // G1 = 1 / (1 + Lambda), and 2 Lambda + 1 = visibility_o / n.wo.
+        at.g1_o = 2.0 * wo.z / (wo.z + at.visibility_o);
         if self.clearcoat > 0.0 {
             let cos = at.in_coat(wo).z.max(0.0);
             at.coat = self.clearcoat * schlick_scalar(CLEARCOAT_F0, cos);
@@ -166,25 +167,6 @@ impl GltfBsdf {
     #[inline]
     fn eta(&self, front: bool) -> Float {
         if front { self.ior } else { 1.0 / self.ior }
-    }
-
-    /// The metal and dielectric reflection under the sheen and the coat, their
-    /// specular lobes scaled by `compensation`.
-    #[inline]
-    fn reflection(&self, wo: Vec3, wi: Vec3, compensation: &Compensation) -> Vec3 {
-        let h = (wo + wi).normalize();
-        let w = schlick_weight(wo.dot(h));
-        let specular = if self.ggx.is_delta() {
-            0.0
-        } else {
-            self.ggx.d(h) * self.ggx.visibility(wo, wi)
-        };
-        let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * w;
-        let diffuse =
-            self.base * ((1.0 - fd.max_element()) * (1.0 - self.transmission) * FRAC_1_PI);
-        let dielectric = fd * compensation.dielectric * specular + diffuse;
-        let metal = (self.base + (Vec3::ONE - self.base) * w) * compensation.metal * specular;
-        dielectric.lerp(metal, self.metallic)
     }
 
     /// The transmitted part, `wi` below the surface.
@@ -249,6 +231,11 @@ pub struct GltfAt<'a> {
     sheen_albedo: Float,
     /// What the GGX reflection lobes are scaled by at `wo`.
     compensation: Compensation,
+    /// The base distribution's `sqrt(a^2 + (1 - a^2) (n.wo)^2)` (`a = alpha`), the
+    /// half of [`Ggx::visibility`] that depends on `wo` alone.
+    visibility_o: Float,
+    /// The base distribution's masking `G1(wo)`.
+    g1_o: Float,
 }
 
 /// Multiple-scattering compensation factors of the GGX reflection lobes at one `wo`
@@ -334,19 +321,56 @@ impl GltfAt<'_> {
         }
     }
 
+    /// Whether some lobe seen from `wo` is not a delta.
+    #[inline]
+    pub fn has_smooth_lobes(&self) -> bool {
+        let (g, p) = (self.bsdf, &self.p);
+        p[DIFFUSE] > 0.0
+            || p[SHEEN] > 0.0
+            || ((p[SPECULAR] > 0.0 || p[TRANSMISSION] > 0.0) && !g.ggx.is_delta())
+            || (p[CLEARCOAT] > 0.0 && !g.coat.is_delta())
+    }
+
     /// `f(wo, wi)` of the non-delta lobes, in the local frame.
     #[inline]
     pub fn eval(&self, wi: Vec3) -> Vec3 {
-        let (g, wo) = (self.bsdf, self.wo);
+        self.eval_pdf(wi).0
+    }
+
+    /// The density of the non-delta lobes at `wi`.
+    #[inline]
+    pub fn pdf(&self, wi: Vec3) -> Float {
+        self.eval_pdf(wi).1
+    }
+
+    /// `f(wo, wi)` and the density at `wi`, sharing the half vector and `D` (inlined
+    /// into [`GltfAt::eval`] and [`GltfAt::pdf`], each keeps only its half).
+    #[inline(always)]
+    fn eval_pdf(&self, wi: Vec3) -> (Vec3, Float) {
+        let (g, wo, p) = (self.bsdf, self.wo, &self.p);
         if wo.z <= 0.0 || wi.z == 0.0 {
-            return Vec3::ZERO;
+            return (Vec3::ZERO, 0.0);
         }
+        let mut pdf = 0.0;
+        let mut half = Vec3::Z;
         let base_layer = if wi.z > 0.0 {
-            g.reflection(wo, wi, &self.compensation)
-        } else if g.transmission > 0.0 && g.metallic < 1.0 && !g.ggx.is_delta() {
-            g.transmitted(wo, wi, self.front)
+            let h = (wo + wi).normalize();
+            half = h;
+            let d = if g.ggx.is_delta() { 0.0 } else { g.ggx.d(h) };
+            pdf += (p[DIFFUSE] + p[SHEEN]) * (wi.z * FRAC_1_PI);
+            if p[SPECULAR] > 0.0 {
+                pdf += p[SPECULAR] * self.specular_pdf(d, h);
+            }
+            self.reflection(wi, h, d)
         } else {
-            Vec3::ZERO
+            if p[TRANSMISSION] > 0.0 && !g.ggx.is_delta() {
+                pdf += p[TRANSMISSION] * g.transmission_pdf(wo, wi, self.front);
+            }
+            if g.transmission > 0.0 && g.metallic < 1.0 && !g.ggx.is_delta() {
+                g.transmitted(wo, wi, self.front)
+            } else {
+                Vec3::ZERO
+            }
         };
         let mut f = base_layer * self.sheen_scale(wi);
         if g.sheened && wi.z > 0.0 {
@@ -357,37 +381,55 @@ impl GltfAt<'_> {
             if wi.z > 0.0 && !g.coat.is_delta() {
                 let (o, i) = (self.in_coat(wo), self.in_coat(wi));
                 if o.z > 0.0 && i.z > 0.0 {
-                    let h = (o + i).normalize();
+                    let h = self.in_coat(half);
                     let coat = self.coat * self.compensation.coat;
                     f += Vec3::splat(coat * g.coat.d(h) * g.coat.visibility(o, i));
+                    if p[CLEARCOAT] > 0.0 {
+                        pdf += p[CLEARCOAT] * reflection_pdf(&g.coat, o, h);
+                    }
                 }
             }
         }
-        f
+        (f, pdf)
     }
 
-    /// The density of the non-delta lobes at `wi`.
-    #[inline]
-    pub fn pdf(&self, wi: Vec3) -> Float {
-        let (g, wo, p) = (self.bsdf, self.wo, &self.p);
-        if wo.z <= 0.0 || wi.z == 0.0 {
+    /// The metal and dielectric reflection under the sheen and the coat towards
+    /// `wi` (above the surface), of half vector `h` where the GGX distribution is
+    /// `d` (0 for a delta lobe), their specular lobes scaled by the compensation.
+    #[inline(always)]
+    fn reflection(&self, wi: Vec3, h: Vec3, d: Float) -> Vec3 {
+        let g = self.bsdf;
+        let w = schlick_weight(self.wo.dot(h));
+        let specular = d * self.visibility(wi);
+        let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * w;
+        let diffuse = g.base * ((1.0 - fd.max_element()) * (1.0 - g.transmission) * FRAC_1_PI);
+        let dielectric = fd * self.compensation.dielectric * specular + diffuse;
+        let metal = (g.base + (Vec3::ONE - g.base) * w) * self.compensation.metal * specular;
+        dielectric.lerp(metal, g.metallic)
+    }
+
+    /// [`Ggx::visibility`] of the base's distribution from `wo` towards `wi`, its
+    /// `wo` half computed once in [`GltfBsdf::at`].
+    #[inline(always)]
+    fn visibility(&self, wi: Vec3) -> Float {
+        let a2 = self.bsdf.ggx.alpha * self.bsdf.ggx.alpha;
+        let ci = wi.z.abs();
+        let denominator = ci * self.visibility_o + self.wo.z * (a2 + (1.0 - a2) * ci * ci).sqrt();
+        if denominator > 0.0 {
+            0.5 / denominator
+        } else {
+            0.0
+        }
+    }
+
+    /// [`reflection_pdf`] of the base's distribution where `D(h)` is `d`:
+    /// `G1(wo) D(h) / (4 n.wo)` for `wo.h > 0`, `G1(wo)` computed once.
+    #[inline(always)]
+    fn specular_pdf(&self, d: Float, h: Vec3) -> Float {
+        if self.wo.dot(h) <= 0.0 {
             return 0.0;
         }
-        let mut pdf = 0.0;
-        if wi.z > 0.0 {
-            let cosine = wi.z * FRAC_1_PI;
-            pdf += (p[DIFFUSE] + p[SHEEN]) * cosine;
-            let h = (wo + wi).normalize();
-            if p[SPECULAR] > 0.0 && !g.ggx.is_delta() {
-                pdf += p[SPECULAR] * reflection_pdf(&g.ggx, wo, h);
-            }
-            if p[CLEARCOAT] > 0.0 && !g.coat.is_delta() && self.in_coat(wi).z > 0.0 {
-                pdf += p[CLEARCOAT] * reflection_pdf(&g.coat, self.in_coat(wo), self.in_coat(h));
-            }
-        } else if p[TRANSMISSION] > 0.0 && !g.ggx.is_delta() {
-            pdf += p[TRANSMISSION] * g.transmission_pdf(wo, wi, self.front);
-        }
-        pdf
+        self.g1_o * d / (4.0 * self.wo.z)
     }
 
     /// A direction, in the local frame: `u_lobe` picks a lobe, `u` a direction in it.
@@ -453,11 +495,10 @@ impl GltfAt<'_> {
         if (wi.z <= 0.0) != (lobe == TRANSMISSION) {
             return None;
         }
-        let pdf = self.pdf(wi);
+        let (f, pdf) = self.eval_pdf(wi);
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
-        let f = self.eval(wi);
         let crossed = wi.z < 0.0 && g.volume;
         Some(LocalSample {
             wi,

@@ -212,6 +212,16 @@ pub struct GltfVertex<'a> {
 }
 
 impl BsdfAt<'_> {
+    /// Whether some lobe seen from `wo` is not a delta, so that light sampling can
+    /// reach it.
+    #[inline(always)]
+    pub fn has_smooth_lobes(&self) -> bool {
+        match self {
+            BsdfAt::Mtl { mixture, .. } => mixture.has_smooth_lobes(),
+            BsdfAt::Gltf(g) => g.at.has_smooth_lobes(),
+        }
+    }
+
     /// `f(wo, wi)` of the non-delta lobes.
     #[inline(always)]
     pub fn eval(&self, wi: Vec3) -> Vec3 {

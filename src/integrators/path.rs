@@ -311,7 +311,7 @@ impl PathIntegrator {
         let u_pick = sample.next_1d();
         let u_light = sample.next_2d();
         let mut shadow = None;
-        if scattering.has_smooth_lobes()
+        if bsdf.has_smooth_lobes()
             && let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light)
         {
             let f = bsdf.eval(light.direction);

@@ -144,7 +144,7 @@ impl Instances {
                     object_from_world: m.inverse(),
                     normal_to_world: m.matrix3.inverse().transpose(),
                     mesh: instance.mesh,
-                    mirrored: m.matrix3.determinant() < 0.0,
+                    mirrored: m.matrix3.determinant() < 0.0 && !instance.winding_kept,
                 }
             })
             .collect();

@@ -94,6 +94,11 @@ pub struct InstanceDesc {
     /// The placement: world from object, an invertible affine map (the readers check
     /// it is finite and not singular).
     pub world_from_object: glam::Affine3A,
+    /// Whether a mirroring placement keeps the mesh's front side: glTF turns the
+    /// winding of a mirrored mesh back, so that its front stays its front. Otherwise
+    /// (TOML's placements) the front follows the winding as placed, as a flattened
+    /// copy's does.
+    pub winding_kept: bool,
 }
 
 impl InstanceDesc {

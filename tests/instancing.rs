@@ -393,3 +393,94 @@ fn info_counts_unique_and_instanced_triangles() {
     );
     drop(dir);
 }
+
+/// A glTF file whose mesh (an octahedron with vertex normals) hangs from three nodes
+/// (one mirrored, one stretched), written with the mesh once (`shared`) or once per
+/// node (each node its own copy of the mesh, which the reader flattens).
+fn write_gltf(dir: &Path, shared: bool) -> std::path::PathBuf {
+    let positions: [[f32; 3]; 6] = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let indices: [u16; 24] = [
+        0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5,
+    ];
+    let mut bin = Vec::new();
+    for p in positions {
+        bin.extend(p.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    for p in positions {
+        // Normals tilted off the faces', so that interpolation shows.
+        let n = [p[0] * 0.9, p[1], p[2] * 1.1];
+        bin.extend(n.iter().flat_map(|v| v.to_le_bytes()));
+    }
+    bin.extend(indices.iter().flat_map(|v| v.to_le_bytes()));
+    fs::write(dir.join("octa.bin"), &bin).unwrap();
+    let nodes = [
+        r#""translation": [-2.5, 0, 0]"#,
+        r#""translation": [0, 0, 0], "scale": [-1, 1.3, 0.8], "rotation": [0, 0.3826834, 0, 0.9238795]"#,
+        r#""translation": [2.5, 0.2, 0], "scale": [1.5, 0.6, 1]"#,
+    ];
+    let meshes = if shared { 1 } else { 3 };
+    let mesh = r#"{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2}]}"#;
+    let gltf = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1, 2]}}],
+"nodes": [{}],
+"meshes": [{}],
+"buffers": [{{"uri": "octa.bin", "byteLength": {}}}],
+"bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 144}}, {{"buffer": 0, "byteOffset": 144, "byteLength": 48}}],
+"accessors": [
+ {{"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 6, "type": "VEC3", "min": [-1, -1, -1], "max": [1, 1, 1]}},
+ {{"bufferView": 0, "byteOffset": 72, "componentType": 5126, "count": 6, "type": "VEC3"}},
+ {{"bufferView": 1, "componentType": 5123, "count": 24, "type": "SCALAR"}}]}}"#,
+        (0..3)
+            .map(|i| format!(
+                r#"{{"mesh": {}, {}}}"#,
+                if shared { 0 } else { i },
+                nodes[i]
+            ))
+            .collect::<Vec<_>>()
+            .join(", "),
+        vec![mesh; meshes].join(", "),
+        bin.len()
+    );
+    let path = dir.join(if shared { "shared.gltf" } else { "copies.gltf" });
+    fs::write(&path, gltf).unwrap();
+    path
+}
+
+#[test]
+fn a_gltf_mesh_of_several_nodes_is_stored_once_and_renders_as_its_copies() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let shared = write_gltf(d, true);
+    let copies = write_gltf(d, false);
+    let output = raytracer(&["info", shared.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.contains("triangles  8\n"), "{text}");
+    assert!(
+        text.contains("instanced  24 triangles (3 instances of 1 mesh"),
+        "{text}"
+    );
+    for mode in ["full", "normal"] {
+        let flags = [
+            "--width",
+            "120",
+            "--height",
+            "60",
+            "--mode",
+            mode,
+            "--look-from",
+            "0,2,7",
+            "--look-to",
+            "0,0,0",
+        ];
+        let a = render(&shared, &d.join("a.png"), &flags);
+        let b = render(&copies, &d.join("b.png"), &flags);
+        assert_same_image(&a, &b, mode);
+    }
+}

@@ -162,13 +162,8 @@ fn depth_of_a_tilted_plane_is_its_analytic_z_depth() {
 #[test]
 fn object_ids_of_two_meshes_cover_exactly_their_projected_rectangles() {
     let dir = tempfile::tempdir().unwrap();
-    // (x0, x1, y0, y1, z) of each quad.
-    let rects = [
-        (-1.3, 0.4, -0.9, 0.7, -3.0f64),
-        (-0.2, 2.1, -1.6, 0.1, -4.0),
-    ];
     let mut toml = String::new();
-    for (i, &(x0, x1, y0, y1, z)) in rects.iter().enumerate() {
+    for (i, &(x0, x1, y0, y1, z)) in RECTS.iter().enumerate() {
         let corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
             .map(|[x, y]| [x as Float, y as Float, z as Float]);
         let kd = [0.2 + 0.3 * i as Float, 0.5, 0.5];
@@ -179,14 +174,41 @@ fn object_ids_of_two_meshes_cover_exactly_their_projected_rectangles() {
     fs::write(&scene_file, toml).unwrap();
     let scene = build(&scene_file);
     assert_eq!(scene.object_names(), ["quad0.obj", "quad1.obj"]);
+    let outputs = assert_ids_cover_rects(&scene, &RECTS, ["m_quad0", "m_quad1"]);
+    // Albedo inside the first quad is its Kd.
+    let albedo = outputs.aovs.albedo.as_ref().unwrap();
+    let centre = (30 / 2 * 40 + 40 / 2 - 5) as usize;
+    assert_eq!(outputs.aovs.object_id.as_ref().unwrap()[centre], 0);
+    assert!(
+        (albedo[centre] - Vec3::new(0.2, 0.5, 0.5))
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+}
+
+/// (x0, x1, y0, y1, z) of the two quads of the object id tests, facing the camera of
+/// [`options`].
+const RECTS: [(f64, f64, f64, f64, f64); 2] =
+    [(-1.3, 0.4, -0.9, 0.7, -3.0), (-0.2, 2.1, -1.6, 0.1, -4.0)];
+
+/// Renders `scene` (the two quads of `rects`, objects 0 and 1 with materials
+/// `material_names`) with object and material ids and albedo, and checks that each
+/// pixel whose centre ray meets a quad (not behind the nearer one) holds its ids,
+/// every other pixel -1.
+fn assert_ids_cover_rects(
+    scene: &Scene,
+    rects: &[(f64, f64, f64, f64, f64); 2],
+    material_names: [&str; 2],
+) -> raytracer::Outputs {
     let (width, height) = (40, 30);
     let outputs = render_outputs(
-        &scene,
+        scene,
         &options(width, height, 4),
         &[Aov::ObjectId, Aov::MaterialId, Aov::Albedo],
     );
-    let objects = outputs.aovs.object_id.unwrap();
-    let materials = outputs.aovs.material_id.unwrap();
+    let objects = outputs.aovs.object_id.as_ref().unwrap();
+    let materials = outputs.aovs.material_id.as_ref().unwrap();
     let (mut counted, mut near_edges) = ([0; 3], 0);
     for row in 0..height {
         for column in 0..width {
@@ -213,11 +235,7 @@ fn object_ids_of_two_meshes_cover_exactly_their_projected_rectangles() {
                 .map(|m| m.name.as_str());
             match expected {
                 -1 => assert_eq!(materials[i], -1, "pixel ({column}, {row})"),
-                k => assert_eq!(
-                    name,
-                    Some(format!("m_quad{k}").as_str()),
-                    "({column}, {row})"
-                ),
+                k => assert_eq!(name, Some(material_names[k as usize]), "({column}, {row})"),
             }
             counted[(expected + 1) as usize] += 1;
         }
@@ -227,16 +245,7 @@ fn object_ids_of_two_meshes_cover_exactly_their_projected_rectangles() {
         counted.iter().all(|&c| c > 50),
         "{counted:?}: every case seen"
     );
-    // Albedo inside the first quad is its Kd.
-    let albedo = outputs.aovs.albedo.unwrap();
-    let centre = (height / 2 * width + width / 2 - 5) as usize;
-    assert_eq!(objects[centre], 0);
-    assert!(
-        (albedo[centre] - Vec3::new(0.2, 0.5, 0.5))
-            .abs()
-            .max_element()
-            < 1e-6
-    );
+    outputs
 }
 
 /// A square whose edges cut pixels at known fractions: alpha is 1 inside, 0 outside
@@ -477,4 +486,36 @@ fn an_unlit_model_in_full_mode_stands_out_against_a_grey_backdrop() {
         .path()
         .join(front_quad(dir.path(), "lit", [0.0, 0.0, 0.0]));
     assert_eq!(at(&render_png(&lit, &out, &[]), 0, 0), [0, 0, 0, 255]);
+}
+
+/// Two instances of one unit quad, placed where the two quads of
+/// [`object_ids_of_two_meshes_cover_exactly_their_projected_rectangles`] are: each
+/// copy is an object of its own, numbered as the instances are listed.
+#[test]
+fn object_ids_of_two_instances_cover_exactly_their_projected_rectangles() {
+    let dir = tempfile::tempdir().unwrap();
+    let unit = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ];
+    let file = quad_obj(dir.path(), "unit", unit, [0.5, 0.5, 0.5]);
+    let mut toml = format!("[[mesh]]\nfile = \"{file}\"\nid = \"quad\"\n\n");
+    for &(x0, x1, y0, y1, z) in &RECTS {
+        toml += &format!(
+            "[[instance]]\nmesh = \"quad\"\nmatrix = [{}, 0, 0, {x0}, 0, {}, 0, {y0}, 0, 0, 1, {z}, 0, 0, 0, 1]\n\n",
+            x1 - x0,
+            y1 - y0
+        );
+    }
+    let scene_file = dir.path().join("instances.toml");
+    fs::write(&scene_file, toml).unwrap();
+    let scene = build(&scene_file);
+    assert_eq!(scene.instance_count(), 2);
+    assert_eq!(
+        scene.object_names(),
+        ["instance 0 of mesh 0", "instance 1 of mesh 0"]
+    );
+    assert_ids_cover_rects(&scene, &RECTS, ["m_unit", "m_unit"]);
 }

@@ -66,6 +66,18 @@ impl Transform {
         self.normal_from_object * n
     }
 
+    /// An instance's placement as a transform for [`SceneDescription::append`] (of
+    /// meshes without spheres: it has no uniform scale).
+    pub fn from_affine(a: &Affine3A) -> Transform {
+        let linear = Mat3::from(a.matrix3);
+        Transform {
+            linear,
+            normal_from_object: linear.inverse().transpose(),
+            translation: a.translation.into(),
+            scale: Vec3::new(1.0, 2.0, 3.0),
+        }
+    }
+
     /// The same placement as an affine map (world from object), for instances.
     pub fn to_affine(&self) -> Affine3A {
         Affine3A::from_mat3_translation(self.linear, self.translation)
@@ -95,6 +107,12 @@ impl SceneDescription {
         transform: &Transform,
         material: Option<MaterialId>,
     ) -> Result<(), ParseErrorKind> {
+        // A mesh file with instances of its own (a glTF file with shared meshes) is
+        // placed as its copies.
+        let mut mesh = mesh;
+        if !mesh.instances.is_empty() {
+            mesh.flatten_instances()?;
+        }
         let radius_scale = match transform.uniform_scale() {
             Some(s) => s,
             None if mesh.spheres.is_empty() => 1.0,
@@ -118,7 +136,6 @@ impl SceneDescription {
 
         // Work in place on the mesh's arrays and then move them over: a large first
         // mesh (the usual case) is never copied.
-        let mut mesh = mesh;
         for p in &mut mesh.positions {
             *p = transform.point(*p);
         }
@@ -229,6 +246,57 @@ pub fn affine_from_rows(m: &[f64; 16]) -> Result<Affine3A, String> {
 }
 
 impl SceneDescription {
+    /// Writes every copy its instances place into the description's own arrays, as
+    /// if each had been read on its own: the one-level scene that a two-level one
+    /// stands for (and what a mesh file with instances becomes when a TOML mesh
+    /// places it).
+    ///
+    /// # Errors
+    /// More vertices or triangles in all than 32-bit indices can address.
+    pub fn flatten_instances(&mut self) -> Result<(), ParseErrorKind> {
+        let meshes = std::mem::take(&mut self.meshes);
+        for instance in std::mem::take(&mut self.instances) {
+            let Some(mesh) = meshes.get(instance.mesh as usize) else {
+                continue;
+            };
+            let mut copy = SceneDescription {
+                lights: Vec::new(),
+                ..mesh.clone()
+            };
+            if instance.winding_kept && instance.world_from_object.matrix3.determinant() < 0.0 {
+                for (i, t) in copy.triangles.iter_mut().enumerate() {
+                    t.positions.swap(1, 2);
+                    if let Some(Some(n)) = copy.triangle_normals.get_mut(i) {
+                        n.swap(1, 2);
+                    }
+                    if let Some(Some(uv)) = copy.triangle_texcoords.get_mut(i) {
+                        uv.swap(1, 2);
+                    }
+                }
+            }
+            // Materials are this description's already.
+            let own = std::mem::take(&mut copy.materials);
+            debug_assert!(own.is_empty());
+            self.append_geometry(copy, &Transform::from_affine(&instance.world_from_object))?;
+        }
+        Ok(())
+    }
+
+    /// [`SceneDescription::append`] of a mesh whose material ids are this
+    /// description's.
+    fn append_geometry(
+        &mut self,
+        mesh: SceneDescription,
+        transform: &Transform,
+    ) -> Result<(), ParseErrorKind> {
+        // With this description's materials set aside, `append` shifts no id.
+        let materials = std::mem::take(&mut self.materials);
+        let result = self.append(mesh, transform, None);
+        let appended = std::mem::replace(&mut self.materials, materials);
+        debug_assert!(appended.is_empty());
+        result
+    }
+
     /// Adds `mesh` to [`SceneDescription::meshes`], to be placed by instances only:
     /// its material ids shifted to follow this description's materials (its own
     /// appended), or all set to `material`. Returns its index.
@@ -241,6 +309,10 @@ impl SceneDescription {
         mesh: SceneDescription,
         material: Option<MaterialId>,
     ) -> Result<u32, ParseErrorKind> {
+        let mut mesh = mesh;
+        if !mesh.instances.is_empty() {
+            mesh.flatten_instances()?;
+        }
         if !mesh.spheres.is_empty() {
             return Err(ParseErrorKind::TomlValue {
                 key: "mesh.id".into(),
@@ -249,7 +321,6 @@ impl SceneDescription {
         }
         let index =
             u32::try_from(self.meshes.len()).map_err(|_| ParseErrorKind::TooMany("meshes"))?;
-        let mut mesh = mesh;
         let material_offset = self.materials.len() as u32;
         for t in &mut mesh.triangles {
             t.material = material.unwrap_or(MaterialId(t.material.0 + material_offset));
@@ -265,7 +336,7 @@ impl SceneDescription {
 
     /// Places mesh `mesh` (of [`SceneDescription::meshes`]) by `world_from_object`,
     /// with the lights its file holds, moved likewise.
-    pub fn add_instance(&mut self, mesh: u32, world_from_object: Affine3A) {
+    pub fn add_instance(&mut self, mesh: u32, world_from_object: Affine3A, winding_kept: bool) {
         if let Some(m) = self.meshes.get(mesh as usize) {
             for l in &m.lights {
                 let mut l = *l;
@@ -283,6 +354,7 @@ impl SceneDescription {
         self.instances.push(InstanceDesc {
             mesh,
             world_from_object,
+            winding_kept,
         });
     }
 }

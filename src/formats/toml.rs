@@ -859,7 +859,7 @@ impl Builder<'_> {
             }
             (None, None) => glam::Affine3A::IDENTITY,
         };
-        self.scene.add_instance(mesh, placement);
+        self.scene.add_instance(mesh, placement, false);
         Ok(())
     }
 
@@ -884,7 +884,7 @@ impl Builder<'_> {
         drop(bytes);
         self.scene.instances.reserve(matrices.len());
         for matrix in matrices {
-            self.scene.add_instance(mesh, matrix);
+            self.scene.add_instance(mesh, matrix, false);
         }
         Ok(())
     }

@@ -439,11 +439,19 @@ fn collect_area_lights(
                 }
                 _ => [Vec2::ZERO; 3],
             };
-            let corners = t.positions.map(|p| {
+            let [a, b, c] = t.positions.map(|p| {
                 instance
                     .world_from_object
                     .transform_point3(mesh.positions[p as usize])
             });
+            // A copy whose mirroring keeps its front emits from the same side.
+            let (corners, uv) = if instance.winding_kept
+                && instance.world_from_object.matrix3.determinant() < 0.0
+            {
+                ([a, c, b], [uv[0], uv[2], uv[1]])
+            } else {
+                ([a, b, c], uv)
+            };
             lights.triangle(corners, uv, t.material);
         }
     }

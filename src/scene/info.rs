@@ -253,10 +253,11 @@ impl fmt::Display for SceneSummary {
         if self.instances > 0 {
             writeln!(
                 f,
-                "instanced  {} triangles ({} instances of {} meshes stored once)",
+                "instanced  {} triangles ({} instances of {} mesh{} stored once)",
                 thousands(self.instanced_triangles as usize),
                 thousands(self.instances),
-                thousands(self.meshes)
+                thousands(self.meshes),
+                if self.meshes == 1 { "" } else { "es" }
             )?;
         }
         writeln!(f, "spheres    {}", thousands(self.spheres))?;

@@ -54,6 +54,9 @@ struct Placed {
     /// Whether the placement mirrors (negative determinant), which turns the
     /// winding and so which side is the front.
     mirrored: bool,
+    /// The instance's index in the description (its object is the flat level's
+    /// objects' count plus this).
+    instance: u32,
 }
 
 impl Placed {
@@ -144,7 +147,8 @@ impl Instances {
                     object_from_world: m.inverse(),
                     normal_to_world: m.matrix3.inverse().transpose(),
                     mesh: instance.mesh,
-                    mirrored: m.matrix3.determinant() < 0.0,
+                    mirrored: m.matrix3.determinant() < 0.0 && !instance.winding_kept,
+                    instance: i,
                 }
             })
             .collect();
@@ -258,6 +262,10 @@ impl Scene {
         let started = std::time::Instant::now();
         let mut warnings = Vec::new();
         let built = Instances::build(meshes, &instances, &scene, params, &mut warnings);
+        // Each copy is an object of its own, after the flat level's.
+        for (i, instance) in instances.iter().enumerate() {
+            (scene.objects).push_after_shapes(format!("instance {i} of mesh {}", instance.mesh));
+        }
         scene.warnings.append(&mut warnings);
         scene.build_times.tree += started.elapsed();
         scene.instances = Some(Box::new(built));
@@ -280,6 +288,24 @@ impl Scene {
         } else {
             self.textured_hit_details(ray, packet, lane, hit)
         })
+    }
+
+    /// [`Scene::intersect_object`] in a scene with instances: a copy's object is its
+    /// instance's (see [`Scene::object_names`]).
+    #[inline(never)]
+    pub(super) fn intersect_object_instanced(
+        &self,
+        instances: &Instances,
+        ray: &Ray,
+    ) -> Option<(Hit, u32)> {
+        let flat = self.closest_lane(ray);
+        let mut t_max = flat.map_or(Float::INFINITY, |(_, _, hit)| hit.t);
+        if let Some((index, packet, lane, hit)) = instances.closest(ray, &mut t_max) {
+            let placed = &instances.placed[index as usize];
+            let object = self.objects.placed_object(placed.instance);
+            return Some((instances.hit(ray, index, packet, lane, hit), object));
+        }
+        self.object_hit(ray, flat?)
     }
 
     /// [`Scene::intersect_primitive`] in a scene with instances: a copy's primitive is
@@ -335,5 +361,132 @@ impl Scene {
     /// [`Scene::validate`] of the meshes and top level of a scene with instances.
     pub(super) fn validate_instances(&self) -> Result<(), BvhInvariantError> {
         self.instances.as_ref().map_or(Ok(()), |i| i.validate())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::packet_tests::generated_description;
+    use super::*;
+    use crate::scene::BATCH;
+    use glam::{Affine3A, Quat};
+    use rand::{Rng, SeedableRng};
+
+    /// A generated mesh placed five times (turned, stretched, mirrored), and the same
+    /// copies flattened by the reader's code.
+    fn scenes() -> (Scene, Scene) {
+        let mesh = generated_description(8, false, 5);
+        let mut d = SceneDescription {
+            materials: mesh.materials.clone(),
+            lights: mesh.lights.clone(),
+            ..SceneDescription::default()
+        };
+        d.meshes.push(SceneDescription {
+            materials: Vec::new(),
+            lights: Vec::new(),
+            ..mesh
+        });
+        let placements = [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(2.5, 0.0, 0.0)),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(1.5, 0.5, 1.0),
+                Quat::from_rotation_y(0.7),
+                Vec3::new(0.0, 1.0, -2.5),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(-1.0, 1.0, 1.0),
+                Quat::from_rotation_x(0.3),
+                Vec3::new(-2.5, 0.2, 0.0),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::splat(0.5),
+                Quat::from_rotation_z(3.0),
+                Vec3::new(0.0, 2.0, 0.0),
+            ),
+        ];
+        for world_from_object in placements {
+            d.instances.push(InstanceDesc {
+                mesh: 0,
+                world_from_object,
+                winding_kept: false,
+            });
+        }
+        let mut flat = d.clone();
+        flat.flatten_instances().unwrap();
+        let params = BvhParams::default();
+        (Scene::build(d, &params), Scene::build(flat, &params))
+    }
+
+    #[test]
+    fn every_query_family_answers_through_instances_as_the_flattened_scene_does() {
+        let (scene, flat) = scenes();
+        scene.validate().unwrap();
+        assert_eq!(scene.instance_count(), 5);
+        assert_eq!(flat.instance_count(), 0);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(39);
+        let rays: Vec<Ray> = (0..2048)
+            .map(|_| {
+                let origin = Vec3::new(
+                    rng.random_range(-4.0..4.0),
+                    rng.random_range(2.0..5.0),
+                    rng.random_range(-4.0..4.0),
+                );
+                let target = Vec3::new(
+                    rng.random_range(-4.0..4.0),
+                    rng.random_range(-0.5..2.0),
+                    rng.random_range(-4.0..4.0),
+                );
+                Ray::new(origin, target - origin)
+            })
+            .collect();
+        // Against the flattened scene (an independent answer): the same surfaces at
+        // the same distances, up to the rounding of the placement.
+        let mut hits = 0;
+        let mut differ = 0;
+        for ray in &rays {
+            match (scene.intersect(ray), flat.intersect(ray)) {
+                (Some(a), Some(b)) => {
+                    hits += 1;
+                    let close = (a.t - b.t).abs() <= 1e-4 * b.t.max(1.0)
+                        && a.n.dot(b.n) > 0.999
+                        && a.ns.dot(b.ns) > 0.999
+                        && a.front == b.front
+                        && a.material == b.material;
+                    differ += usize::from(!close);
+                }
+                (None, None) => {}
+                _ => differ += 1,
+            }
+            let t = 0.5 * flat.intersect(ray).map_or(10.0, |h| h.t);
+            differ += usize::from(scene.occluded(ray, t) != flat.occluded(ray, t));
+        }
+        assert!(hits > 300, "{hits} hits");
+        assert!(differ <= 2, "{differ} of {} rays differ", rays.len());
+        // The packet, batch and stream queries give the single-ray answers.
+        let mut found = vec![None; rays.len()];
+        scene.intersect_primitives(&rays, &mut found);
+        let reach: Vec<Float> = rays.iter().map(|_| 3.0).collect();
+        let mut blocked = vec![false; rays.len()];
+        scene.occluded_rays(&rays, &reach, &mut blocked);
+        for (i, ray) in rays.iter().enumerate() {
+            assert_eq!(found[i], scene.intersect_primitive(ray));
+            assert_eq!(blocked[i], scene.occluded(ray, 3.0));
+        }
+        for chunk in rays.chunks_exact(BATCH) {
+            let batch: &[Ray; BATCH] = chunk.try_into().unwrap();
+            let mut hits = [None; BATCH];
+            scene.intersect_batch(batch, u32::MAX >> (32 - BATCH), &mut hits);
+            let mut packet_hits = [None; BATCH];
+            scene.intersect_packet(chunk, &mut packet_hits);
+            let blocked = scene.occluded_batch(batch, &[3.0; BATCH], u32::MAX >> (32 - BATCH));
+            let packet_blocked = scene.occluded_packet(chunk, &[3.0; BATCH], u32::MAX);
+            for (k, ray) in chunk.iter().enumerate() {
+                assert_eq!(hits[k], scene.intersect(ray));
+                assert_eq!(packet_hits[k], scene.intersect(ray));
+                assert_eq!(blocked >> k & 1 == 1, scene.occluded(ray, 3.0));
+                assert_eq!(packet_blocked >> k & 1 == 1, scene.occluded(ray, 3.0));
+            }
+        }
     }
 }

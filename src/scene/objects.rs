@@ -19,6 +19,8 @@ pub struct Objects {
     /// The description's triangle count: its sphere `i` has description index
     /// `triangles + i`.
     triangles: u32,
+    /// The id of the first instance's object, in a scene with instances.
+    first_placed: Option<u32>,
 }
 
 impl Objects {
@@ -48,6 +50,20 @@ impl Objects {
             table.push(object.name, t, s);
         }
         table
+    }
+
+    /// Adds an object that holds none of the description's own shapes: an instance's
+    /// copy, whose hits name it by [`Objects::placed_object`].
+    pub fn push_after_shapes(&mut self, name: String) {
+        if self.first_placed.is_none() {
+            self.first_placed = Some(self.names.len() as u32);
+        }
+        self.push(name, u32::MAX, u32::MAX);
+    }
+
+    /// The id of instance `instance`'s object ([`Objects::push_after_shapes`]).
+    pub fn placed_object(&self, instance: u32) -> u32 {
+        self.first_placed.unwrap_or(self.names.len() as u32) + instance
     }
 
     fn push(&mut self, name: String, first_triangle: u32, first_sphere: u32) {
@@ -84,13 +100,16 @@ impl Scene {
 
     /// [`Scene::intersect`]'s hit, with the id of the object hit.
     pub fn intersect_object(&self, ray: &Ray) -> Option<(Hit, u32)> {
+        if let Some(instances) = &self.instances {
+            return self.intersect_object_instanced(instances, ray);
+        }
         self.closest_lane(ray)
             .and_then(|found| self.object_hit(ray, found))
     }
 
     /// The hit of `ray` on the primitive in `lane` of `packet`, as
     /// [`Scene::intersect`] details it, with its object.
-    fn object_hit(
+    pub(super) fn object_hit(
         &self,
         ray: &Ray,
         (packet, lane, found): (u32, usize, PrimHit),
@@ -112,6 +131,12 @@ impl Scene {
     /// If `rays` is empty, longer than a packet, or not as long as `hits`.
     pub fn intersect_object_packet(&self, rays: &[Ray], hits: &mut [Option<(Hit, u32)>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        if self.instances.is_some() {
+            for (hit, ray) in hits.iter_mut().zip(rays) {
+                *hit = self.intersect_object(ray);
+            }
+            return;
+        }
         let found = self.closest_lanes_packet(rays);
         for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
             *hit = found.and_then(|found| self.object_hit(ray, found));

@@ -103,6 +103,14 @@ pub fn parse_gltf_with(
         images: HashMap::new(),
         warned: Vec::new(),
         camera_found: false,
+        node_uses: {
+            let mut uses = vec![0; document.meshes().len()];
+            for mesh in document.nodes().filter_map(|n| n.mesh()) {
+                uses[mesh.index()] += 1;
+            }
+            uses
+        },
+        instanced: HashMap::new(),
         raw_materials,
         problems: MaterialProblems::default(),
     };
@@ -538,6 +546,11 @@ struct Reader<'a> {
     /// The kinds of warning already given, so that each is given once.
     warned: Vec<&'static str>,
     camera_found: bool,
+    /// How many nodes use each mesh: a mesh of more than one is read once and
+    /// placed by instances.
+    node_uses: Vec<usize>,
+    /// The index in [`SceneDescription::meshes`] of each such mesh read so far.
+    instanced: HashMap<usize, u32>,
     /// The JSON object of each material.
     raw_materials: Vec<Value>,
     /// Problems of the materials' values, for one warning per kind.
@@ -606,13 +619,18 @@ impl Reader<'_> {
                 continue;
             }
             if let Some(mesh) = node.mesh() {
-                // Each node with a mesh is an object (the `object_id` output).
-                let name = node
-                    .name()
-                    .map_or_else(|| format!("node {}", node.index()), String::from);
-                let object = crate::description::ObjectDesc::next_in(&self.scene, name);
-                self.scene.objects.push(object);
-                self.add_mesh(&mesh, &world)?;
+                if self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
+                    // A copy of a shared mesh: its instance is its object.
+                    self.add_instance(&mesh, &world, node.index())?;
+                } else {
+                    // Each other node with a mesh is an object (the `object_id` output).
+                    let name = node
+                        .name()
+                        .map_or_else(|| format!("node {}", node.index()), String::from);
+                    let object = crate::description::ObjectDesc::next_in(&self.scene, name);
+                    self.scene.objects.push(object);
+                    self.add_mesh(&mesh, &world)?;
+                }
             }
             if let Some(camera) = node.camera() {
                 self.add_camera(&camera, &world);
@@ -623,6 +641,41 @@ impl Reader<'_> {
             let first_child = pending.len();
             pending.extend(node.children().map(|child| (child, world)));
             pending[first_child..].reverse();
+        }
+        Ok(())
+    }
+
+    /// Places a copy of `mesh`, which several nodes use, by `world`: the mesh is read
+    /// once (the first time) into [`SceneDescription::meshes`], in its own space.
+    fn add_instance(
+        &mut self,
+        mesh: &gltf::Mesh<'_>,
+        world: &Mat4,
+        node: usize,
+    ) -> Result<(), String> {
+        let index = match self.instanced.get(&mesh.index()) {
+            Some(&index) => index,
+            None => {
+                let scene = &self.scene;
+                let before = (
+                    scene.positions.len(),
+                    scene.normals.len(),
+                    scene.texcoords.len(),
+                    scene.triangles.len(),
+                );
+                self.add_mesh(mesh, &Mat4::IDENTITY)?;
+                let index = self.scene.meshes.len() as u32;
+                let read = split_off_mesh(&mut self.scene, before);
+                self.scene.meshes.push(read);
+                self.instanced.insert(mesh.index(), index);
+                index
+            }
+        };
+        // The node's transform must be an invertible affine map (it is finite).
+        let rows = world.transpose().to_cols_array().map(f64::from);
+        match super::compose::affine_from_rows(&rows) {
+            Ok(placement) => self.scene.add_instance(index, placement, true),
+            Err(message) => self.warn(format!("node {node}: {message}; skipped")),
         }
         Ok(())
     }
@@ -1061,6 +1114,43 @@ fn vertex_colour_atlas(colours: &[[Vec3; 3]], name: PathBuf) -> Option<(Texture,
     }
     let texture = Texture::from_f32(name, w, h, 3, texels)?;
     Some((texture, texcoords))
+}
+
+/// The geometry appended to `scene` since it held `before` (positions, normals,
+/// texture coordinates, triangles) taken out as a mesh of its own, its indices
+/// starting from 0: a mesh read once for the instances that place it.
+fn split_off_mesh(
+    scene: &mut SceneDescription,
+    (positions, normals, texcoords, triangles): (usize, usize, usize, usize),
+) -> SceneDescription {
+    let [p0, n0, t0] = [positions, normals, texcoords].map(|n| n as u32);
+    let mut mesh = SceneDescription {
+        positions: scene.positions.split_off(positions),
+        normals: scene.normals.split_off(normals),
+        texcoords: scene.texcoords.split_off(texcoords),
+        triangles: scene.triangles.split_off(triangles),
+        ..SceneDescription::default()
+    };
+    for t in &mut mesh.triangles {
+        t.positions = t.positions.map(|i| i - p0);
+    }
+    if scene.triangle_normals.len() > triangles {
+        mesh.triangle_normals = scene.triangle_normals.split_off(triangles);
+        for n in mesh.triangle_normals.iter_mut().flatten() {
+            *n = n.map(|i| i - n0);
+        }
+    }
+    if scene.triangle_texcoords.len() > triangles {
+        mesh.triangle_texcoords = scene.triangle_texcoords.split_off(triangles);
+        for t in mesh.triangle_texcoords.iter_mut().flatten() {
+            *t = t.map(|i| i - t0);
+        }
+    }
+    // Flat triangles keep no normal indices when none of them has normals.
+    if scene.triangle_normals.iter().all(Option::is_none) {
+        scene.triangle_normals.clear();
+    }
+    mesh
 }
 
 /// The triangles of a primitive's index list in `mode`, degenerate ones included

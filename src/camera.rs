@@ -239,6 +239,13 @@ impl Camera {
         Ray::new(self.origin + from, on_plane - from)
     }
 
+    /// The unit view direction (the optical axis): a point's z-depth is its distance
+    /// from the eye along it.
+    #[inline]
+    pub fn forward(&self) -> Vec3 {
+        -self.backward
+    }
+
     /// The ray through the centre of pixel (`column`, `row`).
     #[inline]
     pub fn pixel_ray(&self, column: u32, row: u32) -> Ray {

@@ -70,8 +70,38 @@ pub struct SceneDescription {
     /// What camera rays that leave the scene see in path mode, if not the
     /// environment.
     pub background: Option<Vec3>,
+    /// The named objects (a mesh file, a glTF node with a mesh), in the order they
+    /// were read: each covers the triangles and spheres from its starts up to the
+    /// next object's (see [`ObjectDesc`]). Empty when the reader named none.
+    pub objects: Vec<ObjectDesc>,
     /// Non-fatal problems, each naming file and line, for the caller to show.
     pub warnings: Vec<String>,
+}
+
+/// Where an object begins in a [`SceneDescription`]: it holds the triangles from
+/// `first_triangle` and the spheres from `first_sphere` up to the next object's
+/// starts (or the end). Object ids (the `object_id` output) are positions in
+/// [`SceneDescription::objects`]; shapes before the first object form an unnamed
+/// object of their own, numbered first.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjectDesc {
+    /// The object's name: a glTF node's name (or `node N`), a mesh file's name.
+    pub name: String,
+    /// Index of its first triangle in [`SceneDescription::triangles`].
+    pub first_triangle: u32,
+    /// Index of its first sphere in [`SceneDescription::spheres`].
+    pub first_sphere: u32,
+}
+
+impl ObjectDesc {
+    /// An object named `name` holding the shapes that `description` gets next.
+    pub fn next_in(description: &SceneDescription, name: String) -> ObjectDesc {
+        ObjectDesc {
+            name,
+            first_triangle: description.triangles.len() as u32,
+            first_sphere: description.spheres.len() as u32,
+        }
+    }
 }
 
 impl SceneDescription {

@@ -81,7 +81,7 @@ pub mod warnings;
 pub use bvh::{Bvh, BvhParams};
 pub use camera::Camera;
 pub use description::SceneDescription;
-pub use film::Film;
+pub use film::{Aov, AovPlanes, Film, Outputs};
 pub use formats::SceneError;
 pub use integrators::Integrator;
 pub use material::{Light, LightKind, Material, MaterialId};
@@ -89,7 +89,8 @@ pub use options::{Mode, RenderOptions};
 pub use output::ImageFormat;
 pub use postprocess::Image;
 pub use render::{
-    RenderTimes, Tile, TileError, render, render_tile, render_with_progress, render_with_stats,
+    RenderTimes, Tile, TileError, render, render_outputs, render_outputs_with_stats, render_tile,
+    render_tile_outputs, render_with_progress, render_with_stats,
 };
 pub use sampler::{PixelSample, PixelSampler};
 pub use scene::{Hit, Scene};

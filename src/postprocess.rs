@@ -158,6 +158,30 @@ impl Film {
     }
 }
 
+impl Film {
+    /// The film divided by the coverage `alpha` (one value a pixel, in [0, 1]) where
+    /// it is above 0: the colour of what the pixel's hits saw, for images that keep
+    /// colour and alpha apart (PNG), from a film whose misses added nothing.
+    pub fn unpremultiplied(&self, alpha: &[Float]) -> Film {
+        let pixels = self
+            .pixels
+            .iter()
+            .zip(alpha)
+            .map(|(&v, &a)| if a > 0.0 { v / a } else { v })
+            .collect();
+        Film {
+            width: self.width,
+            height: self.height,
+            pixels,
+        }
+    }
+}
+
+/// Coverage in [0, 1] as 8-bit alpha, rounded.
+pub fn alpha_bytes(alpha: &[Float]) -> Vec<u8> {
+    alpha.iter().map(|&a| to_byte(a)).collect()
+}
+
 /// Why a film could not be denoised.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum DenoiseError {

@@ -5,15 +5,12 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
-use crate::bvh::PACKET_SIZE;
 use crate::camera::Camera;
-use crate::film::Film;
-use crate::integrators::whitted::PacketScratch;
-use crate::integrators::{
-    DepthIntegrator, Integrator, NormalIntegrator, PathIntegrator, WhittedIntegrator,
-};
-use crate::math::{Ray, Vec3};
-use crate::options::{Mode, RenderOptions};
+use crate::film::{Aov, AovPlanes, Film, Outputs};
+use crate::integrators::aov::{AovPixel, AovSet, aov_pixel};
+use crate::integrators::{Band, Integrator, ModeIntegrator, TileContext, TraceClock};
+use crate::math::Vec3;
+use crate::options::RenderOptions;
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
 use crate::stats::RayCounts;
@@ -96,8 +93,30 @@ pub fn render_with_progress(
     options: &RenderOptions,
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts) {
-    let (film, rays, _) = render_region(scene, options, Tile::whole(options), row_done, false);
-    (film, rays)
+    let (outputs, rays, _) =
+        render_region(scene, options, Tile::whole(options), &[], row_done, false);
+    (outputs.film, rays)
+}
+
+/// [`render`] with the extra outputs `aovs` ([`Aov`]: depth, normal, albedo, alpha,
+/// object and material ids) in the same pass: the camera rays of the colour's
+/// samples are traced again for them, only when some are asked for.
+pub fn render_outputs(scene: &Scene, options: &RenderOptions, aovs: &[Aov]) -> Outputs {
+    render_outputs_with_stats(scene, options, aovs, &|_| {}, false).0
+}
+
+/// [`render_outputs`], calling `row_done` and counting rays as
+/// [`render_with_progress`] does, and with `timed` timing the tracing as
+/// [`render_with_stats`] does. The counts are those of the colour's rays: the extra
+/// outputs' rays are not counted.
+pub fn render_outputs_with_stats(
+    scene: &Scene,
+    options: &RenderOptions,
+    aovs: &[Aov],
+    row_done: &(dyn Fn(u32) + Sync),
+    timed: bool,
+) -> (Outputs, RayCounts, RenderTimes) {
+    render_region(scene, options, Tile::whole(options), aovs, row_done, timed)
 }
 
 /// How the render's time divided between tracing rays and shading, where the two are
@@ -120,7 +139,9 @@ pub fn render_with_stats(
     options: &RenderOptions,
     row_done: &(dyn Fn(u32) + Sync),
 ) -> (Film, RayCounts, RenderTimes) {
-    render_region(scene, options, Tile::whole(options), row_done, true)
+    let (outputs, rays, times) =
+        render_region(scene, options, Tile::whole(options), &[], row_done, true);
+    (outputs.film, rays, times)
 }
 
 /// The pixels of `tile` of the image `options` describe, as a film of the tile's size:
@@ -132,6 +153,20 @@ pub fn render_with_stats(
 /// # Errors
 /// [`TileError`] when the tile has no pixels or does not lie inside the image.
 pub fn render_tile(scene: &Scene, options: &RenderOptions, tile: Tile) -> Result<Film, TileError> {
+    render_tile_outputs(scene, options, tile, &[]).map(|outputs| outputs.film)
+}
+
+/// [`render_tile`] with the extra outputs `aovs` of the tile's pixels, as
+/// [`render_outputs`] gives them for the whole image (bit for bit the same values).
+///
+/// # Errors
+/// As [`render_tile`].
+pub fn render_tile_outputs(
+    scene: &Scene,
+    options: &RenderOptions,
+    tile: Tile,
+    aovs: &[Aov],
+) -> Result<Outputs, TileError> {
     if tile.width == 0 || tile.height == 0 {
         return Err(TileError::Empty { tile });
     }
@@ -144,181 +179,116 @@ pub fn render_tile(scene: &Scene, options: &RenderOptions, tile: Tile) -> Result
             height: options.height,
         });
     }
-    Ok(render_region(scene, options, tile, &|_| {}, false).0)
+    Ok(render_region(scene, options, tile, aovs, &|_| {}, false).0)
 }
 
-/// Chooses the integrator of `options.mode`, once for the whole region.
-/// With `timed`, also measures what [`RenderTimes`] holds.
+/// Renders `tile` with the integrator of `options.mode` ([`ModeIntegrator`]), and
+/// the outputs `aovs`. With `timed`, also measures what [`RenderTimes`] holds.
 fn render_region(
     scene: &Scene,
     options: &RenderOptions,
     tile: Tile,
+    aovs: &[Aov],
     row_done: &(dyn Fn(u32) + Sync),
     timed: bool,
-) -> (Film, RayCounts, RenderTimes) {
-    let untimed = |(film, rays)| (film, rays, RenderTimes::default());
-    match options.mode {
-        Mode::Depth => untimed(render_with(
-            scene,
-            options,
-            &DepthIntegrator,
-            tile,
-            row_done,
-        )),
-        Mode::Normal => untimed(render_with(
-            scene,
-            options,
-            &NormalIntegrator,
-            tile,
-            row_done,
-        )),
-        Mode::Full => {
-            let whitted = WhittedIntegrator {
-                max_depth: options.depth,
-            };
-            // Packets of pixel centres' rays need the pinhole's shared eye.
-            if options.samples_per_pixel_in_mode() == 1 && Camera::for_options(options).is_pinhole()
-            {
-                render_whitted_packets(scene, options, &whitted, tile, row_done, timed)
-            } else {
-                untimed(render_with(scene, options, &whitted, tile, row_done))
-            }
-        }
-        Mode::Path => {
-            let path = PathIntegrator::new(scene, options.depth, options.default_light);
-            untimed(render_with(scene, options, &path, tile, row_done))
-        }
-    }
+) -> (Outputs, RayCounts, RenderTimes) {
+    let integrator = ModeIntegrator::new(scene, options);
+    render_with(scene, options, &integrator, tile, aovs, row_done, timed)
 }
 
-/// The pixel loop over `tile` (which lies inside the image), compiled once per
-/// integrator so that no call per ray is dynamic. Pixels are indexed in the whole
-/// image, so the sampler gives a pixel the same values whatever tile holds it.
+/// The pixel loop over `tile` (which lies inside the image): bands of
+/// [`Integrator::band_rows`] rows spread over the threads, each traced as the
+/// integrator traces a band ([`Integrator::trace_band`]). Pixels are indexed in the
+/// whole image, so the sampler gives a pixel the same values whatever tile holds it.
 fn render_with<I: Integrator>(
     scene: &Scene,
     options: &RenderOptions,
     integrator: &I,
     tile: Tile,
+    aovs: &[Aov],
     row_done: &(dyn Fn(u32) + Sync),
-) -> (Film, RayCounts) {
+    timed: bool,
+) -> (Outputs, RayCounts, RenderTimes) {
     let camera = Camera::for_options(options);
     let sampler = PixelSampler::new(options.samples_per_pixel_in_mode(), integrator.dimensions())
         .with_seed(options.seed);
-    let width = tile.width as usize;
-    let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
-    let rays = pixels
-        .par_chunks_mut(width)
-        .zip(tile.y..tile.y + tile.height)
-        .map(|(line, row)| {
-            let mut rays = RayCounts::default();
-            for (pixel, column) in line.iter_mut().zip(tile.x..) {
-                *pixel = integrator.pixel(
-                    scene,
-                    &camera,
-                    &sampler,
-                    (column, row, options.width),
-                    &mut rays,
-                );
-            }
-            row_done(row);
-            rays
-        })
-        .reduce(RayCounts::default, |mut a, b| {
-            a += b;
-            a
-        });
-    let film = Film {
-        width: tile.width,
-        height: tile.height,
-        pixels,
+    let context = TileContext {
+        scene,
+        camera: &camera,
+        sampler: &sampler,
+        image_width: options.width,
     };
-    (film, rays)
-}
-
-/// Side of the square pixel tiles whose camera rays are traced as one packet.
-const PACKET_TILE: u32 = 4;
-const _: () = assert!((PACKET_TILE * PACKET_TILE) as usize == PACKET_SIZE);
-
-/// [`render_with`] for the Whitted integrator at one sample per pixel: the pixel
-/// centres' camera rays of each 4x4 tile, and their shadow rays, are traced as packets
-/// ([`WhittedIntegrator::radiance_packet`]); the film is bit-identical to
-/// [`render_with`]'s. Bands of four rows are spread over the threads.
-fn render_whitted_packets(
-    scene: &Scene,
-    options: &RenderOptions,
-    integrator: &WhittedIntegrator,
-    tile: Tile,
-    row_done: &(dyn Fn(u32) + Sync),
-    timed: bool,
-) -> (Film, RayCounts, RenderTimes) {
-    let camera = Camera::for_options(options);
+    let wanted = AovSet::of(aovs);
+    let band_rows = integrator.band_rows(&context).max(1);
     let width = tile.width as usize;
-    let band_pixels = width * PACKET_TILE as usize;
     let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
-    let rays = pixels
-        .par_chunks_mut(band_pixels)
+    // Bands in order, each with its pixels' extra outputs (none unless asked for).
+    let bands: Vec<(RayCounts, Duration, Duration, Vec<AovPixel>)> = pixels
+        .par_chunks_mut(width * band_rows as usize)
         .zip(
             (tile.y..tile.y + tile.height)
                 .into_par_iter()
-                .step_by(PACKET_TILE as usize),
+                .step_by(band_rows as usize),
         )
-        .map(|(band, top)| {
+        .map(|(pixels, top)| {
             let band_start = timed.then(Instant::now);
             let mut rays = RayCounts::default();
-            let mut scratch = PacketScratch::default();
-            scratch.time_tracing(timed);
-            let rows = (band.len() / width) as u32;
-            let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
-            let mut values = [Vec3::ZERO; PACKET_SIZE];
-            for left in (tile.x..tile.x + tile.width).step_by(PACKET_TILE as usize) {
-                let columns = (tile.x + tile.width - left).min(PACKET_TILE);
-                camera.tile_rays(left, top, columns, rows, &mut camera_rays);
-                let count = (columns * rows) as usize;
-                rays.primary += count as u64;
-                integrator.radiance_packet(
-                    scene,
-                    &camera_rays[..count],
-                    &mut values[..count],
-                    &mut rays,
-                    &mut scratch,
-                );
-                let mut values = values[..count].iter();
-                for row in 0..rows as usize {
-                    let start = row * width + (left - tile.x) as usize;
-                    for pixel in &mut band[start..start + columns as usize] {
-                        *pixel = *values.next().expect("one value per pixel");
-                    }
-                }
-            }
+            let mut clock = TraceClock::new(timed);
+            let rows = (pixels.len() / width) as u32;
+            let band = Band {
+                left: tile.x,
+                top,
+                width: tile.width,
+                rows,
+                pixels,
+            };
+            integrator.trace_band(&context, band, &mut rays, &mut clock);
+            let extra = if wanted.any() {
+                (top..top + rows)
+                    .flat_map(|row| {
+                        (tile.x..tile.x + tile.width)
+                            .map(move |column| aov_pixel(&context, column, row, wanted))
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
             for row in top..top + rows {
                 row_done(row);
             }
             let band_time = band_start.map_or(Duration::ZERO, |start| start.elapsed());
-            (rays, scratch.tracing_time(), band_time)
+            (rays, clock.time().unwrap_or_default(), band_time, extra)
         })
-        .reduce(
-            || (RayCounts::default(), Duration::ZERO, Duration::ZERO),
-            |mut a, b| {
-                a.0 += b.0;
-                (a.0, a.1 + b.1, a.2 + b.2)
-            },
-        );
-    let (rays, tracing, total) = rays;
+        .collect();
+    let mut planes = AovPlanes::new(aovs, pixels.len());
+    let (mut rays, mut tracing, mut total) = (RayCounts::default(), Duration::ZERO, Duration::ZERO);
+    let mut i = 0;
+    for (band_rays, band_tracing, band_total, extra) in bands {
+        rays += band_rays;
+        tracing += band_tracing;
+        total += band_total;
+        for pixel in extra {
+            planes.set(i, &pixel);
+            i += 1;
+        }
+    }
     let film = Film {
         width: tile.width,
         height: tile.height,
         pixels,
     };
+    // An integrator that traced no packets apart from shading timed nothing.
     let times = RenderTimes {
-        trace_fraction: (timed && !total.is_zero())
+        trace_fraction: (timed && !tracing.is_zero() && !total.is_zero())
             .then(|| tracing.as_secs_f64() / total.as_secs_f64()),
     };
-    (film, rays, times)
+    (Outputs { film, aovs: planes }, rays, times)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrators::WhittedIntegrator;
     use crate::math::Ray;
     use crate::sampler::PixelSample;
     use crate::scene::Scene;
@@ -350,7 +320,9 @@ mod tests {
     }
 
     fn probe(options: &RenderOptions, tile: Tile) -> Film {
-        render_with(&empty_scene(), options, &Probe, tile, &|_| {}).0
+        render_with(&empty_scene(), options, &Probe, tile, &[], &|_| {}, false)
+            .0
+            .film
     }
 
     #[test]
@@ -388,9 +360,9 @@ mod tests {
         }
     }
 
-    /// The packet loop of full mode makes exactly the film of the ray-by-ray loop,
-    /// with the same ray counts, for whole images and for tiles whose edges cut the
-    /// 4x4 packets.
+    /// Full mode's packet bands make exactly the film of the ray-by-ray loop, with
+    /// the same ray counts, for whole images and for tiles whose edges cut the 4x4
+    /// packets.
     #[test]
     fn whitted_packets_render_exactly_the_single_ray_film() {
         let scene = crate::scene::packet_tests::generated_scene(60, true, 3);
@@ -413,9 +385,18 @@ mod tests {
                 height: 18,
             },
         ] {
-            let (single, single_rays) = render_with(&scene, &options, &whitted, tile, &|_| {});
-            let (packets, packet_rays, _) =
-                render_whitted_packets(&scene, &options, &whitted, tile, &|_| {}, false);
+            let (single, single_rays, _) = render_with(
+                &scene,
+                &options,
+                &ByPixel(whitted),
+                tile,
+                &[],
+                &|_| {},
+                false,
+            );
+            let (packets, packet_rays, times) =
+                render_with(&scene, &options, &whitted, tile, &[], &|_| {}, true);
+            let (single, packets) = (single.film, packets.film);
             let bits = |film: &Film| -> Vec<[u32; 3]> {
                 film.pixels
                     .iter()
@@ -432,6 +413,26 @@ mod tests {
                     && single_rays.refracted > 20,
                 "{single_rays:?}"
             );
+            assert!(times.trace_fraction.is_some(), "packets are timed apart");
+        }
+    }
+
+    /// An integrator traced pixel by pixel, whatever its own bands.
+    struct ByPixel<I>(I);
+
+    impl<I: Integrator> Integrator for ByPixel<I> {
+        fn dimensions(&self) -> u32 {
+            self.0.dimensions()
+        }
+
+        fn radiance(
+            &self,
+            scene: &Scene,
+            ray: &Ray,
+            sample: &mut PixelSample,
+            rays: &mut RayCounts,
+        ) -> Vec3 {
+            self.0.radiance(scene, ray, sample, rays)
         }
     }
 

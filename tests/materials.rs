@@ -4,7 +4,8 @@
 //! the glTF specification's formulas (Appendix B, `KHR_materials_specular`,
 //! `KHR_materials_clearcoat`), written here apart from the renderer in double
 //! precision, gives. A lossless thin pane vanishes in the furnace, and light crossing
-//! a volume is attenuated by Beer-Lambert's law over the chord.
+//! a volume is attenuated by Beer-Lambert's law over the chord. A clear coat's own
+//! normal map turns its mirror reflection where the law of reflection says.
 
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -12,11 +13,11 @@ use std::sync::Arc;
 use raytracer::Scene;
 use raytracer::bvh::BvhParams;
 use raytracer::bxdfs::microfacet::Ggx;
-use raytracer::description::{SceneDescription, SphereDesc};
+use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::integrators::{Integrator, PathIntegrator};
 use raytracer::material::pbr::{PbrMaps, PbrMaterial};
 use raytracer::material::{Material, MaterialId, MaterialMaps};
-use raytracer::math::{Float, Ray, Vec3};
+use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::sampler::PixelSampler;
 use raytracer::stats::RayCounts;
 use raytracer::textures::{Channel, Texture, TextureMap};
@@ -438,4 +439,108 @@ fn ggx_matches_mitsubas_roughconductor_with_its_separable_smith_term() {
             "alpha {alpha}, wi {wi}, wo {wo}: ours {ours}, Mitsuba {expected}"
         );
     }
+}
+
+/// A smooth clear coat over a black base reflects by its own normal map
+/// (`clearcoatNormalTexture` with its `scale`): seen head on, a coat tilted by
+/// `theta` mirrors the camera ray to `2 theta` from the normal, where a small lamp
+/// returns `Le clearcoat F_coat(cos theta)`; the untilted direction, and a lamp
+/// where the unscaled tilt would send the ray, stay dark.
+#[test]
+fn a_clearcoat_normal_map_turns_the_coats_reflection() {
+    // A tangent-space normal tilted towards +u, as 8-bit texels store it.
+    let bytes = [160u8, 128, 238];
+    let decoded = |b: u8| b as f64 / 255.0 * 2.0 - 1.0;
+    let lamp_radiance = 2.0;
+    // The coat's normal in the world, for a quad in z = 0 whose u runs along +x.
+    let tilted = |scale: f64| {
+        let n = [
+            decoded(bytes[0]) * scale,
+            decoded(bytes[1]) * scale,
+            decoded(bytes[2]),
+        ];
+        normalize(n)
+    };
+    let render = |scale: f64, lamp_along: [f64; 3]| {
+        let mut map = TextureMap::new(texel(bytes));
+        map.options.bump_multiplier = scale as Float;
+        let maps = MaterialMaps {
+            pbr: PbrMaps {
+                clearcoat_normal: Some(map),
+                ..PbrMaps::default()
+            },
+            ..MaterialMaps::default()
+        };
+        let coat = PbrMaterial {
+            base_color: Vec3::ZERO,
+            metallic: 0.0,
+            specular: 0.0,
+            clearcoat: 1.0,
+            clearcoat_roughness: 0.0,
+            ..PbrMaterial::default()
+        };
+        let lamp = Material {
+            emission: Vec3::splat(lamp_radiance as Float),
+            ..Material::named("lamp")
+        };
+        let at = |v: [f64; 3]| Vec3::new(v[0] as Float, v[1] as Float, v[2] as Float);
+        let corner = |x: Float, y: Float| Vec3::new(x, y, 0.0);
+        let description = SceneDescription {
+            positions: vec![
+                corner(-1.0, -1.0),
+                corner(1.0, -1.0),
+                corner(1.0, 1.0),
+                corner(-1.0, 1.0),
+            ],
+            texcoords: vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(0.0, 1.0),
+            ],
+            triangles: vec![
+                TriangleDesc {
+                    positions: [0, 1, 2],
+                    material: MaterialId(0),
+                },
+                TriangleDesc {
+                    positions: [0, 2, 3],
+                    material: MaterialId(0),
+                },
+            ],
+            triangle_texcoords: vec![Some([0, 1, 2]), Some([0, 2, 3])],
+            spheres: vec![SphereDesc {
+                center: at(lamp_along) * 3.0,
+                radius: 0.3,
+                material: MaterialId(1),
+            }],
+            materials: vec![
+                Material::physically_based("coat", coat, Vec3::ZERO, Some(Box::new(maps))),
+                lamp,
+            ],
+            ..SceneDescription::default()
+        };
+        let scene = Scene::build(description, &BvhParams::default());
+        let integrator = PathIntegrator::new(&scene, 4, false);
+        let ray = Ray::new(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z);
+        mean_radiance(&scene, &integrator, ray, 16)
+    };
+    let mirrored = |n: [f64; 3]| {
+        // The reflection of +z about n.
+        let c = n[2];
+        [2.0 * c * n[0], 2.0 * c * n[1], 2.0 * c * n[2] - 1.0]
+    };
+    for scale in [1.0, 0.5] {
+        let n = tilted(scale);
+        let expected = lamp_radiance * (0.04 + 0.96 * (1.0 - n[2]).powi(5));
+        let got = render(scale, mirrored(n));
+        assert!(
+            (got - Vec3::splat(expected as Float)).abs().max_element() < 1e-4,
+            "scale {scale}: the lamp where the tilted coat mirrors the ray shows {got}, expected {expected}"
+        );
+    }
+    // The coat at half the tilt misses a lamp where the full tilt would send the ray,
+    // and the tilted coat one off to the side of the untilted mirror direction.
+    assert_eq!(render(0.5, mirrored(tilted(1.0))), Vec3::ZERO);
+    assert_eq!(render(1.0, normalize([-0.3, 0.0, 1.0])), Vec3::ZERO);
 }

@@ -133,6 +133,18 @@ fn subjects() -> Vec<(&'static str, Box<dyn Lobe>, bool)> {
             false,
         ),
         (
+            "gltf clearcoat, tilted coat normal",
+            Box::new(TiltedCoat(
+                gltf(PbrMaterial {
+                    clearcoat: 0.8,
+                    clearcoat_roughness: 0.4,
+                    ..dielectric(0.8)
+                }),
+                Vec3::new(0.4, -0.2, 1.0).normalize(),
+            )),
+            false,
+        ),
+        (
             "gltf sheen",
             Box::new(gltf(PbrMaterial {
                 sheen_color: Vec3::new(0.9, 0.4, 0.4),
@@ -153,6 +165,24 @@ fn subjects() -> Vec<(&'static str, Box<dyn Lobe>, bool)> {
             false,
         ),
     ]
+}
+
+/// A glTF material whose clear coat has its own normal (a clearcoat normal map's),
+/// given in the local frame.
+struct TiltedCoat(GltfBsdf, Vec3);
+
+impl Lobe for TiltedCoat {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.0.at(wo, true, Some(self.1)).eval(wi)
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> Float {
+        self.0.at(wo, true, Some(self.1)).pdf(wi)
+    }
+
+    fn sample(&self, wo: Vec3, u_lobe: Float, u: Vec2) -> Option<LocalSample> {
+        self.0.at(wo, true, Some(self.1)).sample(u_lobe, u)
+    }
 }
 
 /// Directions `wo` the checks look from: head on, oblique, near grazing.

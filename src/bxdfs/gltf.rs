@@ -15,8 +15,9 @@
 //! with GGX `D` and the height-correlated Smith `V` of `alpha = roughness^2`
 //! ([`super::microfacet`]), the Charlie sheen ([`super::sheen`]; `E` is its
 //! directional albedo, the extension's albedo scaling taking the larger of the two
-//! directions' albedos), and a clearcoat of index 1.5 over the same normal (its own
-//! normal map is not applied). `btdf` is the base-coloured GGX lobe mirrored through
+//! directions' albedos), and a clearcoat of index 1.5 with its own shading normal
+//! (`clearcoatNormalTexture`; `F_cc`, `D_cc` and `V_cc` are then taken about it, and
+//! a coat facing away from `wo` reflects nothing). `btdf` is the base-coloured GGX lobe mirrored through
 //! the surface for a thin-walled surface (`KHR_materials_transmission` without a
 //! volume: light passes straight through a smooth one), or Walter et al.'s rough
 //! refraction at `ior` into a volume (`KHR_materials_volume`), whose attenuation the
@@ -33,7 +34,7 @@ use super::fresnel::{schlick_scalar, schlick_weight};
 use super::lambert::cosine_hemisphere;
 use super::microfacet::{Ggx, reflection_pdf};
 use super::sheen::{self, Sheen};
-use super::{Lobe, LocalSample};
+use super::{Frame, Lobe, LocalSample};
 use crate::material::pbr::PbrValues;
 use crate::math::{Float, Vec2, Vec3, reflect, refract};
 
@@ -61,7 +62,7 @@ pub struct GltfBsdf {
     sheened: bool,
 }
 
-/// The lobes, in the order of [`GltfBsdf::lobe_weights`].
+/// The lobes, in the order of [`GltfAt::p`].
 const DIFFUSE: usize = 0;
 const SPECULAR: usize = 1;
 const TRANSMISSION: usize = 2;
@@ -92,12 +93,12 @@ impl GltfBsdf {
     /// Whether some lobe is not a delta.
     #[inline]
     pub fn has_smooth_lobes(&self) -> bool {
-        let weights = self.lobe_weights(Vec3::Z);
-        weights[DIFFUSE] > 0.0
-            || weights[SHEEN] > 0.0
-            || (weights[SPECULAR] > 0.0 && !self.ggx.is_delta())
-            || (weights[TRANSMISSION] > 0.0 && !self.ggx.is_delta())
-            || (weights[CLEARCOAT] > 0.0 && !self.coat.is_delta())
+        let p = self.at(Vec3::Z, true, None).p;
+        p[DIFFUSE] > 0.0
+            || p[SHEEN] > 0.0
+            || (p[SPECULAR] > 0.0 && !self.ggx.is_delta())
+            || (p[TRANSMISSION] > 0.0 && !self.ggx.is_delta())
+            || (p[CLEARCOAT] > 0.0 && !self.coat.is_delta())
     }
 
     /// The attenuation coefficient inside the volume this surface bounds, if it
@@ -107,97 +108,44 @@ impl GltfBsdf {
         (self.volume && self.transmission > 0.0).then_some(self.attenuation)
     }
 
-    /// The clearcoat's weight seen from `wo`: `clearcoat * F_coat(|n.wo|)`.
+    /// This BSDF seen from `wo` (local, `wo.z > 0` for anything to scatter), `front`
+    /// saying whether `wo` is outside the volume the surface bounds and `coat_normal`
+    /// the clear coat's own unit normal in the local frame, if it has one: what
+    /// [`GltfAt::eval`], [`GltfAt::pdf`] and [`GltfAt::sample`] share, computed once
+    /// per path vertex.
     #[inline]
-    fn coat_weight(&self, wo: Vec3) -> Float {
-        if self.clearcoat > 0.0 {
-            self.clearcoat * schlick_scalar(CLEARCOAT_F0, wo.z)
-        } else {
-            0.0
-        }
-    }
-
-    /// What the sheen leaves of the material under it, for the pair of directions.
-    #[inline]
-    fn sheen_scale(&self, wo: Vec3, wi: Vec3) -> Float {
-        if !self.sheened {
-            return 1.0;
-        }
-        let max = self.sheen.color.max_element();
-        let albedo = sheen::albedo(wo.z.abs(), self.sheen_roughness)
-            .max(sheen::albedo(wi.z.abs(), self.sheen_roughness));
-        (1.0 - max * albedo).max(0.0)
-    }
-
-    /// The estimated albedo of each lobe seen from `wo`, by which one is picked.
-    #[inline]
-    fn lobe_weights(&self, wo: Vec3) -> [Float; 5] {
-        let w = schlick_weight(wo.z);
-        let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * w;
-        let fm = self.base + (Vec3::ONE - self.base) * w;
-        let coat = self.coat_weight(wo);
-        let sheen_albedo = if self.sheened {
-            sheen::albedo(wo.z.abs(), self.sheen_roughness)
-        } else {
-            0.0
+    pub fn at(&self, wo: Vec3, front: bool, coat_normal: Option<Vec3>) -> GltfAt<'_> {
+        let coat_frame = match coat_normal {
+            Some(n) if self.clearcoat > 0.0 && n != Vec3::Z => Some(Frame::from_normal(n)),
+            _ => None,
         };
-        let scale = (1.0 - coat) * (1.0 - self.sheen.color.max_element() * sheen_albedo).max(0.0);
-        let dielectric = 1.0 - self.metallic;
-        let under = scale * dielectric * (1.0 - fd.max_element()) * mean(self.base);
-        [
-            under * (1.0 - self.transmission),
-            scale * (dielectric * mean(fd) + self.metallic * mean(fm)),
-            under * self.transmission,
-            coat,
-            mean(self.sheen.color) * sheen_albedo,
-        ]
-    }
-
-    /// The lobe probabilities at `wo`, summing to 1 (all 0 if nothing scatters).
-    #[inline]
-    fn lobe_probabilities(&self, wo: Vec3) -> [Float; 5] {
-        let weights = self.lobe_weights(wo);
-        let total: Float = weights.iter().sum();
-        if total > 0.0 && total.is_finite() {
-            weights.map(|w| w / total)
-        } else {
-            [0.0; 5]
+        let mut at = GltfAt {
+            bsdf: self,
+            wo,
+            front,
+            p: [0.0; 5],
+            coat: 0.0,
+            coat_frame,
+            sheen_albedo: 0.0,
+        };
+        if wo.z <= 0.0 {
+            return at;
         }
+        if self.clearcoat > 0.0 {
+            let cos = at.in_coat(wo).z.max(0.0);
+            at.coat = self.clearcoat * schlick_scalar(CLEARCOAT_F0, cos);
+        }
+        if self.sheened {
+            at.sheen_albedo = sheen::albedo(wo.z, self.sheen_roughness);
+        }
+        at.p = at.lobe_probabilities();
+        at
     }
 
     /// The relative index `wi`'s side over `wo`'s, crossing from the front or back.
     #[inline]
     fn eta(&self, front: bool) -> Float {
         if front { self.ior } else { 1.0 / self.ior }
-    }
-
-    /// `f(wo, wi)` of the non-delta lobes, in the local frame, `front` saying whether
-    /// `wo` is outside the volume the surface bounds.
-    #[inline]
-    pub fn eval_sided(&self, wo: Vec3, wi: Vec3, front: bool) -> Vec3 {
-        if wo.z <= 0.0 || wi.z == 0.0 {
-            return Vec3::ZERO;
-        }
-        let base_layer = if wi.z > 0.0 {
-            self.reflection(wo, wi)
-        } else if self.transmission > 0.0 && self.metallic < 1.0 && !self.ggx.is_delta() {
-            self.transmitted(wo, wi, front)
-        } else {
-            Vec3::ZERO
-        };
-        let mut f = base_layer * self.sheen_scale(wo, wi);
-        if self.sheened && wi.z > 0.0 {
-            f += self.sheen.eval(wo, wi);
-        }
-        let coat = self.coat_weight(wo);
-        if coat > 0.0 {
-            f *= 1.0 - coat;
-            if wi.z > 0.0 && !self.coat.is_delta() {
-                let h = (wo + wi).normalize();
-                f += Vec3::splat(coat * self.coat.d(h) * self.coat.visibility(wo, wi));
-            }
-        }
-        f
     }
 
     /// The metal and dielectric reflection under the sheen and the coat.
@@ -245,30 +193,6 @@ impl GltfBsdf {
         self.base * (weight * (1.0 - fd.max_element()) * btdf / (eta * eta))
     }
 
-    /// The density of the non-delta lobes at `wi`.
-    #[inline]
-    pub fn pdf_sided(&self, wo: Vec3, wi: Vec3, front: bool) -> Float {
-        if wo.z <= 0.0 || wi.z == 0.0 {
-            return 0.0;
-        }
-        let p = self.lobe_probabilities(wo);
-        let mut pdf = 0.0;
-        if wi.z > 0.0 {
-            let cosine = wi.z * FRAC_1_PI;
-            pdf += (p[DIFFUSE] + p[SHEEN]) * cosine;
-            let h = (wo + wi).normalize();
-            if p[SPECULAR] > 0.0 && !self.ggx.is_delta() {
-                pdf += p[SPECULAR] * reflection_pdf(&self.ggx, wo, h);
-            }
-            if p[CLEARCOAT] > 0.0 && !self.coat.is_delta() {
-                pdf += p[CLEARCOAT] * reflection_pdf(&self.coat, wo, h);
-            }
-        } else if p[TRANSMISSION] > 0.0 && !self.ggx.is_delta() {
-            pdf += p[TRANSMISSION] * self.transmission_pdf(wo, wi, front);
-        }
-        pdf
-    }
-
     /// The density of a transmitted direction drawn through a visible normal.
     #[inline]
     fn transmission_pdf(&self, wo: Vec3, wi: Vec3, front: bool) -> Float {
@@ -284,15 +208,154 @@ impl GltfBsdf {
         let jacobian = i.abs() / ((i + o / eta) * (i + o / eta));
         self.ggx.visible_pdf(wo, h) * jacobian
     }
+}
 
-    /// A direction, in the local frame, `front` saying whether `wo` is outside the
-    /// volume the surface bounds.
+/// A [`GltfBsdf`] seen from one direction `wo` ([`GltfBsdf::at`]): the lobe
+/// probabilities, the coat's weight and frame and the sheen's albedo at `wo`, which
+/// light sampling's `eval` and `pdf` and the bounce's `sample` all read.
+#[derive(Clone, Copy, Debug)]
+pub struct GltfAt<'a> {
+    bsdf: &'a GltfBsdf,
+    wo: Vec3,
+    front: bool,
+    /// The lobe probabilities at `wo`, summing to 1 (all 0 if nothing scatters).
+    p: [Float; 5],
+    /// The clearcoat's weight seen from `wo`: `clearcoat * F_coat(|n_coat.wo|)`.
+    coat: Float,
+    /// The coat's frame in the local one, where its normal differs from the base's.
+    coat_frame: Option<Frame>,
+    /// The white sheen's directional albedo at `wo` (0 without sheen).
+    sheen_albedo: Float,
+}
+
+impl GltfAt<'_> {
+    /// `v` (in the local frame) in the coat's frame.
     #[inline]
-    pub fn sample(&self, wo: Vec3, front: bool, u_lobe: Float, u: Vec2) -> Option<LocalSample> {
+    fn in_coat(&self, v: Vec3) -> Vec3 {
+        match &self.coat_frame {
+            Some(frame) => frame.to_local(v),
+            None => v,
+        }
+    }
+
+    /// `v` in the coat's frame, in the local frame.
+    #[inline]
+    fn out_of_coat(&self, v: Vec3) -> Vec3 {
+        match &self.coat_frame {
+            Some(frame) => frame.to_world(v),
+            None => v,
+        }
+    }
+
+    /// What the sheen leaves of the material under it, towards `wi`.
+    #[inline]
+    fn sheen_scale(&self, wi: Vec3) -> Float {
+        let g = self.bsdf;
+        if !g.sheened {
+            return 1.0;
+        }
+        let max = g.sheen.color.max_element();
+        let albedo = self
+            .sheen_albedo
+            .max(sheen::albedo(wi.z.abs(), g.sheen_roughness));
+        (1.0 - max * albedo).max(0.0)
+    }
+
+    /// The estimated albedo of each lobe seen from `wo`, normalised to the
+    /// probabilities by which one is picked.
+    #[inline]
+    fn lobe_probabilities(&self) -> [Float; 5] {
+        let g = self.bsdf;
+        let w = schlick_weight(self.wo.z);
+        let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * w;
+        let fm = g.base + (Vec3::ONE - g.base) * w;
+        let scale =
+            (1.0 - self.coat) * (1.0 - g.sheen.color.max_element() * self.sheen_albedo).max(0.0);
+        let dielectric = 1.0 - g.metallic;
+        let under = scale * dielectric * (1.0 - fd.max_element()) * mean(g.base);
+        // A coat tilted away from `wo` darkens the base but reflects nothing.
+        let coat_lobe = if self.in_coat(self.wo).z > 0.0 {
+            self.coat
+        } else {
+            0.0
+        };
+        let weights = [
+            under * (1.0 - g.transmission),
+            scale * (dielectric * mean(fd) + g.metallic * mean(fm)),
+            under * g.transmission,
+            coat_lobe,
+            mean(g.sheen.color) * self.sheen_albedo,
+        ];
+        let total: Float = weights.iter().sum();
+        if total > 0.0 && total.is_finite() {
+            weights.map(|w| w / total)
+        } else {
+            [0.0; 5]
+        }
+    }
+
+    /// `f(wo, wi)` of the non-delta lobes, in the local frame.
+    #[inline]
+    pub fn eval(&self, wi: Vec3) -> Vec3 {
+        let (g, wo) = (self.bsdf, self.wo);
+        if wo.z <= 0.0 || wi.z == 0.0 {
+            return Vec3::ZERO;
+        }
+        let base_layer = if wi.z > 0.0 {
+            g.reflection(wo, wi)
+        } else if g.transmission > 0.0 && g.metallic < 1.0 && !g.ggx.is_delta() {
+            g.transmitted(wo, wi, self.front)
+        } else {
+            Vec3::ZERO
+        };
+        let mut f = base_layer * self.sheen_scale(wi);
+        if g.sheened && wi.z > 0.0 {
+            f += g.sheen.eval(wo, wi);
+        }
+        if self.coat > 0.0 {
+            f *= 1.0 - self.coat;
+            if wi.z > 0.0 && !g.coat.is_delta() {
+                let (o, i) = (self.in_coat(wo), self.in_coat(wi));
+                if o.z > 0.0 && i.z > 0.0 {
+                    let h = (o + i).normalize();
+                    f += Vec3::splat(self.coat * g.coat.d(h) * g.coat.visibility(o, i));
+                }
+            }
+        }
+        f
+    }
+
+    /// The density of the non-delta lobes at `wi`.
+    #[inline]
+    pub fn pdf(&self, wi: Vec3) -> Float {
+        let (g, wo, p) = (self.bsdf, self.wo, &self.p);
+        if wo.z <= 0.0 || wi.z == 0.0 {
+            return 0.0;
+        }
+        let mut pdf = 0.0;
+        if wi.z > 0.0 {
+            let cosine = wi.z * FRAC_1_PI;
+            pdf += (p[DIFFUSE] + p[SHEEN]) * cosine;
+            let h = (wo + wi).normalize();
+            if p[SPECULAR] > 0.0 && !g.ggx.is_delta() {
+                pdf += p[SPECULAR] * reflection_pdf(&g.ggx, wo, h);
+            }
+            if p[CLEARCOAT] > 0.0 && !g.coat.is_delta() && self.in_coat(wi).z > 0.0 {
+                pdf += p[CLEARCOAT] * reflection_pdf(&g.coat, self.in_coat(wo), self.in_coat(h));
+            }
+        } else if p[TRANSMISSION] > 0.0 && !g.ggx.is_delta() {
+            pdf += p[TRANSMISSION] * g.transmission_pdf(wo, wi, self.front);
+        }
+        pdf
+    }
+
+    /// A direction, in the local frame: `u_lobe` picks a lobe, `u` a direction in it.
+    #[inline]
+    pub fn sample(&self, u_lobe: Float, u: Vec2) -> Option<LocalSample> {
+        let (g, wo, p, front) = (self.bsdf, self.wo, &self.p, self.front);
         if wo.z <= 0.0 {
             return None;
         }
-        let p = self.lobe_probabilities(wo);
         let mut lobe = 0;
         let mut below = 0.0;
         while lobe < SHEEN && u_lobe >= below + p[lobe] {
@@ -306,18 +369,17 @@ impl GltfBsdf {
             }
             lobe -= 1;
         }
-        let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
         let wi = match lobe {
             DIFFUSE | SHEEN => cosine_hemisphere(u),
-            SPECULAR if self.ggx.is_delta() => return Some(self.delta_reflection(wo, p[SPECULAR])),
-            SPECULAR => reflect(-wo, self.ggx.sample_visible(wo, u)),
-            TRANSMISSION if self.ggx.is_delta() => {
-                return self.delta_transmission(wo, front, p[TRANSMISSION]);
+            SPECULAR if g.ggx.is_delta() => return Some(self.delta_reflection(p[SPECULAR])),
+            SPECULAR => reflect(-wo, g.ggx.sample_visible(wo, u)),
+            TRANSMISSION if g.ggx.is_delta() => {
+                return self.delta_transmission(p[TRANSMISSION]);
             }
             TRANSMISSION => {
-                let h = self.ggx.sample_visible(wo, u);
-                if self.volume {
-                    refract(-wo, h, 1.0 / self.eta(front))?
+                let h = g.ggx.sample_visible(wo, u);
+                if g.volume {
+                    refract(-wo, h, 1.0 / g.eta(front))?
                 } else {
                     let r = reflect(-wo, h);
                     if r.z <= 0.0 {
@@ -326,49 +388,57 @@ impl GltfBsdf {
                     Vec3::new(r.x, r.y, -r.z)
                 }
             }
-            _ if self.coat.is_delta() => {
-                let coat = self.coat_weight(wo);
+            _ if g.coat.is_delta() => {
+                let o = self.in_coat(wo);
+                let wi = self.out_of_coat(Vec3::new(-o.x, -o.y, o.z));
+                if wi.z <= 0.0 {
+                    return None;
+                }
                 return Some(LocalSample {
-                    wi: mirror,
-                    weight: Vec3::splat(coat / p[CLEARCOAT]),
+                    wi,
+                    weight: Vec3::splat(self.coat / p[CLEARCOAT]),
                     pdf: p[CLEARCOAT],
                     delta: true,
                     eta: 1.0,
                 });
             }
-            _ => reflect(-wo, self.coat.sample_visible(wo, u)),
+            _ => {
+                let o = self.in_coat(wo);
+                self.out_of_coat(reflect(-o, g.coat.sample_visible(o, u)))
+            }
         };
         // A reflection through a microfacet may leave below the surface: not a
         // direction the reflection lobes have, and not for the transmission's pdf.
         if (wi.z <= 0.0) != (lobe == TRANSMISSION) {
             return None;
         }
-        let pdf = self.pdf_sided(wo, wi, front);
+        let pdf = self.pdf(wi);
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
-        let f = self.eval_sided(wo, wi, front);
-        let crossed = wi.z < 0.0 && self.volume;
+        let f = self.eval(wi);
+        let crossed = wi.z < 0.0 && g.volume;
         Some(LocalSample {
             wi,
             weight: f * wi.z.abs() / pdf,
             pdf,
             delta: false,
-            eta: if crossed { self.eta(front) } else { 1.0 },
+            eta: if crossed { g.eta(front) } else { 1.0 },
         })
     }
 
     /// The mirror reflection of a smooth surface, chosen with probability `p`.
     #[inline]
-    fn delta_reflection(&self, wo: Vec3, p: Float) -> LocalSample {
+    fn delta_reflection(&self, p: Float) -> LocalSample {
+        let (g, wo) = (self.bsdf, self.wo);
         let wi = Vec3::new(-wo.x, -wo.y, wo.z);
         let w = schlick_weight(wo.z);
-        let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * w;
-        let fm = self.base + (Vec3::ONE - self.base) * w;
-        let layers = (1.0 - self.coat_weight(wo)) * self.sheen_scale(wo, wi);
+        let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * w;
+        let fm = g.base + (Vec3::ONE - g.base) * w;
+        let layers = (1.0 - self.coat) * self.sheen_scale(wi);
         LocalSample {
             wi,
-            weight: fd.lerp(fm, self.metallic) * (layers / p),
+            weight: fd.lerp(fm, g.metallic) * (layers / p),
             pdf: p,
             delta: true,
             eta: 1.0,
@@ -378,10 +448,11 @@ impl GltfBsdf {
     /// Light passing a smooth surface: straight through a thin one, refracted into
     /// (or out of) a volume; chosen with probability `p`.
     #[inline]
-    fn delta_transmission(&self, wo: Vec3, front: bool, p: Float) -> Option<LocalSample> {
-        let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * schlick_weight(wo.z);
-        let (wi, eta) = if self.volume {
-            let eta = self.eta(front);
+    fn delta_transmission(&self, p: Float) -> Option<LocalSample> {
+        let (g, wo) = (self.bsdf, self.wo);
+        let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * schlick_weight(wo.z);
+        let (wi, eta) = if g.volume {
+            let eta = g.eta(self.front);
             match refract(-wo, Vec3::Z, 1.0 / eta) {
                 Some(wi) => (wi, eta),
                 // Total internal reflection: what would have passed is reflected.
@@ -390,11 +461,11 @@ impl GltfBsdf {
         } else {
             (-wo, 1.0)
         };
-        let layers = (1.0 - self.coat_weight(wo)) * self.sheen_scale(wo, wi);
-        let passed = (1.0 - self.metallic) * self.transmission * (1.0 - fd.max_element()) * layers;
+        let layers = (1.0 - self.coat) * self.sheen_scale(wi);
+        let passed = (1.0 - g.metallic) * g.transmission * (1.0 - fd.max_element()) * layers;
         Some(LocalSample {
             wi,
-            weight: self.base * (passed / (p * eta * eta)),
+            weight: g.base * (passed / (p * eta * eta)),
             pdf: p,
             delta: true,
             eta,
@@ -420,14 +491,14 @@ fn mean(v: Vec3) -> Float {
 /// The BSDF seen from outside its volume, for the conformance suite.
 impl Lobe for GltfBsdf {
     fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.eval_sided(wo, wi, true)
+        self.at(wo, true, None).eval(wi)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> Float {
-        self.pdf_sided(wo, wi, true)
+        self.at(wo, true, None).pdf(wi)
     }
 
     fn sample(&self, wo: Vec3, u_lobe: Float, u: Vec2) -> Option<LocalSample> {
-        GltfBsdf::sample(self, wo, true, u_lobe, u)
+        self.at(wo, true, None).sample(u_lobe, u)
     }
 }

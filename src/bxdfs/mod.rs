@@ -151,44 +151,23 @@ impl Bsdf {
         }
     }
 
-    /// `f(wo, wi)` of the non-delta lobes. `ns` is the unit shading normal facing
-    /// `wo`, `ng` the geometric one (also facing `wo`); `front` says whether `wo` is
-    /// on the side the geometric normal of the surface faces (outside a volume).
+    /// This BSDF at one path vertex, seen from `wo`: `ns` is the unit shading normal
+    /// facing `wo`, `ng` the geometric one (also facing `wo`), `coat_ns` a clear
+    /// coat's own shading normal ([`crate::scene::Hit::coat_ns`], zero for `ns`);
+    /// `front` says whether `wo` is on the side the geometric normal of the surface
+    /// faces (outside a volume). Light sampling's `eval` and `pdf` and the bounce's
+    /// `sample` share what it computes once (the frame, the lobe probabilities).
     #[inline(always)]
-    pub fn eval(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Vec3 {
+    pub fn at(&self, wo: Vec3, ns: Vec3, ng: Vec3, coat_ns: Vec3, front: bool) -> BsdfAt<'_> {
         match self {
-            Bsdf::Mtl(m) => m.eval(wo, wi, ns, ng),
-            Bsdf::Gltf(g) => gltf_eval(g, wo, wi, ns, ng, front),
-        }
-    }
-
-    /// The density (solid angle) with which [`Bsdf::sample`] picks `wi` through its
-    /// non-delta lobes (arguments as [`Bsdf::eval`]'s).
-    #[inline(always)]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Float {
-        match self {
-            Bsdf::Mtl(m) => m.pdf(wo, wi, ns, ng),
-            Bsdf::Gltf(g) => gltf_pdf(g, wo, wi, ns, ng, front),
-        }
-    }
-
-    /// Picks the direction the path continues in: a lobe by `u_lobe`, a direction in
-    /// it by `u`. `front` says whether the ray hit the side the surface's geometric
-    /// normal faces, which tells entering glass from leaving it. `None` when the
-    /// material scatters nothing that way.
-    #[inline(always)]
-    pub fn sample(
-        &self,
-        wo: Vec3,
-        ns: Vec3,
-        ng: Vec3,
-        front: bool,
-        u_lobe: Float,
-        u: Vec2,
-    ) -> Option<ScatterSample> {
-        match self {
-            Bsdf::Mtl(m) => m.sample(wo, ns, ng, front, u_lobe, u),
-            Bsdf::Gltf(g) => gltf_sample(g, wo, ns, ng, front, u_lobe, u),
+            Bsdf::Mtl(mixture) => BsdfAt::Mtl {
+                mixture,
+                wo,
+                ns,
+                ng,
+                front,
+            },
+            Bsdf::Gltf(g) => BsdfAt::Gltf(gltf_at(g, wo, ns, ng, coat_ns, front)),
         }
     }
 
@@ -204,44 +183,128 @@ impl Bsdf {
     }
 }
 
+/// A [`Bsdf`] at one path vertex, seen from one direction ([`Bsdf::at`]).
+#[derive(Clone, Copy, Debug)]
+pub enum BsdfAt<'a> {
+    /// SPEC's MTL material, with the vertex's directions.
+    Mtl {
+        /// The material.
+        mixture: &'a mtl::MtlMixture,
+        /// Towards where the path came from.
+        wo: Vec3,
+        /// Unit shading normal facing `wo`.
+        ns: Vec3,
+        /// Unit geometric normal facing `wo`.
+        ng: Vec3,
+        /// Whether `wo` is on the geometric normal's side of the surface.
+        front: bool,
+    },
+    /// glTF's material in its local shading frame.
+    Gltf(GltfVertex<'a>),
+}
+
+/// The glTF material at a vertex: its local view and the frame to it.
+#[derive(Clone, Copy, Debug)]
+pub struct GltfVertex<'a> {
+    at: gltf::GltfAt<'a>,
+    frame: Frame,
+    ng: Vec3,
+}
+
+impl BsdfAt<'_> {
+    /// `f(wo, wi)` of the non-delta lobes.
+    #[inline(always)]
+    pub fn eval(&self, wi: Vec3) -> Vec3 {
+        match self {
+            BsdfAt::Mtl {
+                mixture,
+                wo,
+                ns,
+                ng,
+                ..
+            } => mixture.eval(*wo, wi, *ns, *ng),
+            BsdfAt::Gltf(g) => gltf_eval(g, wi),
+        }
+    }
+
+    /// The density (solid angle) with which [`BsdfAt::sample`] picks `wi` through its
+    /// non-delta lobes.
+    #[inline(always)]
+    pub fn pdf(&self, wi: Vec3) -> Float {
+        match self {
+            BsdfAt::Mtl {
+                mixture,
+                wo,
+                ns,
+                ng,
+                ..
+            } => mixture.pdf(*wo, wi, *ns, *ng),
+            BsdfAt::Gltf(g) => gltf_pdf(g, wi),
+        }
+    }
+
+    /// Picks the direction the path continues in: a lobe by `u_lobe`, a direction in
+    /// it by `u`. `None` when the material scatters nothing that way.
+    #[inline(always)]
+    pub fn sample(&self, u_lobe: Float, u: Vec2) -> Option<ScatterSample> {
+        match self {
+            BsdfAt::Mtl {
+                mixture,
+                wo,
+                ns,
+                ng,
+                front,
+            } => mixture.sample(*wo, *ns, *ng, *front, u_lobe, u),
+            BsdfAt::Gltf(g) => gltf_sample(g, u_lobe, u),
+        }
+    }
+}
+
 // The glTF material's calls in world space, out of line: the MTL material's are
 // inlined into the path tracer's loop, which they keep small (a Lambertian scene
 // renders as fast as before the glTF BSDF existed).
 
 #[inline(never)]
-fn gltf_eval(g: &gltf::GltfBsdf, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Vec3 {
-    if !agrees(wi, ns, ng) {
-        return Vec3::ZERO;
-    }
-    let frame = Frame::from_normal(ns);
-    g.eval_sided(frame.to_local(wo), frame.to_local(wi), front)
-}
-
-#[inline(never)]
-fn gltf_pdf(g: &gltf::GltfBsdf, wo: Vec3, wi: Vec3, ns: Vec3, ng: Vec3, front: bool) -> Float {
-    if !agrees(wi, ns, ng) {
-        return 0.0;
-    }
-    let frame = Frame::from_normal(ns);
-    g.pdf_sided(frame.to_local(wo), frame.to_local(wi), front)
-}
-
-#[inline(never)]
-fn gltf_sample(
-    g: &gltf::GltfBsdf,
+fn gltf_at<'a>(
+    g: &'a gltf::GltfBsdf,
     wo: Vec3,
     ns: Vec3,
     ng: Vec3,
+    coat_ns: Vec3,
     front: bool,
-    u_lobe: Float,
-    u: Vec2,
-) -> Option<ScatterSample> {
+) -> GltfVertex<'a> {
     let frame = Frame::from_normal(ns);
-    let s = g.sample(frame.to_local(wo), front, u_lobe, u)?;
-    let wi = frame.to_world(s.wi);
+    let coat = (coat_ns != Vec3::ZERO).then(|| frame.to_local(coat_ns));
+    GltfVertex {
+        at: g.at(frame.to_local(wo), front, coat),
+        frame,
+        ng,
+    }
+}
+
+#[inline(never)]
+fn gltf_eval(g: &GltfVertex<'_>, wi: Vec3) -> Vec3 {
+    if !agrees(wi, g.frame.n, g.ng) {
+        return Vec3::ZERO;
+    }
+    g.at.eval(g.frame.to_local(wi))
+}
+
+#[inline(never)]
+fn gltf_pdf(g: &GltfVertex<'_>, wi: Vec3) -> Float {
+    if !agrees(wi, g.frame.n, g.ng) {
+        return 0.0;
+    }
+    g.at.pdf(g.frame.to_local(wi))
+}
+
+#[inline(never)]
+fn gltf_sample(g: &GltfVertex<'_>, u_lobe: Float, u: Vec2) -> Option<ScatterSample> {
+    let s = g.at.sample(u_lobe, u)?;
+    let wi = g.frame.to_world(s.wi);
     // Both normals must agree on the side `wi` leaves to, or light would leak
     // through the surface where the shading normal bends away.
-    if !s.delta && !agrees(wi, ns, ng) {
+    if !s.delta && !agrees(wi, g.frame.n, g.ng) {
         return None;
     }
     Some(ScatterSample {

@@ -8,7 +8,8 @@ use raytracer::math::{Float, Vec3};
 use raytracer::options::{Origin, PartialOptions, Sourced, ToneMap};
 
 use super::values::{
-    BACKGROUND, LOOK_FROM, LOOK_TO, UP, number, thread_count, vector, whole_number,
+    AovList, Background, LOOK_FROM, LOOK_TO, UP, aov_list, background, number, thread_count,
+    vector, whole_number,
 };
 
 /// A CPU ray tracer for OBJ/MTL, PLY, glTF 2.0 and TOML scenes, to PNG or OpenEXR.
@@ -86,6 +87,13 @@ pub struct RenderArgs {
     /// image is written (PNG and EXR). Needs a build with `--features denoise`.
     #[arg(long)]
     pub denoise: bool,
+    /// Extra outputs rendered in the same pass, written as layers of one OpenEXR file
+    /// after the colour (the output must be .exr): a comma-separated list of depth
+    /// (z-depth along the view axis, inf on a miss), normal (world-space shading
+    /// normal), albedo (reflectance colour), alpha (coverage), object_id and
+    /// material_id (of the ray through the pixel centre, -1 on a miss).
+    #[arg(long, value_name = "LIST", value_parser = aov_list)]
+    pub aovs: Option<AovList>,
 }
 
 /// The scene and how to look at it: shared by `render` and `bench`. Camera and render
@@ -205,11 +213,12 @@ pub struct ViewArgs {
     /// along +X is seen along -Z [default: the scene's; 0].
     #[arg(long, value_name = "DEGREES", allow_hyphen_values = true, value_parser = number)]
     pub env_rotation: Option<Float>,
-    /// What camera rays that leave the scene see in path mode, instead of the
-    /// environment (which still lights the scene): a colour R,G,B [default: the
-    /// environment].
-    #[arg(long, value_name = "R,G,B", value_parser = vector(BACKGROUND))]
-    pub background: Option<Vec3>,
+    /// What camera rays that leave the scene see, instead of the environment (which
+    /// still lights the scene): a colour R,G,B (path mode), or `transparent` (both
+    /// modes): an RGBA PNG, or an EXR with `A`, whose alpha is the fraction of each
+    /// pixel's camera rays that hit the scene [default: the environment].
+    #[arg(long, value_name = "R,G,B|transparent", value_parser = background)]
+    pub background: Option<Background>,
     /// Worker threads (0..=1024); 0 uses every core.
     #[arg(
         short = 'j',

@@ -84,7 +84,13 @@ fn environment_flags(view: &ViewArgs, description: &mut SceneDescription) -> any
         env: view.env.clone(),
         strength: view.env_strength,
         rotation: view.env_rotation,
-        background: view.background,
+        background: match view.background {
+            Some(values::Background::Colour(colour)) => Some(colour),
+            // Premultiplied: a camera ray that leaves the scene adds nothing to the
+            // colour, its pixel's alpha says how much of it was covered.
+            Some(values::Background::Transparent) => Some(raytracer::math::Vec3::ZERO),
+            None => None,
+        },
     }
     .apply(description, EnvironmentNames::FLAGS)
     .map_err(anyhow::Error::msg)

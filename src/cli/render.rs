@@ -3,17 +3,17 @@
 use std::time::Duration;
 
 use raytracer::integrators::path::material_warnings;
-use raytracer::postprocess::{Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD};
+use raytracer::postprocess::{Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD, alpha_bytes};
 use raytracer::stats::{Mark, RayCounts, Usage, peak_memory_bytes};
 use raytracer::{
-    BvhParams, ImageFormat, Mode, RenderOptions, RenderTimes, Scene, output, render_with_progress,
-    render_with_stats,
+    Aov, BvhParams, ImageFormat, Mode, Outputs, RenderOptions, Scene, output,
+    render_outputs_with_stats,
 };
 
 use super::args::RenderArgs;
 use super::interrupt;
 use super::progress::Progress;
-use super::values::check_not_input;
+use super::values::{Background, check_not_input};
 
 /// Renders as `args` say.
 pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
@@ -22,6 +22,19 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     output::check_output(&args.output)?;
     check_not_input(&args.view.scene, &args.output)?;
     let format = ImageFormat::from_path(&args.output)?;
+    let aovs = args.aovs.as_ref().map_or(&[][..], |list| &list.0[..]);
+    if !aovs.is_empty() && format != ImageFormat::Exr {
+        anyhow::bail!(
+            "--aovs writes its outputs as layers of an OpenEXR file: name the output .exr, not {}",
+            args.output.display()
+        );
+    }
+    let transparent = args.view.background == Some(Background::Transparent);
+    // The coverage is rendered for a transparent background too.
+    let mut wanted = aovs.to_vec();
+    if transparent && !wanted.contains(&Aov::Alpha) {
+        wanted.push(Aov::Alpha);
+    }
     let warn = |message: &str| {
         if !quiet {
             eprintln!("warning: {message}");
@@ -67,13 +80,24 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         !quiet,
     );
     // Timing the tracing apart reads the clock a few times per tile: only when asked.
-    let (film, rays, times) = if args.stats {
-        render_with_stats(&scene, options, &|_row| rendering.inc())
-    } else {
-        let (film, rays) = render_with_progress(&scene, options, &|_row| rendering.inc());
-        (film, rays, RenderTimes::default())
-    };
+    let (outputs, rays, times) = render_outputs_with_stats(
+        &scene,
+        options,
+        &wanted,
+        &|_row| rendering.inc(),
+        args.stats,
+    );
     drop(rendering);
+    let Outputs {
+        film,
+        aovs: mut planes,
+    } = outputs;
+    // The coverage as alpha, out of the extra outputs unless asked for as one.
+    let alpha = match (transparent, aovs.contains(&Aov::Alpha)) {
+        (false, _) => None,
+        (true, true) => planes.alpha.clone(),
+        (true, false) => planes.alpha.take(),
+    };
     let film = match (args.denoise, options.mode) {
         (true, Mode::Path) => film.denoised()?,
         (true, mode) => {
@@ -89,26 +113,40 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     // Post-processing and encoding apart, so that `--stats` shows each.
     let (processed, encoded) = match format {
         ImageFormat::Png => {
-            let image = film.to_image(options);
+            // PNG keeps colour and alpha apart: the colour of what was hit.
+            let image = match &alpha {
+                Some(alpha) => film.unpremultiplied(alpha).to_image(options),
+                None => film.to_image(options),
+            };
             let processed = Mark::now();
-            if scene.prim_count() > 0 {
+            if scene.prim_count() > 0 && alpha.is_none() {
                 warn_if_nearly_black(&image, options, &warn);
             }
-            let bytes = image.encode_png().map_err(|error| output::WriteError {
-                path: args.output.clone(),
-                error,
-            })?;
+            let alpha = alpha.as_deref().map(alpha_bytes);
+            let bytes = image
+                .encode_png_with_alpha(alpha.as_deref())
+                .map_err(|error| output::WriteError {
+                    path: args.output.clone(),
+                    error,
+                })?;
             let encoded = Mark::now();
             output::write_png_bytes(&bytes, &args.output)?;
             (processed, encoded)
         }
         // OpenEXR holds the film as rendered: no post-processing; encoded while written.
         ImageFormat::Exr => {
-            film.write(options, format, &args.output)?;
+            let film = if wanted.is_empty() {
+                film.write(options, format, &args.output)?;
+                film
+            } else {
+                let outputs = Outputs { film, aovs: planes };
+                outputs.write_exr(options.mode, alpha.as_deref(), &args.output)?;
+                outputs.film
+            };
             let written = Mark::now();
             // The check sees what a PNG would show (an empty scene is warned of as
             // such already).
-            if scene.prim_count() > 0 {
+            if scene.prim_count() > 0 && alpha.is_none() {
                 warn_if_nearly_black(&film.to_image(options), options, &warn);
             }
             (rendered, written)

@@ -88,6 +88,36 @@ pub fn vector(
     }
 }
 
+/// `--background`'s value: a colour, or no background at all.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Background {
+    /// `R,G,B`: what camera rays that leave the scene see.
+    Colour(Vec3),
+    /// `transparent`: coverage written as alpha (RGBA PNG, EXR `A`).
+    Transparent,
+}
+
+/// The parser of `--background`: `transparent` or a colour `R,G,B`.
+pub fn background(s: &str) -> Result<Background, String> {
+    if s.trim().eq_ignore_ascii_case("transparent") {
+        return Ok(Background::Transparent);
+    }
+    vector(BACKGROUND)(s)
+        .map(Background::Colour)
+        .map_err(|e| format!("{e} (or 'transparent')"))
+}
+
+/// `--aovs`'s value (a type of its own: clap reads a `Vec` field as repeated flags).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AovList(pub Vec<raytracer::Aov>);
+
+/// The parser of `--aovs`: a comma-separated list of output names.
+pub fn aov_list(s: &str) -> Result<AovList, String> {
+    raytracer::Aov::parse_list(s)
+        .map(AovList)
+        .map_err(|e| e.to_string())
+}
+
 /// What to say when a vector flag's components were given as separate arguments, as
 /// in `--look-from 0 0.7 1.75`: clap sees `0` as the value and `0.7` as an unexpected
 /// argument (or the scene), which says nothing of the cause. `None` if `args` hold

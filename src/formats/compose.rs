@@ -157,6 +157,14 @@ impl SceneDescription {
                 append(ours, theirs);
             }
         }
+        // The mesh's objects follow the shapes already here.
+        let (triangles_before, spheres_before) =
+            (self.triangles.len() as u32, self.spheres.len() as u32);
+        for object in &mut mesh.objects {
+            object.first_triangle += triangles_before;
+            object.first_sphere += spheres_before;
+        }
+        append(&mut self.objects, mesh.objects);
         append(&mut self.positions, mesh.positions);
         append(&mut self.normals, mesh.normals);
         append(&mut self.texcoords, mesh.texcoords);

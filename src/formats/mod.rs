@@ -209,6 +209,23 @@ pub fn load_mesh(path: &Path) -> Result<SceneDescription, SceneError> {
 /// # Errors
 /// As [`load_mesh`] and [`load_with`].
 pub fn load_mesh_with(path: &Path, access: &FileAccess) -> Result<SceneDescription, SceneError> {
+    let mut description = read_mesh_with(path, access)?;
+    // A file whose reader named no objects is one object, named after the file.
+    if description.objects.is_empty() {
+        let name = path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        description.objects.push(crate::description::ObjectDesc {
+            name,
+            first_triangle: 0,
+            first_sphere: 0,
+        });
+    }
+    Ok(description)
+}
+
+/// [`load_mesh_with`] but for the objects.
+fn read_mesh_with(path: &Path, access: &FileAccess) -> Result<SceneDescription, SceneError> {
     match SceneFormat::require(path)? {
         SceneFormat::Obj => load_obj_with(path, access),
         SceneFormat::Ply => {

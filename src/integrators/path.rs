@@ -304,6 +304,7 @@ impl PathIntegrator {
             None => &self.scattering[hit.material.0 as usize],
         };
         let wo = -ray.dir;
+        let bsdf = scattering.at(wo, hit.ns, hit.n, hit.coat_ns, hit.front);
         let sample = &mut path.sample;
 
         // Next-event estimation: one light, chosen by power.
@@ -313,7 +314,7 @@ impl PathIntegrator {
         if scattering.has_smooth_lobes()
             && let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light)
         {
-            let f = scattering.eval(wo, light.direction, hit.ns, hit.n, hit.front);
+            let f = bsdf.eval(light.direction);
             if f != Vec3::ZERO {
                 // The light point lies `light.distance` along `light.direction` from
                 // the hit point: a little less from the offset origin.
@@ -323,7 +324,7 @@ impl PathIntegrator {
                 let weight = if light.delta {
                     1.0
                 } else {
-                    let bsdf_pdf = scattering.pdf(wo, light.direction, hit.ns, hit.n, hit.front);
+                    let bsdf_pdf = bsdf.pdf(light.direction);
                     power_heuristic(light.pdf, bsdf_pdf)
                 };
                 path.unoccluded = path.throughput
@@ -338,8 +339,7 @@ impl PathIntegrator {
         // Scattering: where the path goes next.
         let u_lobe = sample.next_1d();
         let u_direction = sample.next_2d();
-        let Some(scattered) = scattering.sample(wo, hit.ns, hit.n, hit.front, u_lobe, u_direction)
-        else {
+        let Some(scattered) = bsdf.sample(u_lobe, u_direction) else {
             return Step {
                 shadow,
                 alive: false,

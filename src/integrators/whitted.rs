@@ -1,12 +1,10 @@
 //! SPEC's Whitted-style integrator: Phong lighting with hard shadows, mirror
 //! reflection and refraction, recursion limited by depth.
 
-use std::time::{Duration, Instant};
-
 use wide::f32x16;
 
-use super::Integrator;
 use super::phong_lanes::HitLanes;
+use super::{Band, Integrator, TileContext, TraceClock, trace_band_by_pixel};
 use crate::bvh::PACKET_SIZE;
 use crate::material::{Colours, Light};
 use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
@@ -36,6 +34,61 @@ impl Integrator for WhittedIntegrator {
         rays: &mut RayCounts,
     ) -> Vec3 {
         trace(scene, ray, self.max_depth, false, rays)
+    }
+
+    fn band_rows(&self, context: &TileContext) -> u32 {
+        if Self::traces_packets(context) {
+            PACKET_TILE
+        } else {
+            1
+        }
+    }
+
+    /// At one sample per pixel through a pinhole, the pixel centres' camera rays of
+    /// each 4x4 tile of the band, and their shadow rays, traced as packets
+    /// ([`WhittedIntegrator::radiance_packet`]): bit for bit the values of
+    /// [`Integrator::pixel`], which traces every other band.
+    fn trace_band(
+        &self,
+        context: &TileContext,
+        band: Band<'_>,
+        rays: &mut RayCounts,
+        clock: &mut TraceClock,
+    ) {
+        if !Self::traces_packets(context) {
+            trace_band_by_pixel(self, context, band, rays);
+            return;
+        }
+        let width = band.width as usize;
+        let mut scratch = PacketScratch::default();
+        let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
+        let mut values = [Vec3::ZERO; PACKET_SIZE];
+        for left in (band.left..band.left + band.width).step_by(PACKET_TILE as usize) {
+            let columns = (band.left + band.width - left).min(PACKET_TILE);
+            for top in (band.top..band.top + band.rows).step_by(PACKET_TILE as usize) {
+                let rows = (band.top + band.rows - top).min(PACKET_TILE);
+                context
+                    .camera
+                    .tile_rays(left, top, columns, rows, &mut camera_rays);
+                let count = (columns * rows) as usize;
+                rays.primary += count as u64;
+                self.radiance_packet(
+                    context.scene,
+                    &camera_rays[..count],
+                    &mut values[..count],
+                    rays,
+                    &mut scratch,
+                    clock,
+                );
+                let mut values = values[..count].iter();
+                for row in (top - band.top) as usize..(top - band.top + rows) as usize {
+                    let start = row * width + (left - band.left) as usize;
+                    for pixel in &mut band.pixels[start..start + columns as usize] {
+                        *pixel = *values.next().expect("one value per pixel");
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -231,40 +284,23 @@ fn phong(ray: &Ray, hit: &Hit, surface: &impl Colours, to_light: Vec3) -> Vec3 {
     diffuse + specular
 }
 
-/// Room for [`WhittedIntegrator::radiance_packet`]'s shadow rays, made once per run of
-/// tiles so that no packet allocates.
+/// Room for [`WhittedIntegrator::radiance_packet`]'s shadow rays, made once per band
+/// so that no packet allocates.
 #[derive(Debug, Default)]
 pub struct PacketScratch {
     shadow_rays: Vec<Ray>,
     distances: Vec<Float>,
-    /// Time spent in packet queries so far, when timed.
-    tracing: Option<Duration>,
 }
 
-impl PacketScratch {
-    /// Starts (or stops) adding up the time spent tracing packets, for `--stats`.
-    pub fn time_tracing(&mut self, timed: bool) {
-        self.tracing = timed.then_some(Duration::ZERO);
-    }
+/// Side of the square pixel tiles whose camera rays are traced as one packet.
+const PACKET_TILE: u32 = 4;
+const _: () = assert!((PACKET_TILE * PACKET_TILE) as usize == PACKET_SIZE);
 
-    /// The time spent tracing packets since [`PacketScratch::time_tracing`]; zero
-    /// when not timed.
-    pub fn tracing_time(&self) -> Duration {
-        self.tracing.unwrap_or_default()
-    }
-
-    /// Runs `f`, adding its time to the tracing time if timed.
-    #[inline(always)]
-    fn trace<T>(&mut self, f: impl FnOnce(&mut Self) -> T) -> T {
-        match self.tracing {
-            None => f(self),
-            Some(before) => {
-                let start = Instant::now();
-                let result = f(self);
-                self.tracing = Some(before + start.elapsed());
-                result
-            }
-        }
+impl WhittedIntegrator {
+    /// Whether bands are traced as packets of 4x4 pixel centres: at one sample per
+    /// pixel through a pinhole, whose rays share the eye.
+    fn traces_packets(context: &TileContext) -> bool {
+        context.sampler.count() == 1 && context.camera.is_pinhole()
     }
 }
 
@@ -285,12 +321,13 @@ impl WhittedIntegrator {
         out: &mut [Vec3],
         rays: &mut RayCounts,
         scratch: &mut PacketScratch,
+        clock: &mut TraceClock,
     ) {
         assert_eq!(camera_rays.len(), out.len(), "one value per ray");
         let count = camera_rays.len();
         let mut hits = [None; PACKET_SIZE];
         let hits = &mut hits[..count];
-        scratch.trace(|_| scene.intersect_packet(camera_rays, hits));
+        clock.trace(|| scene.intersect_packet(camera_rays, hits));
 
         // Spots, directional lights and ranges are shaded hit by hit
         // (`direct_light`); the lanes know plain point lights only.
@@ -340,8 +377,9 @@ impl WhittedIntegrator {
                     continue;
                 }
                 rays.shadow += u64::from(tested.count_ones());
-                let blocked =
-                    scratch.trace(|s| scene.occluded_packet(&s.shadow_rays, &s.distances, tested));
+                let blocked = clock.trace(|| {
+                    scene.occluded_packet(&scratch.shadow_rays, &scratch.distances, tested)
+                });
                 let adds = f32x16::from(lane_mask(tested & !blocked));
                 for (sum, lit) in direct.iter_mut().zip(lit) {
                     *sum += adds.select(lit, f32x16::ZERO);
@@ -475,6 +513,7 @@ mod tests {
                     &mut values,
                     &mut packet_rays,
                     &mut scratch,
+                    &mut TraceClock::default(),
                 );
                 for (k, (ray, value)) in rays.iter().zip(&values).enumerate() {
                     let mut sample = sampler.sample(0, 0);
@@ -592,6 +631,7 @@ mod tests {
                     n,
                     ns,
                     uv: Vec2::ZERO,
+                    coat_ns: Vec3::ZERO,
                     material: MaterialId(0),
                     front: true,
                 };

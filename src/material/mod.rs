@@ -271,7 +271,18 @@ impl MaterialMaps {
     /// Whether the maps change the shading normal (a bump or normal map).
     #[inline]
     pub fn perturbs_normals(&self) -> bool {
-        self.normal.is_some() || self.bump.is_some()
+        self.normal.is_some() || self.bump.is_some() || self.pbr.clearcoat_normal.is_some()
+    }
+
+    /// The unit clearcoat normal at `uv` in tangent space, from
+    /// `clearcoatNormalTexture` (with its `scale`); `None` without one, when the coat
+    /// takes the unperturbed shading normal (not the base's normal map), as
+    /// `KHR_materials_clearcoat` says.
+    pub fn coat_tangent_normal(&self, uv: Vec2) -> Option<Vec3> {
+        self.pbr
+            .clearcoat_normal
+            .as_ref()
+            .and_then(|map| normal_map_at(map, uv))
     }
 
     /// The unit shading normal at `uv` in tangent space (x along `u`, y along `v`,
@@ -285,11 +296,7 @@ impl MaterialMaps {
     /// map flat on a large model and spiky on a small one.)
     pub fn tangent_normal(&self, uv: Vec2) -> Option<Vec3> {
         if let Some(map) = &self.normal {
-            let n = map.colour(uv, Encoding::Linear) * 2.0 - Vec3::ONE;
-            // `-bm` (glTF's normal texture `scale`, Blender's normal map strength)
-            // scales the tilt: x and y, as glTF says.
-            let scale = map.options.bump_multiplier;
-            return crate::math::try_unit(Vec3::new(n.x * scale, n.y * scale, n.z));
+            return normal_map_at(map, uv);
         }
         let map = self.bump.as_ref()?;
         let (width, height) = map.texture.size();
@@ -308,6 +315,15 @@ impl MaterialMaps {
     pub fn is_empty(&self) -> bool {
         *self == MaterialMaps::default()
     }
+}
+
+/// The unit tangent-space normal a normal map gives at `uv`. Its `-bm` (glTF's
+/// normal texture `scale`, Blender's normal map strength) scales the tilt: x and y,
+/// as glTF says.
+fn normal_map_at(map: &TextureMap, uv: Vec2) -> Option<Vec3> {
+    let n = map.colour(uv, Encoding::Linear) * 2.0 - Vec3::ONE;
+    let scale = map.options.bump_multiplier;
+    crate::math::try_unit(Vec3::new(n.x * scale, n.y * scale, n.z))
 }
 
 impl Material {

@@ -91,6 +91,10 @@ pub struct PbrMaps {
     pub clearcoat: Option<TextureMap>,
     /// `clearcoatRoughnessTexture` (green).
     pub clearcoat_roughness: Option<TextureMap>,
+    /// `clearcoatNormalTexture`: the coat's own tangent-space normal map (its
+    /// `scale` in `options.bump_multiplier`), read by the scene into
+    /// [`crate::scene::Hit::coat_ns`].
+    pub clearcoat_normal: Option<TextureMap>,
     /// `sheenColorTexture`.
     pub sheen_color: Option<TextureMap>,
     /// `sheenRoughnessTexture` (alpha).

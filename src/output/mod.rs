@@ -14,7 +14,8 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 use exr::prelude::{
-    Encoding, Image as ExrImage, Layer, LayerAttributes, SpecificChannels, Vec2 as ExrVec2,
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrImage, ImageAttributes,
+    IntegerBounds, Layer, LayerAttributes, SmallVec, SpecificChannels, Vec2 as ExrVec2,
     WritableImage,
 };
 
@@ -24,7 +25,8 @@ mod png;
 pub use atomic::{Commits, WriteError, check_output, lock_commits, remove_temp_files};
 pub use png::write_png_bytes;
 
-use crate::film::Film;
+use crate::film::{Film, Outputs};
+use crate::math::{Float, Vec3};
 use crate::options::Mode;
 use crate::postprocess::PostProcessing;
 use atomic::write_atomically;
@@ -127,6 +129,97 @@ impl Film {
                 }
             };
             written.map_err(io::Error::other)
+        })
+    }
+}
+
+impl Outputs {
+    /// Writes the colour and every extra output as layers (parts) of one 32-bit float
+    /// OpenEXR file, atomically like [`Film::write_exr`]. The colour comes first, as
+    /// the film's channels (`R`, `G`, `B`, or `Z` in depth mode) and, with `alpha`
+    /// (the coverage, [`crate::Aov::Alpha`]), `A` (the colour is premultiplied by it,
+    /// as OpenEXR expects, when the camera rays that miss add nothing). It is named
+    /// `color` when other layers follow. Then, by name: `depth` (`Z`), `normal` (`X`, `Y`, `Z`), `albedo`
+    /// (`R`, `G`, `B`), `alpha` (`A`), `object_id` and `material_id` (`id`, as floats,
+    /// exact up to 2^24; -1 on a miss).
+    ///
+    /// # Errors
+    /// The file cannot be created or written.
+    pub fn write_exr(
+        &self,
+        mode: Mode,
+        alpha: Option<&[Float]>,
+        path: &Path,
+    ) -> Result<(), WriteError> {
+        let film = &self.film;
+        let size = (film.width as usize, film.height as usize);
+        let encoding = Encoding::SMALL_LOSSLESS;
+        let floats = |values: Vec<Float>| FlatSamples::F32(values);
+        let vectors = |values: &[Vec3], names: [&str; 3]| -> Vec<AnyChannel<FlatSamples>> {
+            (0..3)
+                .map(|c| {
+                    let plane = values.iter().map(|v| v[c]).collect();
+                    AnyChannel::new(names[c], floats(plane))
+                })
+                .collect()
+        };
+        let ids = |values: &[i32]| floats(values.iter().map(|&id| id as Float).collect());
+        let mut colour = match mode {
+            Mode::Depth => vec![AnyChannel::new(
+                "Z",
+                floats(film.pixels.iter().map(|v| v.x).collect()),
+            )],
+            Mode::Full | Mode::Normal | Mode::Path => vectors(&film.pixels, ["R", "G", "B"]),
+        };
+        let planes = &self.aovs;
+        if let Some(alpha) = alpha {
+            colour.push(AnyChannel::new("A", floats(alpha.to_vec())));
+        }
+        let mut layers: Vec<(Option<&str>, Vec<AnyChannel<FlatSamples>>)> = vec![(None, colour)];
+        if let Some(depth) = &planes.depth {
+            layers.push((
+                Some("depth"),
+                vec![AnyChannel::new("Z", floats(depth.clone()))],
+            ));
+        }
+        if let Some(normal) = &planes.normal {
+            layers.push((Some("normal"), vectors(normal, ["X", "Y", "Z"])));
+        }
+        if let Some(albedo) = &planes.albedo {
+            layers.push((Some("albedo"), vectors(albedo, ["R", "G", "B"])));
+        }
+        if let Some(alpha) = &planes.alpha {
+            layers.push((
+                Some("alpha"),
+                vec![AnyChannel::new("A", floats(alpha.clone()))],
+            ));
+        }
+        if let Some(object) = &planes.object_id {
+            layers.push((Some("object_id"), vec![AnyChannel::new("id", ids(object))]));
+        }
+        if let Some(material) = &planes.material_id {
+            layers.push((
+                Some("material_id"),
+                vec![AnyChannel::new("id", ids(material))],
+            ));
+        }
+        let several = layers.len() > 1;
+        let layers: Vec<_> = layers
+            .into_iter()
+            .map(|(name, channels)| {
+                let attributes = match (name, several) {
+                    (Some(name), _) => LayerAttributes::named(name),
+                    (None, true) => LayerAttributes::named("color"),
+                    (None, false) => LayerAttributes::default(),
+                };
+                let channels = AnyChannels::sort(SmallVec::from_vec(channels));
+                Layer::new(size, attributes, encoding, channels)
+            })
+            .collect();
+        let attributes = ImageAttributes::new(IntegerBounds::from_dimensions(size));
+        let image = ExrImage::from_layers(attributes, layers);
+        write_atomically(path, "exr", |file| {
+            image.write().to_unbuffered(file).map_err(io::Error::other)
         })
     }
 }

@@ -4,6 +4,7 @@
 
 mod batch;
 mod info;
+mod objects;
 mod packet;
 mod stream;
 #[cfg(test)]
@@ -144,6 +145,8 @@ pub struct Scene {
     /// order, then its spheres. Read only to answer [`Scene::source_index`], so it
     /// stays out of the caches that rays use.
     source: Vec<u32>,
+    /// Which object each primitive belongs to ([`Scene::object_names`]).
+    objects: objects::Objects,
     /// Indices into `texcoords` of each primitive's corners (leaf order), or
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
     /// scenes neither store nor interpolate texture coordinates.
@@ -190,6 +193,10 @@ pub struct Hit {
     /// Texture coordinates (interpolated `vt`); zero where there are none, on
     /// materials without texture maps, and in scenes without any.
     pub uv: Vec2,
+    /// The unit shading normal of a clear coat (`KHR_materials_clearcoat`) where it
+    /// differs from `ns` (its own normal map, or none under the base's normal map),
+    /// facing as `ns` does; zero where it is `ns`.
+    pub coat_ns: Vec3,
     /// The material.
     pub material: MaterialId,
     /// Whether the ray hit the front: the side a triangle's winding faces
@@ -355,8 +362,10 @@ impl Scene {
             materials,
             environment,
             background,
+            objects,
             mut warnings,
         } = description;
+        let objects = objects::Objects::new(objects, triangles.len(), spheres.len());
         let started = Mark::now();
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
@@ -570,6 +579,7 @@ impl Scene {
             vertex_normals,
             texcoords,
             source: order,
+            objects,
             prim_texcoords,
             has_cutouts,
             materials,
@@ -885,22 +895,42 @@ impl Scene {
     }
 
     /// The shading normal `ns` of triangle `prim` tilted by its material's bump or
-    /// normal map at `uv`, in the tangent frame its texture coordinates give (`u`
-    /// along the tangent, `v` along the bitangent, made orthonormal about `ns`); `None`
-    /// without such a map, texture coordinates or a frame (a degenerate UV layout).
+    /// normal map at `uv`, and by its clearcoat normal map, in the tangent frame its
+    /// texture coordinates give (`u` along the tangent, `v` along the bitangent, made
+    /// orthonormal about `ns`); `None` without such a map, texture coordinates or a
+    /// frame (a degenerate UV layout).
     #[inline]
-    fn perturbed_normal(
+    fn perturbed_normals(
         &self,
         prim: u32,
         triangle: &Triangle,
         material: MaterialId,
         uv: Vec2,
         ns: Vec3,
-    ) -> Option<Vec3> {
-        let maps = self.materials.get(material.0 as usize)?.maps.as_ref()?;
-        if !maps.perturbs_normals() {
-            return None;
-        }
+    ) -> (Option<Vec3>, Option<Vec3>) {
+        let Some(maps) = self
+            .materials
+            .get(material.0 as usize)
+            .and_then(|m| m.maps.as_deref())
+            .filter(|maps| maps.perturbs_normals())
+        else {
+            return (None, None);
+        };
+        let Some((tangent, bitangent)) = self.tangents(prim, triangle, ns) else {
+            return (None, None);
+        };
+        let tilt = |local: Vec3| try_unit(tangent * local.x + bitangent * local.y + ns * local.z);
+        (
+            maps.tangent_normal(uv).and_then(tilt),
+            maps.coat_tangent_normal(uv).and_then(tilt),
+        )
+    }
+
+    /// The unit tangent and bitangent of triangle `prim` about the unit normal `ns`,
+    /// along its texture coordinates' `u` and `v`; `None` without texture coordinates
+    /// or with a degenerate UV layout.
+    #[inline]
+    fn tangents(&self, prim: u32, triangle: &Triangle, ns: Vec3) -> Option<(Vec3, Vec3)> {
         let ids = self.prim_texcoords.get(prim as usize)?;
         if ids[0] == NO_TEXCOORDS {
             return None;
@@ -921,8 +951,7 @@ impl Scene {
         } else {
             bitangent
         };
-        let local = maps.tangent_normal(uv)?;
-        try_unit(tangent * local.x + bitangent * local.y + ns * local.z)
+        Some((tangent, bitangent))
     }
 
     /// Whether anything blocks `ray` before distance `t_max`.
@@ -1069,6 +1098,7 @@ impl Scene {
             n: face(n),
             ns: face(ns),
             uv: Vec2::ZERO,
+            coat_ns: Vec3::ZERO,
             material: shading.material,
             front,
         }
@@ -1116,14 +1146,17 @@ impl Scene {
         // The shading normal before `hit_details` turned it.
         let n = try_unit(triangle.normal()).unwrap_or(-ray.dir);
         let ns = self.shading_normal(self.shading.get(prim), n, &hit);
-        if let Some(bumped) = self.perturbed_normal(prim, &triangle, material, uv, ns) {
-            // Turned with the normal it perturbs, so that a bump cannot turn the
-            // shading normal to the other side at grazing angles.
-            details.ns = if ns.dot(ray.dir) > 0.0 {
-                -bumped
-            } else {
-                bumped
-            };
+        // Turned with the normal they perturb, so that a bump cannot turn the shading
+        // normal to the other side at grazing angles.
+        let turn = |v: Vec3| if ns.dot(ray.dir) > 0.0 { -v } else { v };
+        let (bumped, coat) = self.perturbed_normals(prim, &triangle, material, uv, ns);
+        if let Some(bumped) = bumped {
+            details.ns = turn(bumped);
+            // A coat without a normal map of its own lies on the unperturbed surface.
+            details.coat_ns = turn(ns);
+        }
+        if let Some(coat) = coat {
+            details.coat_ns = turn(coat);
         }
         details
     }

@@ -74,18 +74,7 @@ pub(super) fn convert(reader: &mut Reader<'_>, index: usize, json: &Value) -> Ma
         cx.maps.pbr.roughness = Some(with_channel(&map, Channel::Green));
         cx.maps.pbr.metallic = Some(with_channel(&map, Channel::Blue));
     }
-    if let Some(mut map) = cx.texture(json, "normalTexture") {
-        if map.texture.channels() < 3 {
-            cx.note("a normal texture of fewer than 3 channels, ignored");
-        } else {
-            // `scale` multiplies the tangent-space normal's x and y.
-            let scale = json
-                .get("normalTexture")
-                .map_or(1.0, |info| cx.number(info, "scale", 1.0));
-            map.options.bump_multiplier = scale;
-            cx.maps.normal = Some(map);
-        }
-    }
+    cx.maps.normal = cx.normal_texture(json, "normalTexture", "a normal texture");
     cx.emission = cx.colour(json, "emissiveFactor", Vec3::ZERO);
     cx.maps.emission = cx.texture(json, "emissiveTexture");
     // `occlusionTexture` darkens indirect light in rasterisers; a path tracer traces
@@ -198,6 +187,27 @@ impl MaterialContext<'_, '_> {
     /// An RGBA colour under `key`.
     pub(super) fn colour4(&mut self, object: &Value, key: &str, default: [Float; 4]) -> [Float; 4] {
         self.numbers(object, key, default)
+    }
+
+    /// The normal map of texture reference `key` of `object` (a glTF
+    /// `normalTextureInfo`), its `scale`, which multiplies the tangent-space normal's
+    /// x and y, kept as the map's `bump_multiplier`; one of fewer than 3 channels is
+    /// noted (as `what`) and ignored.
+    pub(super) fn normal_texture(
+        &mut self,
+        object: &Value,
+        key: &str,
+        what: &str,
+    ) -> Option<TextureMap> {
+        let mut map = self.texture(object, key)?;
+        if map.texture.channels() < 3 {
+            self.note(format!("{what} of fewer than 3 channels, ignored"));
+            return None;
+        }
+        map.options.bump_multiplier = object
+            .get(key)
+            .map_or(1.0, |info| self.number(info, "scale", 1.0));
+        Some(map)
     }
 
     /// The map of texture reference `key` of `object` (a glTF `textureInfo`: `index`,

@@ -606,6 +606,12 @@ impl Reader<'_> {
                 continue;
             }
             if let Some(mesh) = node.mesh() {
+                // Each node with a mesh is an object (the `object_id` output).
+                let name = node
+                    .name()
+                    .map_or_else(|| format!("node {}", node.index()), String::from);
+                let object = crate::description::ObjectDesc::next_in(&self.scene, name);
+                self.scene.objects.push(object);
                 self.add_mesh(&mesh, &world)?;
             }
             if let Some(camera) = node.camera() {

@@ -1,7 +1,8 @@
 //! `KHR_materials_clearcoat`: a clear coat over the material (`clearcoatFactor`,
 //! `clearcoatTexture`'s red; `clearcoatRoughnessFactor`,
-//! `clearcoatRoughnessTexture`'s green). Its `clearcoatNormalTexture` is read but
-//! not applied: the coat shares the base's shading normal (one warning).
+//! `clearcoatRoughnessTexture`'s green) with its own shading normal
+//! (`clearcoatNormalTexture` and its `scale`; without one the coat takes the
+//! surface's normal before the base's normal map, as the extension says).
 
 use gltf::json::Value;
 
@@ -20,13 +21,6 @@ fn apply(cx: &mut MaterialContext<'_, '_>, ext: &Value) {
     cx.pbr.clearcoat_roughness = cx.number(ext, "clearcoatRoughnessFactor", 0.0);
     cx.maps.pbr.clearcoat_roughness =
         cx.scalar_texture(ext, "clearcoatRoughnessTexture", Channel::Green);
-    if cx.texture(ext, "clearcoatNormalTexture").is_some() {
-        let index = cx.index;
-        cx.warn_once(
-            "clearcoat normal",
-            format!(
-                "material {index}: clearcoat normal textures are not applied; the coat uses the base's normal"
-            ),
-        );
-    }
+    cx.maps.pbr.clearcoat_normal =
+        cx.normal_texture(ext, "clearcoatNormalTexture", "a clearcoat normal texture");
 }

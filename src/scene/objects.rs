@@ -1,0 +1,129 @@
+//! Which object each primitive belongs to, for the `object_id` output: the
+//! description's [`ObjectDesc`] runs of triangles and spheres, looked up by a
+//! primitive's place in the description (a binary search, once per pixel, never in
+//! traversal).
+
+use super::{Hit, Scene};
+use crate::description::ObjectDesc;
+use crate::math::Ray;
+
+/// The objects of a scene, in the description's order, with where each begins.
+#[derive(Clone, Debug, Default)]
+pub struct Objects {
+    names: Vec<String>,
+    /// Each object's first triangle, non-decreasing.
+    triangle_starts: Vec<u32>,
+    /// Each object's first sphere, non-decreasing.
+    sphere_starts: Vec<u32>,
+    /// The description's triangle count: its sphere `i` has description index
+    /// `triangles + i`.
+    triangles: u32,
+}
+
+impl Objects {
+    /// The objects of a description with `triangles` triangles and `spheres`
+    /// spheres. Shapes before the first object (or all of them, when the readers
+    /// named none) form an unnamed object, numbered 0.
+    pub fn new(objects: Vec<ObjectDesc>, triangles: usize, spheres: usize) -> Objects {
+        let mut table = Objects {
+            triangles: triangles as u32,
+            ..Objects::default()
+        };
+        let starts_at_zero = objects
+            .first()
+            .is_some_and(|o| o.first_triangle == 0 && o.first_sphere == 0);
+        if !starts_at_zero && triangles + spheres > 0 {
+            table.push(String::new(), 0, 0);
+        }
+        for object in objects {
+            // A reader's starts only grow; clamped all the same, so that a lookup
+            // never misses.
+            let t = object
+                .first_triangle
+                .max(table.triangle_starts.last().copied().unwrap_or(0));
+            let s = object
+                .first_sphere
+                .max(table.sphere_starts.last().copied().unwrap_or(0));
+            table.push(object.name, t, s);
+        }
+        table
+    }
+
+    fn push(&mut self, name: String, first_triangle: u32, first_sphere: u32) {
+        self.names.push(name);
+        self.triangle_starts.push(first_triangle);
+        self.sphere_starts.push(first_sphere);
+    }
+
+    /// The object names, by id.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The id of the object holding the description's primitive `source` (its
+    /// triangles, then its spheres, as [`Scene::source_index`] numbers them).
+    pub fn of_source(&self, source: usize) -> u32 {
+        let (starts, index) = match source.checked_sub(self.triangles as usize) {
+            None => (&self.triangle_starts, source as u32),
+            Some(sphere) => (&self.sphere_starts, sphere as u32),
+        };
+        starts
+            .partition_point(|&start| start <= index)
+            .saturating_sub(1) as u32
+    }
+}
+
+impl Scene {
+    /// The names of the scene's objects, by object id: a glTF node's name (or
+    /// `node N`), a mesh file's name; `""` for the unnamed object of shapes outside
+    /// any (see [`ObjectDesc`]).
+    pub fn object_names(&self) -> &[String] {
+        self.objects.names()
+    }
+
+    /// [`Scene::intersect`]'s hit, with the id of the object hit.
+    pub fn intersect_object(&self, ray: &Ray) -> Option<(Hit, u32)> {
+        let (packet, lane, found) = self.closest_lane(ray)?;
+        let prim = self.packets[packet as usize].prim(lane)?;
+        let hit = if self.prim_texcoords.is_empty() {
+            self.hit_details(ray, packet, lane, found)
+        } else {
+            self.textured_hit_details(ray, packet, lane, found)
+        };
+        Some((hit, self.objects.of_source(self.source_index(prim))))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn object(name: &str, first_triangle: u32, first_sphere: u32) -> ObjectDesc {
+        ObjectDesc {
+            name: name.into(),
+            first_triangle,
+            first_sphere,
+        }
+    }
+
+    #[test]
+    fn primitives_belong_to_the_run_they_fall_in() {
+        // Triangles 0..3 unnamed, 3..7 "a", 7..10 "b"; spheres 0..2 "a", 2.. "c".
+        let objects = Objects::new(
+            vec![object("a", 3, 0), object("b", 7, 2), object("c", 10, 2)],
+            10,
+            4,
+        );
+        assert_eq!(objects.names(), ["", "a", "b", "c"]);
+        let ids: Vec<u32> = (0..14).map(|i| objects.of_source(i)).collect();
+        assert_eq!(ids, [0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 1, 1, 3, 3]);
+    }
+
+    #[test]
+    fn a_description_without_objects_is_one_unnamed_object() {
+        let objects = Objects::new(Vec::new(), 5, 1);
+        assert_eq!(objects.names(), [""]);
+        assert!((0..6).all(|i| objects.of_source(i) == 0));
+        assert!(Objects::new(Vec::new(), 0, 0).names().is_empty());
+    }
+}

@@ -76,6 +76,43 @@ pub struct SceneDescription {
     pub objects: Vec<ObjectDesc>,
     /// Non-fatal problems, each naming file and line, for the caller to show.
     pub warnings: Vec<String>,
+    /// Meshes placed only by [`SceneDescription::instances`], each stored once
+    /// whatever the number of its copies: geometry alone (positions, normals,
+    /// texture coordinates, triangles and their indices; no spheres, lights or
+    /// materials), in its own object space, its material ids indexing this
+    /// description's `materials`.
+    pub meshes: Vec<SceneDescription>,
+    /// Copies of [`SceneDescription::meshes`], each with its own placement.
+    pub instances: Vec<InstanceDesc>,
+}
+
+/// One copy of a mesh of [`SceneDescription::meshes`] placed in the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InstanceDesc {
+    /// Index into [`SceneDescription::meshes`].
+    pub mesh: u32,
+    /// The placement: world from object, an invertible affine map (the readers check
+    /// it is finite and not singular).
+    pub world_from_object: glam::Affine3A,
+}
+
+impl InstanceDesc {
+    /// `bounds` (a box in the mesh's object space) placed in the world: the box
+    /// around its eight corners moved.
+    pub fn world_bounds(&self, bounds: Aabb) -> Aabb {
+        if bounds.min.cmpgt(bounds.max).any() {
+            return Aabb::EMPTY;
+        }
+        (0..8).fold(Aabb::EMPTY, |b, corner| {
+            let pick = |bit: u32, lo: Float, hi: Float| if corner & bit == 0 { lo } else { hi };
+            let p = Vec3::new(
+                pick(1, bounds.min.x, bounds.max.x),
+                pick(2, bounds.min.y, bounds.max.y),
+                pick(4, bounds.min.z, bounds.max.z),
+            );
+            b.grow(self.world_from_object.transform_point3(p))
+        })
+    }
 }
 
 /// Where an object begins in a [`SceneDescription`]: it holds the triangles from
@@ -143,13 +180,40 @@ impl SceneDescription {
                 },
             )
             .reduce(|| Aabb::EMPTY, Aabb::union);
-        self.spheres.iter().fold(triangles, |b, s| {
+        let shapes = self.spheres.iter().fold(triangles, |b, s| {
             let r = Vec3::splat(s.radius);
             b.union(Aabb {
                 min: s.center - r,
                 max: s.center + r,
             })
-        })
+        });
+        if self.instances.is_empty() {
+            return shapes;
+        }
+        let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(SceneDescription::bounds).collect();
+        (self.instances.iter())
+            .filter_map(|i| Some(i.world_bounds(*mesh_bounds.get(i.mesh as usize)?)))
+            .fold(shapes, Aabb::union)
+    }
+
+    /// Triangles in the world counting every copy: those of the description itself
+    /// and, for each instance, its mesh's.
+    pub fn instanced_triangle_count(&self) -> u64 {
+        let copies = (self.instances.iter())
+            .filter_map(|i| self.meshes.get(i.mesh as usize))
+            .map(|m| m.triangles.len() as u64)
+            .sum::<u64>();
+        self.triangles.len() as u64 + copies
+    }
+
+    /// Triangles stored: those of the description and of each of its meshes once.
+    pub fn unique_triangle_count(&self) -> u64 {
+        let meshes = self
+            .meshes
+            .iter()
+            .map(|m| m.triangles.len() as u64)
+            .sum::<u64>();
+        self.triangles.len() as u64 + meshes
     }
 
     /// Whether nothing lights the scene: no point light, and no shapes whose material
@@ -189,6 +253,23 @@ impl SceneDescription {
         }
         for s in &self.spheres {
             power += f64::from(of(s.material) * 4.0 * std::f32::consts::PI * s.radius * s.radius);
+        }
+        // Each copy of an emitting mesh, by the area it has where it is placed.
+        for instance in &self.instances {
+            let Some(mesh) = self.meshes.get(instance.mesh as usize) else {
+                continue;
+            };
+            for t in &mesh.triangles {
+                let e = of(t.material);
+                if e > 0.0 {
+                    let [a, b, c] = t.positions.map(|i| {
+                        instance
+                            .world_from_object
+                            .transform_point3(mesh.positions[i as usize])
+                    });
+                    power += f64::from(e * 0.5 * (b - a).cross(c - a).length());
+                }
+            }
         }
         let bounds = self.bounds();
         let radius = (bounds.max - bounds.min).length() * 0.5;

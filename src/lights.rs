@@ -155,6 +155,12 @@ impl AreaLightsBuilder {
         self.materials.iter().any(|m| m.weight > 0.0)
     }
 
+    /// Whether shapes of `material` emit (and would be kept by
+    /// [`AreaLightsBuilder::triangle`]).
+    pub fn emits(&self, material: MaterialId) -> bool {
+        (self.materials.get(material.0 as usize)).is_some_and(|m| m.weight > 0.0)
+    }
+
     /// Adds the triangle `p0 p1 p2` with texture coordinates `uv` at its corners, if
     /// its material emits and it has an area.
     pub fn triangle(&mut self, [p0, p1, p2]: [Vec3; 3], uv: [Vec2; 3], material: MaterialId) {

@@ -1,9 +1,10 @@
 //! Combining meshes into one description: index offsets, material ids and placement.
 
-use glam::Mat3;
+use glam::{Affine3A, DMat3, Mat3};
 
 use super::SceneDescription;
 use super::error::ParseErrorKind;
+use crate::description::InstanceDesc;
 use crate::material::{LightKind, MaterialId};
 use crate::math::{Float, Vec3};
 
@@ -63,6 +64,11 @@ impl Transform {
     #[inline]
     pub fn normal(&self, n: Vec3) -> Vec3 {
         self.normal_from_object * n
+    }
+
+    /// The same placement as an affine map (world from object), for instances.
+    pub fn to_affine(&self) -> Affine3A {
+        Affine3A::from_mat3_translation(self.linear, self.translation)
     }
 
     /// The factor by which lengths grow in every direction, when the scale has the
@@ -176,6 +182,108 @@ impl SceneDescription {
         }
         append(&mut self.warnings, mesh.warnings);
         Ok(())
+    }
+}
+
+/// A placement given as a 4x4 matrix, row-major, world from object (as TOML's
+/// `matrix` and the rows of an `[[instances]]` file hold it), checked: every value
+/// finite, the last row `0 0 0 1` (an affine map: no projection), and the linear part
+/// invertible in `f32` (a singular matrix flattens the mesh, and its normals have no
+/// direction). The message says what is wrong.
+pub fn affine_from_rows(m: &[f64; 16]) -> Result<Affine3A, String> {
+    if let Some(bad) = m
+        .iter()
+        .find(|v| !v.is_finite() || !(**v as f32).is_finite())
+    {
+        return Err(format!("non-finite value {bad:e} in the matrix"));
+    }
+    if m[12..] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(format!(
+            "the last row is {} {} {} {}, not 0 0 0 1 (an affine placement)",
+            m[12], m[13], m[14], m[15]
+        ));
+    }
+    let linear = DMat3::from_cols_array(&[m[0], m[4], m[8], m[1], m[5], m[9], m[2], m[6], m[10]]);
+    let det = linear.determinant();
+    // Relative to the size of the entries, so that a tiny but well-shaped scale
+    // (millimetres to kilometres) is not refused, while rows that are (nearly)
+    // multiples of one another are.
+    let size = linear
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |a, v| a.max(v.abs()));
+    if det == 0.0 || !det.is_finite() || det.abs() <= 1e-12 * size * size * size {
+        return Err(format!(
+            "singular matrix (determinant {det}): it flattens the mesh"
+        ));
+    }
+    let affine = Affine3A::from_mat3_translation(
+        linear.as_mat3(),
+        Vec3::new(m[3] as f32, m[7] as f32, m[11] as f32),
+    );
+    let inverse = affine.inverse();
+    if !inverse.is_finite() || !affine.matrix3.inverse().transpose().is_finite() {
+        return Err("singular matrix: its inverse is not finite in 32-bit floats".into());
+    }
+    Ok(affine)
+}
+
+impl SceneDescription {
+    /// Adds `mesh` to [`SceneDescription::meshes`], to be placed by instances only:
+    /// its material ids shifted to follow this description's materials (its own
+    /// appended), or all set to `material`. Returns its index.
+    ///
+    /// # Errors
+    /// A mesh with spheres (instances place triangle meshes), or more meshes than
+    /// 32-bit indices address.
+    pub fn add_instanced_mesh(
+        &mut self,
+        mesh: SceneDescription,
+        material: Option<MaterialId>,
+    ) -> Result<u32, ParseErrorKind> {
+        if !mesh.spheres.is_empty() {
+            return Err(ParseErrorKind::TomlValue {
+                key: "mesh.id".into(),
+                message: "a mesh placed by instances cannot hold spheres".into(),
+            });
+        }
+        let index =
+            u32::try_from(self.meshes.len()).map_err(|_| ParseErrorKind::TooMany("meshes"))?;
+        let mut mesh = mesh;
+        let material_offset = self.materials.len() as u32;
+        for t in &mut mesh.triangles {
+            t.material = material.unwrap_or(MaterialId(t.material.0 + material_offset));
+        }
+        if material.is_none() {
+            append(&mut self.materials, std::mem::take(&mut mesh.materials));
+        }
+        append(&mut self.warnings, std::mem::take(&mut mesh.warnings));
+        mesh.materials = Vec::new();
+        self.meshes.push(mesh);
+        Ok(index)
+    }
+
+    /// Places mesh `mesh` (of [`SceneDescription::meshes`]) by `world_from_object`,
+    /// with the lights its file holds, moved likewise.
+    pub fn add_instance(&mut self, mesh: u32, world_from_object: Affine3A) {
+        if let Some(m) = self.meshes.get(mesh as usize) {
+            for l in &m.lights {
+                let mut l = *l;
+                l.position = world_from_object.transform_point3(l.position);
+                if let LightKind::Spot { direction, .. } | LightKind::Directional { direction } =
+                    &mut l.kind
+                {
+                    *direction = world_from_object
+                        .transform_vector3(*direction)
+                        .normalize_or(*direction);
+                }
+                self.lights.push(l);
+            }
+        }
+        self.instances.push(InstanceDesc {
+            mesh,
+            world_from_object,
+        });
     }
 }
 

@@ -185,6 +185,9 @@ pub enum ParseErrorKind {
         /// What it takes.
         expected: &'static str,
     },
+    /// A placement or `.npy` file of instances that cannot be used, and why.
+    #[error("{0}")]
+    Instancing(String),
     /// A PLY list count that is negative.
     #[error("negative list length {0}")]
     NegativeCount(i64),

@@ -22,13 +22,14 @@ mod gltf;
 mod lex;
 mod material_check;
 mod mtl;
+mod npy;
 mod obj;
 mod ply;
 mod polygon;
 mod toml;
 
 pub use access::FileAccess;
-pub use compose::Transform;
+pub use compose::{Transform, affine_from_rows};
 pub use error::{IndexKind, ParseErrorKind, SceneError};
 pub use gltf::{load_gltf, load_gltf_with, parse_gltf, parse_gltf_with};
 pub use mtl::{MaterialLibrary, parse_mtl, parse_mtl_with};

@@ -21,8 +21,8 @@ use toml::de::{DeTable, DeValue};
 use super::error::{ParseErrorKind, SceneError};
 use super::material_check::{MaterialProblems, check_pbr};
 use super::{
-    FileAccess, LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform, load_mesh_with,
-    read_file,
+    FileAccess, LoadedScene, SceneDescription, SceneFormat, SphereDesc, Transform,
+    affine_from_rows, load_mesh_with, read_file,
 };
 use crate::material::pbr::PbrMaterial;
 use crate::material::{Light, LightKind, Material, MaterialId};
@@ -89,6 +89,7 @@ fn parse_toml_with(
         text,
         scene: SceneDescription::default(),
         material_ids: HashMap::new(),
+        mesh_ids: HashMap::new(),
         fallback_material: None,
     }
     .build(file)
@@ -156,6 +157,10 @@ struct SceneFile {
     render: RenderTable,
     #[serde(default)]
     mesh: Vec<MeshTable>,
+    #[serde(default)]
+    instance: Vec<Spanned<InstanceTable>>,
+    #[serde(default)]
+    instances: Vec<Spanned<InstancesTable>>,
     #[serde(default)]
     sphere: Vec<SphereTable>,
     #[serde(default)]
@@ -252,9 +257,29 @@ impl From<ModeName> for Mode {
 #[serde(deny_unknown_fields)]
 struct MeshTable {
     file: Spanned<String>,
+    /// A mesh with an id is placed only by `[[instance]]` and `[[instances]]`.
+    id: Option<Spanned<String>>,
     material: Option<Spanned<String>>,
     #[serde(default)]
     transform: TransformTable,
+}
+
+/// One copy of a mesh with an id: `transform` or `matrix` (row-major world from
+/// object), or neither (where the mesh is).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InstanceTable {
+    mesh: Spanned<String>,
+    transform: Option<Spanned<TransformTable>>,
+    matrix: Option<Spanned<Vec<f64>>>,
+}
+
+/// Copies of a mesh with an id, one per matrix of an `(N, 4, 4)` `.npy` file.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InstancesTable {
+    mesh: Spanned<String>,
+    file: Spanned<String>,
 }
 
 #[derive(Deserialize, Default)]
@@ -484,6 +509,8 @@ struct Builder<'a> {
     text: &'a str,
     scene: SceneDescription,
     material_ids: HashMap<String, MaterialId>,
+    /// Meshes placed by instances, by id.
+    mesh_ids: HashMap<String, u32>,
     fallback_material: Option<MaterialId>,
 }
 
@@ -505,6 +532,12 @@ impl Builder<'_> {
         }
         for mesh in &file.mesh {
             self.add_mesh(mesh)?;
+        }
+        for instance in &file.instance {
+            self.add_instance(instance)?;
+        }
+        for instances in &file.instances {
+            self.add_instances(instances)?;
         }
         for sphere in &file.sphere {
             let radius = sphere.radius.get_ref().0;
@@ -699,21 +732,27 @@ impl Builder<'_> {
             Some(name) => Some(self.material(Some(name), "mesh.material")?),
             None => None,
         };
-        let t = &mesh.transform;
-        let scale = t.scale.as_ref().map_or(Vec3::ONE, |s| s.get_ref().0);
-        let scale_span = t.scale.as_ref().map_or(file_span.clone(), Spanned::span);
-        if scale.cmpeq(Vec3::ZERO).any() {
-            return Err(self.error(
-                scale_span,
-                "mesh.transform.scale",
-                "scale components must not be zero".into(),
-            ));
+        let (transform, scale_span) =
+            self.transform(&mesh.transform, file_span.clone(), "mesh.transform.scale")?;
+        if let Some(id) = &mesh.id {
+            if self.mesh_ids.contains_key(id.get_ref()) {
+                return Err(self.error(
+                    id.span(),
+                    "mesh.id",
+                    format!("mesh id '{}' is given twice", id.get_ref()),
+                ));
+            }
+            if mesh.transform.translate.is_some()
+                || mesh.transform.rotate.is_some()
+                || mesh.transform.scale.is_some()
+            {
+                return Err(self.error(
+                    id.span(),
+                    "mesh.transform",
+                    "a mesh with an id is placed by its instances: give the transform to each [[instance]]".into(),
+                ));
+            }
         }
-        let transform = Transform::new(
-            scale,
-            t.rotate.map_or(Vec3::ZERO, |r| r.0),
-            t.translate.map_or(Vec3::ZERO, |r| r.0),
-        );
 
         let mut description =
             load_mesh_with(&mesh_path, self.access).map_err(|error| SceneError::Included {
@@ -727,6 +766,14 @@ impl Builder<'_> {
             // said about them (a missing `usemtl`, an unknown name) no longer holds.
             description.warnings.retain(|w| !w.contains("material"));
         }
+        if let Some(id) = &mesh.id {
+            let index = self
+                .scene
+                .add_instanced_mesh(description, material)
+                .map_err(|kind| self.error(file_span.clone(), "mesh.file", kind.to_string()))?;
+            self.mesh_ids.insert(id.get_ref().clone(), index);
+            return Ok(());
+        }
         self.scene
             .append(description, &transform, material)
             .map_err(|kind| match kind {
@@ -735,6 +782,110 @@ impl Builder<'_> {
                 }
                 _ => self.error(file_span, "mesh.file", kind.to_string()),
             })
+    }
+
+    /// A `transform` table as a placement, and the span of its scale (or `span`
+    /// without one) for errors about it.
+    fn transform(
+        &self,
+        t: &TransformTable,
+        span: Range<usize>,
+        scale_key: &str,
+    ) -> Result<(Transform, Range<usize>), SceneError> {
+        let scale = t.scale.as_ref().map_or(Vec3::ONE, |s| s.get_ref().0);
+        let scale_span = t.scale.as_ref().map_or(span, Spanned::span);
+        if scale.cmpeq(Vec3::ZERO).any() {
+            return Err(self.error(
+                scale_span,
+                scale_key,
+                "scale components must not be zero".into(),
+            ));
+        }
+        let transform = Transform::new(
+            scale,
+            t.rotate.map_or(Vec3::ZERO, |r| r.0),
+            t.translate.map_or(Vec3::ZERO, |r| r.0),
+        );
+        Ok((transform, scale_span))
+    }
+
+    /// The mesh an instance names by id.
+    fn instanced_mesh(&self, name: &Spanned<String>, key: &str) -> Result<u32, SceneError> {
+        self.mesh_ids.get(name.get_ref()).copied().ok_or_else(|| {
+            self.error(
+                name.span(),
+                key,
+                format!(
+                    "unknown mesh '{}' (no [[mesh]] has this id)",
+                    name.get_ref()
+                ),
+            )
+        })
+    }
+
+    fn add_instance(&mut self, table: &Spanned<InstanceTable>) -> Result<(), SceneError> {
+        let instance = table.get_ref();
+        let mesh = self.instanced_mesh(&instance.mesh, "instance.mesh")?;
+        let placement = match (&instance.transform, &instance.matrix) {
+            (Some(_), Some(matrix)) => {
+                return Err(self.error(
+                    matrix.span(),
+                    "instance.matrix",
+                    "give either transform or matrix, not both".into(),
+                ));
+            }
+            (Some(transform), None) => self
+                .transform(
+                    transform.get_ref(),
+                    transform.span(),
+                    "instance.transform.scale",
+                )?
+                .0
+                .to_affine(),
+            (None, Some(matrix)) => {
+                let values: &[f64; 16] = matrix.get_ref().as_slice().try_into().map_err(|_| {
+                    self.error(
+                        matrix.span(),
+                        "instance.matrix",
+                        format!(
+                            "{} numbers: a matrix is 16 numbers, row-major world from object",
+                            matrix.get_ref().len()
+                        ),
+                    )
+                })?;
+                affine_from_rows(values)
+                    .map_err(|message| self.error(matrix.span(), "instance.matrix", message))?
+            }
+            (None, None) => glam::Affine3A::IDENTITY,
+        };
+        self.scene.add_instance(mesh, placement);
+        Ok(())
+    }
+
+    fn add_instances(&mut self, table: &Spanned<InstancesTable>) -> Result<(), SceneError> {
+        let table = table.get_ref();
+        let mesh = self.instanced_mesh(&table.mesh, "instances.mesh")?;
+        let file = table.file.get_ref();
+        let path = match self.path.parent() {
+            Some(dir) => dir.join(file),
+            None => file.into(),
+        };
+        let included = |error: SceneError| SceneError::Included {
+            path: self.path.to_path_buf(),
+            line: line_of(self.text.as_bytes(), table.file.span().start),
+            key: "instances.file".into(),
+            error: Box::new(error),
+        };
+        let bytes = super::admit(&path, self.access)
+            .and_then(|()| read_file(&path))
+            .map_err(included)?;
+        let matrices = super::npy::parse_matrices(&bytes, &path).map_err(included)?;
+        drop(bytes);
+        self.scene.instances.reserve(matrices.len());
+        for matrix in matrices {
+            self.scene.add_instance(mesh, matrix);
+        }
+        Ok(())
     }
 
     /// The id of a named material, or of the default material when there is no name.
@@ -1218,7 +1369,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "title = \"x\"\n",
-                "DIR/s.toml:1: title: unknown field `title`, expected one of `camera`, `render`, `mesh`, `sphere`, `light`, `materials`, `environment`",
+                "DIR/s.toml:1: title: unknown field `title`, expected one of `camera`, `render`, `mesh`, `instance`, `instances`, `sphere`, `light`, `materials`, `environment`",
             ),
             (
                 "[camera]\nlook_from = [1, 2]\n",

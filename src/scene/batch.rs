@@ -100,7 +100,7 @@ impl Scene {
         active: u32,
         hits: &mut [Option<Hit>; BATCH],
     ) {
-        if self.has_cutouts || active.count_ones() <= FEW_RAYS || self.wide.nodes.is_empty() {
+        if self.ray_by_ray || active.count_ones() <= FEW_RAYS || self.wide.nodes.is_empty() {
             for lane in lanes_of(active) {
                 hits[lane] = self.intersect(&rays[lane]);
             }
@@ -192,7 +192,7 @@ impl Scene {
     /// The rays `rays[i]` of `active` that something blocks before `t_max[i]`, as a
     /// bit mask.
     pub fn occluded_batch(&self, rays: &[Ray; BATCH], t_max: &[Float; BATCH], active: u32) -> u32 {
-        if self.has_cutouts || active.count_ones() <= FEW_RAYS || self.wide.nodes.is_empty() {
+        if self.ray_by_ray || active.count_ones() <= FEW_RAYS || self.wide.nodes.is_empty() {
             return lanes_of(active)
                 .filter(|&lane| self.occluded(&rays[lane], t_max[lane]))
                 .fold(0, |mask, lane| mask | 1 << lane);

@@ -29,6 +29,13 @@ pub struct SceneSummary {
     /// Triangles the renderer drops, by [`Triangle::is_degenerate`]: zero area, or
     /// a normal beyond `f32`.
     pub degenerate_triangles: usize,
+    /// Triangles in the world counting every copy instances place (equal to
+    /// `triangles` in a scene without instances).
+    pub instanced_triangles: u64,
+    /// Instances placing meshes that are stored once.
+    pub instances: usize,
+    /// Meshes stored once and placed by instances.
+    pub meshes: usize,
     /// Spheres.
     pub spheres: usize,
     /// Point lights.
@@ -98,6 +105,24 @@ impl SceneSummary {
             triangle_uses[tri.material.0 as usize] += 1;
             with_normals += scene.normals_of(i).is_some() as usize;
         }
+        // Meshes placed by instances count once here (their copies in
+        // `instanced_triangles`), as they are stored once.
+        for mesh in &scene.meshes {
+            for (i, tri) in mesh.triangles.iter().enumerate() {
+                let [a, b, c] = tri.positions.map(|i| mesh.positions[i as usize]);
+                if Triangle::new(a, b, c).is_degenerate() {
+                    degenerate += 1;
+                    continue;
+                }
+                if let Some(uses) = triangle_uses.get_mut(tri.material.0 as usize) {
+                    *uses += 1;
+                }
+                with_normals += mesh.normals_of(i).is_some() as usize;
+            }
+        }
+        if !scene.instances.is_empty() {
+            bounds = bounds.union(scene.bounds());
+        }
         for s in &scene.spheres {
             let sphere = Sphere {
                 center: s.center,
@@ -136,7 +161,8 @@ impl SceneSummary {
             warnings.push("no lights: full mode shows only ambient (Ka) and emission (Ke)".into());
         }
 
-        let prims = scene.triangles.len() - degenerate + scene.spheres.len();
+        let unique_triangles = scene.unique_triangle_count() as usize;
+        let prims = unique_triangles - degenerate + scene.spheres.len();
         let pixels = options.width as usize * options.height as usize;
         let packets = (prims as f64 / TYPICAL_PACKET_FILL).ceil();
         let wide_nodes = if prims == 0 {
@@ -151,7 +177,14 @@ impl SceneSummary {
                 + scene.triangles.len() * size_of::<TriangleDesc>()
                 + scene.triangle_normals.len() * size_of::<Option<[u32; 3]>>()
                 + scene.triangle_texcoords.len() * size_of::<Option<[u32; 3]>>()
-                + scene.spheres.len() * size_of::<SphereDesc>(),
+                + scene.spheres.len() * size_of::<SphereDesc>()
+                + (scene.meshes.iter())
+                    .map(|m| {
+                        (m.positions.len() + m.normals.len()) * size_of::<Vec3>()
+                            + m.triangles.len() * size_of::<TriangleDesc>()
+                    })
+                    .sum::<usize>()
+                + scene.instances.len() * size_of::<crate::description::InstanceDesc>(),
             shapes: packets as usize * size_of::<TrianglePacket>(),
             // A material per primitive, and its normals' indices if some triangle
             // has vertex normals.
@@ -172,8 +205,11 @@ impl SceneSummary {
         };
         SceneSummary {
             vertices: scene.positions.len(),
-            triangles: scene.triangles.len(),
+            triangles: unique_triangles,
             degenerate_triangles: degenerate,
+            instanced_triangles: scene.instanced_triangle_count(),
+            instances: scene.instances.len(),
+            meshes: scene.meshes.len(),
             spheres: scene.spheres.len(),
             lights: scene.lights.len(),
             materials,
@@ -214,6 +250,15 @@ impl fmt::Display for SceneSummary {
             write!(f, " ({} degenerate)", thousands(self.degenerate_triangles))?;
         }
         writeln!(f)?;
+        if self.instances > 0 {
+            writeln!(
+                f,
+                "instanced  {} triangles ({} instances of {} meshes stored once)",
+                thousands(self.instanced_triangles as usize),
+                thousands(self.instances),
+                thousands(self.meshes)
+            )?;
+        }
         writeln!(f, "spheres    {}", thousands(self.spheres))?;
         writeln!(f, "lights     {}", thousands(self.lights))?;
         writeln!(f, "materials  {}", thousands(self.materials.len()))?;

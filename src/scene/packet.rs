@@ -48,6 +48,12 @@ impl Scene {
     /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `hits`.
     pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        if self.instances.is_some() {
+            for (hit, ray) in hits.iter_mut().zip(rays) {
+                *hit = self.intersect(ray);
+            }
+            return;
+        }
         let found = self.closest_lanes_packet(rays);
         let answers = hits.iter_mut().zip(rays).zip(found);
         // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
@@ -73,6 +79,14 @@ impl Scene {
     /// As [`Scene::intersect_packet`].
     pub fn intersect_primitive_packet(&self, rays: &[Ray], ids: &mut [u32]) {
         assert_eq!(rays.len(), ids.len(), "one id per ray");
+        if self.instances.is_some() {
+            for (id, ray) in ids.iter_mut().zip(rays) {
+                *id = self
+                    .intersect_primitive(ray)
+                    .map_or(u32::MAX, |(prim, _)| prim);
+            }
+            return;
+        }
         let found = self.closest_lanes_packet(rays);
         for (id, found) in ids.iter_mut().zip(found) {
             *id = found
@@ -90,7 +104,7 @@ impl Scene {
     pub fn occluded_packet(&self, rays: &[Ray], t_max: &[Float], active: u32) -> u32 {
         assert_eq!(rays.len(), t_max.len(), "one distance per ray");
         let active = active & ((1u32 << rays.len()) - 1);
-        if self.has_cutouts {
+        if self.ray_by_ray {
             return lanes_of(active)
                 .filter(|&r| self.occluded(&rays[r], t_max[r]))
                 .fold(0, |mask, r| mask | 1 << r);
@@ -140,7 +154,7 @@ impl Scene {
     /// The closest hit of each ray, packet and lane, as [`Scene::closest_lane`].
     pub(super) fn closest_lanes_packet(&self, rays: &[Ray]) -> [LaneHit; PACKET_SIZE] {
         let mut best: [LaneHit; PACKET_SIZE] = [None; PACKET_SIZE];
-        if self.has_cutouts {
+        if self.ray_by_ray {
             for (best, ray) in best.iter_mut().zip(rays) {
                 *best = self.closest_lane(ray);
             }

@@ -230,7 +230,7 @@ impl Scene {
     /// If `hits` and `rays` differ in length.
     pub fn intersect_primitives(&self, rays: &[Ray], hits: &mut [Option<(u32, PrimHit)>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        if self.has_cutouts || self.wide.nodes.is_empty() {
+        if self.ray_by_ray || self.wide.nodes.is_empty() {
             self.intersect_primitives_ray_by_ray(rays, hits);
             return;
         }
@@ -297,7 +297,7 @@ impl Scene {
     pub fn occluded_rays(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
         assert_eq!(rays.len(), t_max.len(), "one reach per ray");
         assert_eq!(rays.len(), blocked.len(), "one answer per ray");
-        if self.has_cutouts || self.wide.nodes.is_empty() {
+        if self.ray_by_ray || self.wide.nodes.is_empty() {
             self.occluded_ray_by_ray(rays, t_max, blocked);
             return;
         }

@@ -1,0 +1,339 @@
+//! Two-level scenes: copies of meshes placed by instances
+//! ([`SceneDescription::instances`]). Each mesh is built once into a [`Scene`] of its
+//! own (its wide BVH, packets and shading data, in object space); a top-level wide
+//! BVH over the instances' world boxes leads a ray to the copies it may meet, where
+//! it is moved into the mesh's space and traced by the mesh's own single-ray walk.
+//! Everything a scene answers goes through here once: the packet, stream and batch
+//! queries trace an instanced scene ray by ray through [`Scene::intersect`],
+//! [`Scene::intersect_primitive`] and [`Scene::occluded`] (as they do for cutouts),
+//! so the traversal families gained instances in one place. A scene without
+//! instances has no top level and runs the one-level walks it always did.
+//!
+//! A ray `o + t d` in the world is `o' + t d'` in the mesh's space with
+//! `o' = M^-1 o` and `d' = M^-1 d` (not normalized), so distances are the world's
+//! and the nearest hit over all instances is found by lowering one `t_max`.
+//! Normals go back by the inverse transpose of `M`'s linear part, which keeps a
+//! normal facing the ray facing it; a mirroring placement (`det M < 0`) turns the
+//! winding, so the hit's front side is the mesh's back.
+
+use glam::{Affine3A, Mat3A};
+
+use super::*;
+use crate::description::InstanceDesc;
+
+/// The instances of a two-level scene and the meshes they place.
+#[derive(Clone, Debug)]
+pub(super) struct Instances {
+    /// The top-level BVH, its leaves ranges of `placed`.
+    top: WideBvh,
+    /// The instances in the top level's leaf order.
+    placed: Vec<Placed>,
+    /// Their world boxes, in the same order (for [`Scene::validate`]).
+    bounds: Vec<Aabb>,
+    /// Each mesh built once, in object space.
+    meshes: Vec<Scene>,
+    /// Primitive number of each mesh's first primitive: after the flat level's, the
+    /// meshes' in turn ([`Scene::intersect_primitive`] names a copy's primitive by
+    /// its mesh's).
+    first_prim: Vec<u32>,
+    /// Description index of each mesh's first triangle, in the same numbering.
+    first_source: Vec<usize>,
+    /// Primitives of the flat level and of every mesh once.
+    prim_count: usize,
+}
+
+/// One instance, ready for rays.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    /// Object from world: moves rays into the mesh's space.
+    object_from_world: Affine3A,
+    /// Inverse transpose of the world-from-object linear part: moves normals out.
+    normal_to_world: Mat3A,
+    /// The mesh, an index into `Instances::meshes`.
+    mesh: u32,
+    /// Whether the placement mirrors (negative determinant), which turns the
+    /// winding and so which side is the front.
+    mirrored: bool,
+}
+
+impl Placed {
+    /// `ray` in the mesh's space (its direction not normalized: distances are kept).
+    #[inline(always)]
+    fn ray_in_object(&self, ray: &Ray) -> Ray {
+        Ray {
+            origin: self.object_from_world.transform_point3(ray.origin),
+            dir: self.object_from_world.transform_vector3(ray.dir),
+        }
+    }
+}
+
+/// The top level's parameters: one instance per leaf (a leaf's instances are each a
+/// whole walk of a mesh's BVH, so the SAH prices each on its own).
+fn top_params(params: &BvhParams) -> BvhParams {
+    BvhParams {
+        block_size: 1,
+        min_leaf_size: 1,
+        max_leaf_size: 1,
+        ..*params
+    }
+}
+
+impl Instances {
+    /// Builds every mesh once and the top level over `instances` (instances of a mesh
+    /// with no shapes left, or of no mesh, are dropped). Warnings of the meshes'
+    /// builds go into `warnings`.
+    pub(super) fn build(
+        meshes: Vec<SceneDescription>,
+        instances: &[InstanceDesc],
+        flat: &Scene,
+        params: &BvhParams,
+        warnings: &mut Vec<String>,
+    ) -> Instances {
+        let mut first_prim = Vec::with_capacity(meshes.len());
+        let mut first_source = Vec::with_capacity(meshes.len());
+        let mut prim_count = flat.prim_count();
+        let mut source_count = flat
+            .source
+            .iter()
+            .map(|&s| s as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut built = Vec::with_capacity(meshes.len());
+        for mesh in meshes {
+            let triangles = mesh.triangles.len();
+            let description = SceneDescription {
+                materials: flat.materials.clone(),
+                spheres: Vec::new(),
+                lights: Vec::new(),
+                meshes: Vec::new(),
+                instances: Vec::new(),
+                warnings: Vec::new(),
+                environment: None,
+                background: None,
+                ..mesh
+            };
+            let (mut scene, _, _) = Scene::build_level(description, params);
+            warnings.append(&mut scene.warnings);
+            first_prim.push(prim_count as u32);
+            first_source.push(source_count);
+            prim_count += scene.prim_count();
+            source_count += triangles;
+            built.push(scene);
+        }
+        let world_bounds = |i: usize| {
+            let instance = &instances[i];
+            let mesh = built.get(instance.mesh as usize)?;
+            if mesh.prim_count() == 0 {
+                return None;
+            }
+            Some(instance.world_bounds(mesh.bvh_summary().bounds))
+        };
+        let top_params = top_params(params);
+        let (bvh, order) = Bvh::build_filtered(instances.len(), world_bounds, &top_params);
+        let top = WideBvh::collapse(&bvh, 1, &top_params);
+        let bounds = order
+            .iter()
+            .filter_map(|&i| world_bounds(i as usize))
+            .collect();
+        let placed = order
+            .iter()
+            .map(|&i| {
+                let instance = &instances[i as usize];
+                let m = instance.world_from_object;
+                Placed {
+                    object_from_world: m.inverse(),
+                    normal_to_world: m.matrix3.inverse().transpose(),
+                    mesh: instance.mesh,
+                    mirrored: m.matrix3.determinant() < 0.0,
+                }
+            })
+            .collect();
+        Instances {
+            top,
+            placed,
+            bounds,
+            meshes: built,
+            first_prim,
+            first_source,
+            prim_count,
+        }
+    }
+
+    /// The nearest hit of `ray` on a copy within `t_max` (lowered to it): instance
+    /// (leaf order), packet, lane and hit in the mesh.
+    #[inline]
+    fn closest(&self, ray: &Ray, t_max: &mut Float) -> Option<(u32, u32, usize, PrimHit)> {
+        let query = RayQuery::new(ray);
+        let mut found = None;
+        self.top
+            .walk_ordered(&query, t_max, &self.placed, |first, count, t_max| {
+                for index in first..first + count {
+                    let placed = &self.placed[index as usize];
+                    let local = placed.ray_in_object(ray);
+                    let mesh = &self.meshes[placed.mesh as usize];
+                    if let Some((packet, lane, hit)) = mesh.closest_lane_within(&local, *t_max) {
+                        *t_max = hit.t;
+                        found = Some((index, packet, lane, hit));
+                    }
+                }
+                false
+            });
+        found
+    }
+
+    /// Whether a copy blocks `ray` before `t_max`.
+    #[inline]
+    fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
+        let query = RayQuery::new(ray);
+        let mut t_max = t_max;
+        self.top
+            .walk_any(&query, &mut t_max, &self.placed, |first, count, t_max| {
+                self.placed[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|placed| {
+                        let mesh = &self.meshes[placed.mesh as usize];
+                        mesh.occluded_level(&placed.ray_in_object(ray), *t_max)
+                    })
+            })
+    }
+
+    /// The world hit of instance `index`'s mesh at `hit` (packet, lane), with the
+    /// mesh's shading moved out of its space.
+    fn hit(&self, ray: &Ray, index: u32, packet: u32, lane: usize, hit: PrimHit) -> Hit {
+        let placed = &self.placed[index as usize];
+        let mesh = &self.meshes[placed.mesh as usize];
+        let local = placed.ray_in_object(ray);
+        let inner = if mesh.prim_texcoords.is_empty() {
+            mesh.hit_details(&local, packet, lane, hit)
+        } else {
+            mesh.textured_hit_details(&local, packet, lane, hit)
+        };
+        // Both normals face the object-space ray; their inverse-transposed images
+        // face the world ray (`(N n) . (M d) = n . d`).
+        let to_world = |n: Vec3| try_unit(placed.normal_to_world * n);
+        let n = to_world(inner.n).unwrap_or(-ray.dir);
+        let perturbed = (mesh.materials.get(inner.material.0 as usize))
+            .and_then(|m| m.maps.as_ref())
+            .is_some_and(|maps| maps.perturbs_normals());
+        let ns = match mesh.packets[packet as usize].prim(lane) {
+            // Vertex normals placed one by one, then interpolated, as the flattened
+            // mesh's are: under a non-uniform scale, placing the interpolated normal
+            // would weigh the corners differently.
+            Some(prim) if !perturbed => {
+                let ns = mesh.shading_normal_with(mesh.shading.get(prim), n, &hit, |v| {
+                    to_world(v).unwrap_or(Vec3::ZERO)
+                });
+                if ns.dot(ray.dir) > 0.0 { -ns } else { ns }
+            }
+            _ => to_world(inner.ns).unwrap_or(n),
+        };
+        Hit {
+            t: hit.t,
+            p: ray.at(hit.t),
+            n,
+            ns,
+            uv: inner.uv,
+            // Zero (no coat normal of its own) stays zero.
+            coat_ns: to_world(inner.coat_ns).unwrap_or(Vec3::ZERO),
+            material: inner.material,
+            front: inner.front != placed.mirrored,
+        }
+    }
+
+    /// Checks the top level and every mesh.
+    fn validate(&self) -> Result<(), BvhInvariantError> {
+        for mesh in &self.meshes {
+            mesh.validate()?;
+        }
+        self.top
+            .validate(self.placed.len(), |i| self.bounds[i as usize])
+    }
+}
+
+impl Scene {
+    /// Builds a scene with instances: the description's own shapes as one level,
+    /// as [`Scene::build`] builds any scene, then each mesh once and the top level.
+    pub(super) fn build_instanced(description: SceneDescription, params: &BvhParams) -> Scene {
+        let (mut scene, meshes, instances) = Scene::build_level(description, params);
+        let started = std::time::Instant::now();
+        let mut warnings = Vec::new();
+        let built = Instances::build(meshes, &instances, &scene, params, &mut warnings);
+        scene.warnings.append(&mut warnings);
+        scene.build_times.tree += started.elapsed();
+        scene.instances = Some(Box::new(built));
+        scene.ray_by_ray = true;
+        scene
+    }
+
+    /// [`Scene::intersect`] in a scene with instances: the nearest of the flat
+    /// level's hit and the copies' within it.
+    #[inline(never)]
+    pub(super) fn intersect_instanced(&self, instances: &Instances, ray: &Ray) -> Option<Hit> {
+        let flat = self.closest_lane(ray);
+        let mut t_max = flat.map_or(Float::INFINITY, |(_, _, hit)| hit.t);
+        if let Some((index, packet, lane, hit)) = instances.closest(ray, &mut t_max) {
+            return Some(instances.hit(ray, index, packet, lane, hit));
+        }
+        let (packet, lane, hit) = flat?;
+        Some(if self.prim_texcoords.is_empty() {
+            self.hit_details(ray, packet, lane, hit)
+        } else {
+            self.textured_hit_details(ray, packet, lane, hit)
+        })
+    }
+
+    /// [`Scene::intersect_primitive`] in a scene with instances: a copy's primitive is
+    /// named by its mesh's (numbered after the flat level's, mesh by mesh).
+    #[inline(never)]
+    pub(super) fn intersect_primitive_instanced(
+        &self,
+        instances: &Instances,
+        ray: &Ray,
+    ) -> Option<(u32, PrimHit)> {
+        let flat = self.closest_lane(ray);
+        let mut t_max = flat.map_or(Float::INFINITY, |(_, _, hit)| hit.t);
+        if let Some((index, packet, lane, hit)) = instances.closest(ray, &mut t_max) {
+            let mesh = instances.placed[index as usize].mesh as usize;
+            let prim = instances.meshes[mesh].packets[packet as usize].prim(lane)?;
+            return Some((instances.first_prim[mesh] + prim, hit));
+        }
+        self.named(flat)
+    }
+
+    /// [`Scene::occluded`] in a scene with instances.
+    #[inline(never)]
+    pub(super) fn occluded_instanced(
+        &self,
+        instances: &Instances,
+        ray: &Ray,
+        t_max: Float,
+    ) -> bool {
+        self.occluded_level(ray, t_max) || instances.occluded(ray, t_max)
+    }
+
+    /// [`Scene::source_index`] of a copy's primitive: its mesh's first triangle's
+    /// index in the numbering that follows the flat description's shapes, plus its
+    /// index in the mesh.
+    pub(super) fn source_index_instanced(&self, instances: &Instances, prim: u32) -> usize {
+        let mesh = instances.first_prim.partition_point(|&first| first <= prim) - 1;
+        let local = prim - instances.first_prim[mesh];
+        instances.first_source[mesh] + instances.meshes[mesh].source_index(local)
+    }
+
+    /// Primitives stored: the flat level's and each mesh's once.
+    pub(super) fn unique_prim_count(&self) -> usize {
+        self.instances
+            .as_ref()
+            .map_or(self.shading.len(), |i| i.prim_count)
+    }
+
+    /// Instances placed (0 in a one-level scene).
+    pub fn instance_count(&self) -> usize {
+        self.instances.as_ref().map_or(0, |i| i.placed.len())
+    }
+
+    /// [`Scene::validate`] of the meshes and top level of a scene with instances.
+    pub(super) fn validate_instances(&self) -> Result<(), BvhInvariantError> {
+        self.instances.as_ref().map_or(Ok(()), |i| i.validate())
+    }
+}

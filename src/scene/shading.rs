@@ -1,0 +1,218 @@
+//! The second phase of a hit: point, normals, texture coordinates and bumps of the
+//! closest primitive found, and the alpha test cutouts make.
+
+use super::*;
+
+impl Scene {
+    /// Whether primitive `prim` (a triangle) is there at barycentrics `u`, `v`: not
+    /// cut out by its material's alpha.
+    #[inline]
+    pub(super) fn keeps(&self, prim: u32, u: Float, v: Float) -> bool {
+        if !self.has_cutouts {
+            return true;
+        }
+        let material = &self.materials[self.shading.get(prim).material.0 as usize];
+        match material.cutout() {
+            Some(cutout) => cutout.keeps(self.uv_at(prim, u, v)),
+            None => true,
+        }
+    }
+
+    /// The texture coordinates of triangle `prim` at barycentrics `u`, `v`; zero
+    /// when it has none.
+    #[inline]
+    pub(super) fn uv_at(&self, prim: u32, u: Float, v: Float) -> Vec2 {
+        match self.prim_texcoords.get(prim as usize) {
+            None | Some([NO_TEXCOORDS, ..]) => Vec2::ZERO,
+            Some(ids) => {
+                let [t0, t1, t2] = ids.map(|i| self.texcoords[i as usize]);
+                t0 * (1.0 - u - v) + t1 * u + t2 * v
+            }
+        }
+    }
+
+    /// The shading normal `ns` of triangle `prim` tilted by its material's bump or
+    /// normal map at `uv`, and by its clearcoat normal map, in the tangent frame its
+    /// texture coordinates give (`u` along the tangent, `v` along the bitangent, made
+    /// orthonormal about `ns`); `None` without such a map, texture coordinates or a
+    /// frame (a degenerate UV layout).
+    #[inline]
+    pub(super) fn perturbed_normals(
+        &self,
+        prim: u32,
+        triangle: &Triangle,
+        material: MaterialId,
+        uv: Vec2,
+        ns: Vec3,
+    ) -> (Option<Vec3>, Option<Vec3>) {
+        let Some(maps) = self
+            .materials
+            .get(material.0 as usize)
+            .and_then(|m| m.maps.as_deref())
+            .filter(|maps| maps.perturbs_normals())
+        else {
+            return (None, None);
+        };
+        let Some((tangent, bitangent)) = self.tangents(prim, triangle, ns) else {
+            return (None, None);
+        };
+        let tilt = |local: Vec3| try_unit(tangent * local.x + bitangent * local.y + ns * local.z);
+        (
+            maps.tangent_normal(uv).and_then(tilt),
+            maps.coat_tangent_normal(uv).and_then(tilt),
+        )
+    }
+
+    /// The unit tangent and bitangent of triangle `prim` about the unit normal `ns`,
+    /// along its texture coordinates' `u` and `v`; `None` without texture coordinates
+    /// or with a degenerate UV layout.
+    #[inline]
+    fn tangents(&self, prim: u32, triangle: &Triangle, ns: Vec3) -> Option<(Vec3, Vec3)> {
+        let ids = self.prim_texcoords.get(prim as usize)?;
+        if ids[0] == NO_TEXCOORDS {
+            return None;
+        }
+        let [t0, t1, t2] = ids.map(|i| self.texcoords[i as usize]);
+        let (duv1, duv2) = (t1 - t0, t2 - t0);
+        let det = duv1.x * duv2.y - duv1.y * duv2.x;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let dpdu = (triangle.e1 * duv2.y - triangle.e2 * duv1.y) / det;
+        let dpdv = (triangle.e2 * duv1.x - triangle.e1 * duv2.x) / det;
+        let tangent = try_unit(dpdu - ns * ns.dot(dpdu))?;
+        let bitangent = ns.cross(tangent);
+        // Mirrored texture layouts run `v` the other way round.
+        let bitangent = if bitangent.dot(dpdv) < 0.0 {
+            -bitangent
+        } else {
+            bitangent
+        };
+        Some((tangent, bitangent))
+    }
+
+    /// Second phase of a hit: point, normals and material, for the closest hit only
+    /// (texture coordinates and bumps are added, in textured scenes only, by
+    /// [`Scene::textured_hit_details`]).
+    pub(super) fn hit_details(&self, ray: &Ray, packet: u32, lane: usize, hit: PrimHit) -> Hit {
+        self.hit_details_inline(ray, packet, lane, hit)
+    }
+
+    /// [`Scene::hit_details`] inlined into the caller, which then builds the hit in
+    /// place: returned from a call, the hit is stored in pieces and read back whole,
+    /// which stalls the load (no store forwarding) in path mode's batches.
+    #[inline(always)]
+    pub(super) fn hit_details_inline(
+        &self,
+        ray: &Ray,
+        packet: u32,
+        lane: usize,
+        hit: PrimHit,
+    ) -> Hit {
+        let packet = &self.packets[packet as usize];
+        let (Some(prim), Some(shape)) = (packet.prim(lane), packet.shape(lane)) else {
+            unreachable!("hits come from used lanes")
+        };
+        let shading = self.shading.get(prim);
+        let (p, n, ns) = match shape {
+            Shape::Triangle(tri) => {
+                // `build` kept only triangles whose normal `try_unit` accepts.
+                let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
+                (ray.at(hit.t), n, self.shading_normal(shading, n, &hit))
+            }
+            Shape::Sphere(s) => {
+                let p = ray.at(hit.t);
+                let n = try_unit(p - s.center).unwrap_or(-ray.dir);
+                (s.center + n * s.radius, n, n)
+            }
+        };
+        let front = n.dot(ray.dir) <= 0.0;
+        let face = |v: Vec3| if v.dot(ray.dir) > 0.0 { -v } else { v };
+        Hit {
+            t: hit.t,
+            p,
+            n: face(n),
+            ns: face(ns),
+            uv: Vec2::ZERO,
+            coat_ns: Vec3::ZERO,
+            material: shading.material,
+            front,
+        }
+    }
+
+    /// The shading normal of a triangle hit: its interpolated vertex normals, or its
+    /// unit geometric normal `n` (not turned to face the ray).
+    #[inline(always)]
+    pub(super) fn shading_normal(&self, shading: PrimShading, n: Vec3, hit: &PrimHit) -> Vec3 {
+        self.shading_normal_with(shading, n, hit, |v| v)
+    }
+
+    /// [`Scene::shading_normal`] with each vertex normal first moved by `place` (an
+    /// instance's placement; zero marks one without a direction).
+    #[inline(always)]
+    pub(super) fn shading_normal_with(
+        &self,
+        shading: PrimShading,
+        n: Vec3,
+        hit: &PrimHit,
+        place: impl Fn(Vec3) -> Vec3,
+    ) -> Vec3 {
+        match shading.normals {
+            [NO_NORMALS, ..] => n,
+            ids => {
+                let [n0, n1, n2] = ids.map(|i| match place(self.vertex_normals[i as usize]) {
+                    Vec3::ZERO => n,
+                    unit => unit,
+                });
+                let w = 1.0 - hit.u - hit.v;
+                try_unit(n0 * w + n1 * hit.u + n2 * hit.v).unwrap_or(n)
+            }
+        }
+    }
+
+    /// [`Scene::hit_details`] in a textured scene: also the texture coordinates, if
+    /// the primitive is a triangle whose material has maps (the only reader of
+    /// `Hit::uv`), and under a bump or normal map the tilted shading normal (turned to
+    /// face the ray).
+    #[inline(never)]
+    pub(super) fn textured_hit_details(
+        &self,
+        ray: &Ray,
+        packet: u32,
+        lane: usize,
+        hit: PrimHit,
+    ) -> Hit {
+        let mut details = self.hit_details(ray, packet, lane, hit);
+        let packet = &self.packets[packet as usize];
+        let (Some(prim), Some(Shape::Triangle(triangle))) = (packet.prim(lane), packet.shape(lane))
+        else {
+            return details;
+        };
+        let material = details.material;
+        let has_maps = self
+            .materials
+            .get(material.0 as usize)
+            .is_some_and(|m| m.maps.is_some());
+        if !has_maps {
+            return details;
+        }
+        let uv = self.uv_at(prim, hit.u, hit.v);
+        details.uv = uv;
+        // The shading normal before `hit_details` turned it.
+        let n = try_unit(triangle.normal()).unwrap_or(-ray.dir);
+        let ns = self.shading_normal(self.shading.get(prim), n, &hit);
+        // Turned with the normal they perturb, so that a bump cannot turn the shading
+        // normal to the other side at grazing angles.
+        let turn = |v: Vec3| if ns.dot(ray.dir) > 0.0 { -v } else { v };
+        let (bumped, coat) = self.perturbed_normals(prim, &triangle, material, uv, ns);
+        if let Some(bumped) = bumped {
+            details.ns = turn(bumped);
+            // A coat without a normal map of its own lies on the unperturbed surface.
+            details.coat_ns = turn(ns);
+        }
+        if let Some(coat) = coat {
+            details.coat_ns = turn(coat);
+        }
+        details
+    }
+}

@@ -10,9 +10,12 @@
 //! files ([`formats::load`]: OBJ/MTL, PLY, glTF 2.0 or a TOML scene, any of them
 //! gzip-compressed; glTF and TOML files may also set [`options::PartialOptions`]) -> [`SceneDescription`] -> [`Scene`] (with its [`Bvh`])
 //! -> [`render`] (a [`Camera`], a [`PixelSampler`] and an [`Integrator`] chosen once per
-//! render; [`render_tile`] renders part of the image, bit-identical to the whole)
-//! -> linear [`Film`] -> either [`Image`] (post-processing) -> PNG, or the film's
-//! linear values -> OpenEXR ([`output`]).
+//! render, which traces bands of rows as it chooses; [`render_tile`] renders part of
+//! the image, bit-identical to the whole; [`render_outputs`] adds depth, normal,
+//! albedo, alpha and object and material ids ([`Aov`]) in the same pass)
+//! -> linear [`Film`] (with the [`AovPlanes`] asked for: [`Outputs`]) -> either
+//! [`Image`] (post-processing) -> PNG, or the film's linear values -> OpenEXR
+//! ([`output`], the extra outputs as layers).
 //!
 //! # Example
 //!

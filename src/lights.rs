@@ -87,12 +87,16 @@ impl EmitterMaterial {
     /// hit; `None` where the surface is cut out.
     #[inline]
     fn radiance(&self, uv: Vec2) -> Option<Vec3> {
-        if let Some(cutout) = &self.cutout
-            && !cutout.keeps(uv)
-        {
-            return None;
-        }
         let mut radiance = self.emission;
+        if let Some(cutout) = &self.cutout {
+            // A blended emitter is hit by a fraction alpha of the rays meeting it:
+            // its light samples carry that fraction.
+            let coverage = cutout.coverage(uv);
+            if coverage <= 0.0 {
+                return None;
+            }
+            radiance *= coverage;
+        }
         if let Some(map) = &self.map {
             radiance *= map.colour(uv, Encoding::Srgb);
         }
@@ -457,6 +461,7 @@ mod tests {
                 map: None,
                 factor: 0.0,
                 cutoff: 0.5,
+                blend: false,
             }),
             ..MaterialMaps::default()
         }));

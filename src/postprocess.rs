@@ -177,6 +177,37 @@ impl Film {
     }
 }
 
+impl Image {
+    /// This image over the colour `backdrop` (bytes as shown), by the coverage
+    /// `alpha` (one value a pixel, in [0, 1]): `v a + backdrop (1 - a)`, rounded. After
+    /// the tone map, so that the backdrop neither takes part in SPEC's brightest
+    /// channel nor changes the model's pixels.
+    pub fn over_backdrop(&mut self, alpha: &[Float], backdrop: [u8; 3]) {
+        for (rgb, &a) in self.rgb.chunks_exact_mut(3).zip(alpha) {
+            if a >= 1.0 {
+                continue;
+            }
+            for (c, &b) in rgb.iter_mut().zip(&backdrop) {
+                *c = to_byte((Float::from(*c) * a + Float::from(b) * (1.0 - a)) / 255.0);
+            }
+        }
+    }
+}
+
+/// The grey behind a model that full mode lights with its default rig, where no
+/// camera ray hit: path mode's studio backdrop
+/// ([`crate::lights::environment::STUDIO_BACKDROP`]) as path mode's PNG shows it, so
+/// that a black model stands out in both modes.
+pub fn default_backdrop() -> [u8; 3] {
+    let film = Film {
+        width: 1,
+        height: 1,
+        pixels: vec![crate::lights::environment::STUDIO_BACKDROP],
+    };
+    let rgb = film.to_image(Mode::Path).rgb;
+    [rgb[0], rgb[1], rgb[2]]
+}
+
 /// Coverage in [0, 1] as 8-bit alpha, rounded.
 pub fn alpha_bytes(alpha: &[Float]) -> Vec<u8> {
     alpha.iter().map(|&a| to_byte(a)).collect()

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::film::{Aov, AovPlanes, Film, Outputs};
-use crate::integrators::aov::{AovPixel, AovSet, aov_pixel};
+use crate::integrators::aov::{AovPixel, AovSet, aov_band};
 use crate::integrators::{Band, Integrator, ModeIntegrator, TileContext, TraceClock};
 use crate::math::Vec3;
 use crate::options::RenderOptions;
@@ -243,16 +243,11 @@ fn render_with<I: Integrator>(
                 pixels,
             };
             integrator.trace_band(&context, band, &mut rays, &mut clock);
-            let extra = if wanted.any() {
-                (top..top + rows)
-                    .flat_map(|row| {
-                        (tile.x..tile.x + tile.width)
-                            .map(move |column| aov_pixel(&context, column, row, wanted))
-                    })
-                    .collect()
-            } else {
-                Vec::new()
-            };
+            let mut extra = Vec::new();
+            if wanted.any() {
+                let rect = (tile.x, top, tile.width, rows);
+                aov_band(&context, rect, wanted, &mut extra);
+            }
             for row in top..top + rows {
                 row_done(row);
             }

@@ -309,6 +309,17 @@ fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
         stderr,
         "warning: the scene has no lights ('P' or 'Ke'): lit by a default light rig at the camera (--no-default-light turns it off)\n"
     );
+    // The model's pixels: where camera rays missed, the grey backdrop shows (one
+    // sample per pixel: each pixel is the model's or the backdrop's).
+    let grey = raytracer::postprocess::default_backdrop();
+    let backdrop = rgb.chunks(3).filter(|p| *p == grey).count();
+    assert!(backdrop > 1000, "{backdrop} backdrop pixels");
+    let rgb: Vec<u8> = rgb
+        .chunks(3)
+        .filter(|p| *p != grey)
+        .flatten()
+        .copied()
+        .collect();
     // Framed, lit, and red: not a white silhouette. (Added in full, `Ka 1 1 1` made
     // every lit pixel nearly white; as a fraction of the rig's ambient light, the
     // diffuse red shows.)

@@ -160,7 +160,8 @@ fn materials_map_base_colour_metal_roughness_emission_and_the_alpha_mask() {
         // The mask: base colour alpha 0.3 is below the cutoff 0.5 everywhere.
         let cutout = ghost.cutout().unwrap();
         assert_eq!((cutout.factor, cutout.cutoff), (0.3, 0.5));
-        assert!(!cutout.keeps(Vec2::new(0.5, 0.5)));
+        assert!(!cutout.blend);
+        assert!(!cutout.keeps(Vec2::new(0.5, 0.5), 0, 0));
         // Metal: no diffuse, the base colour as specular colour; roughness 0.5 is
         // alpha 0.25, Ns = 2 / alpha^2 - 2 = 30.
         assert_eq!(metal.diffuse, Vec3::ZERO);

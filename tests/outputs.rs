@@ -31,6 +31,60 @@ fn quad_obj(dir: &Path, name: &str, corners: [[Float; 3]; 4], kd: [Float; 3]) ->
     file
 }
 
+/// A 2 x 2 quad facing the camera of [`run_cli`] 4 units away, lit by a point
+/// light at the camera.
+fn front_quad(dir: &Path, name: &str, kd: [Float; 3]) -> String {
+    let corners = [
+        [-1.0, -1.0, -4.0],
+        [1.0, -1.0, -4.0],
+        [1.0, 1.0, -4.0],
+        [-1.0, 1.0, -4.0],
+    ];
+    quad_obj(dir, name, corners, kd)
+}
+
+/// [`front_quad`] without its point light: an unlit model.
+fn unlit_quad_obj(dir: &Path, name: &str, kd: [Float; 3]) -> String {
+    let file = front_quad(dir, name, kd);
+    let path = dir.join(&file);
+    let obj = fs::read_to_string(&path)
+        .unwrap()
+        .replace("P 0 0 0 1 1 1\n", "");
+    fs::write(&path, obj).unwrap();
+    file
+}
+
+/// `raytracer render` of `scene` into `out` at 20x20 from the origin down -z, with
+/// `extra` flags; it must succeed.
+fn run_cli(scene: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "20",
+        "--height",
+        "20",
+        "--look-from",
+        "0,0,0",
+        "--look-to",
+        "0,0,-1",
+    ];
+    args.extend(extra);
+    let run = support::raytracer(&args);
+    assert!(run.status.success(), "{}", support::stderr(&run));
+}
+
+/// The colour type and the bytes of a PNG file, as stored.
+fn read_png(path: &Path) -> (png::ColorType, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    (info.color_type, pixels)
+}
+
 /// A camera at the origin looking down -z with a vertical field of view of 60
 /// degrees, `width` x `height` pixels.
 fn options(width: u32, height: u32, samples_per_pixel: u32) -> RenderOptions {
@@ -248,46 +302,14 @@ fn alpha_is_the_covered_fraction_of_each_pixel() {
 #[test]
 fn a_transparent_background_writes_rgba_png_with_alpha_zero_on_misses() {
     let dir = tempfile::tempdir().unwrap();
-    let file = quad_obj(
-        dir.path(),
-        "q",
-        [
-            [-1.0, -1.0, -4.0],
-            [1.0, -1.0, -4.0],
-            [1.0, 1.0, -4.0],
-            [-1.0, 1.0, -4.0],
-        ],
-        [0.9, 0.1, 0.1],
-    );
+    let file = front_quad(dir.path(), "q", [0.9, 0.1, 0.1]);
     let scene = dir.path().join(file);
     for mode in ["full", "path"] {
         let out = dir.path().join(format!("{mode}.png"));
-        let run = support::raytracer(&[
-            "render",
-            scene.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            "20",
-            "--height",
-            "20",
-            "--look-from",
-            "0,0,0",
-            "--look-to",
-            "0,0,-1",
-            "--mode",
-            mode,
-            "--spp",
-            "4",
-            "--background",
-            "transparent",
-        ]);
-        assert!(run.status.success(), "{}", support::stderr(&run));
-        let decoder = png::Decoder::new(std::io::BufReader::new(fs::File::open(&out).unwrap()));
-        let mut reader = decoder.read_info().unwrap();
-        let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
-        let info = reader.next_frame(&mut pixels).unwrap();
-        assert_eq!(info.color_type, png::ColorType::Rgba, "{mode}");
+        let flags = ["--mode", mode, "--spp", "4", "--background", "transparent"];
+        run_cli(&scene, &out, &flags);
+        let (colour, pixels) = read_png(&out);
+        assert_eq!(colour, png::ColorType::Rgba, "{mode}");
         let at = |x: usize, y: usize| &pixels[(y * 20 + x) * 4..][..4];
         assert_eq!(at(0, 0)[3], 0, "{mode}: a miss is transparent");
         assert_eq!(at(19, 19)[3], 0, "{mode}");
@@ -299,38 +321,15 @@ fn a_transparent_background_writes_rgba_png_with_alpha_zero_on_misses() {
 #[test]
 fn aovs_are_layers_of_one_exr_file_with_their_names() {
     let dir = tempfile::tempdir().unwrap();
-    let file = quad_obj(
-        dir.path(),
-        "q",
-        [
-            [-1.0, -1.0, -4.0],
-            [1.0, -1.0, -4.0],
-            [1.0, 1.0, -4.0],
-            [-1.0, 1.0, -4.0],
-        ],
-        [0.9, 0.1, 0.1],
-    );
+    let file = front_quad(dir.path(), "q", [0.9, 0.1, 0.1]);
     let scene = dir.path().join(file);
     let out = dir.path().join("out.exr");
-    let run = support::raytracer(&[
-        "render",
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--width",
-        "16",
-        "--height",
-        "12",
-        "--look-from",
-        "0,0,0",
-        "--look-to",
-        "0,0,-1",
-        "--aovs",
-        "depth,normal,albedo,alpha,object_id,material_id",
-        "--background",
-        "transparent",
-    ]);
-    assert!(run.status.success(), "{}", support::stderr(&run));
+    let aovs = "depth,normal,albedo,alpha,object_id,material_id";
+    run_cli(
+        &scene,
+        &out,
+        &["--aovs", aovs, "--background", "transparent"],
+    );
     let image = exr::prelude::read_all_flat_layers_from_file(&out).unwrap();
     let layers: Vec<(String, Vec<String>)> = image
         .layer_data
@@ -370,7 +369,7 @@ fn aovs_are_layers_of_one_exr_file_with_their_names() {
         exr::prelude::FlatSamples::F32(v) => v.clone(),
         other => panic!("{other:?}"),
     };
-    let (corner, centre) = (0, 6 * 16 + 8);
+    let (corner, centre) = (0, 10 * 20 + 10);
     let depth = samples(1, 0);
     assert_eq!(depth[corner], f32::INFINITY);
     assert!((depth[centre] - 4.0).abs() < 1e-5, "{}", depth[centre]);
@@ -420,4 +419,62 @@ fn bad_aov_names_and_non_exr_outputs_are_refused_by_name() {
         support::stderr(&outcome)
     );
     assert!(!png.exists() && !out.exists());
+}
+
+/// [`run_cli`] at 4 samples per pixel, with `extra` flags: the PNG's bytes, as RGBA.
+fn render_png(scene: &Path, out: &Path, extra: &[&str]) -> Vec<u8> {
+    run_cli(scene, out, &[&["--spp", "4"], extra].concat());
+    let (colour, pixels) = read_png(out);
+    match colour {
+        png::ColorType::Rgba => pixels,
+        _ => pixels
+            .chunks(3)
+            .flat_map(|p| [p[0], p[1], p[2], 255])
+            .collect(),
+    }
+}
+
+/// Full mode's default light rig shows the studio's grey backdrop where camera rays
+/// miss, composited after SPEC's tone map: a black model stands out, and its
+/// pixels are those it has without a backdrop (a transparent render's colour). A
+/// scene with a light of its own keeps black misses.
+#[test]
+fn an_unlit_model_in_full_mode_stands_out_against_a_grey_backdrop() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir
+        .path()
+        .join(unlit_quad_obj(dir.path(), "black", [0.0, 0.0, 0.0]));
+    let out = dir.path().join("out.png");
+    let grey = raytracer::postprocess::default_backdrop();
+    assert!(grey.iter().all(|&c| (60..200).contains(&c)), "{grey:?}");
+    let backdrop = render_png(&scene, &out, &[]);
+    let transparent = render_png(&scene, &out, &["--background", "transparent"]);
+    let at = |pixels: &[u8], x: usize, y: usize| -> [u8; 4] {
+        pixels[(y * 20 + x) * 4..][..4].try_into().unwrap()
+    };
+    assert_eq!(at(&backdrop, 0, 0), [grey[0], grey[1], grey[2], 255]);
+    assert_eq!(at(&backdrop, 10, 10), [0, 0, 0, 255], "the model is black");
+    let (mut covered, mut edges) = (0, 0);
+    for y in 0..20 {
+        for x in 0..20 {
+            let (b, t) = (at(&backdrop, x, y), at(&transparent, x, y));
+            match t[3] {
+                255 => {
+                    assert_eq!(b, t, "({x}, {y}): the model's pixels are its own");
+                    covered += 1;
+                }
+                0 => assert_eq!(b, [grey[0], grey[1], grey[2], 255], "({x}, {y})"),
+                _ => edges += 1,
+            }
+        }
+    }
+    assert!(
+        covered > 10 && edges > 4,
+        "{covered} covered, {edges} on edges"
+    );
+    // With a light of its own, the scene is SPEC's: misses stay black.
+    let lit = dir
+        .path()
+        .join(front_quad(dir.path(), "lit", [0.0, 0.0, 0.0]));
+    assert_eq!(at(&render_png(&lit, &out, &[]), 0, 0), [0, 0, 0, 255]);
 }

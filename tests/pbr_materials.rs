@@ -198,6 +198,29 @@ fn gltf_core_factors_and_the_metallic_roughness_texture_channels() {
     assert!(close3(n, want), "{n} vs {want}");
 }
 
+/// `alphaMode: BLEND` is stochastic transparency (`Cutout::blend`) with the base
+/// colour's alpha, without a warning; `MASK` stays a cutout at `alphaCutoff`.
+#[test]
+fn blend_is_stochastic_transparency_and_mask_a_cutout() {
+    let fixture = Fixture::new();
+    let loaded = fixture.load(
+        &[
+            r#"{"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}}"#,
+            r#"{"alphaMode": "MASK", "alphaCutoff": 0.2, "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3]}}"#,
+        ],
+        "",
+    );
+    assert_eq!(fixture.warnings(&loaded), Vec::<String>::new());
+    let m = &loaded.description.materials;
+    let blend = m[0].cutout().unwrap();
+    assert!(blend.blend);
+    assert!(close(blend.coverage(TOP_LEFT), 0.3));
+    let mask = m[1].cutout().unwrap();
+    assert!(!mask.blend);
+    assert_eq!(mask.cutoff, 0.2);
+    assert_eq!(mask.coverage(TOP_LEFT), 1.0);
+}
+
 #[test]
 fn gltf_extensions_land_in_the_material() {
     let fixture = Fixture::new();
@@ -568,6 +591,7 @@ clearcoat = 0.4
 clearcoat_roughness = 0.2
 sheen_color = [0.1, 0.2, 0.3]
 sheen_roughness = 0.6
+multiple_scattering = true
 emission = [1, 0.5, 0]
 emission_strength = 4
 
@@ -607,6 +631,7 @@ Kd = 0.5
     assert_eq!((e.clearcoat, e.clearcoat_roughness), (0.4, 0.2));
     assert_eq!(e.sheen_color, Vec3::new(0.1, 0.2, 0.3));
     assert_eq!(e.sheen_roughness, 0.6);
+    assert!(e.multiple_scattering && !plastic.multiple_scattering);
     assert_eq!(m[1].emission, Vec3::new(4.0, 2.0, 0.0));
 
     // Ke and Ni stand for emission and ior; Kd and Ks are ignored.

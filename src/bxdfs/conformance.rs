@@ -97,6 +97,28 @@ fn subjects() -> Vec<(&'static str, Box<dyn Lobe>, bool)> {
             true,
         ),
         (
+            "gltf rough metal, multiple scattering",
+            Box::new(gltf(PbrMaterial {
+                base_color: Vec3::new(1.0, 0.78, 0.34),
+                metallic: 1.0,
+                roughness: 0.8,
+                multiple_scattering: true,
+                ..PbrMaterial::default()
+            })),
+            false,
+        ),
+        (
+            "gltf white plastic and coat, multiple scattering",
+            Box::new(gltf(PbrMaterial {
+                base_color: Vec3::ONE,
+                clearcoat: 0.5,
+                clearcoat_roughness: 0.7,
+                multiple_scattering: true,
+                ..dielectric(0.9)
+            })),
+            false,
+        ),
+        (
             "gltf specular tinted",
             Box::new(gltf(PbrMaterial {
                 specular: 0.7,

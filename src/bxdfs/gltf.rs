@@ -24,6 +24,13 @@
 //! integrator applies over the distance travelled inside. A roughness under
 //! `sqrt(DELTA_ALPHA)` makes a lobe a delta (a mirror, a smooth pane), never a NaN.
 //!
+//! Optionally (`multiple_scattering`, off by default), the GGX reflection lobes
+//! (metal, dielectric specular, coat) are scaled by Turquin's multiple-scattering
+//! compensation `1 + F0 (1 - E(|N.V|)) / E(|N.V|)`, `E` the white lobe's directional
+//! albedo ([`microfacet::albedo`]), `F0` the lobe's reflectance head on: a rough
+//! white metal then reflects everything it receives. The factor depends on `wo`
+//! alone, so the compensated lobes are not reciprocal.
+//!
 //! One lobe is picked by its estimated albedo at `wo`; the density of a direction is
 //! the mixture of every non-delta lobe's, so that each sample is weighted against
 //! all the ways it could have been drawn.
@@ -32,7 +39,7 @@ use std::f32::consts::FRAC_1_PI;
 
 use super::fresnel::{schlick_scalar, schlick_weight};
 use super::lambert::cosine_hemisphere;
-use super::microfacet::{Ggx, reflection_pdf};
+use super::microfacet::{self, Ggx, reflection_pdf};
 use super::sheen::{self, Sheen};
 use super::{Frame, Lobe, LocalSample};
 use crate::material::pbr::PbrValues;
@@ -60,6 +67,8 @@ pub struct GltfBsdf {
     sheen_roughness: Float,
     /// Whether the sheen is not black.
     sheened: bool,
+    /// Whether the GGX reflection lobes are compensated for multiple scattering.
+    multiple_scattering: bool,
 }
 
 /// The lobes, in the order of [`GltfAt::p`].
@@ -87,6 +96,7 @@ impl GltfBsdf {
             sheen: Sheen::new(values.sheen_color, values.sheen_roughness),
             sheen_roughness: values.sheen_roughness,
             sheened: values.sheen_color.max_element() > 0.0,
+            multiple_scattering: values.multiple_scattering,
         }
     }
 
@@ -127,6 +137,7 @@ impl GltfBsdf {
             coat: 0.0,
             coat_frame,
             sheen_albedo: 0.0,
+            compensation: Compensation::NONE,
         };
         if wo.z <= 0.0 {
             return at;
@@ -134,6 +145,15 @@ impl GltfBsdf {
         if self.clearcoat > 0.0 {
             let cos = at.in_coat(wo).z.max(0.0);
             at.coat = self.clearcoat * schlick_scalar(CLEARCOAT_F0, cos);
+        }
+        if self.multiple_scattering {
+            let e = microfacet::albedo(wo.z, self.ggx.alpha);
+            let e_coat = microfacet::albedo(at.in_coat(wo).z.max(0.0), self.coat.alpha);
+            at.compensation = Compensation {
+                dielectric: microfacet::compensation(self.f0, e),
+                metal: microfacet::compensation(self.base.min(Vec3::ONE), e),
+                coat: microfacet::compensation(Vec3::splat(CLEARCOAT_F0), e_coat).x,
+            };
         }
         if self.sheened {
             at.sheen_albedo = sheen::albedo(wo.z, self.sheen_roughness);
@@ -148,9 +168,10 @@ impl GltfBsdf {
         if front { self.ior } else { 1.0 / self.ior }
     }
 
-    /// The metal and dielectric reflection under the sheen and the coat.
+    /// The metal and dielectric reflection under the sheen and the coat, their
+    /// specular lobes scaled by `compensation`.
     #[inline]
-    fn reflection(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+    fn reflection(&self, wo: Vec3, wi: Vec3, compensation: &Compensation) -> Vec3 {
         let h = (wo + wi).normalize();
         let w = schlick_weight(wo.dot(h));
         let specular = if self.ggx.is_delta() {
@@ -161,8 +182,8 @@ impl GltfBsdf {
         let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * w;
         let diffuse =
             self.base * ((1.0 - fd.max_element()) * (1.0 - self.transmission) * FRAC_1_PI);
-        let dielectric = fd * specular + diffuse;
-        let metal = (self.base + (Vec3::ONE - self.base) * w) * specular;
+        let dielectric = fd * compensation.dielectric * specular + diffuse;
+        let metal = (self.base + (Vec3::ONE - self.base) * w) * compensation.metal * specular;
         dielectric.lerp(metal, self.metallic)
     }
 
@@ -226,6 +247,25 @@ pub struct GltfAt<'a> {
     coat_frame: Option<Frame>,
     /// The white sheen's directional albedo at `wo` (0 without sheen).
     sheen_albedo: Float,
+    /// What the GGX reflection lobes are scaled by at `wo`.
+    compensation: Compensation,
+}
+
+/// Multiple-scattering compensation factors of the GGX reflection lobes at one `wo`
+/// ([`microfacet::compensation`]); 1 when it is off.
+#[derive(Clone, Copy, Debug)]
+struct Compensation {
+    dielectric: Vec3,
+    metal: Vec3,
+    coat: Float,
+}
+
+impl Compensation {
+    const NONE: Compensation = Compensation {
+        dielectric: Vec3::ONE,
+        metal: Vec3::ONE,
+        coat: 1.0,
+    };
 }
 
 impl GltfAt<'_> {
@@ -302,7 +342,7 @@ impl GltfAt<'_> {
             return Vec3::ZERO;
         }
         let base_layer = if wi.z > 0.0 {
-            g.reflection(wo, wi)
+            g.reflection(wo, wi, &self.compensation)
         } else if g.transmission > 0.0 && g.metallic < 1.0 && !g.ggx.is_delta() {
             g.transmitted(wo, wi, self.front)
         } else {
@@ -318,7 +358,8 @@ impl GltfAt<'_> {
                 let (o, i) = (self.in_coat(wo), self.in_coat(wi));
                 if o.z > 0.0 && i.z > 0.0 {
                     let h = (o + i).normalize();
-                    f += Vec3::splat(self.coat * g.coat.d(h) * g.coat.visibility(o, i));
+                    let coat = self.coat * self.compensation.coat;
+                    f += Vec3::splat(coat * g.coat.d(h) * g.coat.visibility(o, i));
                 }
             }
         }

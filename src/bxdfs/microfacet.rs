@@ -8,6 +8,7 @@
 //! ([`super::gltf`]).
 
 use std::f32::consts::PI;
+use std::sync::OnceLock;
 
 use super::{Lobe, LocalSample};
 use crate::math::{Float, Vec2, Vec3, sin_cos};
@@ -139,6 +140,76 @@ impl Ggx {
     }
 }
 
+/// Cosines of the albedo table, from 0 to 1.
+const ALBEDO_COSINES: usize = 32;
+/// `alpha`s of the albedo table, from 0 to 1.
+const ALBEDO_ALPHAS: usize = 32;
+
+/// The directional albedo `E(cos) = integral D V |n.wi| dwi` of the white reflection
+/// lobe ([`GgxReflection`]: no Fresnel) of `alpha`, for `cos = n.wo`: bilinear in a
+/// table made once by [`quadrature_albedo`]. What single scattering loses,
+/// `1 - E`, is what multiple-scattering compensation puts back.
+pub fn albedo(cos: Float, alpha: Float) -> Float {
+    static TABLE: OnceLock<Vec<Float>> = OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        let mut table = Vec::with_capacity(ALBEDO_COSINES * ALBEDO_ALPHAS);
+        for a in 0..ALBEDO_ALPHAS {
+            let alpha = (a as Float / (ALBEDO_ALPHAS - 1) as Float).max(DELTA_ALPHA);
+            for c in 0..ALBEDO_COSINES {
+                let cos = (c as Float / (ALBEDO_COSINES - 1) as Float).max(1e-3);
+                table.push(quadrature_albedo(cos, alpha));
+            }
+        }
+        table
+    });
+    let x = cos.clamp(0.0, 1.0) * (ALBEDO_COSINES - 1) as Float;
+    let y = alpha.clamp(0.0, 1.0) * (ALBEDO_ALPHAS - 1) as Float;
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = (
+        (x0 + 1).min(ALBEDO_COSINES - 1),
+        (y0 + 1).min(ALBEDO_ALPHAS - 1),
+    );
+    let (fx, fy) = (x - x0 as Float, y - y0 as Float);
+    let at = |x: usize, y: usize| table[y * ALBEDO_COSINES + x];
+    let top = at(x0, y0) + (at(x1, y0) - at(x0, y0)) * fx;
+    let bottom = at(x0, y1) + (at(x1, y1) - at(x0, y1)) * fx;
+    top + (bottom - top) * fy
+}
+
+/// `E(cos)` of [`albedo`] by a stratified quadrature over the visible normals: with
+/// `h` drawn from [`Ggx::sample_visible`], `D V |n.wi| / pdf = G2(wo, wi) / G1(wo)`
+/// (the pdf cancels all but the masking), averaged over a 48 x 48 grid of midpoints.
+pub fn quadrature_albedo(cos: Float, alpha: Float) -> Float {
+    let ggx = Ggx { alpha };
+    let wo = Vec3::new((1.0 - cos * cos).max(0.0).sqrt(), 0.0, cos);
+    let n = 48;
+    let g1 = ggx.g1(wo) as f64;
+    let mut sum = 0.0f64;
+    for i in 0..n {
+        for j in 0..n {
+            let u = Vec2::new(
+                (i as Float + 0.5) / n as Float,
+                (j as Float + 0.5) / n as Float,
+            );
+            let wi = crate::math::reflect(-wo, ggx.sample_visible(wo, u));
+            if wi.z > 0.0 {
+                sum += ggx.g2(wo, wi) as f64 / g1;
+            }
+        }
+    }
+    (sum / (n * n) as f64) as Float
+}
+
+/// Turquin's (2019) multiple-scattering compensation of a GGX lobe whose
+/// single-scattering directional albedo (white) at `wo` is `e`: the lobe times
+/// `1 + f0 (1 - e) / e`, so that a white conductor (`f0` 1) reflects all it
+/// receives, at any roughness; `f0` tints what the extra bounces add.
+#[inline]
+pub fn compensation(f0: Vec3, e: Float) -> Vec3 {
+    let e = e.max(1e-3);
+    Vec3::ONE + f0 * ((1.0 - e) / e)
+}
+
 /// The reflection lobe `D V` of a GGX surface (white, no Fresnel).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GgxReflection {
@@ -191,6 +262,43 @@ pub fn reflection_pdf(ggx: &Ggx, wo: Vec3, h: Vec3) -> Float {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The albedo table agrees with a midpoint quadrature of `D V cos` over the
+    /// hemisphere (the lobe's `eval`, not its sampling), between its nodes too.
+    #[test]
+    fn the_albedo_table_is_the_lobes_directional_albedo() {
+        let mut worst: (f64, Float, Float) = (0.0, 0.0, 0.0);
+        for alpha in [0.1, 0.27, 0.5, 0.81, 1.0] {
+            let lobe = GgxReflection { ggx: Ggx { alpha } };
+            for cos in [0.15 as Float, 0.33, 0.7, 1.0] {
+                let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+                // Uniform in cos^2 and azimuth: the cosine-weighted measure, total pi.
+                let (n_t, n_phi) = (600, 300);
+                let mut sum = 0.0f64;
+                for i in 0..n_t {
+                    let t = (i as Float + 0.5) / n_t as Float;
+                    let (z, r) = (t.sqrt(), (1.0 - t).sqrt());
+                    for j in 0..n_phi {
+                        let phi = 2.0 * PI * (j as Float + 0.5) / n_phi as Float;
+                        let wi = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                        sum += lobe.eval(wo, wi).x as f64;
+                    }
+                }
+                let quadrature = sum * std::f64::consts::PI / (n_t * n_phi) as f64;
+                let error = (albedo(cos, alpha) as f64 - quadrature).abs();
+                if error > worst.0 {
+                    worst = (error, alpha, cos);
+                }
+            }
+        }
+        assert!(
+            worst.0 < 0.01,
+            "error {} at alpha {}, cos {}",
+            worst.0,
+            worst.1,
+            worst.2
+        );
+    }
 
     /// `D` is normalized: the projected area of the microfacets is the macro
     /// surface's, `integral D(h) (n.h) dh = 1`, by a midpoint quadrature.

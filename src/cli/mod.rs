@@ -62,6 +62,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// of the file. An unlit scene gets the default lighting
 /// ([`formats::LoadedScene::resolve`]).
 fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
+    load_scene_noting_rig(view).map(|(description, options, _)| (description, options))
+}
+
+/// [`load_scene`], also telling whether full mode's default light rig lights the
+/// scene (it had no light of its own): its misses then show a grey backdrop.
+fn load_scene_noting_rig(
+    view: &ViewArgs,
+) -> anyhow::Result<(SceneDescription, RenderOptions, bool)> {
     let flags = view.options();
     // OBJ and PLY files set no options, so the flags can be checked before a long
     // load; a TOML or glTF file's values (a glTF camera) must be merged first.
@@ -73,7 +81,11 @@ fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOption
     }
     let mut loaded = formats::load(&view.scene)?;
     environment_flags(view, &mut loaded.description)?;
-    Ok(loaded.resolve(flags)?)
+    let unlit = loaded.description.is_unlit();
+    let (description, options) = loaded.resolve(flags)?;
+    // As `SceneDescription::add_default_light` decides in full mode.
+    let rig = unlit && options.mode == raytracer::Mode::Full && options.default_light;
+    Ok((description, options, rig))
 }
 
 /// Sets the environment `--env` names (a file or a colour), and applies

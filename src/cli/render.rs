@@ -3,7 +3,9 @@
 use std::time::Duration;
 
 use raytracer::integrators::path::material_warnings;
-use raytracer::postprocess::{Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD, alpha_bytes};
+use raytracer::postprocess::{
+    Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD, alpha_bytes, default_backdrop,
+};
 use raytracer::stats::{Mark, RayCounts, Usage, peak_memory_bytes};
 use raytracer::{
     Aov, BvhParams, ImageFormat, Mode, Outputs, RenderOptions, Scene, output,
@@ -50,7 +52,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
 
     let start = Mark::now();
     let loading = Progress::start("loading the scene", None, !quiet);
-    let (description, options) = super::load_scene(&args.view)?;
+    let (description, options, rig) = super::load_scene_noting_rig(&args.view)?;
     let options = &options;
     let parsed = Mark::now();
     let params = BvhParams::default();
@@ -79,6 +81,12 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         samples_per_row,
         !quiet,
     );
+    // Full mode's default rig shows a grey backdrop where camera rays miss, in the PNG
+    // (not behind an empty scene, which stays black): the coverage says where.
+    let backdrop = rig && !transparent && format == ImageFormat::Png && scene.prim_count() > 0;
+    if backdrop && !wanted.contains(&Aov::Alpha) {
+        wanted.push(Aov::Alpha);
+    }
     // Timing the tracing apart reads the clock a few times per tile: only when asked.
     let (outputs, rays, times) = render_outputs_with_stats(
         &scene,
@@ -93,10 +101,13 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         aovs: mut planes,
     } = outputs;
     // The coverage as alpha, out of the extra outputs unless asked for as one.
-    let alpha = match (transparent, aovs.contains(&Aov::Alpha)) {
-        (false, _) => None,
-        (true, true) => planes.alpha.clone(),
-        (true, false) => planes.alpha.take(),
+    let coverage = match aovs.contains(&Aov::Alpha) {
+        true => planes.alpha.clone(),
+        false => planes.alpha.take(),
+    };
+    let (alpha, backdrop) = match transparent {
+        true => (coverage, None),
+        false => (None, coverage.filter(|_| backdrop)),
     };
     let film = match (args.denoise, options.mode) {
         (true, Mode::Path) => film.denoised()?,
@@ -114,10 +125,13 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let (processed, encoded) = match format {
         ImageFormat::Png => {
             // PNG keeps colour and alpha apart: the colour of what was hit.
-            let image = match &alpha {
+            let mut image = match &alpha {
                 Some(alpha) => film.unpremultiplied(alpha).to_image(options),
                 None => film.to_image(options),
             };
+            if let Some(coverage) = &backdrop {
+                image.over_backdrop(coverage, default_backdrop());
+            }
             let processed = Mark::now();
             if scene.prim_count() > 0 && alpha.is_none() {
                 warn_if_nearly_black(&image, options, &warn);

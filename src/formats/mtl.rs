@@ -353,6 +353,7 @@ fn load_maps(
                     map: Some(texture_map),
                     factor: 1.0,
                     cutoff: 0.5,
+                    blend: false,
                 });
                 continue;
             }

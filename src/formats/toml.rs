@@ -361,6 +361,7 @@ struct MaterialTable {
     clearcoat_roughness: Option<Float>,
     sheen_color: Option<Splat>,
     sheen_roughness: Option<Float>,
+    multiple_scattering: Option<bool>,
     #[serde(rename = "emission")]
     emission_colour: Option<Splat>,
     emission_strength: Option<Float>,
@@ -1119,6 +1120,7 @@ fn physically_based(
             .unwrap_or(defaults.clearcoat_roughness),
         sheen_color: colour(p.sheen_color, defaults.sheen_color),
         sheen_roughness: p.sheen_roughness.unwrap_or(defaults.sheen_roughness),
+        multiple_scattering: p.multiple_scattering.unwrap_or(false),
     };
     let phong_keys = [
         ("Ka", table.ambient.is_some()),
@@ -1413,7 +1415,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[materials.m]\nTr = 0.5\n",
-                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`, `base_color`, `metallic`, `roughness`, `ior`, `specular`, `specular_color`, `transmission`, `thickness`, `attenuation_color`, `attenuation_distance`, `clearcoat`, `clearcoat_roughness`, `sheen_color`, `sheen_roughness`, `emission`, `emission_strength`",
+                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`, `base_color`, `metallic`, `roughness`, `ior`, `specular`, `specular_color`, `transmission`, `thickness`, `attenuation_color`, `attenuation_distance`, `clearcoat`, `clearcoat_roughness`, `sheen_color`, `sheen_roughness`, `multiple_scattering`, `emission`, `emission_strength`",
             ),
             (
                 "[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n",

@@ -78,7 +78,8 @@ pub struct MaterialMaps {
 }
 
 /// Where a surface is cut out: rays pass through it where its alpha is below
-/// `cutoff`.
+/// `cutoff`, or, for a blended surface (glTF's `alphaMode: BLEND`), a fraction
+/// `1 - alpha` of the rays that meet it pass, as stochastic transparency.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cutout {
     /// The alpha map (`map_d`, or glTF's base colour texture's alpha); none means
@@ -86,20 +87,85 @@ pub struct Cutout {
     pub map: Option<TextureMap>,
     /// Multiplies the map's alpha (glTF's base colour factor's alpha; 1 for MTL).
     pub factor: Float,
-    /// Alpha below this is cut out: 0.5 for MTL, glTF's `alphaCutoff`.
+    /// Alpha below this is cut out: 0.5 for MTL, glTF's `alphaCutoff`. Not read when
+    /// `blend`.
     pub cutoff: Float,
+    /// Blended (glTF's `BLEND`): the surface stops a ray with probability alpha,
+    /// decided by [`Cutout::ray_key`] and the primitive, so that the same ray
+    /// meeting the same triangle decides the same way in every query (closest hit,
+    /// shadow ray, full and path mode alike) and different rays decide independently.
+    pub blend: bool,
 }
 
 impl Cutout {
-    /// Whether the surface is there at texture coordinates `uv`.
+    /// The alpha at texture coordinates `uv`.
     #[inline]
-    pub fn keeps(&self, uv: Vec2) -> bool {
-        let alpha = match &self.map {
+    pub fn alpha(&self, uv: Vec2) -> Float {
+        match &self.map {
             Some(map) => self.factor * map.scalar(uv, true),
             None => self.factor,
-        };
-        alpha >= self.cutoff
+        }
     }
+
+    /// Whether the surface is there at texture coordinates `uv` for a ray of key
+    /// `ray` ([`Cutout::ray_key`]) meeting primitive `prim` (only a blended surface
+    /// reads them).
+    #[inline]
+    pub fn keeps(&self, uv: Vec2, ray: u64, prim: u32) -> bool {
+        let alpha = self.alpha(uv);
+        if self.blend {
+            Cutout::uniform(ray, prim) < alpha
+        } else {
+            alpha >= self.cutoff
+        }
+    }
+
+    /// The part of the surface at `uv` that is there, on average over rays: alpha
+    /// for a blended surface, 0 or 1 for a cut out one (what an emitter's light
+    /// sample is weighted by).
+    #[inline]
+    pub fn coverage(&self, uv: Vec2) -> Float {
+        let alpha = self.alpha(uv);
+        if self.blend {
+            alpha.clamp(0.0, 1.0)
+        } else if alpha >= self.cutoff {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// A key hashed from the bits of a ray's origin and direction, computed once per
+    /// query: a blended surface's decisions are a deterministic function of the ray,
+    /// with no random number to thread through traversal.
+    #[inline]
+    pub fn ray_key(origin: Vec3, dir: Vec3) -> u64 {
+        let words = [
+            origin.x.to_bits() as u64 | (origin.y.to_bits() as u64) << 32,
+            origin.z.to_bits() as u64 | (dir.x.to_bits() as u64) << 32,
+            dir.y.to_bits() as u64 | (dir.z.to_bits() as u64) << 32,
+        ];
+        words
+            .iter()
+            .fold(0x9E37_79B9_7F4A_7C15, |h, &w| mix64(h ^ w))
+    }
+
+    /// A number in [0, 1) for the ray of key `ray` meeting primitive `prim`,
+    /// uniformly distributed over rays.
+    #[inline]
+    pub fn uniform(ray: u64, prim: u32) -> Float {
+        let h = mix64(ray ^ (prim as u64 + 1).wrapping_mul(0xD6E8_FEB8_6659_FD93));
+        (h >> 40) as Float * (1.0 / (1u64 << 24) as Float)
+    }
+}
+
+/// The finaliser of SplitMix64 (Steele et al. 2014): every input bit flips each
+/// output bit with probability about one half.
+#[inline]
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
 }
 
 /// A material's colours at one point of a surface: its constants, times its maps

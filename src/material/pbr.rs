@@ -46,6 +46,10 @@ pub struct PbrMaterial {
     pub sheen_color: Vec3,
     /// `KHR_materials_sheen` `sheenRoughnessFactor` (0).
     pub sheen_roughness: Float,
+    /// Multiple-scattering energy compensation of the GGX reflection lobes (TOML's
+    /// `multiple_scattering`; off, as glTF's single-scattering model is defined):
+    /// Turquin's (2019) scaling, so that a rough white metal loses no energy.
+    pub multiple_scattering: bool,
 }
 
 impl Default for PbrMaterial {
@@ -65,6 +69,7 @@ impl Default for PbrMaterial {
             clearcoat_roughness: 0.0,
             sheen_color: Vec3::ZERO,
             sheen_roughness: 0.0,
+            multiple_scattering: false,
         }
     }
 }
@@ -138,6 +143,8 @@ pub struct PbrValues {
     pub sheen_color: Vec3,
     /// Sheen perceptual roughness.
     pub sheen_roughness: Float,
+    /// Multiple-scattering compensation ([`PbrMaterial::multiple_scattering`]).
+    pub multiple_scattering: bool,
 }
 
 impl PbrMaterial {
@@ -169,6 +176,7 @@ impl PbrMaterial {
             clearcoat_roughness: self.clearcoat_roughness.clamp(0.0, 1.0),
             sheen_color: colour(self.sheen_color),
             sheen_roughness: self.sheen_roughness.clamp(0.0, 1.0),
+            multiple_scattering: self.multiple_scattering,
         }
     }
 }

@@ -25,7 +25,7 @@ use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::environment::Environment;
 use crate::lights::{AreaLights, AreaLightsBuilder};
-use crate::material::{Light, Material, MaterialId};
+use crate::material::{Cutout, Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};

@@ -6,6 +6,7 @@
 use super::{Hit, Scene};
 use crate::description::ObjectDesc;
 use crate::math::Ray;
+use crate::shapes::PrimHit;
 
 /// The objects of a scene, in the description's order, with where each begins.
 #[derive(Clone, Debug, Default)]
@@ -83,7 +84,17 @@ impl Scene {
 
     /// [`Scene::intersect`]'s hit, with the id of the object hit.
     pub fn intersect_object(&self, ray: &Ray) -> Option<(Hit, u32)> {
-        let (packet, lane, found) = self.closest_lane(ray)?;
+        self.closest_lane(ray)
+            .and_then(|found| self.object_hit(ray, found))
+    }
+
+    /// The hit of `ray` on the primitive in `lane` of `packet`, as
+    /// [`Scene::intersect`] details it, with its object.
+    fn object_hit(
+        &self,
+        ray: &Ray,
+        (packet, lane, found): (u32, usize, PrimHit),
+    ) -> Option<(Hit, u32)> {
         let prim = self.packets[packet as usize].prim(lane)?;
         let hit = if self.prim_texcoords.is_empty() {
             self.hit_details(ray, packet, lane, found)
@@ -91,6 +102,20 @@ impl Scene {
             self.textured_hit_details(ray, packet, lane, found)
         };
         Some((hit, self.objects.of_source(self.source_index(prim))))
+    }
+
+    /// [`Scene::intersect_object`] of each of `rays` (at most
+    /// [`crate::bvh::PACKET_SIZE`], coherent: a tile of camera rays) into `hits`,
+    /// traced as one packet ([`Scene::intersect_packet`]), bit for bit the same.
+    ///
+    /// # Panics
+    /// If `rays` is empty, longer than a packet, or not as long as `hits`.
+    pub fn intersect_object_packet(&self, rays: &[Ray], hits: &mut [Option<(Hit, u32)>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        let found = self.closest_lanes_packet(rays);
+        for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
+            *hit = found.and_then(|found| self.object_hit(ray, found));
+        }
     }
 }
 

@@ -191,6 +191,7 @@ impl Scene {
     ) -> Option<(u32, usize, PrimHit)> {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
+        let key = Cutout::ray_key(ray.origin, ray.dir);
         let mut closest = None;
         let mut t_max = t_max;
         self.wide
@@ -200,7 +201,7 @@ impl Scene {
                     let found = if packet.holds_spheres() {
                         packet.intersect_any_kind(&lanes, *t_max)
                     } else {
-                        self.nearest_kept_lane(packet, &lanes, *t_max)
+                        self.nearest_kept_lane(packet, &lanes, *t_max, key)
                     };
                     if let Some((lane, hit)) = found {
                         *t_max = hit.t;
@@ -220,6 +221,7 @@ impl Scene {
         packet: &TrianglePacket,
         lanes: &PacketRay,
         t_max: Float,
+        key: u64,
     ) -> Option<(usize, PrimHit)> {
         let (mut mask, t, u, v) = packet.hits(lanes, t_max);
         while let Some(best) = nearest_in_mask(mask, &t) {
@@ -229,7 +231,7 @@ impl Scene {
                 v: v[best],
             };
             match packet.prim(best) {
-                Some(prim) if self.keeps(prim, hit.u, hit.v) => return Some((best, hit)),
+                Some(prim) if self.keeps(prim, hit.u, hit.v, key) => return Some((best, hit)),
                 _ => mask &= !(1 << best),
             }
         }
@@ -303,6 +305,7 @@ impl Scene {
     pub(super) fn occluded_with_cutouts(&self, ray: &Ray, t_max: Float) -> bool {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
+        let key = Cutout::ray_key(ray.origin, ray.dir);
         let mut t_max = t_max;
         self.wide
             .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
@@ -318,7 +321,7 @@ impl Scene {
                             mask &= mask - 1;
                             if packet
                                 .prim(lane)
-                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane]))
+                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane], key))
                             {
                                 return true;
                             }
@@ -331,6 +334,7 @@ impl Scene {
     /// The closest hit by testing every primitive with the scalar kernels: the slow
     /// reference for tests.
     pub fn intersect_linear(&self, ray: &Ray) -> Option<Hit> {
+        let key = Cutout::ray_key(ray.origin, ray.dir);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
         for (index, packet) in self.packets.iter().enumerate() {
@@ -342,7 +346,7 @@ impl Scene {
                     && (matches!(shape, Shape::Sphere(_))
                         || packet
                             .prim(lane)
-                            .is_some_and(|p| self.keeps(p, hit.u, hit.v)))
+                            .is_some_and(|p| self.keeps(p, hit.u, hit.v, key)))
                 {
                     t_max = hit.t;
                     closest = Some((index as u32, lane, hit));

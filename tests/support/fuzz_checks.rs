@@ -201,7 +201,8 @@ fn check_maps(m: &Material) {
             assert!((n.length() - 1.0).abs() < 1e-3, "{m:?} at {uv}: normal {n}");
         }
         if let Some(cutout) = m.cutout() {
-            cutout.keeps(uv);
+            cutout.keeps(uv, 0, 0);
+            assert!((0.0..=1.0).contains(&cutout.coverage(uv)), "{m:?} at {uv}");
         }
     }
 }

@@ -133,11 +133,6 @@ impl MaterialContext<'_, '_> {
         self.reader.problems.note(kind, &self.name);
     }
 
-    /// A warning given once per file.
-    pub(super) fn warn_once(&mut self, kind: &'static str, message: String) {
-        self.reader.warn_once(kind, message);
-    }
-
     /// Number `key` of `object`, `default` when absent; one that is not a number is
     /// noted and read as `default`.
     pub(super) fn number(&mut self, object: &Value, key: &str, default: Float) -> Float {
@@ -254,25 +249,17 @@ impl MaterialContext<'_, '_> {
     }
 
     /// `alphaMode` and `alphaCutoff`: MASK cuts the surface out where alpha is below
-    /// the cutoff; BLEND is approximated by a cutout at 0.5 (one warning).
+    /// the cutoff; BLEND lets a fraction `1 - alpha` of the rays through
+    /// (stochastic transparency, [`Cutout::blend`]).
     fn alpha_mode(&mut self, json: &Value) {
         let mode = json
             .get("alphaMode")
             .and_then(Value::as_str)
             .unwrap_or("OPAQUE");
-        let cutoff = match mode {
+        let (cutoff, blend) = match mode {
             "OPAQUE" => return,
-            "MASK" => self.number(json, "alphaCutoff", 0.5),
-            "BLEND" => {
-                self.warn_once(
-                    "blend",
-                    format!(
-                        "material {}: alpha blending is approximated by a cutout at alpha 0.5",
-                        self.index
-                    ),
-                );
-                0.5
-            }
+            "MASK" => (self.number(json, "alphaCutoff", 0.5), false),
+            "BLEND" => (0.5, true),
             other => {
                 self.note(format!("unknown alphaMode '{other}', read as OPAQUE"));
                 return;
@@ -286,6 +273,7 @@ impl MaterialContext<'_, '_> {
             map,
             factor: self.alpha,
             cutoff,
+            blend,
         });
     }
 }

@@ -436,6 +436,30 @@ mod tests {
         }
     }
 
+    /// OpenCV's intrinsics: the ray through pixel (u, v)'s centre has the camera-space
+    /// direction ((u - cx)/fx, -(v - cy)/fy, -1) in the renderer's axes (y up, looking
+    /// down -z), and intrinsics matching the field of view give its rays.
+    #[test]
+    fn intrinsics_rays_follow_opencv_pixel_centres() {
+        let (fx, fy, cx, cy) = (40.0, 30.0, 12.5, 7.25);
+        let camera =
+            Camera::new(Vec3::ZERO, Vec3::NEG_Z, 60.0, 32, 24).with_intrinsics(fx, fy, cx, cy);
+        for (u, v) in [(0u32, 0u32), (31, 23), (12, 7), (5, 20)] {
+            let expected =
+                Vec3::new((u as Float - cx) / fx, -(v as Float - cy) / fy, -1.0).normalize();
+            assert!(
+                (camera.pixel_ray(u, v).dir - expected).length() < 1e-6,
+                "{u},{v}"
+            );
+        }
+        let fov = Camera::new(Vec3::ZERO, Vec3::NEG_Z, 60.0, 32, 24);
+        let f = 12.0 / (30.0 as Float).to_radians().tan();
+        let same = fov.with_intrinsics(f, f, 15.5, 11.5);
+        for (u, v) in [(0, 0), (31, 23), (16, 3)] {
+            assert!((same.pixel_ray(u, v).dir - fov.pixel_ray(u, v).dir).length() < 1e-6);
+        }
+    }
+
     /// Orthographic rays are parallel to the view direction, from the image rectangle
     /// centred on the eye.
     #[test]
@@ -475,6 +499,8 @@ mod tests {
                 1021,
                 7,
             ),
+            Camera::new(Vec3::new(0.5, 1.0, 4.0), Vec3::ZERO, 60.0, 37, 23)
+                .with_intrinsics(31.0, 27.5, 17.25, 11.0),
         ];
         for camera in cameras {
             let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];

@@ -16,7 +16,7 @@ import tempfile
 
 import numpy as np
 
-MESH_KEYS = ("vertices", "faces", "normals", "uvs", "colors", "material", "transforms")
+MESH_KEYS = ("vertices", "faces", "normals", "uvs", "colors", "material", "transforms", "name")
 TEXTURE_KEYS = ("map_Kd", "base_color_texture")
 
 
@@ -158,10 +158,11 @@ def compose(meshes, lights, environment):
             document.append(_table(f"[materials.{json.dumps(name)}]", values, f"{name}['material']"))
         positions = vertices.astype(np.float64)
         faces = faces.astype(np.int64)
+        copies = 1
         if mesh.get("transforms") is not None:
             matrices = _transforms(mesh["transforms"], f"{name}['transforms']")
-            copies = [positions @ m[:3, :3].T + m[:3, 3] for m in matrices]
-            positions = np.concatenate(copies)
+            copies = len(matrices)
+            positions = np.concatenate([positions @ m[:3, :3].T + m[:3, 3] for m in matrices])
             faces = np.concatenate([faces + c * n for c in range(len(matrices))])
             if normals is not None:
                 normals = np.concatenate([normals @ np.linalg.inv(m[:3, :3]) for m in matrices])
@@ -175,6 +176,8 @@ def compose(meshes, lights, environment):
                 None if uvs is None else np.ascontiguousarray(uvs, dtype=np.float32),
                 material,
                 texture,
+                str(mesh.get("name", name)),
+                copies,
             )
         )
     for k, light in enumerate([] if lights is None else lights):

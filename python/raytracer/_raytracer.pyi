@@ -14,6 +14,8 @@ Vector = Union[Sequence[float], npt.NDArray[np.floating]]
 Mode = Literal["full", "depth", "normal", "path"]
 ToneMap = Literal["standard", "khronos-neutral", "agx", "aces"]
 Progress = Union[bool, None, Callable[[int, int], Any]]
+#: With ``aovs=`` a render returns a dict: ``color`` and each output asked for.
+Aov = Literal["depth", "normal", "albedo", "alpha", "object_id", "material_id"]
 
 __version__: str
 #: The keyword options every render call takes, in documentation order.
@@ -35,6 +37,17 @@ class Scene:
     ) -> None: ...
     @staticmethod
     def from_mesh(vertices: npt.ArrayLike, faces: npt.ArrayLike) -> "Scene": ...
+    @staticmethod
+    def from_arrays(
+        meshes: Optional[Sequence[Dict[str, Any]]] = None,
+        lights: Optional[Sequence[Dict[str, Any]]] = None,
+        environment: Optional[Dict[str, Any]] = None,
+    ) -> "Scene": ...
+    @staticmethod
+    def from_trimesh(mesh: Any) -> "Scene": ...
+    @property
+    def object_names(self) -> list[str]: ...
+    def camera_rays(self, **options: Any) -> Dict[str, npt.NDArray[np.float32]]: ...
     @property
     def path(self) -> Optional[str]: ...
     @property
@@ -44,6 +57,7 @@ class Scene:
         *,
         tile: Optional[Tuple[int, int, int, int]] = None,
         progress: Progress = None,
+        aovs: Optional[Sequence[Aov]] = None,
         width: Optional[int] = None,
         height: Optional[int] = None,
         fov: Optional[float] = None,
@@ -61,7 +75,7 @@ class Scene:
         aperture_radius: Optional[float] = None,
         focus_distance: Optional[float] = None,
         default_light: Optional[bool] = None,
-    ) -> Image: ...
+    ) -> Union[Image, Dict[str, np.ndarray]]: ...
     def options(self, **options: Any) -> Dict[str, Any]: ...
     def intersect(self, origins: npt.ArrayLike, directions: npt.ArrayLike) -> Dict[str, np.ndarray]: ...
     def occluded(
@@ -73,6 +87,7 @@ def render(
     *,
     tile: Optional[Tuple[int, int, int, int]] = None,
     progress: Progress = None,
+    aovs: Optional[Sequence[Aov]] = None,
     width: Optional[int] = None,
     height: Optional[int] = None,
     fov: Optional[float] = None,
@@ -94,7 +109,7 @@ def render(
     env_strength: Optional[float] = None,
     env_rotation: Optional[float] = None,
     background: Optional[Vector] = None,
-) -> Image: ...
+) -> Union[Image, Dict[str, np.ndarray]]: ...
 def postprocess(
     linear: npt.ArrayLike, mode: Mode = "full", exposure: float = 0.0, tonemap: Optional[ToneMap] = None
 ) -> npt.NDArray[np.uint8]: ...

@@ -21,12 +21,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use numpy::ndarray::{Array3, ArrayView3};
+use numpy::ndarray::{Array2, Array3, ArrayView3};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray3, PyArrayLike3, TypeMustMatch};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyOverflowError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
+use raytracer::film::{Aov, AovPlanes, Outputs};
 use raytracer::formats::environment::{EnvironmentNames, EnvironmentOptions};
 use raytracer::formats::{self, ParseErrorKind, SceneFormat};
 use raytracer::math::{Float, Vec3};
@@ -156,6 +157,8 @@ struct Given<'py> {
     background: Option<Bound<'py, PyAny>>,
     /// `progress=`: not an option of the image, taken by render calls only.
     progress: Option<Bound<'py, PyAny>>,
+    /// `aovs=`: the extra outputs, taken by render calls only.
+    aovs: Option<Bound<'py, PyAny>>,
 }
 
 impl<'py> Given<'py> {
@@ -193,6 +196,7 @@ impl<'py> Given<'py> {
                 "env_rotation" => &mut given.env_rotation,
                 "background" => &mut given.background,
                 "progress" if with_progress => &mut given.progress,
+                "aovs" if with_progress => &mut given.aovs,
                 _ => {
                     return Err(PyTypeError::new_err(format!(
                         "{function}() got an unexpected keyword argument '{name}'"
@@ -265,6 +269,40 @@ impl<'py> Given<'py> {
                 .map(|v| vector(v, "--background"))
                 .transpose()?,
         })
+    }
+}
+
+impl Given<'_> {
+    /// The extra outputs `aovs=` asks for: `None` when not given (the render returns
+    /// the colour image alone), else their list (then a dict).
+    fn aov_list(&self) -> PyResult<Option<Vec<Aov>>> {
+        let Some(value) = &self.aovs else {
+            return Ok(None);
+        };
+        let names: Vec<String> = if let Ok(one) = value.extract::<String>() {
+            vec![one]
+        } else {
+            value.extract().map_err(|_| {
+                PyTypeError::new_err(format!("aovs must be a list of output names, not {value}"))
+            })?
+        };
+        let mut aovs = Vec::new();
+        for name in &names {
+            let aov: Aov = name.parse().map_err(|_| {
+                let known: Vec<&str> = Aov::ALL.iter().map(|a| a.name()).collect();
+                PyValueError::new_err(format!(
+                    "invalid aovs: unknown output {name:?} (one of {})",
+                    known.join(", ")
+                ))
+            })?;
+            if aovs.contains(&aov) {
+                return Err(PyValueError::new_err(format!(
+                    "invalid aovs: {name:?} is asked for twice"
+                )));
+            }
+            aovs.push(aov);
+        }
+        Ok(Some(aovs))
     }
 }
 
@@ -852,6 +890,8 @@ impl PyScene {
                 uvs: item.get_item(3)?.extract()?,
                 material: item.get_item(4)?.extract()?,
                 texture: item.get_item(5)?.extract()?,
+                name: item.get_item(6)?.extract()?,
+                copies: item.get_item(7)?.extract()?,
             });
         }
         // Every file the document names is an absolute path: messages name the
@@ -880,6 +920,16 @@ impl PyScene {
         py.import("raytracer._arrays")?
             .getattr("from_trimesh")?
             .call1((mesh,))
+    }
+
+    /// The names of the objects the ``object_id`` output numbers: ``object_names[i]``
+    /// is object ``i``'s (a mesh file's name, a glTF node's, ``meshes[k]`` of
+    /// :meth:`from_arrays` or its ``name``, with `` copy j`` per transform); shapes
+    /// before the first named object are an unnamed object of their own, numbered
+    /// first.
+    #[getter]
+    fn object_names(&self) -> Vec<String> {
+        self.loaded.scene.object_names().to_vec()
     }
 
     /// The scene file, as it was named; ``None`` for a scene made by ``from_mesh``.
@@ -1096,9 +1146,78 @@ impl PyScene {
         let options = self.resolve(given)?;
         let tile = tile_value.map(tile).transpose()?;
         let progress = run::Progress::of(given.progress.as_ref())?;
-        let film = run::render(py, Arc::clone(&self.loaded), options, tile, &progress)?;
-        image_of(py, film, &options)
+        let aovs = given.aov_list()?;
+        let outputs = run::render(
+            py,
+            Arc::clone(&self.loaded),
+            options,
+            tile,
+            aovs.clone().unwrap_or_default(),
+            &progress,
+        )?;
+        result_of(py, outputs, aovs.is_some(), &options)
     }
+}
+
+/// What a render call returns: the colour image alone ([`image_of`]), or with `aovs`
+/// asked for, a dict of it (`"color"`) and each output as a numpy array: `depth` and
+/// `alpha` `(height, width)` `float32`, `normal` and `albedo` `(height, width, 3)`
+/// `float32`, `object_id` and `material_id` `(height, width)` `int32`.
+fn result_of<'py>(
+    py: Python<'py>,
+    outputs: Outputs,
+    as_dict: bool,
+    options: &RenderOptions,
+) -> PyResult<Bound<'py, PyAny>> {
+    let Outputs { film, aovs } = outputs;
+    let (width, height) = (film.width as usize, film.height as usize);
+    let image = image_of(py, film, options)?;
+    if !as_dict {
+        return Ok(image);
+    }
+    let dict = PyDict::new(py);
+    dict.set_item("color", image)?;
+    let plane = |values: Vec<f32>| {
+        Array2::from_shape_vec((height, width), values)
+            .expect("one value per pixel")
+            .into_pyarray(py)
+    };
+    let ids = |values: Vec<i32>| {
+        Array2::from_shape_vec((height, width), values)
+            .expect("one value per pixel")
+            .into_pyarray(py)
+    };
+    let vectors = |values: Vec<Vec3>| {
+        let flat: Vec<f32> = values.iter().flat_map(|v| v.to_array()).collect();
+        film_array(py, width as u32, height as u32, flat)
+    };
+    let AovPlanes {
+        depth,
+        normal,
+        albedo,
+        alpha,
+        object_id,
+        material_id,
+    } = aovs;
+    if let Some(v) = depth {
+        dict.set_item("depth", plane(v))?;
+    }
+    if let Some(v) = normal {
+        dict.set_item("normal", vectors(v))?;
+    }
+    if let Some(v) = albedo {
+        dict.set_item("albedo", vectors(v))?;
+    }
+    if let Some(v) = alpha {
+        dict.set_item("alpha", plane(v))?;
+    }
+    if let Some(v) = object_id {
+        dict.set_item("object_id", ids(v))?;
+    }
+    if let Some(v) = material_id {
+        dict.set_item("material_id", ids(v))?;
+    }
+    Ok(dict.into_any())
 }
 
 /// A film as the package's image: a `float32` numpy array of shape `(height, width,
@@ -1198,6 +1317,7 @@ fn render<'py>(
     let environment = given.environment().map_err(keyword_error)?;
     let tile = tile.map(self::tile).transpose()?;
     let progress = run::Progress::of(given.progress.as_ref())?;
+    let aovs = given.aov_list()?;
     let (loaded, options) = py.detach(move || {
         // As the command line: OBJ and PLY files set no options, so the arguments are
         // checked before a long load; a TOML file's values are merged first.
@@ -1212,8 +1332,9 @@ fn render<'py>(
         Ok::<_, Error>((loaded, options))
     })?;
     warn(py, &loaded.scene.warnings)?;
-    let film = run::render(py, Arc::new(loaded), options, tile, &progress)?;
-    image_of(py, film, &options)
+    let aov_list = aovs.clone().unwrap_or_default();
+    let outputs = run::render(py, Arc::new(loaded), options, tile, aov_list, &progress)?;
+    result_of(py, outputs, aovs.is_some(), &options)
 }
 
 /// Post-processes a linear image (a ``float32`` array of shape ``(height, width, 3)``)

@@ -114,6 +114,11 @@ pub(crate) struct ArrayMesh<'py> {
     pub material: Option<String>,
     /// The image file of its base colour map, or none.
     pub texture: Option<PathBuf>,
+    /// Its name, for the `object_id` output's names.
+    pub name: String,
+    /// How many copies (transforms) `faces` holds, one after the other: each one is
+    /// an object of its own.
+    pub copies: usize,
 }
 
 /// The scene of `meshes` and of `loaded` (a TOML document's materials, lights and
@@ -202,7 +207,16 @@ pub(crate) fn arrays_description(
                     .map(|v| raytracer::math::Vec2::new(v[0], v[1])),
             );
         }
-        for face in faces.chunks_exact(3) {
+        let per_copy = (faces.len() / 3).div_ceil(mesh.copies.max(1)).max(1);
+        for (f, face) in faces.chunks_exact(3).enumerate() {
+            if f % per_copy == 0 {
+                let name = match mesh.copies {
+                    0 | 1 => mesh.name.clone(),
+                    _ => format!("{} copy {}", mesh.name, f / per_copy),
+                };
+                let object = raytracer::description::ObjectDesc::next_in(&description, name);
+                description.objects.push(object);
+            }
             let corners = [face[0], face[1], face[2]];
             description
                 .triangles

@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBool;
+use raytracer::film::{Aov, AovPlanes, Outputs};
 use raytracer::math::Vec3;
 use raytracer::{Film, RenderOptions, Tile, TileError};
 
@@ -102,8 +103,9 @@ pub(crate) fn render(
     loaded: Arc<Loaded>,
     options: RenderOptions,
     tile: Option<Tile>,
+    aovs: Vec<Aov>,
     progress: &Progress<'_>,
-) -> PyResult<Film> {
+) -> PyResult<Outputs> {
     let region = match tile {
         Some(tile) => checked(tile, &options).map_err(Error::Tile)?,
         None => Tile::whole(&options),
@@ -116,7 +118,7 @@ pub(crate) fn render(
         std::thread::Builder::new()
             .name("raytracer render".into())
             .spawn(move || {
-                let film = render_bands(&loaded, &options, region, &cancel, &rows_done);
+                let film = render_bands(&loaded, &options, region, &aovs, &cancel, &rows_done);
                 // The caller may have gone (an exception): nobody to tell.
                 let _ = sender.send(film);
             })
@@ -197,14 +199,16 @@ fn render_bands(
     loaded: &Loaded,
     options: &RenderOptions,
     region: Tile,
+    aovs: &[Aov],
     cancel: &AtomicBool,
     rows_done: &AtomicU32,
-) -> Result<Film, Stopped> {
+) -> Result<Outputs, Stopped> {
     crate::test_gate("RAYTRACER_TEST_GATE_RENDER");
     let lit = loaded.lit_for(options);
     let scene = lit.as_ref().unwrap_or(&loaded.scene);
     let width = region.width as usize;
     let mut pixels = vec![Vec3::ZERO; width * region.height as usize];
+    let mut planes = AovPlanes::new(aovs, pixels.len());
     // As many rows as threads (rows are what the pixel loop spreads over them), and
     // a first band of some 64k samples, before its time is known.
     let fewest = rayon::current_num_threads().clamp(1, 1024) as u32;
@@ -222,19 +226,38 @@ fn render_bands(
             ..region
         };
         let started = Instant::now();
-        let part = raytracer::render_tile(scene, options, band)
+        let part = raytracer::render_tile_outputs(scene, options, band, aovs)
             .map_err(|e| Stopped::Failed(Error::Tile(e)))?;
         let at = y as usize * width;
-        pixels[at..at + part.pixels.len()].copy_from_slice(&part.pixels);
+        pixels[at..at + part.film.pixels.len()].copy_from_slice(&part.film.pixels);
+        copy_planes(&mut planes, &part.aovs, at);
         y += height;
         rows_done.store(y, Ordering::Relaxed);
         let per_row = started.elapsed().as_secs_f64() / f64::from(height);
         let wanted = (BAND_TIME / per_row.max(1e-9)) as u64;
         rows = band_rows(wanted.min(u64::from(rows) * 4), fewest);
     }
-    Ok(Film {
-        width: region.width,
-        height: region.height,
-        pixels,
+    Ok(Outputs {
+        film: Film {
+            width: region.width,
+            height: region.height,
+            pixels,
+        },
+        aovs: planes,
     })
+}
+
+/// A band's planes into the whole region's, from pixel `at` on.
+fn copy_planes(whole: &mut AovPlanes, band: &AovPlanes, at: usize) {
+    fn copy<T: Copy>(to: &mut Option<Vec<T>>, from: &Option<Vec<T>>, at: usize) {
+        if let (Some(to), Some(from)) = (to, from) {
+            to[at..at + from.len()].copy_from_slice(from);
+        }
+    }
+    copy(&mut whole.depth, &band.depth, at);
+    copy(&mut whole.normal, &band.normal, at);
+    copy(&mut whole.albedo, &band.albedo, at);
+    copy(&mut whole.alpha, &band.alpha, at);
+    copy(&mut whole.object_id, &band.object_id, at);
+    copy(&mut whole.material_id, &band.material_id, at);
 }

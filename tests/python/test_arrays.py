@@ -114,3 +114,42 @@ def test_a_trimesh_renders_as_the_obj_it_came_from(files):
             assert np.array_equal(scene.render(**VIEW), expected), (normals, type(loaded))
     with pytest.raises(ValueError, match="trimesh.Trimesh or trimesh.Scene"):
         raytracer.Scene.from_trimesh(42)
+
+
+def test_aovs_depth_and_object_ids_are_the_analytic_ones():
+    """Two quads on the plane z = 0 seen by an intrinsics camera at z = D looking down
+    -Z: the z-depth is D wherever they are, inf elsewhere, and each object id covers
+    exactly the pixels whose centres project inside its quad."""
+    width, height, D = 40, 30, 4.0
+    fx, fy, cx, cy = 30.0, 30.0, (width - 1) / 2, (height - 1) / 2
+    boxes = [(-2.02, -0.51, -1.03, 1.22), (0.33, 2.07, -0.71, 0.49)]  # x0, x1, y0, y1: no pixel centre on an edge
+    meshes = [
+        dict(vertices=[[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0]], faces=[[0, 1, 2], [0, 2, 3]], name=f"box{k}")
+        for k, (x0, x1, y0, y1) in enumerate(boxes)
+    ]
+    scene = raytracer.Scene.from_arrays(meshes=meshes)
+    assert scene.object_names == ["box0", "box1"]
+    pose = np.eye(4)
+    pose[2, 3] = D
+    out = scene.render(
+        camera_to_world=pose, intrinsics=(fx, fy, cx, cy), width=width, height=height, spp=4,
+        aovs=["depth", "object_id", "alpha", "normal", "material_id"],
+    )
+    assert set(out) == {"color", "depth", "object_id", "alpha", "normal", "material_id"}
+    assert out["object_id"].dtype == np.int32 and out["depth"].shape == (height, width)
+    u, v = np.meshgrid(np.arange(width), np.arange(height))
+    x, y = D * (u - cx) / fx, -D * (v - cy) / fy  # OpenCV's y is down; the world's +Y up
+    expected = np.full((height, width), -1)
+    for k, (x0, x1, y0, y1) in enumerate(boxes):
+        expected[(x > x0) & (x < x1) & (y > y0) & (y < y1)] = k
+    assert np.array_equal(out["object_id"], expected)
+    hit = expected >= 0
+    assert np.isinf(out["depth"][out["alpha"] == 0]).all() and (out["alpha"][~hit] < 1).all()
+    # Pixels wholly inside a quad (every sample hits): z-depth D, normal +Z, alpha 1.
+    inside = hit & (np.abs(out["alpha"] - 1) == 0)
+    assert inside.sum() > 100
+    assert np.abs(out["depth"][inside] - D).max() < 1e-5
+    assert np.abs(out["normal"][inside] - [0, 0, 1]).max() < 1e-6
+    assert (out["material_id"][hit] >= 0).all() and (out["material_id"][~hit] == -1).all()
+    with pytest.raises(ValueError, match='invalid aovs: unknown output "colour"'):
+        scene.render(width=4, height=3, aovs=["colour"])

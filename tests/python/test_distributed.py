@@ -385,3 +385,27 @@ def test_an_interrupt_before_writing_leaves_the_output_as_it_was(tmp_path, clust
     assert rest.endswith(f"interrupted; {out} left as it was\n")
     assert out.read_bytes() == b"previous"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.png"]
+
+
+def test_render_many_yields_each_cameras_frame_and_reads_the_scene_once_per_worker(client):
+    rd.forget(client)
+    loads = lambda: sum(client.run(lambda: rd._loads).values())  # noqa: E731
+    before = loads()
+    cameras = [
+        dict(look_from=(x, 0.7, 1.75), look_to=(0.0, 0.7, 0.0)) for x in (-0.3, 0.0, 0.3, 0.1, -0.1)
+    ]
+    common = dict(width=24, height=18, fov=60, spp=2)
+    aovs = ["depth", "object_id"]
+    seen = {}
+    for index, frame in rd.render_many(CORNELL_OBJ, cameras, client, aovs=aovs, **common):
+        seen[index] = frame
+    assert sorted(seen) == list(range(len(cameras)))
+    for index, camera in enumerate(cameras):
+        expected = raytracer.render(CORNELL_OBJ, aovs=aovs, **common, **camera)
+        assert set(seen[index]) == {"color", "depth", "object_id"}
+        for name in expected:
+            assert np.array_equal(seen[index][name], expected[name]), (index, name)
+    # Five frames, two worker processes: the scene is read at most once by each.
+    assert loads() - before <= 2
+    with pytest.raises(TypeError, match="unexpected option 'colour'"):
+        next(rd.render_many(CORNELL_OBJ, [dict(colour=1)], client))

@@ -42,6 +42,7 @@ environment limits them. One worker thread per process (``--nthreads 1``) is eno
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import pickle
@@ -50,13 +51,13 @@ import tempfile
 import threading
 import uuid
 from collections import OrderedDict
-from typing import Any, Callable, Iterable, Optional
+from typing import Any, Callable, Iterable, Iterator, Optional, Sequence
 
 import numpy as np
 
 import raytracer
 
-__all__ = ["forget", "render", "scene_files", "tiles"]
+__all__ = ["forget", "render", "render_many", "scene_files", "tiles"]
 
 #: The keyword options :func:`render` passes on to :meth:`raytracer.Scene.render`: all
 #: of :data:`raytracer.OPTIONS` but the environment's, which belong to the scene file.
@@ -113,32 +114,13 @@ def _render(
     if isinstance(tile_size, bool) or not isinstance(tile_size, int) or tile_size < 1:
         raise ValueError(f"invalid tile_size: {tile_size!r} is not a whole number of at least 1")
     given = {name: value for name, value in options.items() if value is not None}
-    # Workers may have another working folder; a shared file system has the same
-    # absolute paths. Not resolved: a link must mean on each worker what it means there.
-    path = os.path.abspath(os.fspath(scene))
-    job = f"raytracer-{uuid.uuid4().hex}"
-
-    bundle = None
-    # The workers keep a scene between renders under a key that changes whenever a
-    # file it reads does (its identity); a scene read on the workers' own terms
-    # (`ship=False`) has none the client can vouch for, and is read per render.
-    key = job
-    try:
-        if ship is None:
-            shared, identity = _workers_share(client, path, job)
-            ship = not shared
-            if shared and identity is not None:
-                key = f"raytracer-path-{identity}"
-        if ship:
-            contents = _bundle(path)
-            key = f"raytracer-shipped-{_identity(contents)}"
-            # In a list: a dict would be scattered as one future per value.
-            [bundle] = client.scatter([contents], broadcast=True, hash=False)
-            del contents
-        info = client.submit(_prepare, key, path, bundle, given, key=f"{job}-options").result()
+    # The tasks' keys: this render's own, whatever the scene's key.
+    task = f"raytracer-{uuid.uuid4().hex}"
+    with _scene_on_workers(client, scene, ship) as (key, path, bundle):
+        info = client.submit(_prepare, key, path, bundle, given, key=f"{task}-options").result()
         width, height = info["width"], info["height"]
         parts = tiles(width, height, tile_size)
-        keys = [f"{job}-tile-{x}-{y}" for (x, y, _, _) in parts]
+        keys = [f"{task}-tile-{x}-{y}" for (x, y, _, _) in parts]
         futures = client.map(
             _render_tile, parts, job=key, path=path, bundle=bundle, options=given, key=keys
         )
@@ -160,6 +142,36 @@ def _render(
                 if on_tile is not None:
                     on_tile(done, len(parts))
         return image, info
+
+
+@contextlib.contextmanager
+def _scene_on_workers(client: Any, scene: "str | os.PathLike[str]", ship: Optional[bool]):
+    """Makes the scene readable by the workers (checked or shipped, see the module's
+    documentation) for the body of the ``with``; yields the key under which workers
+    keep it, its path and the shipped bundle (or ``None``). Afterwards, frees what
+    the workers must not keep."""
+    # Workers may have another working folder; a shared file system has the same
+    # absolute paths. Not resolved: a link must mean on each worker what it means there.
+    path = os.path.abspath(os.fspath(scene))
+    job = f"raytracer-{uuid.uuid4().hex}"
+    bundle = None
+    # The workers keep a scene between renders under a key that changes whenever a
+    # file it reads does (its identity); a scene read on the workers' own terms
+    # (`ship=False`) has none the client can vouch for, and is read per render.
+    key = job
+    try:
+        if ship is None:
+            shared, identity = _workers_share(client, path, job)
+            ship = not shared
+            if shared and identity is not None:
+                key = f"raytracer-path-{identity}"
+        if ship:
+            contents = _bundle(path)
+            key = f"raytracer-shipped-{_identity(contents)}"
+            # In a list: a dict would be scattered as one future per value.
+            [bundle] = client.scatter([contents], broadcast=True, hash=False)
+            del contents
+        yield key, path, bundle
     finally:
         if bundle is not None:
             bundle.release()
@@ -168,6 +180,53 @@ def _render(
                 client.run(_forget, job)
             except Exception:  # noqa: BLE001 - a worker gone or a closed client: nothing to free
                 pass
+
+
+def render_many(
+    scene: "str | os.PathLike[str]",
+    cameras: Iterable[dict],
+    client: Any,
+    *,
+    aovs: Optional[Sequence[str]] = None,
+    ship: Optional[bool] = None,
+    **options: Any,
+) -> Iterator["tuple[int, Any]"]:
+    """Renders one frame per camera on the cluster of ``client``, one task per frame,
+    and yields ``(index, frame)`` as frames finish (in no fixed order): ``index`` is the
+    camera's position in ``cameras``, ``frame`` what :func:`raytracer.render` returns
+    for ``scene`` with that camera's options over ``options`` (and ``aovs``: a dict of
+    ``color`` and each output asked for), bit for bit.
+
+    Each camera is a dict of render options (``camera_to_world``, ``intrinsics``,
+    ``look_from``, ``fov``, ...). The scene reaches the workers as :func:`render`'s
+    does, once per worker process for all the frames (kept between calls while its
+    files do not change). A lost worker costs only its frames, which Dask renders
+    again elsewhere. Raises what :func:`raytracer.render` raises, from the worker
+    that found it, when its frame is reached.
+    """
+    from distributed import as_completed
+
+    cameras = [dict(camera) for camera in cameras]
+    for camera in [options, *cameras]:
+        unknown = sorted(set(camera) - set(OPTIONS))
+        if unknown:
+            raise TypeError(f"render_many() got an unexpected option {unknown[0]!r}")
+    base = {name: value for name, value in options.items() if value is not None}
+    if aovs is not None:
+        base["aovs"] = list(aovs)
+    with _scene_on_workers(client, scene, ship) as (key, path, bundle):
+        task = f"raytracer-{uuid.uuid4().hex}"
+        frame_keys = [f"{task}-frame-{i}" for i in range(len(cameras))]
+        futures = [
+            client.submit(_render_frame, key, path, bundle, {**base, **camera}, key=frame_key)
+            for camera, frame_key in zip(cameras, frame_keys)
+        ]
+        index = {frame_key: i for i, frame_key in enumerate(frame_keys)}
+        waiting = as_completed(futures, with_results=True)
+        del futures
+        for future, frame in waiting:
+            future.release()
+            yield index[future.key], frame
 
 
 def forget(client: Any) -> None:
@@ -372,6 +431,12 @@ def _prepare(job: str, path: str, bundle: Optional[dict], options: dict) -> dict
 def _render_tile(tile: tuple, job: str, path: str, bundle: Optional[dict], options: dict) -> np.ndarray:
     """Task: renders one tile of the image."""
     return _job(job).load(path, bundle).render(tile=tile, **options)
+
+
+def _render_frame(job: str, path: str, bundle: Optional[dict], options: dict) -> Any:
+    """Task: renders one whole frame (a plain array, or a dict with ``aovs``)."""
+    frame = _job(job).load(path, bundle).render(**options)
+    return np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()}
 
 
 def _forget(job: str) -> None:

@@ -39,6 +39,28 @@ impl Tile {
             height: options.height,
         }
     }
+
+    /// The tile itself if it has pixels and lies inside the image of `options`, as
+    /// [`render_tile`] requires.
+    ///
+    /// # Errors
+    /// [`TileError::Empty`] or [`TileError::Outside`].
+    pub fn check(self, options: &RenderOptions) -> Result<Tile, TileError> {
+        let tile = self;
+        if tile.width == 0 || tile.height == 0 {
+            return Err(TileError::Empty { tile });
+        }
+        // In u64: `x + width` may not fit in a u32.
+        let fits = |start: u32, length: u32, size: u32| start as u64 + length as u64 <= size as u64;
+        if !fits(tile.x, tile.width, options.width) || !fits(tile.y, tile.height, options.height) {
+            return Err(TileError::Outside {
+                tile,
+                width: options.width,
+                height: options.height,
+            });
+        }
+        Ok(tile)
+    }
 }
 
 impl fmt::Display for Tile {
@@ -167,18 +189,7 @@ pub fn render_tile_outputs(
     tile: Tile,
     aovs: &[Aov],
 ) -> Result<Outputs, TileError> {
-    if tile.width == 0 || tile.height == 0 {
-        return Err(TileError::Empty { tile });
-    }
-    // In u64: `x + width` may not fit in a u32.
-    let fits = |start: u32, length: u32, size: u32| start as u64 + length as u64 <= size as u64;
-    if !fits(tile.x, tile.width, options.width) || !fits(tile.y, tile.height, options.height) {
-        return Err(TileError::Outside {
-            tile,
-            width: options.width,
-            height: options.height,
-        });
-    }
+    let tile = tile.check(options)?;
     Ok(render_region(scene, options, tile, aovs, &|_| {}, false).0)
 }
 

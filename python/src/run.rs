@@ -18,7 +18,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBool;
 use raytracer::film::{Aov, AovPlanes, Outputs};
 use raytracer::math::Vec3;
-use raytracer::{Film, RenderOptions, Tile, TileError};
+use raytracer::{Film, RenderOptions, Tile};
 
 use crate::{Error, Loaded};
 
@@ -107,7 +107,7 @@ pub(crate) fn render(
     progress: &Progress<'_>,
 ) -> PyResult<Outputs> {
     let region = match tile {
-        Some(tile) => checked(tile, &options).map_err(Error::Tile)?,
+        Some(tile) => tile.check(&options).map_err(Error::Tile)?,
         None => Tile::whole(&options),
     };
     let cancel = Arc::new(AtomicBool::new(false));
@@ -163,23 +163,6 @@ pub(crate) fn render(
     let film = outcome?;
     closed?;
     Ok(film)
-}
-
-/// `tile`, if it has pixels and lies inside the image (as [`raytracer::render_tile`]
-/// checks).
-fn checked(tile: Tile, options: &RenderOptions) -> Result<Tile, TileError> {
-    if tile.width == 0 || tile.height == 0 {
-        return Err(TileError::Empty { tile });
-    }
-    let fits = |start: u32, length: u32, size: u32| start as u64 + length as u64 <= size as u64;
-    if !fits(tile.x, tile.width, options.width) || !fits(tile.y, tile.height, options.height) {
-        return Err(TileError::Outside {
-            tile,
-            width: options.width,
-            height: options.height,
-        });
-    }
-    Ok(tile)
 }
 
 /// `wanted` rows, at least `fewest`; a multiple of 4 above 4, so that full mode's 4x4

@@ -10,6 +10,7 @@
 //! of a panic, and so that images go through [`load_texture`]: each file is decoded
 //! once and shared.
 
+mod context;
 mod extensions;
 mod material;
 

@@ -6,7 +6,7 @@
 
 use gltf::json::Value;
 
-use super::super::material::MaterialContext;
+use super::super::context::MaterialContext;
 use super::Extension;
 use crate::textures::Channel;
 

@@ -2,7 +2,7 @@
 
 use gltf::json::Value;
 
-use super::super::material::MaterialContext;
+use super::super::context::MaterialContext;
 use super::Extension;
 
 pub(in crate::formats::gltf) const EXTENSION: Extension = Extension {

@@ -16,7 +16,7 @@ pub(super) mod volume;
 
 use gltf::json::Value;
 
-use super::material::MaterialContext;
+use super::context::MaterialContext;
 
 /// A material extension: applied, in the order of [`MATERIAL_EXTENSIONS`], to every
 /// material whose `extensions` object names it.

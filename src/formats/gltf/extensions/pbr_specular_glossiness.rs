@@ -9,7 +9,7 @@
 
 use gltf::json::Value;
 
-use super::super::material::{MaterialContext, with_channel};
+use super::super::context::{MaterialContext, with_channel};
 use super::Extension;
 use super::ior::FRESNEL_ONE_IOR;
 use crate::math::Vec3;

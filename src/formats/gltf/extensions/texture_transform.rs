@@ -1,32 +1,24 @@
 //! `KHR_texture_transform`, on every texture reference (core and extensions alike):
 //! an offset, rotation and scale of the texture coordinates, and optionally another
-//! `texCoord` (read by [`MaterialContext::texture`]).
+//! `texCoord` (both read by `MaterialContext::texture`).
 
-use gltf::json::Value;
-
-use super::super::material::MaterialContext;
 use crate::math::{Float, Vec2};
-use crate::textures::TextureMap;
 
 pub(in crate::formats::gltf) const NAME: &str = "KHR_texture_transform";
 
-/// Applies the transform `ext` (the extension's object in a `textureInfo`) to `map`.
-pub(in crate::formats::gltf) fn apply(
-    cx: &mut MaterialContext<'_, '_>,
-    ext: &Value,
-    map: &mut TextureMap,
-) {
-    let [ox, oy] = cx.numbers(ext, "offset", [0.0, 0.0]);
-    let rotation = cx.number(ext, "rotation", 0.0);
-    let [sx, sy] = cx.numbers(ext, "scale", [1.0, 1.0]);
-    let (scale, rotation, offset) = texture_transform([ox, oy], rotation, [sx, sy]);
-    if [scale, rotation, offset].iter().all(|v| v.is_finite()) {
-        map.options.scale = scale;
-        map.options.rotation = rotation;
-        map.options.offset = offset;
-    } else {
-        cx.note("a texture transform that is not finite, ignored");
-    }
+/// The transform of `KHR_texture_transform`'s `offset`, `rotation` and `scale` as
+/// this renderer's [`TextureOptions`](crate::textures::TextureOptions) `scale`,
+/// `rotation` and `offset`, or `None` when they are not finite.
+pub(in crate::formats::gltf) fn texture_options(
+    offset: [Float; 2],
+    rotation: Float,
+    scale: [Float; 2],
+) -> Option<(Vec2, Vec2, Vec2)> {
+    let options = texture_transform(offset, rotation, scale);
+    [options.0, options.1, options.2]
+        .iter()
+        .all(|v| v.is_finite())
+        .then_some(options)
 }
 
 /// `KHR_texture_transform`'s `offset`, `rotation` and `scale` as this renderer's

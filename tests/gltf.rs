@@ -302,6 +302,73 @@ fn malformed_and_truncated_files_are_errors_naming_the_file() {
 }
 
 #[test]
+fn a_gltf_1_file_is_an_error_that_says_so_and_how_to_convert_it() {
+    // glTF 1.0 keeps its objects in maps, not arrays; its version is a string or a
+    // number, and a 1.0 GLB says version 1 in its header.
+    let json = r#"{"accessors": {"a": {"count": 3}}, "asset": {"version": "1.0"}}"#;
+    let numbered = r#"{"meshes": {}, "asset": {"version": 1}}"#;
+    let mut glb = b"glTF".to_vec();
+    glb.extend_from_slice(&1u32.to_le_bytes());
+    glb.extend_from_slice(&[0; 12]);
+    for (name, bytes) in [
+        ("old.gltf", json.as_bytes()),
+        ("number.gltf", numbered.as_bytes()),
+        ("old.glb", &glb[..]),
+    ] {
+        let error = error_of(name, bytes);
+        assert!(
+            error.contains("a glTF 1.0 file") && error.contains("gltf-pipeline"),
+            "{name}: {error}"
+        );
+    }
+    // A broken 2.0 file is not called 1.0.
+    let error = error_of(
+        "broken.gltf",
+        br#"{"asset": {"version": "2.0"}, "meshes": 3}"#,
+    );
+    assert!(!error.contains("1.0"), "{error}");
+}
+
+#[test]
+fn position_accessors_without_bounds_are_read_with_one_warning() {
+    // The glTF spec requires POSITION's min and max; exporters that leave them out
+    // are read anyway, as three.js and Blender read them. Two quads, both unbounded.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("unbounded.gltf");
+    let quad = r#"{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"}"#;
+    let text = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1]}}],
+        "nodes": [{{"mesh": 0}}, {{"mesh": 1, "translation": [3, 0, 0]}}],
+        "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}},
+                   {{"primitives": [{{"attributes": {{"POSITION": 2}}, "indices": 1}}]}}],
+        "accessors": [{quad}, {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}, {quad}],
+        "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+        "buffers": [{{"byteLength": 62, "uri": "data:application/octet-stream;base64,AACAvwAAAL8AAAAAAACAPwAAAL8AAAAAAACAPwAAAD8AAAAAAACAvwAAAD8AAAAAAAABAAIAAAACAAMAAAA="}}]}}"#
+    );
+    std::fs::write(&path, text).unwrap();
+    let loaded = formats::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let d = &loaded.description;
+    let bounds: Vec<&String> = d
+        .warnings
+        .iter()
+        .filter(|w| w.contains("POSITION accessor"))
+        .collect();
+    assert_eq!(bounds.len(), 1, "{:?}", d.warnings);
+    assert!(
+        bounds[0].contains("2 POSITION accessor(s)"),
+        "{}",
+        bounds[0]
+    );
+    // Both quads, with the positions the buffer holds (not the bounds filled in).
+    let scene = Scene::build(loaded.description, &BvhParams::default());
+    for x in [0.5, 3.5] {
+        let ray = Ray::new(Vec3::new(x, 0.25, 5.0), Vec3::new(0.0, 0.0, -1.0));
+        let hit = scene.intersect(&ray).expect("the quad is there");
+        assert!((hit.t - 5.0).abs() < 1e-5, "{}", hit.t);
+    }
+}
+
+#[test]
 fn a_missing_image_is_a_warning_and_the_surface_renders_without_it() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::copy(fixture("scene.bin"), dir.path().join("scene.bin")).unwrap();

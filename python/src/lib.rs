@@ -796,13 +796,24 @@ pub(crate) fn test_gate(variable: &str) {
     }
 }
 
-/// The film's values, row by row, three per pixel. Call detached from the interpreter.
-fn film_values(film: &Film) -> Vec<f32> {
-    let mut values = Vec::with_capacity(film.pixels.len() * 3);
-    for pixel in &film.pixels {
-        values.extend_from_slice(&pixel.to_array());
-    }
-    values
+/// The film's values, row by row, three per pixel, in the film's own buffer.
+fn film_values(film: Film) -> Vec<f32> {
+    vector_floats(film.pixels)
+}
+
+/// `values` as their coordinates, three per vector, in the same allocation: no copy.
+/// A frame's buffers are fresh pages in a Dask worker (whose nanny sets
+/// `MALLOC_TRIM_THRESHOLD_`, which makes glibc map every block above 128 KiB afresh),
+/// so a copy there costs a page fault per 4 KiB on top of the copy.
+fn vector_floats(values: Vec<Vec3>) -> Vec<f32> {
+    const _: () = assert!(size_of::<Vec3>() == 3 * size_of::<f32>());
+    const _: () = assert!(align_of::<Vec3>() == align_of::<f32>());
+    let mut values = std::mem::ManuallyDrop::new(values);
+    let (pointer, length, capacity) = (values.as_mut_ptr(), values.len(), values.capacity());
+    // SAFETY: glam's `Vec3` is `#[repr(C)]` three `f32` (size and alignment asserted
+    // above), so the buffer holds `3 * length` initialised `f32` and was allocated
+    // with the layout of `3 * capacity` of them; `values` is not dropped.
+    unsafe { Vec::from_raw_parts(pointer.cast::<f32>(), length * 3, capacity * 3) }
 }
 
 /// `values` (from [`film_values`]) as a numpy array of shape `(height, width, 3)`,
@@ -1310,10 +1321,8 @@ fn result_of<'py>(
             .expect("one value per pixel")
             .into_pyarray(py)
     };
-    let vectors = |values: Vec<Vec3>| {
-        let flat: Vec<f32> = values.iter().flat_map(|v| v.to_array()).collect();
-        film_array(py, width as u32, height as u32, flat)
-    };
+    let vectors =
+        |values: Vec<Vec3>| film_array(py, width as u32, height as u32, vector_floats(values));
     let AovPlanes {
         depth,
         normal,
@@ -1352,7 +1361,7 @@ fn image_of<'py>(
     options: &RenderOptions,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (width, height) = (film.width, film.height);
-    let values = py.detach(move || film_values(&film));
+    let values = film_values(film);
     let array = film_array(py, width, height, values);
     py.import("raytracer._image")?
         .getattr("Image")?

@@ -12,7 +12,7 @@ pub use tonemap::ToneMap;
 use rayon::prelude::*;
 use wide::f32x16;
 
-use crate::film::Film;
+use crate::film::{AovPlanes, Film};
 use crate::math::{Float, Vec3};
 use crate::options::{Mode, RenderOptions};
 
@@ -239,14 +239,37 @@ pub fn check_denoiser() -> Result<(), DenoiseError> {
     }
 }
 
+/// The albedo and normal planes of `guides` that Open Image Denoise can take for a
+/// film of `pixels` pixels, as flat `f32` triples: the albedo alone, or both (OIDN
+/// takes a normal only with an albedo); none when no albedo was rendered.
+pub fn denoise_guides(guides: &AovPlanes, pixels: usize) -> Option<(Vec<f32>, Option<Vec<f32>>)> {
+    let flat = |plane: &Option<Vec<Vec3>>| {
+        plane
+            .as_ref()
+            .filter(|values| values.len() == pixels)
+            .map(|values| {
+                values
+                    .iter()
+                    .flat_map(|v| v.to_array())
+                    .collect::<Vec<f32>>()
+            })
+    };
+    let albedo = flat(&guides.albedo)?;
+    Some((albedo, flat(&guides.normal)))
+}
+
 impl Film {
     /// The film with Monte Carlo noise removed by Intel Open Image Denoise's
-    /// ray-tracing filter (HDR, linear, colour only), for path mode. Available in
-    /// builds with the `denoise` feature; others return [`DenoiseError::NotBuilt`].
+    /// ray-tracing filter (HDR, linear), for path mode, guided by the albedo and
+    /// shading normal of `guides` when they were rendered (as OIDN recommends: edges
+    /// and texture detail the noisy colour hides are kept; see [`denoise_guides`]).
+    /// The guides are antialiased, so not flagged as noise-free (`cleanAux`).
+    /// Available in builds with the `denoise` feature; others return
+    /// [`DenoiseError::NotBuilt`].
     ///
     /// # Errors
     /// No denoiser in this build, or the library failed (no CPU device, say).
-    pub fn denoised(&self) -> Result<Film, DenoiseError> {
+    pub fn denoised(&self, guides: &AovPlanes) -> Result<Film, DenoiseError> {
         #[cfg(feature = "denoise")]
         {
             let failed = |e: oidn::Error| DenoiseError::Failed(format!("{e:?}"));
@@ -257,6 +280,16 @@ impl Film {
                 .srgb(false)
                 .hdr(true)
                 .image_dimensions(self.width as usize, self.height as usize);
+            let guides = denoise_guides(guides, self.pixels.len());
+            match &guides {
+                Some((albedo, Some(normal))) => {
+                    filter.albedo_normal(albedo, normal);
+                }
+                Some((albedo, None)) => {
+                    filter.albedo(albedo);
+                }
+                None => {}
+            }
             filter.filter_in_place(&mut color).map_err(failed)?;
             device.get_error().map_err(failed)?;
             Ok(Film {
@@ -269,7 +302,10 @@ impl Film {
             })
         }
         #[cfg(not(feature = "denoise"))]
-        Err(DenoiseError::NotBuilt)
+        {
+            let _ = guides;
+            Err(DenoiseError::NotBuilt)
+        }
     }
 }
 

@@ -5,8 +5,8 @@ TOML document that the library's one TOML reader reads, so their keys and checks
 the scene format's. Images given as arrays are written to a temporary folder for the
 library's texture reader, and the folder removed once the scene is built.
 
-TODO: transforms are flattened into copies of the mesh; switch to instances when the
-two-level BVH lands.
+Transforms: a mesh placed more than once is stored once, its copies instances of it
+(the two-level BVH); the geometry reaches the library as arrays, never as text.
 """
 
 import json
@@ -45,6 +45,8 @@ def _transforms(value, name: str) -> np.ndarray:
         matrices = matrices[None]
     if matrices.ndim != 3 or matrices.shape[1:] != (4, 4):
         raise ValueError(f"{name} must have the shape (k, 4, 4) or (4, 4), not {matrices.shape}")
+    if len(matrices) == 0:
+        raise ValueError(f"{name} holds no matrix: give at least one, or leave the mesh out")
     for k, matrix in enumerate(matrices):
         if not np.isfinite(matrix).all():
             raise ValueError(f"{name}[{k}] has a value that is not finite")
@@ -104,8 +106,10 @@ def _image_file(value, folder: str, stem: str, name: str) -> str:
 
 def compose(meshes, lights, environment):
     """The TOML document, its folder (kept alive by the fourth item, a temporary
-    folder), and each mesh as (vertices, faces, normals, uvs, material name, texture
-    path) of checked, contiguous arrays, transforms applied."""
+    folder), and each mesh as [vertices, faces, normals, uvs, material name, texture
+    path, name, transforms] of checked, contiguous arrays: transforms a (k, 4, 4)
+    array of the instances placing the mesh, or None (one transform applied to the
+    vertices)."""
     folder = tempfile.TemporaryDirectory(prefix="raytracer-arrays-")
     document = []
     out = []
@@ -156,30 +160,30 @@ def compose(meshes, lights, environment):
                 texture = _image_file(mesh["material"][maps[0]], folder.name, f"texture{k}", f"{name}['material'][{maps[0]!r}]")
             material = name
             document.append(_table(f"[materials.{json.dumps(name)}]", values, f"{name}['material']"))
-        positions = vertices.astype(np.float64)
-        faces = faces.astype(np.int64)
-        copies = 1
+        matrices = None
         if mesh.get("transforms") is not None:
             matrices = _transforms(mesh["transforms"], f"{name}['transforms']")
-            copies = len(matrices)
-            positions = np.concatenate([positions @ m[:3, :3].T + m[:3, 3] for m in matrices])
-            faces = np.concatenate([faces + c * n for c in range(len(matrices))])
+        out.append([vertices, faces, normals, uvs, material, texture, str(mesh.get("name", name)), matrices])
+    # A mesh placed more than once is stored once and placed by instances. Then every
+    # mesh is (placed by the identity if it has no transform): the scene is two-level
+    # anyway, and object ids then follow the meshes, copy after copy. Otherwise each
+    # mesh is placed into one level, its one transform applied here.
+    instanced = any(entry[7] is not None and len(entry[7]) > 1 for entry in out)
+    for entry in out:
+        vertices, normals, matrices = entry[0], entry[2], entry[7]
+        if instanced:
+            entry[7] = np.eye(4)[None] if matrices is None else np.ascontiguousarray(matrices)
+        elif matrices is not None:
+            m = matrices[0]
+            entry[0] = vertices.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
             if normals is not None:
-                normals = np.concatenate([normals @ np.linalg.inv(m[:3, :3]) for m in matrices])
-            if uvs is not None:
-                uvs = np.concatenate([uvs] * len(matrices))
-        out.append(
-            (
-                np.ascontiguousarray(positions, dtype=np.float32),
-                np.ascontiguousarray(faces, dtype=np.uint32),
-                None if normals is None else np.ascontiguousarray(normals, dtype=np.float32),
-                None if uvs is None else np.ascontiguousarray(uvs, dtype=np.float32),
-                material,
-                texture,
-                str(mesh.get("name", name)),
-                copies,
-            )
-        )
+                entry[2] = normals @ np.linalg.inv(m[:3, :3])
+            entry[7] = None
+        # Copied only when not already the dtype and layout the library reads.
+        entry[0] = np.ascontiguousarray(entry[0], dtype=np.float32)
+        entry[1] = np.ascontiguousarray(entry[1], dtype=np.uint32)
+        entry[2] = None if entry[2] is None else np.ascontiguousarray(entry[2], dtype=np.float32)
+        entry[3] = None if entry[3] is None else np.ascontiguousarray(entry[3], dtype=np.float32)
     for k, light in enumerate([] if lights is None else lights):
         document.append(_table("[[light]]", light, f"lights[{k}]"))
     if environment is not None:

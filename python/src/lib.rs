@@ -18,7 +18,7 @@
 //! an abort of the interpreter.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use numpy::ndarray::{Array2, Array3, ArrayView3};
@@ -612,9 +612,60 @@ pub(crate) struct Loaded {
     options: PartialOptions,
     /// The box around the shapes, for a camera that frames them.
     bounds: raytracer::math::Aabb,
-    /// The description of a scene without lights, kept to light it as the command line
-    /// does for each render's camera ([`SceneDescription::add_default_light`]).
-    unlit: Option<raytracer::SceneDescription>,
+    /// Whether the scene has no lights ([`SceneDescription::is_unlit`]): full mode
+    /// then lights it with the default rig at each render's camera, as the command
+    /// line does.
+    unlit: bool,
+    /// Copies of `scene` lit by the default rig ([`Loaded::lit_for`]), each lent to
+    /// one render at a time: built once per Scene (and once more per render running
+    /// at the same moment), not once per render; only the rig's two lights change
+    /// with the camera.
+    lit: Mutex<Vec<Scene>>,
+    /// The objects' names when the scene's own are not the caller's (the meshes of
+    /// `from_arrays` placed by instances).
+    names: Option<Vec<String>>,
+    /// Triangles the description stores (each instanced mesh once) and places (each
+    /// instance's copy counted), meshes stored for instances and instances.
+    counts: Counts,
+}
+
+/// What a description stores and places ([`Loaded::counts`]), for `Scene.counts`.
+#[derive(Clone, Copy, Debug)]
+struct Counts {
+    triangles: u64,
+    placed_triangles: u64,
+    meshes: usize,
+    instances: usize,
+}
+
+/// The scene lit by the default rig for one render ([`Loaded::lit_for`]), handed
+/// back to its [`Loaded`] when the render ends.
+pub(crate) struct LitScene<'a> {
+    scene: Option<Scene>,
+    pool: &'a Mutex<Vec<Scene>>,
+}
+
+impl std::ops::Deref for LitScene<'_> {
+    type Target = Scene;
+    fn deref(&self) -> &Scene {
+        self.scene.as_ref().expect("held until dropped")
+    }
+}
+
+impl Drop for LitScene<'_> {
+    fn drop(&mut self) {
+        if let Some(scene) = self.scene.take() {
+            lock(self.pool).push(scene);
+        }
+    }
+}
+
+/// `mutex` locked, even if a render panicked while holding it: the pool only ever
+/// holds whole scenes.
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 impl Loaded {
@@ -644,14 +695,21 @@ impl Loaded {
         description: raytracer::SceneDescription,
         options: PartialOptions,
     ) -> Loaded {
-        let bounds = description.bounds();
-        let unlit = description.is_unlit().then(|| description.clone());
+        let counts = Counts {
+            triangles: description.unique_triangle_count(),
+            placed_triangles: description.instanced_triangle_count(),
+            meshes: description.meshes.len(),
+            instances: description.instances.len(),
+        };
         Loaded {
             path,
+            bounds: description.bounds(),
+            unlit: description.is_unlit(),
             scene: Scene::build(description, &BvhParams::default()),
             options,
-            bounds,
-            unlit,
+            lit: Mutex::new(Vec::new()),
+            names: None,
+            counts,
         }
     }
 
@@ -667,17 +725,51 @@ impl Loaded {
 
     /// The scene lit for `options`, if it needs lights it lacks: as the command line
     /// does, a scene without lights rendered in full mode gets the default lighting
-    /// for this camera. Call detached from the interpreter.
-    pub(crate) fn lit_for(&self, options: &RenderOptions) -> Option<Scene> {
-        match &self.unlit {
-            Some(description) if options.mode == raytracer::Mode::Full && options.default_light => {
-                let mut description = description.clone();
-                description.add_default_light(options);
-                Some(Scene::build(description, &BvhParams::default()))
-            }
-            _ => None,
+    /// for this camera ([`SceneDescription::add_default_light`]). Call detached from
+    /// the interpreter.
+    pub(crate) fn lit_for(&self, options: &RenderOptions) -> Option<LitScene<'_>> {
+        if !(self.unlit && options.mode == raytracer::Mode::Full && options.default_light) {
+            return None;
         }
+        let spare = lock(&self.lit).pop();
+        let mut scene = spare.unwrap_or_else(|| self.lit_copy(options));
+        scene.lights = rig(Vec::new(), options).lights;
+        Some(LitScene {
+            scene: Some(scene),
+            pool: &self.lit,
+        })
     }
+
+    /// A copy of the scene with the default rig's changes to its materials (the
+    /// ambient light, no highlight below `Ns` 1), and not unlit: what
+    /// [`Scene::build`] makes of the description with the rig added, whose BVH does
+    /// not depend on the lights or on those material values. The caller sets the
+    /// lights for its camera.
+    fn lit_copy(&self, options: &RenderOptions) -> Scene {
+        let mut scene = self.scene.clone();
+        let materials = std::mem::take(&mut scene.materials);
+        scene.materials = rig(materials, options).materials;
+        scene.unlit = false;
+        scene
+    }
+}
+
+/// A description of no shapes with `materials`, lit by the default rig for the
+/// camera of `options` (`options` in full mode with the default light on):
+/// [`SceneDescription::add_default_light`] itself, so that its lights and materials
+/// are exactly those of the command line's lit scene.
+fn rig(
+    materials: Vec<raytracer::Material>,
+    options: &RenderOptions,
+) -> raytracer::SceneDescription {
+    let mut description = raytracer::SceneDescription {
+        materials,
+        ..Default::default()
+    };
+    // No shapes, so nothing emits: always unlit.
+    description.add_default_light(options);
+    debug_assert_eq!(description.lights.len(), 2);
+    description
 }
 
 /// Test hook: the package's tests must see that a call releases the interpreter, and
@@ -704,13 +796,24 @@ pub(crate) fn test_gate(variable: &str) {
     }
 }
 
-/// The film's values, row by row, three per pixel. Call detached from the interpreter.
-fn film_values(film: &Film) -> Vec<f32> {
-    let mut values = Vec::with_capacity(film.pixels.len() * 3);
-    for pixel in &film.pixels {
-        values.extend_from_slice(&pixel.to_array());
-    }
-    values
+/// The film's values, row by row, three per pixel, in the film's own buffer.
+fn film_values(film: Film) -> Vec<f32> {
+    vector_floats(film.pixels)
+}
+
+/// `values` as their coordinates, three per vector, in the same allocation: no copy.
+/// A frame's buffers are fresh pages in a Dask worker (whose nanny sets
+/// `MALLOC_TRIM_THRESHOLD_`, which makes glibc map every block above 128 KiB afresh),
+/// so a copy there costs a page fault per 4 KiB on top of the copy.
+fn vector_floats(values: Vec<Vec3>) -> Vec<f32> {
+    const _: () = assert!(size_of::<Vec3>() == 3 * size_of::<f32>());
+    const _: () = assert!(align_of::<Vec3>() == align_of::<f32>());
+    let mut values = std::mem::ManuallyDrop::new(values);
+    let (pointer, length, capacity) = (values.as_mut_ptr(), values.len(), values.capacity());
+    // SAFETY: glam's `Vec3` is `#[repr(C)]` three `f32` (size and alignment asserted
+    // above), so the buffer holds `3 * length` initialised `f32` and was allocated
+    // with the layout of `3 * capacity` of them; `values` is not dropped.
+    unsafe { Vec::from_raw_parts(pointer.cast::<f32>(), length * 3, capacity * 3) }
 }
 
 /// `values` (from [`film_values`]) as a numpy array of shape `(height, width, 3)`,
@@ -858,10 +961,12 @@ impl PyScene {
     /// colour map, an image file's path or a numpy image, ``uint8`` sRGB or float
     /// linear, ``(h, w, 3)``; default: grey diffuse) and ``transforms`` (``(k, 4, 4)``
     /// or ``(4, 4)``: the mesh placed ``k`` times, each matrix applied to column
-    /// vectors; flattened into one mesh for now). ``lights`` is a list of dicts of the
+    /// vectors; with ``k`` above 1 stored once and placed by instances, and then
+    /// every mesh is an instance: see :attr:`counts`). ``lights`` is a list of dicts of the
     /// TOML ``[[light]]`` keys; ``environment`` a dict of the ``[environment]`` keys
     /// (``file`` a path or a numpy image, or ``color``; ``strength``, ``rotation``,
-    /// ``background``). Triangles are numbered mesh after mesh, copy after copy.
+    /// ``background``). Objects are numbered mesh after mesh, copy after copy;
+    /// triangles mesh after mesh (a copy's by its mesh's numbering).
     ///
     /// Raises ``ValueError`` naming the argument and its first bad element: arrays of
     /// the wrong shape or dtype, indices out of range, values that are not finite, a
@@ -891,7 +996,7 @@ impl PyScene {
                 material: item.get_item(4)?.extract()?,
                 texture: item.get_item(5)?.extract()?,
                 name: item.get_item(6)?.extract()?,
-                copies: item.get_item(7)?.extract()?,
+                transforms: item.get_item(7)?.extract()?,
             });
         }
         // Every file the document names is an absolute path: messages name the
@@ -900,10 +1005,14 @@ impl PyScene {
         let loaded = py
             .detach(|| formats::parse_toml(text.as_bytes(), &document))
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let description = mesh::arrays_description(loaded.description, &arrays)?;
+        let (description, names) = mesh::arrays_description(loaded.description, &arrays)?;
         drop(arrays);
         let options = loaded.options;
-        let loaded = py.detach(|| Loaded::build(None, description, options));
+        let mut loaded = py.detach(|| Loaded::build(None, description, options));
+        // The scene names instances by number; the caller named its meshes.
+        if loaded.scene.object_names().len() == names.len() {
+            loaded.names = Some(names);
+        }
         warn(py, &loaded.scene.warnings)?;
         Ok(PyScene {
             loaded: Arc::new(loaded),
@@ -929,7 +1038,32 @@ impl PyScene {
     /// first.
     #[getter]
     fn object_names(&self) -> Vec<String> {
-        self.loaded.scene.object_names().to_vec()
+        match &self.loaded.names {
+            Some(names) => names.clone(),
+            None => self.loaded.scene.object_names().to_vec(),
+        }
+    }
+
+    /// What the scene stores and what it places, as ``raytracer info`` counts them: a
+    /// dict of ``triangles`` (stored: each mesh placed by instances once, whatever
+    /// its copies), ``placed_triangles`` (rendered: each copy counted), ``meshes``
+    /// (stored once for instances), ``instances`` (their copies) and ``primitives``
+    /// (the triangles and spheres the built BVHs hold, degenerate ones left out).
+    #[getter]
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let Counts {
+            triangles,
+            placed_triangles,
+            meshes,
+            instances,
+        } = self.loaded.counts;
+        let dict = PyDict::new(py);
+        dict.set_item("triangles", triangles)?;
+        dict.set_item("placed_triangles", placed_triangles)?;
+        dict.set_item("meshes", meshes)?;
+        dict.set_item("instances", instances)?;
+        dict.set_item("primitives", self.loaded.scene.prim_count())?;
+        Ok(dict)
     }
 
     /// The scene file, as it was named; ``None`` for a scene made by ``from_mesh``.
@@ -1187,10 +1321,8 @@ fn result_of<'py>(
             .expect("one value per pixel")
             .into_pyarray(py)
     };
-    let vectors = |values: Vec<Vec3>| {
-        let flat: Vec<f32> = values.iter().flat_map(|v| v.to_array()).collect();
-        film_array(py, width as u32, height as u32, flat)
-    };
+    let vectors =
+        |values: Vec<Vec3>| film_array(py, width as u32, height as u32, vector_floats(values));
     let AovPlanes {
         depth,
         normal,
@@ -1229,7 +1361,7 @@ fn image_of<'py>(
     options: &RenderOptions,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (width, height) = (film.width, film.height);
-    let values = py.detach(move || film_values(&film));
+    let values = film_values(film);
     let array = film_array(py, width, height, values);
     py.import("raytracer._image")?
         .getattr("Image")?

@@ -99,8 +99,8 @@ fn indices_of<'py>(faces: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py
 }
 
 /// One mesh of `Scene.from_arrays`, as `raytracer._arrays` hands it over: checked
-/// there (shapes, dtypes, finite values, indices in range; transforms applied), and
-/// checked again here only as far as memory safety needs.
+/// there (shapes, dtypes, finite values, indices in range, transforms), and checked
+/// again here only as far as memory safety needs.
 pub(crate) struct ArrayMesh<'py> {
     /// `(n, 3)` `float32`, C order.
     pub vertices: PyReadonlyArrayDyn<'py, f32>,
@@ -116,43 +116,34 @@ pub(crate) struct ArrayMesh<'py> {
     pub texture: Option<PathBuf>,
     /// Its name, for the `object_id` output's names.
     pub name: String,
-    /// How many copies (transforms) `faces` holds, one after the other: each one is
-    /// an object of its own.
-    pub copies: usize,
+    /// `(k, 4, 4)` `float64`, row-major, world from object: the mesh stored once and
+    /// placed `k` times (instances); none: placed as its vertices are (a single
+    /// transform already applied).
+    pub transforms: Option<PyReadonlyArrayDyn<'py, f64>>,
 }
 
 /// The scene of `meshes` and of `loaded` (a TOML document's materials, lights and
-/// environment; [`formats::parse_toml`]).
+/// environment; [`formats::parse_toml`]): each mesh without transforms appended to
+/// the description's own arrays (an object of its own), each with transforms stored
+/// once in [`SceneDescription::meshes`] and placed by an instance per transform.
+/// Returns the description and the names of its objects in object id order (the
+/// meshes' names, with `copy j` for each copy of a mesh placed more than once).
 ///
 /// # Errors
-/// A `ValueError` naming the mesh for arrays of a wrong shape, indices out of range
-/// or a texture that cannot be read.
+/// A `ValueError` naming the mesh for arrays of a wrong shape, indices out of range,
+/// a singular transform or a texture that cannot be read.
 pub(crate) fn arrays_description(
     mut description: SceneDescription,
     meshes: &[ArrayMesh<'_>],
-) -> PyResult<SceneDescription> {
-    let any_normals = meshes.iter().any(|m| m.normals.is_some());
-    let any_uvs = meshes.iter().any(|m| m.uvs.is_some());
+) -> PyResult<(SceneDescription, Vec<String>)> {
+    let flat = || meshes.iter().filter(|m| m.transforms.is_none());
+    let flat_normals = flat().any(|m| m.normals.is_some());
+    let flat_uvs = flat().any(|m| m.uvs.is_some());
     let mut fallback = None;
+    let mut names = Vec::new();
+    let mut placed_names = Vec::new();
     for (k, mesh) in meshes.iter().enumerate() {
         let bad = |what: String| PyValueError::new_err(format!("meshes[{k}]: {what}"));
-        let vertices = mesh.vertices.as_slice().map_err(|e| bad(e.to_string()))?;
-        let faces = mesh.faces.as_slice().map_err(|e| bad(e.to_string()))?;
-        if vertices.len() % 3 != 0 || faces.len() % 3 != 0 {
-            return Err(bad("vertices and faces must have three columns".into()));
-        }
-        let count = vertices.len() / 3;
-        let base = u32::try_from(description.positions.len())
-            .ok()
-            .filter(|b| (*b as usize) + count <= u32::MAX as usize)
-            .ok_or_else(|| bad("more than 2^32 vertices in all".into()))?;
-        if let Some(i) = faces.iter().position(|&i| i as usize >= count) {
-            return Err(bad(format!(
-                "faces[{}]: vertex index {} is not in 0..{count}",
-                i / 3,
-                faces[i]
-            )));
-        }
         let material = match &mesh.material {
             Some(name) => MaterialId(
                 description
@@ -177,65 +168,113 @@ pub(crate) fn arrays_description(
                 maps.pbr.base_color = Some(map);
             }
         }
-        let rows = |values: &[f32], width: usize, name: &str| -> PyResult<()> {
-            if values.len() != count * width {
-                return Err(bad(format!(
-                    "{name} must have one row of {width} per vertex ({count})"
-                )));
-            }
-            Ok(())
+        let Some(transforms) = &mesh.transforms else {
+            let object =
+                raytracer::description::ObjectDesc::next_in(&description, mesh.name.clone());
+            description.objects.push(object);
+            names.push(mesh.name.clone());
+            append_mesh(&mut description, mesh, material, (flat_normals, flat_uvs)).map_err(bad)?;
+            continue;
         };
-        description.positions.extend(
-            vertices
-                .chunks_exact(3)
-                .map(|v| Vec3::new(v[0], v[1], v[2])),
-        );
-        let normal_base = description.normals.len() as u32;
-        if let Some(normals) = &mesh.normals {
-            let normals = normals.as_slice().map_err(|e| bad(e.to_string()))?;
-            rows(normals, 3, "normals")?;
-            description
-                .normals
-                .extend(normals.chunks_exact(3).map(|v| Vec3::new(v[0], v[1], v[2])));
+        let transforms = transforms.as_slice().map_err(|e| bad(e.to_string()))?;
+        if transforms.len() % 16 != 0 {
+            return Err(bad("transforms must have the shape (k, 4, 4)".into()));
         }
-        let uv_base = description.texcoords.len() as u32;
-        if let Some(uvs) = &mesh.uvs {
-            let uvs = uvs.as_slice().map_err(|e| bad(e.to_string()))?;
-            rows(uvs, 2, "uvs")?;
-            description.texcoords.extend(
-                uvs.chunks_exact(2)
-                    .map(|v| raytracer::math::Vec2::new(v[0], v[1])),
-            );
-        }
-        let per_copy = (faces.len() / 3).div_ceil(mesh.copies.max(1)).max(1);
-        for (f, face) in faces.chunks_exact(3).enumerate() {
-            if f % per_copy == 0 {
-                let name = match mesh.copies {
-                    0 | 1 => mesh.name.clone(),
-                    _ => format!("{} copy {}", mesh.name, f / per_copy),
-                };
-                let object = raytracer::description::ObjectDesc::next_in(&description, name);
-                description.objects.push(object);
-            }
-            let corners = [face[0], face[1], face[2]];
-            description
-                .triangles
-                .push(raytracer::description::TriangleDesc {
-                    positions: corners.map(|i| base + i),
-                    material,
-                });
-            if any_normals {
-                let n = mesh
-                    .normals
-                    .as_ref()
-                    .map(|_| corners.map(|i| normal_base + i));
-                description.triangle_normals.push(n);
-            }
-            if any_uvs {
-                let t = mesh.uvs.as_ref().map(|_| corners.map(|i| uv_base + i));
-                description.triangle_texcoords.push(t);
-            }
+        let mut stored = SceneDescription::default();
+        let own = (mesh.normals.is_some(), mesh.uvs.is_some());
+        append_mesh(&mut stored, mesh, material, own).map_err(bad)?;
+        let index = description
+            .add_instanced_mesh(stored, Some(material))
+            .map_err(|e| bad(e.to_string()))?;
+        let copies = transforms.len() / 16;
+        for (j, rows) in transforms.chunks_exact(16).enumerate() {
+            let rows: &[f64; 16] = rows.try_into().expect("chunks of 16");
+            let placement = raytracer::formats::affine_from_rows(rows).map_err(|e| {
+                PyValueError::new_err(format!("meshes[{k}]['transforms'][{j}]: {e}"))
+            })?;
+            // The front follows the winding as placed, as a flattened copy's does.
+            description.add_instance(index, placement, false);
+            placed_names.push(match copies {
+                1 => mesh.name.clone(),
+                _ => format!("{} copy {j}", mesh.name),
+            });
         }
     }
-    Ok(description)
+    // The scene numbers the description's own objects first, then each instance's.
+    names.append(&mut placed_names);
+    Ok((description, names))
+}
+
+/// Appends the arrays of `mesh` to `to`'s (positions, normals, texture coordinates,
+/// triangles in `material`), keeping `to`'s per-triangle normal and texture
+/// coordinate indices when `(normals, uvs)` say some of its meshes have them.
+fn append_mesh(
+    to: &mut SceneDescription,
+    mesh: &ArrayMesh<'_>,
+    material: MaterialId,
+    (any_normals, any_uvs): (bool, bool),
+) -> Result<(), String> {
+    let vertices = mesh.vertices.as_slice().map_err(|e| e.to_string())?;
+    let faces = mesh.faces.as_slice().map_err(|e| e.to_string())?;
+    if vertices.len() % 3 != 0 || faces.len() % 3 != 0 {
+        return Err("vertices and faces must have three columns".into());
+    }
+    let count = vertices.len() / 3;
+    let base = u32::try_from(to.positions.len())
+        .ok()
+        .filter(|b| (*b as usize) + count <= u32::MAX as usize)
+        .ok_or("more than 2^32 vertices in all")?;
+    if let Some(i) = faces.iter().position(|&i| i as usize >= count) {
+        return Err(format!(
+            "faces[{}]: vertex index {} is not in 0..{count}",
+            i / 3,
+            faces[i]
+        ));
+    }
+    let rows = |values: &[f32], width: usize, name: &str| -> Result<(), String> {
+        if values.len() != count * width {
+            return Err(format!(
+                "{name} must have one row of {width} per vertex ({count})"
+            ));
+        }
+        Ok(())
+    };
+    to.positions.extend(
+        vertices
+            .chunks_exact(3)
+            .map(|v| Vec3::new(v[0], v[1], v[2])),
+    );
+    let normal_base = to.normals.len() as u32;
+    if let Some(normals) = &mesh.normals {
+        let normals = normals.as_slice().map_err(|e| e.to_string())?;
+        rows(normals, 3, "normals")?;
+        to.normals
+            .extend(normals.chunks_exact(3).map(|v| Vec3::new(v[0], v[1], v[2])));
+    }
+    let uv_base = to.texcoords.len() as u32;
+    if let Some(uvs) = &mesh.uvs {
+        let uvs = uvs.as_slice().map_err(|e| e.to_string())?;
+        rows(uvs, 2, "uvs")?;
+        to.texcoords.extend(
+            uvs.chunks_exact(2)
+                .map(|v| raytracer::math::Vec2::new(v[0], v[1])),
+        );
+    }
+    let corners = || faces.chunks_exact(3).map(|f| [f[0], f[1], f[2]]);
+    to.triangles
+        .extend(corners().map(|c| raytracer::description::TriangleDesc {
+            positions: c.map(|i| base + i),
+            material,
+        }));
+    if any_normals {
+        let has = mesh.normals.is_some();
+        to.triangle_normals
+            .extend(corners().map(|c| has.then(|| c.map(|i| normal_base + i))));
+    }
+    if any_uvs {
+        let has = mesh.uvs.is_some();
+        to.triangle_texcoords
+            .extend(corners().map(|c| has.then(|| c.map(|i| uv_base + i))));
+    }
+    Ok(())
 }

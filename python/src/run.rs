@@ -188,10 +188,11 @@ fn render_bands(
 ) -> Result<Outputs, Stopped> {
     crate::test_gate("RAYTRACER_TEST_GATE_RENDER");
     let lit = loaded.lit_for(options);
-    let scene = lit.as_ref().unwrap_or(&loaded.scene);
+    let scene = lit.as_deref().unwrap_or(&loaded.scene);
     let width = region.width as usize;
-    let mut pixels = vec![Vec3::ZERO; width * region.height as usize];
-    let mut planes = AovPlanes::new(aovs, pixels.len());
+    let size = width * region.height as usize;
+    // Made at the first band unless it is the whole region (see below).
+    let mut whole: Option<(Vec<Vec3>, AovPlanes)> = None;
     // As many rows as threads (rows are what the pixel loop spreads over them), and
     // a first band of some 64k samples, before its time is known.
     let fewest = rayon::current_num_threads().clamp(1, 1024) as u32;
@@ -211,15 +212,24 @@ fn render_bands(
         let started = Instant::now();
         let part = raytracer::render_tile_outputs(scene, options, band, aovs)
             .map_err(|e| Stopped::Failed(Error::Tile(e)))?;
+        if height == region.height {
+            // One band for the whole region (a small frame): its outputs are the
+            // region's, without a copy into buffers of their own.
+            rows_done.store(height, Ordering::Relaxed);
+            return Ok(part);
+        }
+        let (pixels, planes) =
+            whole.get_or_insert_with(|| (vec![Vec3::ZERO; size], AovPlanes::new(aovs, size)));
         let at = y as usize * width;
         pixels[at..at + part.film.pixels.len()].copy_from_slice(&part.film.pixels);
-        copy_planes(&mut planes, &part.aovs, at);
+        copy_planes(planes, &part.aovs, at);
         y += height;
         rows_done.store(y, Ordering::Relaxed);
         let per_row = started.elapsed().as_secs_f64() / f64::from(height);
         let wanted = (BAND_TIME / per_row.max(1e-9)) as u64;
         rows = band_rows(wanted.min(u64::from(rows) * 4), fewest);
     }
+    let (pixels, planes) = whole.unwrap_or_else(|| (Vec::new(), AovPlanes::new(aovs, 0)));
     Ok(Outputs {
         film: Film {
             width: region.width,

@@ -87,11 +87,20 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     if backdrop && !wanted.contains(&Aov::Alpha) {
         wanted.push(Aov::Alpha);
     }
+    // The denoiser's guides (OIDN's albedo and normal images), rendered with the
+    // colour, written only if asked for.
+    let denoising = args.denoise && options.mode == Mode::Path;
+    let mut rendered_aovs = wanted.clone();
+    for guide in [Aov::Albedo, Aov::Normal] {
+        if denoising && !rendered_aovs.contains(&guide) {
+            rendered_aovs.push(guide);
+        }
+    }
     // Timing the tracing apart reads the clock a few times per tile: only when asked.
     let (outputs, rays, times) = render_outputs_with_stats(
         &scene,
         options,
-        &wanted,
+        &rendered_aovs,
         &|_row| rendering.inc(),
         args.stats,
     );
@@ -110,7 +119,16 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
         false => (None, coverage.filter(|_| backdrop)),
     };
     let film = match (args.denoise, options.mode) {
-        (true, Mode::Path) => film.denoised()?,
+        (true, Mode::Path) => {
+            let film = film.denoised(&planes)?;
+            if !wanted.contains(&Aov::Albedo) {
+                planes.albedo = None;
+            }
+            if !wanted.contains(&Aov::Normal) {
+                planes.normal = None;
+            }
+            film
+        }
         (true, mode) => {
             warn(&format!(
                 "--denoise applies to path mode only; {} mode is written as rendered",

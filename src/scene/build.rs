@@ -209,7 +209,9 @@ impl Scene {
                 if degenerate == 1 { "" } else { "s" }
             ));
         }
-        if order.is_empty() {
+        // A level of no shapes of its own renders its instances' (a scene of instances
+        // only): nothing is missing then.
+        if order.is_empty() && instances.is_empty() {
             warnings.push("the scene has no shapes left to render: every ray misses".into());
         }
         let area_lights = collect_area_lights(

@@ -282,6 +282,54 @@ def test_a_lost_workers_tiles_are_recomputed(tmp_path, monkeypatch):
         assert np.array_equal(bits(result["linear"]), bits(expected))
 
 
+def test_render_many_yields_every_frame_once_when_a_worker_is_lost(tmp_path, monkeypatch):
+    """A worker killed in the middle of a frame (found by the render gate, not by a
+    clock): its task's frames are rendered again on the other worker (or on the one
+    the nanny starts), and every frame is yielded exactly once, equal to a local
+    render."""
+    from distributed import Client
+
+    cameras = [dict(look_from=(x, 0.7, 1.75), look_to=(0.0, 0.7, 0.0)) for x in (-0.4, -0.2, 0.0, 0.2, 0.4, 0.6)]
+    common = dict(width=24, height=18, fov=60, spp=2)
+    aovs = ["depth", "normal", "object_id"]
+    gate = tmp_path / "gate"
+    monkeypatch.setenv("RAYTRACER_TEST_GATE_RENDER", str(gate))
+    with start_cluster(2) as cluster, Client(cluster) as client:
+        monkeypatch.delenv("RAYTRACER_TEST_GATE_RENDER")
+        client.wait_for_workers(2)
+        workers = set(client.run(os.getpid).values())
+        frames = rd.render_many(CORNELL_OBJ, cameras, client, aovs=aovs, frames_per_task=2, **common)
+        seen = []
+        result = {}
+
+        def collect():
+            try:
+                seen.extend(frames)
+            except BaseException as error:  # noqa: BLE001 - reported by the assertion below
+                result["error"] = error
+
+        thread = threading.Thread(target=collect)
+        thread.start()
+        waiting = []
+        for _ in range(120_000):
+            waiting = [int(m.suffix[1:]) for m in tmp_path.glob("gate.*")]
+            if waiting or not thread.is_alive():
+                break
+            time.sleep(0.001)
+        assert len(waiting) >= 1 and set(waiting) <= workers, (waiting, workers, result)
+        # Killed while it renders the first frame of a task: that task is lost.
+        os.kill(waiting[0], signal.SIGKILL)
+        gate.touch()
+        thread.join()
+        assert "error" not in result, result
+        assert waiting[0] not in client.run(os.getpid).values()
+    assert sorted(index for index, _ in seen) == list(range(len(cameras)))
+    for index, frame in seen:
+        expected = raytracer.render(CORNELL_OBJ, aovs=aovs, **common, **cameras[index])
+        assert set(frame) == set(expected)
+        assert all(np.array_equal(frame[name], expected[name]) for name in expected), index
+
+
 # --- python -m raytracer.distributed ----------------------------------------------------
 
 
@@ -407,5 +455,12 @@ def test_render_many_yields_each_cameras_frame_and_reads_the_scene_once_per_work
             assert np.array_equal(seen[index][name], expected[name]), (index, name)
     # Five frames, two worker processes: the scene is read at most once by each.
     assert loads() - before <= 2
+    # Frames in tasks of two (the last task one): each frame once, the same bits.
+    grouped = list(rd.render_many(CORNELL_OBJ, cameras, client, aovs=aovs, frames_per_task=2, **common))
+    assert sorted(index for index, _ in grouped) == list(range(len(cameras)))
+    for index, frame in grouped:
+        assert all(np.array_equal(frame[name], seen[index][name]) for name in frame), index
+    with pytest.raises(ValueError, match="invalid frames_per_task: 0"):
+        next(rd.render_many(CORNELL_OBJ, cameras, client, frames_per_task=0))
     with pytest.raises(TypeError, match="unexpected option 'colour'"):
         next(rd.render_many(CORNELL_OBJ, [dict(colour=1)], client))

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import ipaddress
 import os
 import pickle
 import shutil
@@ -133,8 +134,9 @@ def _render(
         del futures
         # The tiles finished since the last batch, fetched in one request. `gather`
         # waits for a tile lost with its worker to be rendered again.
+        direct = _direct(client)
         for batch in waiting.batches():
-            for future, part in zip(batch, client.gather(batch)):
+            for future, part in zip(batch, client.gather(batch, direct=direct)):
                 x, y, w, h = where[future.key]
                 image[y : y + h, x : x + w] = part
                 future.release()
@@ -182,6 +184,15 @@ def _scene_on_workers(client: Any, scene: "str | os.PathLike[str]", ship: Option
                 pass
 
 
+#: What :func:`render_many` puts in one task at most: frames of this many camera
+#: samples in all (width x height x samples per pixel), and this many frames.
+TASK_SAMPLES = 1 << 20
+TASK_FRAMES = 16
+#: Tasks per worker thread that :func:`render_many` leaves at least, to balance the
+#: load.
+TASKS_PER_THREAD = 4
+
+
 def render_many(
     scene: "str | os.PathLike[str]",
     cameras: Iterable[dict],
@@ -189,18 +200,25 @@ def render_many(
     *,
     aovs: Optional[Sequence[str]] = None,
     ship: Optional[bool] = None,
+    frames_per_task: Optional[int] = None,
     **options: Any,
 ) -> Iterator["tuple[int, Any]"]:
-    """Renders one frame per camera on the cluster of ``client``, one task per frame,
-    and yields ``(index, frame)`` as frames finish (in no fixed order): ``index`` is the
-    camera's position in ``cameras``, ``frame`` what :func:`raytracer.render` returns
-    for ``scene`` with that camera's options over ``options`` (and ``aovs``: a dict of
-    ``color`` and each output asked for), bit for bit.
+    """Renders one frame per camera on the cluster of ``client`` and yields ``(index,
+    frame)`` as frames finish (in no fixed order): ``index`` is the camera's position
+    in ``cameras``, ``frame`` what :func:`raytracer.render` returns for ``scene`` with
+    that camera's options over ``options`` (and ``aovs``: a dict of ``color`` and each
+    output asked for), bit for bit. Every frame is yielded once.
 
     Each camera is a dict of render options (``camera_to_world``, ``intrinsics``,
     ``look_from``, ``fov``, ...). The scene reaches the workers as :func:`render`'s
     does, once per worker process for all the frames (kept between calls while its
-    files do not change). A lost worker costs only its frames, which Dask renders
+    files do not change). Frames go to the workers in tasks of ``frames_per_task``
+    consecutive cameras; by default as many as make some
+    :data:`TASK_SAMPLES` camera samples (width x height x samples per pixel, as far
+    as the options say) and at most :data:`TASK_FRAMES`, leaving at least
+    :data:`TASKS_PER_THREAD` tasks per worker thread: Dask spends a few milliseconds
+    of the client's and the worker's time on each task, as much as a small frame
+    takes to render. A lost worker costs only its tasks' frames, which Dask renders
     again elsewhere. Raises what :func:`raytracer.render` raises, from the worker
     that found it, when its frame is reached.
     """
@@ -211,22 +229,78 @@ def render_many(
         unknown = sorted(set(camera) - set(OPTIONS))
         if unknown:
             raise TypeError(f"render_many() got an unexpected option {unknown[0]!r}")
+    if frames_per_task is not None and (
+        isinstance(frames_per_task, bool) or not isinstance(frames_per_task, int) or frames_per_task < 1
+    ):
+        raise ValueError(f"invalid frames_per_task: {frames_per_task!r} is not a whole number of at least 1")
     base = {name: value for name, value in options.items() if value is not None}
     if aovs is not None:
         base["aovs"] = list(aovs)
+    frames = [{**base, **camera} for camera in cameras]
+    if frames_per_task is None:
+        frames_per_task = _frames_per_task(client, frames)
+    groups = [range(i, min(i + frames_per_task, len(frames))) for i in range(0, len(frames), frames_per_task)]
     with _scene_on_workers(client, scene, ship) as (key, path, bundle):
         task = f"raytracer-{uuid.uuid4().hex}"
-        frame_keys = [f"{task}-frame-{i}" for i in range(len(cameras))]
-        futures = [
-            client.submit(_render_frame, key, path, bundle, {**base, **camera}, key=frame_key)
-            for camera, frame_key in zip(cameras, frame_keys)
-        ]
-        index = {frame_key: i for i, frame_key in enumerate(frame_keys)}
-        waiting = as_completed(futures, with_results=True)
+        keys = [f"{task}-frames-{group.start}-{group.stop}" for group in groups]
+        # One message for all the tasks (`submit` per task costs a round trip each).
+        futures = client.map(
+            _render_frames,
+            [[frames[i] for i in group] for group in groups],
+            job=key,
+            path=path,
+            bundle=bundle,
+            key=keys,
+        )
+        index = dict(zip(keys, groups))
+        waiting = as_completed(futures)
         del futures
-        for future, frame in waiting:
-            future.release()
-            yield index[future.key], frame
+        # The tasks finished since the last batch, fetched in one request. `gather`
+        # waits for a task lost with its worker to be rendered again.
+        direct = _direct(client)
+        for batch in waiting.batches():
+            for future, rendered in zip(batch, client.gather(batch, direct=direct)):
+                future.release()
+                yield from zip(index[future.key], rendered)
+
+
+def _frames_per_task(client: Any, frames: "list[dict]") -> int:
+    """:func:`render_many`'s default ``frames_per_task`` (see there)."""
+    threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values()) or 1
+
+    def samples(frame: dict) -> int:
+        width, height = frame.get("width"), frame.get("height")
+        if width is None and height is None:
+            width, height = 640, 480
+        width = width if width is not None else height * 4 // 3
+        height = height if height is not None else width * 3 // 4
+        spp = frame.get("spp") or (64 if frame.get("mode") == "path" else 1)
+        return max(1, int(width) * int(height) * int(spp))
+
+    most = max((samples(frame) for frame in frames), default=1)
+    fewest_tasks = max(1, len(frames) // (TASKS_PER_THREAD * threads))
+    return max(1, min(TASK_FRAMES, TASK_SAMPLES // most, fewest_tasks))
+
+
+def _direct(client: Any) -> Optional[bool]:
+    """How the client fetches results: the client's own choice
+    (``Client(direct_to_workers=...)``) if it made one; otherwise straight from the
+    workers when the scheduler is on this machine (a local cluster, whose workers
+    this process can reach), since through the scheduler every frame travels twice
+    (BENCHMARKS.md's render_many figure); else Dask's default, through the
+    scheduler, which a client outside the cluster's network can always reach."""
+    if client.direct_to_workers is not None:
+        return client.direct_to_workers
+    from distributed.comm import get_address_host
+
+    address = client.scheduler.address
+    if address.startswith("inproc://"):
+        return True
+    try:
+        host = get_address_host(address)
+        return True if host == "localhost" or ipaddress.ip_address(host).is_loopback else None
+    except ValueError:
+        return None
 
 
 def forget(client: Any) -> None:
@@ -433,10 +507,15 @@ def _render_tile(tile: tuple, job: str, path: str, bundle: Optional[dict], optio
     return _job(job).load(path, bundle).render(tile=tile, **options)
 
 
-def _render_frame(job: str, path: str, bundle: Optional[dict], options: dict) -> Any:
-    """Task: renders one whole frame (a plain array, or a dict with ``aovs``)."""
-    frame = _job(job).load(path, bundle).render(**options)
-    return np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()}
+def _render_frames(frames: "list[dict]", job: str, path: str, bundle: Optional[dict]) -> list:
+    """Task: renders whole frames, one per dict of options (each a plain array, or a
+    dict with ``aovs``)."""
+    scene = _job(job).load(path, bundle)
+    out = []
+    for options in frames:
+        frame = scene.render(**options)
+        out.append(np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()})
+    return out
 
 
 def _forget(job: str) -> None:

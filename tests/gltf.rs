@@ -11,6 +11,8 @@ use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::options::Origin;
 use raytracer::{BvhParams, Scene};
 
+mod support;
+
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/gltf")
@@ -402,95 +404,48 @@ fn base_colour_and_emissive_textures_follow_khr_texture_transform() {
     assert!(differs, "the transform changed nothing: a weak test");
 }
 
-/// A glTF file of one triangle (0, 0, 0), (1, 0, 0), (0, 1, 0) facing +z with
-/// `COLOR_0` red, green, blue (as floats), in `dir`; no material, or one with the
-/// fixtures' checker as its base colour texture.
-fn vertex_coloured_triangle(dir: &Path, textured: bool) -> PathBuf {
-    let mut bin = Vec::new();
-    let floats: [f32; 18] = [
-        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, // positions
-        1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, // colours
-    ];
-    for f in floats {
-        bin.extend(f.to_le_bytes());
-    }
-    std::fs::write(dir.join("t.bin"), &bin).unwrap();
-    let gltf = r#"{
-  "asset": {"version": "2.0"},
-  "scene": 0,
-  "scenes": [{"nodes": [0]}],
-  "nodes": [{"mesh": 0}],
-  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}}]}],
-  "buffers": [{"uri": "t.bin", "byteLength": 72}],
-  "bufferViews": [
-    {"buffer": 0, "byteOffset": 0, "byteLength": 36},
-    {"buffer": 0, "byteOffset": 36, "byteLength": 36}
-  ],
-  "accessors": [
-    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
-    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}
-  ]
-}"#;
-    let gltf = if textured {
-        std::fs::copy(fixture("checker.png"), dir.join("checker.png")).unwrap();
-        gltf.replace(r#""COLOR_0": 1}}"#, r#""COLOR_0": 1}, "material": 0}"#)
-            .replace(
-                r#""buffers""#,
-                r#""materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
-  "textures": [{"source": 0}],
-  "images": [{"uri": "checker.png"}],
-  "buffers""#,
-            )
-    } else {
-        gltf.to_string()
-    };
-    let path = dir.join("t.gltf");
-    std::fs::write(&path, gltf).unwrap();
-    path
-}
-
 #[test]
 fn vertex_colours_multiply_the_base_colour_interpolated_across_each_triangle() {
     let dir = tempfile::tempdir().unwrap();
-    let loaded = formats::load(&vertex_coloured_triangle(dir.path(), false)).unwrap();
-    assert!(
-        loaded.description.warnings.is_empty(),
-        "{:?}",
-        loaded.description.warnings
-    );
-    let scene = Scene::build(loaded.description, &BvhParams::default());
-    // Without a material, the renderer's grey (Kd 0.8) times the colours.
-    for (x, y) in [
-        (0.1, 0.1),
-        (0.6, 0.2),
-        (0.2, 0.7),
-        (0.33, 0.33),
-        (0.01, 0.98),
-    ] {
-        let hit = scene
-            .intersect(&Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z))
-            .expect("the ray hits the triangle");
-        let material = &scene.materials[hit.material.0 as usize];
-        // Barycentric weights of (x, y): red at the origin, green along x, blue along y.
-        let want = Vec3::new(1.0 - x - y, x, y) * 0.8;
-        let got = material.at(hit.uv).diffuse;
+    for textured in [false, true] {
+        let loaded = formats::load(&support::vertex_coloured_gltf(dir.path(), textured)).unwrap();
         assert!(
-            (got - want).abs().max_element() < 1e-4,
-            "at ({x}, {y}): {got} vs {want}"
+            loaded.description.warnings.is_empty(),
+            "{:?}",
+            loaded.description.warnings
         );
+        let scene = Scene::build(loaded.description, &BvhParams::default());
+        for (x, y) in [
+            (0.1, 0.1),
+            (0.6, 0.2),
+            (0.2, 0.7),
+            (0.33, 0.33),
+            (0.01, 0.98),
+        ] {
+            let hit = scene
+                .intersect(&Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z))
+                .expect("the ray hits the triangle");
+            let material = &scene.materials[hit.material.0 as usize];
+            // Barycentric weights of (x, y): red at the origin, green along x, blue
+            // along y; without a material, times the renderer's grey (Kd 0.8), with
+            // the checker texture, times the texture there.
+            let weights = Vec3::new(1.0 - x - y, x, y);
+            let (want, got) = match textured {
+                false => (weights * 0.8, material.at_point(hit.uv, hit.colour).diffuse),
+                true => (
+                    weights * material.pbr_at(hit.uv).unwrap().base_color,
+                    material
+                        .pbr_at_point(hit.uv, hit.colour)
+                        .unwrap()
+                        .base_color,
+                ),
+            };
+            assert!(
+                (got - want).abs().max_element() < 1e-4,
+                "textured {textured}, at ({x}, {y}): {got} vs {want}"
+            );
+        }
     }
-    // A material with a texture keeps it, and its vertex colours are dropped with a
-    // warning: a hit has one set of texture coordinates.
-    let path = vertex_coloured_triangle(dir.path(), true);
-    let loaded = formats::load(&path).unwrap();
-    assert_eq!(
-        loaded.description.warnings,
-        [format!(
-            "{}: mesh 0 primitive 0: vertex colours are not applied on a material with textures",
-            path.display()
-        )]
-    );
-    assert_eq!(loaded.description.materials.len(), 1);
 }
 
 #[test]
@@ -527,7 +482,7 @@ fn a_texture_transform_that_overflows_is_a_warning_and_is_ignored() {
 #[test]
 fn vertex_colours_that_are_not_finite_are_a_warning_and_are_ignored() {
     let dir = tempfile::tempdir().unwrap();
-    let path = vertex_coloured_triangle(dir.path(), false);
+    let path = support::vertex_coloured_gltf(dir.path(), false);
     // The green corner's red channel (the second colour's first float) becomes NaN.
     let bin = dir.path().join("t.bin");
     let mut bytes = std::fs::read(&bin).unwrap();

@@ -102,6 +102,26 @@ def _image_file(value, folder: str, stem: str, name: str) -> str:
     return path
 
 
+def _colors(value, name, n):
+    """Vertex colours as (n, 3) linear floats: (n, 3) or (n, 4) (alpha dropped),
+    uint8 read as 0..255 and uint16 as 0..65535, floats as they are (not negative)."""
+    colors = np.asarray(value)
+    if colors.ndim != 2 or colors.shape[1] not in (3, 4) or colors.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must be an (n, 3) or (n, 4) array of numbers, not {colors.dtype} {colors.shape}")
+    if len(colors) != n:
+        raise ValueError(f"{name} has {len(colors)} rows, not one per vertex ({n})")
+    colors = colors[:, :3]
+    if colors.dtype == np.uint8 or colors.dtype == np.uint16:
+        colors = colors / np.iinfo(colors.dtype).max
+    colors = colors.astype(np.float64)
+    _finite(colors, name)
+    bad = (colors < 0).any(axis=1)
+    if bad.any():
+        row = int(np.argmax(bad))
+        raise ValueError(f"{name}[{row}] is {colors[row].tolist()}: colours must not be negative")
+    return colors
+
+
 def compose(meshes, lights, environment):
     """The TOML document, its folder (kept alive by the fourth item, a temporary
     folder), and each mesh as (vertices, faces, normals, uvs, material name, texture
@@ -141,8 +161,9 @@ def compose(meshes, lights, environment):
             _finite(uvs, f"{name}['uvs']")
             if len(uvs) != n:
                 raise ValueError(f"{name}['uvs'] has {len(uvs)} rows, not one per vertex ({n})")
+        colors = None
         if mesh.get("colors") is not None:
-            raise ValueError(f"{name}['colors']: vertex colours are not supported by from_arrays yet; use a material")
+            colors = _colors(mesh["colors"], f"{name}['colors']", n)
         material = texture = None
         if mesh.get("material") is not None:
             values = mesh["material"]
@@ -168,6 +189,8 @@ def compose(meshes, lights, environment):
                 normals = np.concatenate([normals @ np.linalg.inv(m[:3, :3]) for m in matrices])
             if uvs is not None:
                 uvs = np.concatenate([uvs] * len(matrices))
+            if colors is not None:
+                colors = np.concatenate([colors] * len(matrices))
         out.append(
             (
                 np.ascontiguousarray(positions, dtype=np.float32),
@@ -178,6 +201,7 @@ def compose(meshes, lights, environment):
                 texture,
                 str(mesh.get("name", name)),
                 copies,
+                None if colors is None else np.ascontiguousarray(colors, dtype=np.float32),
             )
         )
     for k, light in enumerate([] if lights is None else lights):

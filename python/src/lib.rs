@@ -892,6 +892,7 @@ impl PyScene {
                 texture: item.get_item(5)?.extract()?,
                 name: item.get_item(6)?.extract()?,
                 copies: item.get_item(7)?.extract()?,
+                colours: item.get_item(8)?.extract()?,
             });
         }
         // Every file the document names is an absolute path: messages name the

@@ -119,6 +119,8 @@ pub(crate) struct ArrayMesh<'py> {
     /// How many copies (transforms) `faces` holds, one after the other: each one is
     /// an object of its own.
     pub copies: usize,
+    /// Vertex colours: `(n, 3)` linear `float32`, or none.
+    pub colours: Option<PyReadonlyArrayDyn<'py, f32>>,
 }
 
 /// The scene of `meshes` and of `loaded` (a TOML document's materials, lights and
@@ -185,6 +187,15 @@ pub(crate) fn arrays_description(
             }
             Ok(())
         };
+        if let Some(colours) = &mesh.colours {
+            let colours = colours.as_slice().map_err(|e| bad(e.to_string()))?;
+            rows(colours, 3, "colors")?;
+            let colours: Vec<Vec3> = colours
+                .chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect();
+            description.set_colours(base as usize, &colours);
+        }
         description.positions.extend(
             vertices
                 .chunks_exact(3)

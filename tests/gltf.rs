@@ -505,3 +505,131 @@ fn vertex_colours_that_are_not_finite_are_a_warning_and_are_ignored() {
             .all(|m| m.maps.is_none())
     );
 }
+
+/// Three placements (translation, rotation, scale) of a mesh, one mirroring.
+const INSTANCES: [([f32; 3], [f32; 4], [f32; 3]); 3] = [
+    ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [1.0, 1.0, 1.0]),
+    ([1.5, -0.25, -0.5], [0.0, 0.6, 0.0, 0.8], [0.5, 1.25, 1.0]),
+    (
+        [-1.25, 0.5, 0.25],
+        [0.28, 0.0, 0.96, 0.0],
+        [-1.0, 0.75, 1.5],
+    ),
+];
+
+/// A glTF file (in `dir`, named `name`) of a triangle with normals placed by the
+/// three [`INSTANCES`] under a parent node that turns and moves them: through
+/// `EXT_mesh_gpu_instancing` on one node (`instancing`), or as three plain nodes.
+/// `scale_count` is the count the SCALE accessor claims; `translation` replaces the
+/// second instance's translation.
+fn gpu_instanced(
+    dir: &Path,
+    name: &str,
+    instancing: bool,
+    scale_count: usize,
+    translation: [f32; 3],
+) -> PathBuf {
+    let mut instances = INSTANCES;
+    instances[1].0 = translation;
+    let mut floats: Vec<f32> = vec![
+        -0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.6, 0.1, // positions
+        0.0, 0.0, 1.0, 0.3, 0.0, 1.0, 0.0, 0.3, 1.0, // normals
+    ];
+    floats.extend(instances.iter().flat_map(|i| i.0));
+    floats.extend(instances.iter().flat_map(|i| i.1));
+    floats.extend(instances.iter().flat_map(|i| i.2));
+    let bin: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
+    let children: Vec<String> = match instancing {
+        true => vec![r#"{"mesh": 0, "extensions": {"EXT_mesh_gpu_instancing": {"attributes": {"TRANSLATION": 2, "ROTATION": 3, "SCALE": 4}}}}"#.into()],
+        false => instances
+            .iter()
+            .map(|(t, r, s)| format!(r#"{{"mesh": 0, "translation": {t:?}, "rotation": {r:?}, "scale": {s:?}}}"#))
+            .collect(),
+    };
+    let child_indices: Vec<usize> = (1..=children.len()).collect();
+    let gltf = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "extensionsUsed": ["EXT_mesh_gpu_instancing"],
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"translation": [0.1, 0.2, -3.0], "rotation": [0.0, 0.0, 0.28, 0.96], "children": {child_indices:?}}}, {children}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1}}}}]}}],
+  "buffers": [{{"uri": "{name}.bin", "byteLength": {len}}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 72}}, {{"buffer": 0, "byteOffset": 72, "byteLength": 120}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [-0.5, -0.5, 0], "max": [0.5, 0.6, 0.1]}},
+    {{"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC3"}},
+    {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}},
+    {{"bufferView": 1, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 1, "byteOffset": 84, "componentType": 5126, "count": {scale_count}, "type": "VEC3"}}
+  ]
+}}"#,
+        children = children.join(", "),
+        len = bin.len(),
+    );
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+#[test]
+fn gpu_instancing_renders_as_the_same_placements_written_as_nodes() {
+    use raytracer::{Aov, RenderOptions, render, render_outputs};
+    let dir = tempfile::tempdir().unwrap();
+    let t = INSTANCES[1].0;
+    let instanced = formats::load(&gpu_instanced(dir.path(), "i", true, 3, t)).unwrap();
+    let nodes = formats::load(&gpu_instanced(dir.path(), "n", false, 3, t)).unwrap();
+    let instanced = instanced.description;
+    assert!(instanced.warnings.is_empty(), "{:?}", instanced.warnings);
+    // Placed through instances of one mesh, not written out three times.
+    assert_eq!((instanced.meshes.len(), instanced.instances.len()), (1, 3));
+    assert!(instanced.triangles.is_empty());
+    let options = RenderOptions {
+        width: 48,
+        height: 36,
+        look_from: Vec3::new(0.0, 0.0, -1.2),
+        look_to: Vec3::new(0.0, 0.0, -3.0),
+        ..RenderOptions::default()
+    };
+    let images = [instanced, nodes.description].map(|mut description| {
+        description.add_default_light(&options);
+        let scene = Scene::build(description, &BvhParams::default());
+        let aovs = [Aov::Depth, Aov::Normal, Aov::ObjectId];
+        let outputs = render_outputs(&scene, &options, &aovs);
+        let covered = (outputs.aovs.object_id.as_ref().unwrap().iter())
+            .filter(|&&id| id >= 0)
+            .count();
+        (render(&scene, &options).pixels, outputs, covered)
+    });
+    let [(colour, outputs, covered), (colour_nodes, outputs_nodes, _)] = images;
+    assert!(covered > 100, "the copies cover {covered} pixels");
+    assert!(colour == colour_nodes, "full mode differs");
+    assert!(outputs.aovs.depth == outputs_nodes.aovs.depth);
+    assert!(outputs.aovs.normal == outputs_nodes.aovs.normal);
+}
+
+#[test]
+fn gpu_instancing_with_mismatched_or_non_finite_attributes_is_an_error_naming_the_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = INSTANCES[1].0;
+    let path = gpu_instanced(dir.path(), "count", true, 2, t);
+    let error = formats::load(&path).unwrap_err().to_string();
+    assert!(
+        error.contains(&path.display().to_string())
+            && error.contains(
+                "node 1: EXT_mesh_gpu_instancing: TRANSLATION has 3 elements, ROTATION 3, SCALE 2"
+            ),
+        "{error}"
+    );
+    let path = gpu_instanced(dir.path(), "nan", true, 3, [0.0, Float::NAN, 0.0]);
+    let error = formats::load(&path).unwrap_err().to_string();
+    assert!(
+        error.contains(&path.display().to_string())
+            && error.contains(
+                "node 1: EXT_mesh_gpu_instancing: instance 1: a TRANSLATION that is not finite"
+            ),
+        "{error}"
+    );
+}

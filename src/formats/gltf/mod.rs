@@ -82,11 +82,13 @@ pub fn parse_gltf_with(
     let mut root = document.into_json();
     let unsupported = check_extensions(&mut root).map_err(fail)?;
     let document = Document::from_json(root).map_err(invalid)?;
-    // Materials are read from the file's own JSON (see `material`).
-    let raw_materials = if document.materials().len() == 0 {
-        Vec::new()
+    // Materials, and the nodes' instancing, are read from the file's own JSON (see
+    // `material`): the `gltf` crate keeps neither.
+    let instancing = (document.extensions_used()).any(|e| e == extensions::gpu_instancing::NAME);
+    let (raw_materials, instancing) = if document.materials().len() == 0 && !instancing {
+        (Vec::new(), HashMap::new())
     } else {
-        raw_materials(bytes).map_err(invalid)?
+        raw_json(bytes).map_err(invalid)?
     };
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -112,6 +114,7 @@ pub fn parse_gltf_with(
         },
         instanced: HashMap::new(),
         raw_materials,
+        instancing,
         problems: MaterialProblems::default(),
     };
     for name in unsupported {
@@ -164,9 +167,10 @@ fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> 
     Ok(unsupported)
 }
 
-/// The JSON object of every material, as the file has it: the JSON of a `.gltf`,
-/// or the JSON chunk of a `.glb`.
-fn raw_materials(bytes: &[u8]) -> Result<Vec<Value>, gltf::Error> {
+/// The JSON object of every material, as the file has it (the JSON of a `.gltf`,
+/// or the JSON chunk of a `.glb`), and the `EXT_mesh_gpu_instancing` object of each
+/// node that has one, by node index.
+fn raw_json(bytes: &[u8]) -> Result<(Vec<Value>, HashMap<usize, Value>), gltf::Error> {
     let json = if bytes.starts_with(b"glTF") {
         gltf::binary::Glb::from_slice(bytes)?.json
     } else {
@@ -174,10 +178,22 @@ fn raw_materials(bytes: &[u8]) -> Result<Vec<Value>, gltf::Error> {
     };
     let mut root: Value =
         gltf::json::deserialize::from_slice(&json).map_err(gltf::Error::Deserialize)?;
-    Ok(match root.get_mut("materials").map(Value::take) {
+    let materials = match root.get_mut("materials").map(Value::take) {
         Some(Value::Array(materials)) => materials,
         _ => Vec::new(),
-    })
+    };
+    let mut instancing = HashMap::new();
+    if let Some(Value::Array(nodes)) = root.get_mut("nodes") {
+        for (index, node) in nodes.iter_mut().enumerate() {
+            let extension = (node.get_mut("extensions"))
+                .and_then(|e| e.get_mut(extensions::gpu_instancing::NAME))
+                .map(Value::take);
+            if let Some(extension) = extension {
+                instancing.insert(index, extension);
+            }
+        }
+    }
+    Ok((materials, instancing))
 }
 
 /// The data of every buffer: the GLB's binary chunk, a data URI or a file beside the
@@ -553,6 +569,8 @@ struct Reader<'a> {
     instanced: HashMap<usize, u32>,
     /// The JSON object of each material.
     raw_materials: Vec<Value>,
+    /// The `EXT_mesh_gpu_instancing` object of each node that has one.
+    instancing: HashMap<usize, Value>,
     /// Problems of the materials' values, for one warning per kind.
     problems: MaterialProblems,
 }
@@ -619,9 +637,19 @@ impl Reader<'_> {
                 continue;
             }
             if let Some(mesh) = node.mesh() {
-                if self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
+                if let Some(extension) = self.instancing.get(&node.index()) {
+                    // Its instances place the mesh, each an object.
+                    let placements =
+                        extensions::gpu_instancing::placements(document, &self.buffers, extension)
+                            .map_err(|e| {
+                                let name = extensions::gpu_instancing::NAME;
+                                format!("{}: {name}: {e}", describe_node(&node))
+                            })?;
+                    let placements: Vec<Mat4> = placements.iter().map(|p| world * *p).collect();
+                    self.add_instances(&mesh, &placements, &node)?;
+                } else if self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
                     // A copy of a shared mesh: its instance is its object.
-                    self.add_instance(&mesh, &world, node.index())?;
+                    self.add_instances(&mesh, &[world], &node)?;
                 } else {
                     // Each other node with a mesh is an object (the `object_id` output).
                     let name = node
@@ -645,13 +673,16 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// Places a copy of `mesh`, which several nodes use, by `world`: the mesh is read
-    /// once (the first time) into [`SceneDescription::meshes`], in its own space.
-    fn add_instance(
+    /// Places copies of `mesh` (which several nodes use, or `node`'s instancing
+    /// places) by each of `placements`: the mesh is read once (the first time) into
+    /// [`SceneDescription::meshes`], in its own space. Placements that are not
+    /// invertible affine maps (a zero scale hides an instance) are skipped, with one
+    /// warning for the node.
+    fn add_instances(
         &mut self,
         mesh: &gltf::Mesh<'_>,
-        world: &Mat4,
-        node: usize,
+        placements: &[Mat4],
+        node: &gltf::Node<'_>,
     ) -> Result<(), String> {
         let index = match self.instanced.get(&mesh.index()) {
             Some(&index) => index,
@@ -671,11 +702,25 @@ impl Reader<'_> {
                 index
             }
         };
-        // The node's transform must be an invertible affine map (it is finite).
-        let rows = world.transpose().to_cols_array().map(f64::from);
-        match super::compose::affine_from_rows(&rows) {
-            Ok(placement) => self.scene.add_instance(index, placement, true),
-            Err(message) => self.warn(format!("node {node}: {message}; skipped")),
+        let (mut skipped, mut problem) = (0, None);
+        for world in placements {
+            let rows = world.transpose().to_cols_array().map(f64::from);
+            match super::compose::affine_from_rows(&rows) {
+                Ok(placement) => self.scene.add_instance(index, placement, true),
+                Err(message) => {
+                    skipped += 1;
+                    problem.get_or_insert(message);
+                }
+            }
+        }
+        if let Some(message) = problem {
+            let node = describe_node(node);
+            self.warn(match placements.len() {
+                1 => format!("{node}: {message}; skipped"),
+                n => {
+                    format!("{node}: {skipped} of its {n} instances skipped (the first: {message})")
+                }
+            });
         }
         Ok(())
     }

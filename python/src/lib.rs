@@ -852,7 +852,9 @@ impl PyScene {
     ///
     /// ``meshes`` is a list of dicts: ``vertices`` ``(n, 3)`` and ``faces`` ``(m, 3)``
     /// (integers, rows of ``vertices``), optional ``normals`` ``(n, 3)`` (shading
-    /// normals), ``uvs`` ``(n, 2)`` (texture coordinates, v up), ``material`` (a dict
+    /// normals), ``uvs`` ``(n, 2)`` (texture coordinates, v up), ``colors`` ``(n, 3)`` or
+    /// ``(n, 4)`` (vertex colours multiplying the diffuse colour: floats linear 0..1,
+    /// ``uint8`` or ``uint16`` scaled to it; alpha ignored), ``material`` (a dict
     /// of the TOML material keys, ``Kd``, ``Ks``, ``Ns``, ``Ke``, ``base_color``,
     /// ``metallic``, ``roughness``, ...; ``map_Kd`` or ``base_color_texture``: the base
     /// colour map, an image file's path or a numpy image, ``uint8`` sRGB or float

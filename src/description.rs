@@ -44,6 +44,13 @@ pub struct SceneDescription {
     pub texcoords: Vec<Vec2>,
     /// `vn` normals, as written (not normalized).
     pub normals: Vec<Vec3>,
+    /// Vertex colours, linear RGB, by position index (glTF's `COLOR_0`, PLY's
+    /// `red green blue`, OBJ's `v x y z r g b`): they multiply the diffuse (or base)
+    /// colour of the material where they are interpolated. Empty when no vertex
+    /// has one, so that uncoloured meshes store nothing; it may be shorter than
+    /// `positions`, the vertices past its end being white (a coloured mesh appended
+    /// to an uncoloured one pads it: [`SceneDescription::set_colours`]).
+    pub colours: Vec<Vec3>,
     /// Triangles after splitting polygons into fans.
     pub triangles: Vec<TriangleDesc>,
     /// Indices into [`SceneDescription::normals`] of each triangle's corners, in step
@@ -157,6 +164,28 @@ impl SceneDescription {
     #[inline]
     pub fn normals_of(&self, index: usize) -> Option<[u32; 3]> {
         self.triangle_normals.get(index).copied().flatten()
+    }
+
+    /// The vertex colour of position `index`: white where none is given.
+    #[inline]
+    pub fn colour_of(&self, index: u32) -> Vec3 {
+        self.colours
+            .get(index as usize)
+            .copied()
+            .unwrap_or(Vec3::ONE)
+    }
+
+    /// Sets the colours of the positions from `first` on to `colours`, the positions
+    /// before it that have none white.
+    pub fn set_colours(&mut self, first: usize, colours: &[Vec3]) {
+        self.colours.resize(first, Vec3::ONE);
+        self.colours.extend_from_slice(colours);
+    }
+
+    /// Whether some triangle has a corner with a vertex colour, and so which
+    /// materials [`crate::Scene::build`] lets vertex colours multiply.
+    pub fn has_colours(&self) -> bool {
+        !self.colours.is_empty() || self.meshes.iter().any(|m| !m.colours.is_empty())
     }
 
     /// Appends a triangle with its normal indices, keeping

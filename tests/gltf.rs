@@ -11,6 +11,8 @@ use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::options::Origin;
 use raytracer::{BvhParams, Scene};
 
+mod support;
+
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/gltf")
@@ -469,95 +471,48 @@ fn base_colour_and_emissive_textures_follow_khr_texture_transform() {
     assert!(differs, "the transform changed nothing: a weak test");
 }
 
-/// A glTF file of one triangle (0, 0, 0), (1, 0, 0), (0, 1, 0) facing +z with
-/// `COLOR_0` red, green, blue (as floats), in `dir`; no material, or one with the
-/// fixtures' checker as its base colour texture.
-fn vertex_coloured_triangle(dir: &Path, textured: bool) -> PathBuf {
-    let mut bin = Vec::new();
-    let floats: [f32; 18] = [
-        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, // positions
-        1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, // colours
-    ];
-    for f in floats {
-        bin.extend(f.to_le_bytes());
-    }
-    std::fs::write(dir.join("t.bin"), &bin).unwrap();
-    let gltf = r#"{
-  "asset": {"version": "2.0"},
-  "scene": 0,
-  "scenes": [{"nodes": [0]}],
-  "nodes": [{"mesh": 0}],
-  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}}]}],
-  "buffers": [{"uri": "t.bin", "byteLength": 72}],
-  "bufferViews": [
-    {"buffer": 0, "byteOffset": 0, "byteLength": 36},
-    {"buffer": 0, "byteOffset": 36, "byteLength": 36}
-  ],
-  "accessors": [
-    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
-    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}
-  ]
-}"#;
-    let gltf = if textured {
-        std::fs::copy(fixture("checker.png"), dir.join("checker.png")).unwrap();
-        gltf.replace(r#""COLOR_0": 1}}"#, r#""COLOR_0": 1}, "material": 0}"#)
-            .replace(
-                r#""buffers""#,
-                r#""materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
-  "textures": [{"source": 0}],
-  "images": [{"uri": "checker.png"}],
-  "buffers""#,
-            )
-    } else {
-        gltf.to_string()
-    };
-    let path = dir.join("t.gltf");
-    std::fs::write(&path, gltf).unwrap();
-    path
-}
-
 #[test]
 fn vertex_colours_multiply_the_base_colour_interpolated_across_each_triangle() {
     let dir = tempfile::tempdir().unwrap();
-    let loaded = formats::load(&vertex_coloured_triangle(dir.path(), false)).unwrap();
-    assert!(
-        loaded.description.warnings.is_empty(),
-        "{:?}",
-        loaded.description.warnings
-    );
-    let scene = Scene::build(loaded.description, &BvhParams::default());
-    // Without a material, the renderer's grey (Kd 0.8) times the colours.
-    for (x, y) in [
-        (0.1, 0.1),
-        (0.6, 0.2),
-        (0.2, 0.7),
-        (0.33, 0.33),
-        (0.01, 0.98),
-    ] {
-        let hit = scene
-            .intersect(&Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z))
-            .expect("the ray hits the triangle");
-        let material = &scene.materials[hit.material.0 as usize];
-        // Barycentric weights of (x, y): red at the origin, green along x, blue along y.
-        let want = Vec3::new(1.0 - x - y, x, y) * 0.8;
-        let got = material.at(hit.uv).diffuse;
+    for textured in [false, true] {
+        let loaded = formats::load(&support::vertex_coloured_gltf(dir.path(), textured)).unwrap();
         assert!(
-            (got - want).abs().max_element() < 1e-4,
-            "at ({x}, {y}): {got} vs {want}"
+            loaded.description.warnings.is_empty(),
+            "{:?}",
+            loaded.description.warnings
         );
+        let scene = Scene::build(loaded.description, &BvhParams::default());
+        for (x, y) in [
+            (0.1, 0.1),
+            (0.6, 0.2),
+            (0.2, 0.7),
+            (0.33, 0.33),
+            (0.01, 0.98),
+        ] {
+            let hit = scene
+                .intersect(&Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z))
+                .expect("the ray hits the triangle");
+            let material = &scene.materials[hit.material.0 as usize];
+            // Barycentric weights of (x, y): red at the origin, green along x, blue
+            // along y; without a material, times the renderer's grey (Kd 0.8), with
+            // the checker texture, times the texture there.
+            let weights = Vec3::new(1.0 - x - y, x, y);
+            let (want, got) = match textured {
+                false => (weights * 0.8, material.at_point(hit.uv, hit.colour).diffuse),
+                true => (
+                    weights * material.pbr_at(hit.uv).unwrap().base_color,
+                    material
+                        .pbr_at_point(hit.uv, hit.colour)
+                        .unwrap()
+                        .base_color,
+                ),
+            };
+            assert!(
+                (got - want).abs().max_element() < 1e-4,
+                "textured {textured}, at ({x}, {y}): {got} vs {want}"
+            );
+        }
     }
-    // A material with a texture keeps it, and its vertex colours are dropped with a
-    // warning: a hit has one set of texture coordinates.
-    let path = vertex_coloured_triangle(dir.path(), true);
-    let loaded = formats::load(&path).unwrap();
-    assert_eq!(
-        loaded.description.warnings,
-        [format!(
-            "{}: mesh 0 primitive 0: vertex colours are not applied on a material with textures",
-            path.display()
-        )]
-    );
-    assert_eq!(loaded.description.materials.len(), 1);
 }
 
 #[test]
@@ -594,7 +549,7 @@ fn a_texture_transform_that_overflows_is_a_warning_and_is_ignored() {
 #[test]
 fn vertex_colours_that_are_not_finite_are_a_warning_and_are_ignored() {
     let dir = tempfile::tempdir().unwrap();
-    let path = vertex_coloured_triangle(dir.path(), false);
+    let path = support::vertex_coloured_gltf(dir.path(), false);
     // The green corner's red channel (the second colour's first float) becomes NaN.
     let bin = dir.path().join("t.bin");
     let mut bytes = std::fs::read(&bin).unwrap();
@@ -615,5 +570,133 @@ fn vertex_colours_that_are_not_finite_are_a_warning_and_are_ignored() {
             .materials
             .iter()
             .all(|m| m.maps.is_none())
+    );
+}
+
+/// Three placements (translation, rotation, scale) of a mesh, one mirroring.
+const INSTANCES: [([f32; 3], [f32; 4], [f32; 3]); 3] = [
+    ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [1.0, 1.0, 1.0]),
+    ([1.5, -0.25, -0.5], [0.0, 0.6, 0.0, 0.8], [0.5, 1.25, 1.0]),
+    (
+        [-1.25, 0.5, 0.25],
+        [0.28, 0.0, 0.96, 0.0],
+        [-1.0, 0.75, 1.5],
+    ),
+];
+
+/// A glTF file (in `dir`, named `name`) of a triangle with normals placed by the
+/// three [`INSTANCES`] under a parent node that turns and moves them: through
+/// `EXT_mesh_gpu_instancing` on one node (`instancing`), or as three plain nodes.
+/// `scale_count` is the count the SCALE accessor claims; `translation` replaces the
+/// second instance's translation.
+fn gpu_instanced(
+    dir: &Path,
+    name: &str,
+    instancing: bool,
+    scale_count: usize,
+    translation: [f32; 3],
+) -> PathBuf {
+    let mut instances = INSTANCES;
+    instances[1].0 = translation;
+    let mut floats: Vec<f32> = vec![
+        -0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.6, 0.1, // positions
+        0.0, 0.0, 1.0, 0.3, 0.0, 1.0, 0.0, 0.3, 1.0, // normals
+    ];
+    floats.extend(instances.iter().flat_map(|i| i.0));
+    floats.extend(instances.iter().flat_map(|i| i.1));
+    floats.extend(instances.iter().flat_map(|i| i.2));
+    let bin: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
+    let children: Vec<String> = match instancing {
+        true => vec![r#"{"mesh": 0, "extensions": {"EXT_mesh_gpu_instancing": {"attributes": {"TRANSLATION": 2, "ROTATION": 3, "SCALE": 4}}}}"#.into()],
+        false => instances
+            .iter()
+            .map(|(t, r, s)| format!(r#"{{"mesh": 0, "translation": {t:?}, "rotation": {r:?}, "scale": {s:?}}}"#))
+            .collect(),
+    };
+    let child_indices: Vec<usize> = (1..=children.len()).collect();
+    let gltf = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "extensionsUsed": ["EXT_mesh_gpu_instancing"],
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"translation": [0.1, 0.2, -3.0], "rotation": [0.0, 0.0, 0.28, 0.96], "children": {child_indices:?}}}, {children}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1}}}}]}}],
+  "buffers": [{{"uri": "{name}.bin", "byteLength": {len}}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 72}}, {{"buffer": 0, "byteOffset": 72, "byteLength": 120}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [-0.5, -0.5, 0], "max": [0.5, 0.6, 0.1]}},
+    {{"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC3"}},
+    {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}},
+    {{"bufferView": 1, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 1, "byteOffset": 84, "componentType": 5126, "count": {scale_count}, "type": "VEC3"}}
+  ]
+}}"#,
+        children = children.join(", "),
+        len = bin.len(),
+    );
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+#[test]
+fn gpu_instancing_renders_as_the_same_placements_written_as_nodes() {
+    use raytracer::{Aov, RenderOptions, render, render_outputs};
+    let dir = tempfile::tempdir().unwrap();
+    let t = INSTANCES[1].0;
+    let instanced = formats::load(&gpu_instanced(dir.path(), "i", true, 3, t)).unwrap();
+    let nodes = formats::load(&gpu_instanced(dir.path(), "n", false, 3, t)).unwrap();
+    let instanced = instanced.description;
+    assert!(instanced.warnings.is_empty(), "{:?}", instanced.warnings);
+    // Placed through instances of one mesh, not written out three times.
+    assert_eq!((instanced.meshes.len(), instanced.instances.len()), (1, 3));
+    assert!(instanced.triangles.is_empty());
+    let options = RenderOptions {
+        width: 48,
+        height: 36,
+        look_from: Vec3::new(0.0, 0.0, -1.2),
+        look_to: Vec3::new(0.0, 0.0, -3.0),
+        ..RenderOptions::default()
+    };
+    let images = [instanced, nodes.description].map(|mut description| {
+        description.add_default_light(&options);
+        let scene = Scene::build(description, &BvhParams::default());
+        let aovs = [Aov::Depth, Aov::Normal, Aov::ObjectId];
+        let outputs = render_outputs(&scene, &options, &aovs);
+        let covered = (outputs.aovs.object_id.as_ref().unwrap().iter())
+            .filter(|&&id| id >= 0)
+            .count();
+        (render(&scene, &options).pixels, outputs, covered)
+    });
+    let [(colour, outputs, covered), (colour_nodes, outputs_nodes, _)] = images;
+    assert!(covered > 100, "the copies cover {covered} pixels");
+    assert!(colour == colour_nodes, "full mode differs");
+    assert!(outputs.aovs.depth == outputs_nodes.aovs.depth);
+    assert!(outputs.aovs.normal == outputs_nodes.aovs.normal);
+}
+
+#[test]
+fn gpu_instancing_with_mismatched_or_non_finite_attributes_is_an_error_naming_the_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = INSTANCES[1].0;
+    let path = gpu_instanced(dir.path(), "count", true, 2, t);
+    let error = formats::load(&path).unwrap_err().to_string();
+    assert!(
+        error.contains(&path.display().to_string())
+            && error.contains(
+                "node 1: EXT_mesh_gpu_instancing: TRANSLATION has 3 elements, ROTATION 3, SCALE 2"
+            ),
+        "{error}"
+    );
+    let path = gpu_instanced(dir.path(), "nan", true, 3, [0.0, Float::NAN, 0.0]);
+    let error = formats::load(&path).unwrap_err().to_string();
+    assert!(
+        error.contains(&path.display().to_string())
+            && error.contains(
+                "node 1: EXT_mesh_gpu_instancing: instance 1: a TRANSLATION that is not finite"
+            ),
+        "{error}"
     );
 }

@@ -104,12 +104,32 @@ def _image_file(value, folder: str, stem: str, name: str) -> str:
     return path
 
 
+def _colors(value, name, n):
+    """Vertex colours as (n, 3) linear floats: (n, 3) or (n, 4) (alpha dropped),
+    uint8 read as 0..255 and uint16 as 0..65535, floats as they are (not negative)."""
+    colors = np.asarray(value)
+    if colors.ndim != 2 or colors.shape[1] not in (3, 4) or colors.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must be an (n, 3) or (n, 4) array of numbers, not {colors.dtype} {colors.shape}")
+    if len(colors) != n:
+        raise ValueError(f"{name} has {len(colors)} rows, not one per vertex ({n})")
+    colors = colors[:, :3]
+    if colors.dtype == np.uint8 or colors.dtype == np.uint16:
+        colors = colors / np.iinfo(colors.dtype).max
+    colors = colors.astype(np.float64)
+    _finite(colors, name)
+    bad = (colors < 0).any(axis=1)
+    if bad.any():
+        row = int(np.argmax(bad))
+        raise ValueError(f"{name}[{row}] is {colors[row].tolist()}: colours must not be negative")
+    return colors
+
+
 def compose(meshes, lights, environment):
     """The TOML document, its folder (kept alive by the fourth item, a temporary
     folder), and each mesh as [vertices, faces, normals, uvs, material name, texture
-    path, name, transforms] of checked, contiguous arrays: transforms a (k, 4, 4)
-    array of the instances placing the mesh, or None (one transform applied to the
-    vertices)."""
+    path, name, transforms, colours] of checked, contiguous arrays: transforms a
+    (k, 4, 4) array of the instances placing the mesh, or None (one transform applied
+    to the vertices); colours (n, 3) linear or None."""
     folder = tempfile.TemporaryDirectory(prefix="raytracer-arrays-")
     document = []
     out = []
@@ -145,8 +165,9 @@ def compose(meshes, lights, environment):
             _finite(uvs, f"{name}['uvs']")
             if len(uvs) != n:
                 raise ValueError(f"{name}['uvs'] has {len(uvs)} rows, not one per vertex ({n})")
+        colors = None
         if mesh.get("colors") is not None:
-            raise ValueError(f"{name}['colors']: vertex colours are not supported by from_arrays yet; use a material")
+            colors = _colors(mesh["colors"], f"{name}['colors']", n)
         material = texture = None
         if mesh.get("material") is not None:
             values = mesh["material"]
@@ -163,7 +184,7 @@ def compose(meshes, lights, environment):
         matrices = None
         if mesh.get("transforms") is not None:
             matrices = _transforms(mesh["transforms"], f"{name}['transforms']")
-        out.append([vertices, faces, normals, uvs, material, texture, str(mesh.get("name", name)), matrices])
+        out.append([vertices, faces, normals, uvs, material, texture, str(mesh.get("name", name)), matrices, colors])
     # A mesh placed more than once is stored once and placed by instances. Then every
     # mesh is (placed by the identity if it has no transform): the scene is two-level
     # anyway, and object ids then follow the meshes, copy after copy. Otherwise each
@@ -184,6 +205,7 @@ def compose(meshes, lights, environment):
         entry[1] = np.ascontiguousarray(entry[1], dtype=np.uint32)
         entry[2] = None if entry[2] is None else np.ascontiguousarray(entry[2], dtype=np.float32)
         entry[3] = None if entry[3] is None else np.ascontiguousarray(entry[3], dtype=np.float32)
+        entry[8] = None if entry[8] is None else np.ascontiguousarray(entry[8], dtype=np.float32)
     for k, light in enumerate([] if lights is None else lights):
         document.append(_table("[[light]]", light, f"lights[{k}]"))
     if environment is not None:

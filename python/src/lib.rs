@@ -955,7 +955,9 @@ impl PyScene {
     ///
     /// ``meshes`` is a list of dicts: ``vertices`` ``(n, 3)`` and ``faces`` ``(m, 3)``
     /// (integers, rows of ``vertices``), optional ``normals`` ``(n, 3)`` (shading
-    /// normals), ``uvs`` ``(n, 2)`` (texture coordinates, v up), ``material`` (a dict
+    /// normals), ``uvs`` ``(n, 2)`` (texture coordinates, v up), ``colors`` ``(n, 3)`` or
+    /// ``(n, 4)`` (vertex colours multiplying the diffuse colour: floats linear 0..1,
+    /// ``uint8`` or ``uint16`` scaled to it; alpha ignored), ``material`` (a dict
     /// of the TOML material keys, ``Kd``, ``Ks``, ``Ns``, ``Ke``, ``base_color``,
     /// ``metallic``, ``roughness``, ...; ``map_Kd`` or ``base_color_texture``: the base
     /// colour map, an image file's path or a numpy image, ``uint8`` sRGB or float
@@ -997,6 +999,7 @@ impl PyScene {
                 texture: item.get_item(5)?.extract()?,
                 name: item.get_item(6)?.extract()?,
                 transforms: item.get_item(7)?.extract()?,
+                colours: item.get_item(8)?.extract()?,
             });
         }
         // Every file the document names is an absolute path: messages name the

@@ -120,6 +120,8 @@ pub(crate) struct ArrayMesh<'py> {
     /// placed `k` times (instances); none: placed as its vertices are (a single
     /// transform already applied).
     pub transforms: Option<PyReadonlyArrayDyn<'py, f64>>,
+    /// Vertex colours: `(n, 3)` linear `float32`, or none.
+    pub colours: Option<PyReadonlyArrayDyn<'py, f32>>,
 }
 
 /// The scene of `meshes` and of `loaded` (a TOML document's materials, lights and
@@ -239,6 +241,15 @@ fn append_mesh(
         }
         Ok(())
     };
+    if let Some(colours) = &mesh.colours {
+        let colours = colours.as_slice().map_err(|e| e.to_string())?;
+        rows(colours, 3, "colors")?;
+        let colours: Vec<Vec3> = colours
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
+        to.set_colours(base as usize, &colours);
+    }
     to.positions.extend(
         vertices
             .chunks_exact(3)

@@ -188,6 +188,9 @@ impl SceneDescription {
             object.first_sphere += spheres_before;
         }
         append(&mut self.objects, mesh.objects);
+        if !mesh.colours.is_empty() {
+            self.set_colours(self.positions.len(), &mesh.colours);
+        }
         append(&mut self.positions, mesh.positions);
         append(&mut self.normals, mesh.normals);
         append(&mut self.texcoords, mesh.texcoords);

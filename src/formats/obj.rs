@@ -269,9 +269,13 @@ fn parse_surveyed(
         .collect();
     let mut complete = true;
     let mut shapings = Vec::with_capacity(filled.len());
+    let mut colours = Vec::with_capacity(filled.len());
     for filled in filled {
         match filled {
-            Filled::Complete(shaping) => shapings.push(shaping),
+            Filled::Complete(shaping, chunk_colours) => {
+                shapings.push(shaping);
+                colours.push(chunk_colours);
+            }
             Filled::Failed { line, kind } => {
                 return Err(SceneError::Parse {
                     path: path.to_path_buf(),
@@ -305,6 +309,10 @@ fn parse_surveyed(
             scene.triangle_normals.set_len(total.triangles);
         }
     }
+    spread_colours(
+        &mut scene,
+        (bases.iter().map(|b| b.positions)).zip(colours.iter().map(Vec::as_slice)),
+    );
     let material = |chunk: usize, slot: MaterialId| materials[chunk][slot.0 as usize];
     let sphere = |chunk, s: &SphereDesc| SphereDesc {
         material: material(chunk, s.material),
@@ -393,8 +401,9 @@ fn kept_parts_of<T>(
 
 /// What pass 3 made of a chunk.
 enum Filled {
-    /// Every element of the chunk's parts is written; what pass 4 needs of its faces.
-    Complete(Shaping),
+    /// Every element of the chunk's parts is written; what pass 4 needs of its
+    /// faces, and its vertex colours ([`Chunk::colours`]).
+    Complete(Shaping, Vec<(u32, Vec3)>),
     /// The chunk's first problem, at `line` of the file.
     Failed { line: usize, kind: ParseErrorKind },
     /// The chunk has more or fewer elements than pass 1 counted.
@@ -405,7 +414,7 @@ enum Filled {
 fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<'_>) -> Filled {
     let mut shaping = Shaping::default();
     if scan::fill(text, base, materials, parts, &mut shaping).is_some() {
-        return Filled::Complete(shaping);
+        return Filled::Complete(shaping, Vec::new());
     }
     let mut chunk = Chunk::parse(text, *base);
     if let Some((line, kind)) = chunk.error {
@@ -436,9 +445,44 @@ fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<
                 && triangle_texcoords
                 && triangle_normals =>
         {
-            Filled::Complete(std::mem::take(&mut chunk.shaping))
+            Filled::Complete(
+                std::mem::take(&mut chunk.shaping),
+                std::mem::take(&mut chunk.colours),
+            )
         }
         _ => Filled::Incomplete,
+    }
+}
+
+/// The colour of a `v` line whose position is followed by exactly three numbers
+/// (`v x y z r g b`, 0 to 1; a fourth value alone is `w`, ignored as before, and so
+/// is anything else, or a colour that is not finite); negative channels read as 0.
+fn vertex_colour(mut tokens: lex::Tokens<'_>) -> Option<Vec3> {
+    let mut rgb = [0.0; 3];
+    for channel in &mut rgb {
+        *channel = lex::float(tokens.next()?).ok()?;
+    }
+    let colour = Vec3::from(rgb);
+    (tokens.next().is_none() && colour.is_finite()).then(|| colour.max(Vec3::ZERO))
+}
+
+/// Spreads each chunk's vertex colours over `scene.colours` (white where a vertex
+/// has none); `first` gives each chunk's first position. Leaves it empty when no
+/// vertex has a colour.
+fn spread_colours<'a>(
+    scene: &mut SceneDescription,
+    chunks: impl Iterator<Item = (usize, &'a [(u32, Vec3)])> + Clone,
+) {
+    if chunks.clone().all(|(_, colours)| colours.is_empty()) {
+        return;
+    }
+    scene.colours = vec![Vec3::ONE; scene.positions.len()];
+    for (first, colours) in chunks {
+        for &(index, colour) in colours {
+            if let Some(slot) = scene.colours.get_mut(first + index as usize) {
+                *slot = colour;
+            }
+        }
     }
 }
 
@@ -552,6 +596,15 @@ fn parse_generally(
         );
     }
     concat(&parsed, |c| &c.positions, |_, &p| p, &mut scene.positions);
+    let firsts = parsed.iter().scan(0, |first, c| {
+        let at = *first;
+        *first += c.positions.len();
+        Some(at)
+    });
+    spread_colours(
+        &mut scene,
+        firsts.zip(parsed.iter().map(|c| c.colours.as_slice())),
+    );
     concat(&parsed, |c| &c.texcoords, |_, &t| t, &mut scene.texcoords);
     concat(&parsed, |c| &c.normals, |_, &n| n, &mut scene.normals);
     let material = |chunk: usize, slot: MaterialId| materials[chunk][slot.0 as usize];
@@ -740,6 +793,10 @@ struct Chunk {
     triangle_texcoords: Vec<Option<[u32; 3]>>,
     /// Normal indices of each triangle, in step with `triangles`.
     triangle_normals: Vec<Option<[u32; 3]>>,
+    /// The colours of `v x y z r g b` lines (Blender's and MeshLab's extension), by
+    /// index among the chunk's positions: few files have them, so they are kept
+    /// apart and spread over [`SceneDescription::colours`] once the file is read.
+    colours: Vec<(u32, Vec3)>,
     spheres: Vec<SphereDesc>,
     lights: Vec<Light>,
     events: Vec<Event>,
@@ -834,7 +891,13 @@ impl Chunk {
         slot: &mut u32,
     ) -> Result<(), ParseErrorKind> {
         match keyword {
-            b"v" => self.positions.push(lex::vec3("v", &mut tokens)?),
+            b"v" => {
+                let position = lex::vec3("v", &mut tokens)?;
+                if let Some(colour) = vertex_colour(tokens) {
+                    self.colours.push((self.positions.len() as u32, colour));
+                }
+                self.positions.push(position);
+            }
             b"vn" => self.normals.push(lex::vec3("vn", &mut tokens)?),
             b"vt" => {
                 let u = lex::floats::<1>("vt", &mut tokens)?[0];

@@ -245,9 +245,9 @@ fn one_hit(
 /// colour, textures applied.
 fn albedo(scene: &Scene, hit: &Hit) -> Vec3 {
     let material = &scene.materials[hit.material.0 as usize];
-    match material.pbr_at(hit.uv) {
+    match material.pbr_at_point(hit.uv, hit.colour) {
         Some(values) => values.base_color,
-        None => material.at(hit.uv).diffuse,
+        None => material.at_point(hit.uv, hit.colour).diffuse,
     }
 }
 

@@ -274,7 +274,7 @@ impl PathIntegrator {
         let material = &scene.materials[hit.material.0 as usize];
         // A textured material's scattering is made for this hit from the values of
         // its maps here; an untextured one's was made once, in `new`.
-        let textured = material.maps.as_ref().map(|_| material.at(hit.uv));
+        let textured = (material.maps.as_ref()).map(|_| material.at_point(hit.uv, hit.colour));
         let emission = textured.map_or(material.emission, |s| s.emission);
         if hit.front && emission != Vec3::ZERO {
             let weight = if path.previous_delta {
@@ -295,7 +295,7 @@ impl PathIntegrator {
         let per_hit;
         let scattering = match &textured {
             Some(surface) => {
-                per_hit = match material.pbr_at(hit.uv) {
+                per_hit = match material.pbr_at_point(hit.uv, hit.colour) {
                     Some(values) => Bsdf::Gltf(GltfBsdf::new(&values)),
                     None => Bsdf::Mtl(MtlMixture::at(material, surface)),
                 };

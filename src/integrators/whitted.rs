@@ -154,7 +154,12 @@ fn shade(
     // a textured one's values there.
     let mut value = match material.maps {
         None => local_light(material, local_weight, rays, direct),
-        Some(_) => local_light(&material.at(hit.uv), local_weight, rays, direct),
+        Some(_) => local_light(
+            &material.at_point(hit.uv, hit.colour),
+            local_weight,
+            rays,
+            direct,
+        ),
     };
 
     if depth > 1 {
@@ -357,7 +362,7 @@ impl WhittedIntegrator {
             }
             match material.maps {
                 None => lanes.set(r, ray, hit, material),
-                Some(_) => lanes.set(r, ray, hit, &material.at(hit.uv)),
+                Some(_) => lanes.set(r, ray, hit, &material.at_point(hit.uv, hit.colour)),
             }
         }
 
@@ -632,6 +637,7 @@ mod tests {
                     ns,
                     uv: Vec2::ZERO,
                     coat_ns: Vec3::ZERO,
+                    colour: Vec3::ONE,
                     material: MaterialId(0),
                     front: true,
                 };

@@ -75,6 +75,11 @@ pub struct MaterialMaps {
     pub normal: Option<TextureMap>,
     /// The maps of the physically based material ([`Material::pbr`]).
     pub pbr: PbrMaps,
+    /// Whether the hit's interpolated vertex colour multiplies the diffuse colour
+    /// (a physically based material's base colour), as glTF's `COLOR_0` does: set by
+    /// [`crate::Scene::build`] on the materials of coloured triangles, so that
+    /// materials without maps or colours keep their one-branch path.
+    pub vertex_colours: bool,
 }
 
 /// Where a surface is cut out: rays pass through it where its alpha is below
@@ -288,8 +293,21 @@ impl Material {
     /// The physically based material's values at `uv`, if this is one.
     #[inline]
     pub fn pbr_at(&self, uv: Vec2) -> Option<PbrValues> {
+        self.pbr_at_point(uv, Vec3::ONE)
+    }
+
+    /// [`Material::pbr_at`] where the vertex colour is `colour` (a hit's
+    /// [`crate::Hit::colour`]): it multiplies the base colour if the material takes
+    /// vertex colours ([`MaterialMaps::vertex_colours`]).
+    #[inline]
+    pub fn pbr_at_point(&self, uv: Vec2, colour: Vec3) -> Option<PbrValues> {
         let pbr = self.pbr.as_deref()?;
-        Some(pbr.at(uv, self.maps.as_deref().map(|m| &m.pbr)))
+        let maps = self.maps.as_deref();
+        let mut values = pbr.at(uv, maps.map(|m| &m.pbr));
+        if maps.is_some_and(|m| m.vertex_colours) {
+            values.base_color *= colour;
+        }
+        Some(values)
     }
 
     /// The material's values at texture coordinates `uv`: the constants, each
@@ -297,9 +315,18 @@ impl Material {
     /// Without maps, the constants exactly.
     #[inline]
     pub fn at(&self, uv: Vec2) -> SurfaceValues {
+        self.at_point(uv, Vec3::ONE)
+    }
+
+    /// [`Material::at`] where the vertex colour is `colour` (a hit's
+    /// [`crate::Hit::colour`]): it multiplies the diffuse colour (a physically based
+    /// material's base colour, before its Phong approximation) if the material takes
+    /// vertex colours ([`MaterialMaps::vertex_colours`]).
+    #[inline]
+    pub fn at_point(&self, uv: Vec2, colour: Vec3) -> SurfaceValues {
         let mut values = self.at_constants();
         if let Some(maps) = &self.maps {
-            maps.apply(uv, &mut values, self.pbr.as_deref());
+            maps.apply(uv, colour, &mut values, self.pbr.as_deref());
         }
         values
     }
@@ -316,9 +343,18 @@ impl MaterialMaps {
     /// (`pbr`), sets its Phong approximation from its values there. Out of line: only
     /// textured materials get here.
     #[inline(never)]
-    fn apply(&self, uv: Vec2, values: &mut SurfaceValues, pbr: Option<&PbrMaterial>) {
+    fn apply(&self, uv: Vec2, vertex: Vec3, values: &mut SurfaceValues, pbr: Option<&PbrMaterial>) {
+        let vertex = if self.vertex_colours {
+            vertex
+        } else {
+            Vec3::ONE
+        };
         if let Some(pbr) = pbr {
-            pbr.at(uv, Some(&self.pbr)).phong(values);
+            let mut at = pbr.at(uv, Some(&self.pbr));
+            at.base_color *= vertex;
+            at.phong(values);
+        } else {
+            values.diffuse *= vertex;
         }
         let colour = |map: &Option<TextureMap>, value: &mut Vec3| {
             if let Some(map) = map {

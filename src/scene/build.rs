@@ -109,6 +109,18 @@ impl Scene {
     /// level, each of its meshes built once, and a BVH over the instances; without
     /// them (or with every mesh used once, which the readers flatten), one level.
     pub fn build(mut description: SceneDescription, params: &BvhParams) -> Scene {
+        if description.has_colours() {
+            let mut coloured = vec![false; description.materials.len()];
+            for level in std::iter::once(&description).chain(&description.meshes) {
+                mark_coloured_materials(level, &mut coloured);
+            }
+            for (material, _) in (description.materials.iter_mut())
+                .zip(coloured)
+                .filter(|(_, c)| *c)
+            {
+                material.maps.get_or_insert_default().vertex_colours = true;
+            }
+        }
         if description.instances.is_empty() {
             description.meshes = Vec::new();
             return Scene::build_level(description, params).0;
@@ -127,6 +139,7 @@ impl Scene {
         let unlit = description.is_unlit() && description.environment.is_none();
         let SceneDescription {
             positions,
+            mut colours,
             normals,
             texcoords,
             triangles,
@@ -318,10 +331,26 @@ impl Scene {
                     },
                 )
                 .collect()
+        } else if !colours.is_empty() {
+            // Only so that hits take the second phase, which interpolates colours.
+            vec![[NO_TEXCOORDS; 3]; order.len()]
         } else {
             Vec::new()
         };
         let texcoords = if textured { texcoords } else { Vec::new() };
+        // Vertex colours by the corners' position indices, every position given one
+        // (white past the description's last).
+        let prim_colours: Vec<[u32; 3]> = if colours.is_empty() {
+            Vec::new()
+        } else {
+            colours.resize(positions.len(), Vec3::ONE);
+            (order.par_iter())
+                .map(|&i| match triangles.get(i as usize) {
+                    Some(t) => t.positions,
+                    None => [NO_COLOURS; 3],
+                })
+                .collect()
+        };
         let has_cutouts = materials.iter().any(|m| m.cutout().is_some());
         // A zero-length `vn` cannot be normalized: zero marks it, and the hit's
         // geometric normal stands in for it.
@@ -361,6 +390,8 @@ impl Scene {
             source: order,
             objects,
             prim_texcoords,
+            colours,
+            prim_colours,
             has_cutouts,
             materials,
             lights,
@@ -372,6 +403,22 @@ impl Scene {
             instances: None,
         };
         (scene, meshes, instances)
+    }
+}
+
+/// Marks in `coloured` (by material id) the materials of `level`'s triangles that
+/// have a corner with a vertex colour.
+fn mark_coloured_materials(level: &SceneDescription, coloured: &mut [bool]) {
+    let given = level.colours.len();
+    if given == 0 {
+        return;
+    }
+    for t in &level.triangles {
+        if t.positions.iter().any(|&p| (p as usize) < given)
+            && let Some(c) = coloured.get_mut(t.material.0 as usize)
+        {
+            *c = true;
+        }
     }
 }
 

@@ -237,6 +237,7 @@ impl Instances {
             n,
             ns,
             uv: inner.uv,
+            colour: inner.colour,
             // Zero (no coat normal of its own) stays zero.
             coat_ns: to_world(inner.coat_ns).unwrap_or(Vec3::ZERO),
             material: inner.material,

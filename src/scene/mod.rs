@@ -80,6 +80,9 @@ impl ShadingData {
 /// Marks a primitive without texture coordinates in `Scene::prim_texcoords`.
 const NO_TEXCOORDS: u32 = u32::MAX;
 
+/// Marks a primitive without vertex colours in `Scene::prim_colours`.
+const NO_COLOURS: u32 = u32::MAX;
+
 /// How long each step of [`Scene::build`] took, for `--stats`. Kept apart from
 /// [`BvhSummary`], which two builds of one scene share exactly.
 #[derive(Clone, Copy, Debug, Default)]
@@ -153,8 +156,17 @@ pub struct Scene {
     objects: objects::Objects,
     /// Indices into `texcoords` of each primitive's corners (leaf order), or
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
-    /// scenes neither store nor interpolate texture coordinates.
+    /// scenes neither store nor interpolate texture coordinates. Its being non-empty
+    /// is what sends hits through [`Scene::textured_hit_details`], which vertex
+    /// colours need too: a coloured scene keeps it (all `NO_TEXCOORDS` if it has no
+    /// maps).
     prim_texcoords: Vec<[u32; 3]>,
+    /// The description's vertex colours ([`SceneDescription::colours`]); empty
+    /// unless some triangle has one.
+    colours: Vec<Vec3>,
+    /// Indices into `colours` of each primitive's corners (leaf order), or
+    /// `[NO_COLOURS; 3]`; empty in a scene without vertex colours.
+    prim_colours: Vec<[u32; 3]>,
     /// Whether some material cuts its surface out (`map_d`, glTF's alpha mask): rays
     /// then take the traversal that tests alpha on every candidate hit. Chosen once
     /// per ray by this flag, so scenes without cutouts pay one predictable branch.
@@ -207,6 +219,11 @@ pub struct Hit {
     /// differs from `ns` (its own normal map, or none under the base's normal map),
     /// facing as `ns` does; zero where it is `ns`.
     pub coat_ns: Vec3,
+    /// The vertex colour interpolated at the hit (linear RGB), which multiplies the
+    /// diffuse or base colour of a material that takes vertex colours
+    /// ([`Material::at_point`]); white where there is none, on materials without
+    /// maps or vertex colours, and in scenes without either.
+    pub colour: Vec3,
     /// The material.
     pub material: MaterialId,
     /// Whether the ray hit the front: the side a triangle's winding faces

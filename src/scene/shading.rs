@@ -32,6 +32,19 @@ impl Scene {
         }
     }
 
+    /// The vertex colour of primitive `prim` at barycentrics `u`, `v`; white when
+    /// it has none.
+    #[inline]
+    fn colour_at(&self, prim: u32, u: Float, v: Float) -> Vec3 {
+        match self.prim_colours.get(prim as usize) {
+            None | Some([NO_COLOURS, ..]) => Vec3::ONE,
+            Some(ids) => {
+                let [c0, c1, c2] = ids.map(|i| self.colours[i as usize]);
+                c0 * (1.0 - u - v) + c1 * u + c2 * v
+            }
+        }
+    }
+
     /// The shading normal `ns` of triangle `prim` tilted by its material's bump or
     /// normal map at `uv`, and by its clearcoat normal map, in the tangent frame its
     /// texture coordinates give (`u` along the tangent, `v` along the bitangent, made
@@ -136,6 +149,7 @@ impl Scene {
             ns: face(ns),
             uv: Vec2::ZERO,
             coat_ns: Vec3::ZERO,
+            colour: Vec3::ONE,
             material: shading.material,
             front,
         }
@@ -171,9 +185,9 @@ impl Scene {
         }
     }
 
-    /// [`Scene::hit_details`] in a textured scene: also the texture coordinates, if
-    /// the primitive is a triangle whose material has maps (the only reader of
-    /// `Hit::uv`), and under a bump or normal map the tilted shading normal (turned to
+    /// [`Scene::hit_details`] in a textured or vertex-coloured scene: also the
+    /// texture coordinates and vertex colour, if the primitive is a triangle whose
+    /// material has maps (the only reader of `Hit::uv` and `Hit::colour`), and under a bump or normal map the tilted shading normal (turned to
     /// face the ray).
     #[inline(never)]
     pub(super) fn textured_hit_details(
@@ -199,6 +213,7 @@ impl Scene {
         }
         let uv = self.uv_at(prim, hit.u, hit.v);
         details.uv = uv;
+        details.colour = self.colour_at(prim, hit.u, hit.v);
         // The shading normal before `hit_details` turned it.
         let n = try_unit(triangle.normal()).unwrap_or(-ray.dir);
         let ns = self.shading_normal(self.shading.get(prim), n, &hit);

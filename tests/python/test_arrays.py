@@ -105,11 +105,24 @@ def test_the_environment_and_a_plain_mesh(tmp_path):
          r"meshes\[0\]\['transforms'\]\[1\]: non-finite value 1e39"),
         (dict(vertices=QUAD, faces=QUAD_FACES, material={"Kx": 1}), r"materials.meshes\[0\].Kx: unknown field"),
         (dict(vertices=QUAD, faces=QUAD_FACES, colour=1), r"meshes\[0\]: unknown key 'colour'"),
+        (dict(vertices=QUAD, faces=QUAD_FACES, colors=np.ones((3, 3))), r"meshes\[0\]\['colors'\] has 3 rows"),
     ],
 )
 def test_bad_arrays_are_value_errors_naming_the_first_bad_element(mesh, message):
     with pytest.raises(ValueError, match=message):
         raytracer.Scene.from_arrays(meshes=[{"vertices": QUAD, "faces": QUAD_FACES}, mesh][1:])
+
+
+def test_vertex_colors_render_as_the_obj_that_spells_them(tmp_path):
+    colors = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], dtype=np.uint8) * 255
+    lines = [f"v {x} {y} {z} {r / 255} {g / 255} {b / 255}" for (x, y, z), (r, g, b) in zip(QUAD, colors)]
+    (tmp_path / "q.obj").write_text("\n".join(lines) + "\nf 1 2 3\nf 1 3 4\n")
+    expected = raytracer.render(tmp_path / "q.obj", **VIEW)
+    for given in (colors, colors / 255.0, np.hstack([colors / 255.0, np.ones((4, 1))])):
+        scene = raytracer.Scene.from_arrays(meshes=[dict(vertices=QUAD, faces=QUAD_FACES, colors=given)])
+        assert np.array_equal(scene.render(**VIEW), expected), given.dtype
+    plain = raytracer.Scene.from_arrays(meshes=[dict(vertices=QUAD, faces=QUAD_FACES)])
+    assert not np.array_equal(plain.render(**VIEW), expected)
 
 
 def test_a_trimesh_renders_as_the_obj_it_came_from(files):

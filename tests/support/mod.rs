@@ -145,3 +145,54 @@ pub fn reference_cases() -> Vec<ReferenceCase> {
     let text = std::fs::read_to_string(reference_dir().join("cases.toml")).unwrap();
     toml::from_str::<Cases>(&text).unwrap().case
 }
+
+/// A glTF file of one triangle (0, 0, 0), (1, 0, 0), (0, 1, 0) facing +z with
+/// `COLOR_0` red, green, blue (as floats), in `dir`; no material, or one with the
+/// fixtures' checker as its base colour texture.
+pub fn vertex_coloured_gltf(dir: &Path, textured: bool) -> PathBuf {
+    let mut bin = Vec::new();
+    let floats: [f32; 18] = [
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, // positions
+        1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, // colours
+    ];
+    for f in floats {
+        bin.extend(f.to_le_bytes());
+    }
+    std::fs::write(dir.join("t.bin"), &bin).unwrap();
+    let gltf = r#"{
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}}]}],
+  "buffers": [{"uri": "t.bin", "byteLength": 72}],
+  "bufferViews": [
+    {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+    {"buffer": 0, "byteOffset": 36, "byteLength": 36}
+  ],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"}
+  ]
+}"#;
+    let gltf = if textured {
+        std::fs::copy(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gltf/checker.png"),
+            dir.join("checker.png"),
+        )
+        .unwrap();
+        gltf.replace(r#""COLOR_0": 1}}"#, r#""COLOR_0": 1}, "material": 0}"#)
+            .replace(
+                r#""buffers""#,
+                r#""materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+  "textures": [{"source": 0}],
+  "images": [{"uri": "checker.png"}],
+  "buffers""#,
+            )
+    } else {
+        gltf.to_string()
+    };
+    let path = dir.join("t.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    path
+}

@@ -26,10 +26,10 @@ use super::error::SceneError;
 use super::file::read_regular_file;
 use super::material_check::MaterialProblems;
 use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
-use crate::material::{Light, LightKind, Material, MaterialId, MaterialMaps};
+use crate::material::{Light, LightKind, Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, Projection, RenderOptions, Sourced};
-use crate::textures::{Texture, TextureMap, TextureOptions, Wrap};
+use crate::textures::Texture;
 
 /// Reads a glTF file (`.gltf` or `.glb`) and the buffers and images it names,
 /// relative to its folder.
@@ -92,11 +92,13 @@ pub fn parse_gltf_with(
     let unsupported = check_extensions(&mut root).map_err(fail)?;
     let unbounded = fill_position_bounds(&mut root);
     let document = Document::from_json(root).map_err(invalid)?;
-    // Materials are read from the file's own JSON (see `material`).
-    let raw_materials = if document.materials().len() == 0 {
-        Vec::new()
+    // Materials, and the nodes' instancing, are read from the file's own JSON (see
+    // `material`): the `gltf` crate keeps neither.
+    let instancing = (document.extensions_used()).any(|e| e == extensions::gpu_instancing::NAME);
+    let (raw_materials, instancing) = if document.materials().len() == 0 && !instancing {
+        (Vec::new(), HashMap::new())
     } else {
-        raw_materials(bytes).map_err(invalid)?
+        raw_json(bytes).map_err(invalid)?
     };
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -122,6 +124,7 @@ pub fn parse_gltf_with(
         },
         instanced: HashMap::new(),
         raw_materials,
+        instancing,
         problems: MaterialProblems::default(),
     };
     for name in unsupported {
@@ -180,9 +183,10 @@ fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> 
     Ok(unsupported)
 }
 
-/// The JSON object of every material, as the file has it: the JSON of a `.gltf`,
-/// or the JSON chunk of a `.glb`.
-fn raw_materials(bytes: &[u8]) -> Result<Vec<Value>, gltf::Error> {
+/// The JSON object of every material, as the file has it (the JSON of a `.gltf`,
+/// or the JSON chunk of a `.glb`), and the `EXT_mesh_gpu_instancing` object of each
+/// node that has one, by node index.
+fn raw_json(bytes: &[u8]) -> Result<(Vec<Value>, HashMap<usize, Value>), gltf::Error> {
     let json = if bytes.starts_with(b"glTF") {
         gltf::binary::Glb::from_slice(bytes)?.json
     } else {
@@ -190,10 +194,22 @@ fn raw_materials(bytes: &[u8]) -> Result<Vec<Value>, gltf::Error> {
     };
     let mut root: Value =
         gltf::json::deserialize::from_slice(&json).map_err(gltf::Error::Deserialize)?;
-    Ok(match root.get_mut("materials").map(Value::take) {
+    let materials = match root.get_mut("materials").map(Value::take) {
         Some(Value::Array(materials)) => materials,
         _ => Vec::new(),
-    })
+    };
+    let mut instancing = HashMap::new();
+    if let Some(Value::Array(nodes)) = root.get_mut("nodes") {
+        for (index, node) in nodes.iter_mut().enumerate() {
+            let extension = (node.get_mut("extensions"))
+                .and_then(|e| e.get_mut(extensions::gpu_instancing::NAME))
+                .map(Value::take);
+            if let Some(extension) = extension {
+                instancing.insert(index, extension);
+            }
+        }
+    }
+    Ok((materials, instancing))
 }
 
 /// The data of every buffer: the GLB's binary chunk, a data URI or a file beside the
@@ -614,6 +630,8 @@ struct Reader<'a> {
     instanced: HashMap<usize, u32>,
     /// The JSON object of each material.
     raw_materials: Vec<Value>,
+    /// The `EXT_mesh_gpu_instancing` object of each node that has one.
+    instancing: HashMap<usize, Value>,
     /// Problems of the materials' values, for one warning per kind.
     problems: MaterialProblems,
 }
@@ -680,9 +698,19 @@ impl Reader<'_> {
                 continue;
             }
             if let Some(mesh) = node.mesh() {
-                if self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
+                if let Some(extension) = self.instancing.get(&node.index()) {
+                    // Its instances place the mesh, each an object.
+                    let placements =
+                        extensions::gpu_instancing::placements(document, &self.buffers, extension)
+                            .map_err(|e| {
+                                let name = extensions::gpu_instancing::NAME;
+                                format!("{}: {name}: {e}", describe_node(&node))
+                            })?;
+                    let placements: Vec<Mat4> = placements.iter().map(|p| world * *p).collect();
+                    self.add_instances(&mesh, &placements, &node)?;
+                } else if self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
                     // A copy of a shared mesh: its instance is its object.
-                    self.add_instance(&mesh, &world, node.index())?;
+                    self.add_instances(&mesh, &[world], &node)?;
                 } else {
                     // Each other node with a mesh is an object (the `object_id` output).
                     let name = node
@@ -706,13 +734,16 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// Places a copy of `mesh`, which several nodes use, by `world`: the mesh is read
-    /// once (the first time) into [`SceneDescription::meshes`], in its own space.
-    fn add_instance(
+    /// Places copies of `mesh` (which several nodes use, or `node`'s instancing
+    /// places) by each of `placements`: the mesh is read once (the first time) into
+    /// [`SceneDescription::meshes`], in its own space. Placements that are not
+    /// invertible affine maps (a zero scale hides an instance) are skipped, with one
+    /// warning for the node.
+    fn add_instances(
         &mut self,
         mesh: &gltf::Mesh<'_>,
-        world: &Mat4,
-        node: usize,
+        placements: &[Mat4],
+        node: &gltf::Node<'_>,
     ) -> Result<(), String> {
         let index = match self.instanced.get(&mesh.index()) {
             Some(&index) => index,
@@ -732,11 +763,25 @@ impl Reader<'_> {
                 index
             }
         };
-        // The node's transform must be an invertible affine map (it is finite).
-        let rows = world.transpose().to_cols_array().map(f64::from);
-        match super::compose::affine_from_rows(&rows) {
-            Ok(placement) => self.scene.add_instance(index, placement, true),
-            Err(message) => self.warn(format!("node {node}: {message}; skipped")),
+        let (mut skipped, mut problem) = (0, None);
+        for world in placements {
+            let rows = world.transpose().to_cols_array().map(f64::from);
+            match super::compose::affine_from_rows(&rows) {
+                Ok(placement) => self.scene.add_instance(index, placement, true),
+                Err(message) => {
+                    skipped += 1;
+                    problem.get_or_insert(message);
+                }
+            }
+        }
+        if let Some(message) = problem {
+            let node = describe_node(node);
+            self.warn(match placements.len() {
+                1 => format!("{node}: {message}; skipped"),
+                n => {
+                    format!("{node}: {skipped} of its {n} instances skipped (the first: {message})")
+                }
+            });
         }
         Ok(())
     }
@@ -865,23 +910,8 @@ impl Reader<'_> {
                 }
                 other => other,
             };
-            let mut material = self.material(primitive.material());
+            let material = self.material(primitive.material());
             let triangles = triangles(mode, &indices);
-            // Vertex colours become a texture of their own (see `vertex_colour_atlas`).
-            let mut atlas_texcoords = None;
-            if let Some(colours) = &colours {
-                let corners = triangles
-                    .iter()
-                    .map(|&[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] });
-                let corner_colours: Vec<[Vec3; 3]> =
-                    corners.map(|t| t.map(|i| colours[i as usize])).collect();
-                if let Some((coloured, texcoords)) =
-                    self.vertex_coloured(material, &corner_colours, &name)
-                {
-                    material = coloured;
-                    atlas_texcoords = Some(texcoords);
-                }
-            }
             let base = |len: usize| -> Result<u32, String> {
                 u32::try_from(len + count)
                     .map(|_| len as u32)
@@ -891,6 +921,9 @@ impl Reader<'_> {
             let normal_base = base(self.scene.normals.len())?;
             let texcoord_base = base(self.scene.texcoords.len())?;
             let scene = &mut self.scene;
+            if let Some(colours) = &colours {
+                scene.set_colours(position_base as usize, colours);
+            }
             scene.positions.extend(positions);
             let has_normals = normals.is_some();
             if let Some(normals) = normals {
@@ -900,12 +933,7 @@ impl Reader<'_> {
             if let Some(texcoords) = texcoords {
                 scene.texcoords.extend(texcoords);
             }
-            // The atlas's coordinates: three per triangle, after TEXCOORD_0's.
-            let atlas_base = scene.texcoords.len() as u32;
-            if let Some(atlas) = &atlas_texcoords {
-                scene.texcoords.extend(atlas.iter().flatten());
-            }
-            for (k, [a, b, c]) in triangles.into_iter().enumerate() {
+            for [a, b, c] in triangles {
                 let corners = if mirrored { [a, c, b] } else { [a, b, c] };
                 scene.push_triangle(
                     TriangleDesc {
@@ -914,68 +942,11 @@ impl Reader<'_> {
                     },
                     has_normals.then(|| corners.map(|i| normal_base + i)),
                 );
-                let texcoords = match atlas_texcoords {
-                    Some(_) => Some([0, 1, 2].map(|c| atlas_base + 3 * k as u32 + c)),
-                    None => has_texcoords.then(|| corners.map(|i| texcoord_base + i)),
-                };
+                let texcoords = has_texcoords.then(|| corners.map(|i| texcoord_base + i));
                 scene.triangle_texcoords.push(texcoords);
             }
         }
         Ok(())
-    }
-
-    /// A material for a primitive with `COLOR_0`: `material` with the vertex colours
-    /// (`colours`, per triangle corner) as its base colour map, and each triangle's
-    /// coordinates in that map. `None` (with a warning) when `material` has maps
-    /// already: a hit has one set of texture coordinates.
-    fn vertex_coloured(
-        &mut self,
-        material: MaterialId,
-        colours: &[[Vec3; 3]],
-        primitive: &str,
-    ) -> Option<(MaterialId, Vec<[Vec2; 3]>)> {
-        let base = self.scene.materials[material.0 as usize].clone();
-        if base.maps.is_some() {
-            self.warn_once(
-                "vertex colours",
-                format!("{primitive}: vertex colours are not applied on a material with textures"),
-            );
-            return None;
-        }
-        let name = self.path.with_file_name(format!(
-            "{}#{primitive} COLOR_0",
-            self.path.file_name().unwrap_or_default().to_string_lossy()
-        ));
-        let Some((texture, texcoords)) = vertex_colour_atlas(colours, name) else {
-            self.warn(format!(
-                "{primitive}: too many triangles for a vertex colour texture; colours not applied"
-            ));
-            return None;
-        };
-        let map = TextureMap {
-            texture: Arc::new(texture),
-            options: TextureOptions {
-                wrap_u: Wrap::Clamp,
-                wrap_v: Wrap::Clamp,
-                ..TextureOptions::default()
-            },
-        };
-        // As a base colour texture (which the Phong approximation reads too), or
-        // for the renderer's grey of primitives without a material, as `Kd`'s map.
-        let mut maps = MaterialMaps::default();
-        if base.pbr.is_some() {
-            maps.pbr.base_color = Some(map);
-        } else {
-            maps.diffuse = Some(map);
-        }
-        let coloured = Material {
-            name: format!("{} (vertex colours)", base.name),
-            maps: Some(Box::new(maps)),
-            ..base
-        };
-        let id = MaterialId(self.scene.materials.len() as u32);
-        self.scene.materials.push(coloured);
-        Some((id, texcoords))
     }
 
     fn add_camera(&mut self, camera: &gltf::Camera<'_>, world: &Mat4) {
@@ -1139,44 +1110,6 @@ impl Reader<'_> {
     }
 }
 
-/// Vertex colours as a texture: each triangle gets a block of 2 x 2 texels holding
-/// its corners' colours `c0`, `c1`, `c2` and `c1 + c2 - c0`, and its corners sit at
-/// the centres of the first three. Bilinear filtering between those centres is then
-/// `c0 + (c1 - c0) s + (c2 - c0) t`, exactly the barycentric interpolation of the
-/// colours, and a renderer that knows only texture maps draws vertex colours. Texels
-/// are `f32`, stored sRGB-encoded (the map is read as a colour map), so the fourth may
-/// leave 0..1. Returns the texture and each triangle's corner coordinates; `None` if
-/// the blocks would not fit [`crate::textures::MAX_TEXTURE_SIZE`] on a side.
-fn vertex_colour_atlas(colours: &[[Vec3; 3]], name: PathBuf) -> Option<(Texture, Vec<[Vec2; 3]>)> {
-    let blocks = colours.len().max(1);
-    let columns = (blocks as f64).sqrt().ceil() as usize;
-    let rows = blocks.div_ceil(columns);
-    let (width, height) = (2 * columns, 2 * rows);
-    let (w, h) = (u32::try_from(width).ok()?, u32::try_from(height).ok()?);
-    if w.max(h) > crate::textures::MAX_TEXTURE_SIZE {
-        return None;
-    }
-    let mut texels = vec![0.0f32; width * height * 3];
-    let mut texcoords = Vec::with_capacity(colours.len());
-    let centre = |x: usize, y: usize| {
-        Vec2::new(
-            (x as Float + 0.5) / width as Float,
-            1.0 - (y as Float + 0.5) / height as Float,
-        )
-    };
-    for (k, &[c0, c1, c2]) in colours.iter().enumerate() {
-        let (x, y) = (2 * (k % columns), 2 * (k / columns));
-        for (dx, dy, colour) in [(0, 0, c0), (1, 0, c1), (0, 1, c2), (1, 1, c1 + c2 - c0)] {
-            let at = ((y + dy) * width + x + dx) * 3;
-            let encoded = colour.to_array().map(crate::textures::linear_to_srgb);
-            texels[at..at + 3].copy_from_slice(&encoded);
-        }
-        texcoords.push([centre(x, y), centre(x + 1, y), centre(x, y + 1)]);
-    }
-    let texture = Texture::from_f32(name, w, h, 3, texels)?;
-    Some((texture, texcoords))
-}
-
 /// The geometry appended to `scene` since it held `before` (positions, normals,
 /// texture coordinates, triangles) taken out as a mesh of its own, its indices
 /// starting from 0: a mesh read once for the instances that place it.
@@ -1186,6 +1119,10 @@ fn split_off_mesh(
 ) -> SceneDescription {
     let [p0, n0, t0] = [positions, normals, texcoords].map(|n| n as u32);
     let mut mesh = SceneDescription {
+        colours: match scene.colours.len() > positions {
+            true => scene.colours.split_off(positions),
+            false => Vec::new(),
+        },
         positions: scene.positions.split_off(positions),
         normals: scene.normals.split_off(normals),
         texcoords: scene.texcoords.split_off(texcoords),

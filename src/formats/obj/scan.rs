@@ -123,6 +123,14 @@ impl Scanner<'_, '_> {
                 [b'v', b' ', rest @ ..] => {
                     self.rest = rest;
                     let position = self.vec3()?;
+                    // A `w` is read past; more values (a vertex colour: `v x y z r g
+                    // b`) are the general parser's.
+                    if !self.at_line_end() {
+                        self.number()?;
+                        if !self.at_line_end() {
+                            return None;
+                        }
+                    }
                     let written = &mut self.written.positions;
                     self.parts.positions.get_mut(*written)?.write(position);
                     *written += 1;
@@ -181,6 +189,10 @@ impl Scanner<'_, '_> {
             Some(b"f") => return None,
             Some(b"v") => {
                 let position = lex::vec3("v", &mut tokens).ok()?;
+                // A `w` is read past; a vertex colour is the general parser's.
+                if tokens.nth(1).is_some() {
+                    return None;
+                }
                 parts.positions.get_mut(written.positions)?.write(position);
                 written.positions += 1;
             }
@@ -216,6 +228,13 @@ impl Scanner<'_, '_> {
         {
             self.rest = rest;
         }
+    }
+
+    /// Whether only spaces, perhaps a comment, are left on the line.
+    #[inline(always)]
+    fn at_line_end(&mut self) -> bool {
+        self.skip_spaces();
+        matches!(self.rest, [] | [b'\n' | b'#', ..])
     }
 
     /// Skips what is left of the line (values beyond those a statement reads are

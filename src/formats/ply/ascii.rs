@@ -223,8 +223,12 @@ impl MeshReader {
         };
         runs.push(end);
 
-        let (vertex_count, has_normals, has_texcoords) =
-            (self.vertex_count, self.has_normals, self.has_texcoords);
+        let (vertex_count, has_normals, has_texcoords, has_colours) = (
+            self.vertex_count,
+            self.has_normals,
+            self.has_texcoords,
+            self.has_colours,
+        );
         let parts: Vec<Result<MeshReader, ElementError>> = runs
             .par_windows(2)
             .map(|run| {
@@ -234,6 +238,7 @@ impl MeshReader {
                     vertex_count,
                     has_normals,
                     has_texcoords,
+                    has_colours,
                     polygons: Vec::new(),
                 };
                 let elements = next.first_index - first.first_index;
@@ -268,6 +273,7 @@ impl MeshReader {
             self.scene.positions.extend_from_slice(&part.positions);
             self.scene.normals.extend_from_slice(&part.normals);
             self.scene.texcoords.extend_from_slice(&part.texcoords);
+            self.scene.colours.extend_from_slice(&part.colours);
             self.scene.triangles.extend_from_slice(&part.triangles);
         }
         if self.scene.triangles.len() > u32::MAX as usize {

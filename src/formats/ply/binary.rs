@@ -179,6 +179,12 @@ impl<const BIG_ENDIAN: bool> Body for BinaryBody<'_, BIG_ENDIAN> {
 /// Binary elements with at least this many instances are decoded on all threads.
 const PARALLEL_BINARY_ELEMENTS: usize = 1 << 16;
 
+/// Where a fixed-stride vertex record's values go in the slots of
+/// [`MeshReader::read_fixed_stride`]: the position's first, then these.
+const NORMAL: usize = 3;
+const TEXCOORD: usize = 6;
+const COLOUR: usize = 8;
+
 /// One output array of fixed-stride records decoded on all threads: the values of the
 /// `fields` whose slots are `first_slot..first_slot + N`, turned into `T` by `make`.
 fn gather<const BIG_ENDIAN: bool, const N: usize, T: Send>(
@@ -193,12 +199,17 @@ fn gather<const BIG_ENDIAN: bool, const N: usize, T: Send>(
         .filter(|&&(slot, _, _)| (first_slot..first_slot + N).contains(&slot))
         .map(|&(slot, offset, ty)| (slot - first_slot, offset, ty))
         .collect();
+    // Colour channels are scaled by their type; the others are read as they are.
+    let colour = first_slot == COLOUR;
     records
         .par_chunks_exact(stride)
         .map(|record| {
             let mut values = [0.0; N];
             for &(slot, offset, ty) in &fields {
                 values[slot] = decode::<BIG_ENDIAN>(&record[offset..], ty).as_float() as Float;
+                if colour {
+                    values[slot] /= ty.colour_range();
+                }
             }
             make(values)
         })
@@ -256,8 +267,6 @@ impl MeshReader {
         types: &[Scalar],
         bytes: &[u8],
     ) -> Result<usize, (usize, ParseErrorKind)> {
-        const NORMAL: usize = 3;
-        const TEXCOORD: usize = 6;
         // (slot in `values`, offset in the record, type) of each value to keep.
         let mut fields = Vec::new();
         let mut offset = 0;
@@ -266,6 +275,7 @@ impl MeshReader {
                 Role::Position(axis) => Some(axis),
                 Role::Normal(axis) => Some(NORMAL + axis),
                 Role::TexCoord(axis) => Some(TEXCOORD + axis),
+                Role::Colour(axis) => Some(COLOUR + axis),
                 Role::Skip | Role::Indices => None,
             };
             if let Some(slot) = slot {
@@ -289,24 +299,35 @@ impl MeshReader {
                 true => gather::<BIG_ENDIAN, 2, _>(records, stride, &fields, TEXCOORD, Vec2::from),
                 false => Vec::new(),
             };
+            let colours = match self.has_colours {
+                true => gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, COLOUR, |c| {
+                    Vec3::from(c).max(Vec3::ZERO)
+                }),
+                false => Vec::new(),
+            };
             // Serial checks: rayon's short-circuiting `all` pays an atomic per item.
             let finite = positions.iter().all(|p| p.is_finite())
                 && normals.iter().all(|n| n.is_finite())
-                && texcoords.iter().all(|t| t.is_finite());
+                && texcoords.iter().all(|t| t.is_finite())
+                && colours.iter().all(|c| c.is_finite());
             // Otherwise the serial loop below finds and reports the bad value.
             if finite {
                 self.scene.positions = positions;
                 self.scene.normals = normals;
                 self.scene.texcoords = texcoords;
+                self.scene.colours = colours;
                 return Ok(complete * stride);
             }
         }
         if !fields.is_empty() {
             for (index, record) in bytes[..complete * stride].chunks_exact(stride).enumerate() {
-                let mut values: [Float; 8] = [0.0; 8];
+                let mut values: [Float; 11] = [0.0; 11];
                 for &(slot, offset, ty) in &fields {
                     values[slot] = finite_float(decode::<BIG_ENDIAN>(&record[offset..], ty))
                         .map_err(|kind| (index, kind))?;
+                    if slot >= COLOUR {
+                        values[slot] /= ty.colour_range();
+                    }
                 }
                 self.scene
                     .positions
@@ -319,7 +340,11 @@ impl MeshReader {
                 if self.has_texcoords {
                     self.scene
                         .texcoords
-                        .push(Vec2::from_slice(&values[TEXCOORD..]));
+                        .push(Vec2::from_slice(&values[TEXCOORD..COLOUR]));
+                }
+                if self.has_colours {
+                    let colour = Vec3::from_slice(&values[COLOUR..]);
+                    self.scene.colours.push(colour.max(Vec3::ZERO));
                 }
             }
         }

@@ -4,6 +4,7 @@
 
 use crate::formats::error::ParseErrorKind;
 use crate::formats::lex;
+use crate::math::Float;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Format {
@@ -39,6 +40,21 @@ impl Scalar {
             b"double" | b"float64" => Scalar::F64,
             _ => return None,
         })
+    }
+
+    /// What a colour channel of this type is divided by to be read in 0..1: an
+    /// integer type's largest value maps to 1 (`uchar` 255, `ushort` 65535), floats
+    /// are read as they are.
+    pub(super) fn colour_range(self) -> Float {
+        match self {
+            Scalar::I8 => i8::MAX as Float,
+            Scalar::U8 => u8::MAX as Float,
+            Scalar::I16 => i16::MAX as Float,
+            Scalar::U16 => u16::MAX as Float,
+            Scalar::I32 => i32::MAX as Float,
+            Scalar::U32 => u32::MAX as Float,
+            Scalar::F32 | Scalar::F64 => 1.0,
+        }
     }
 
     /// Bytes in a binary body.
@@ -255,6 +271,8 @@ pub(super) enum Role {
     Position(usize),
     Normal(usize),
     TexCoord(usize),
+    /// A vertex colour channel (red, green, blue), divided by [`Scalar::colour_range`].
+    Colour(usize),
     Indices,
 }
 
@@ -299,9 +317,16 @@ pub(super) fn roles(element: &Element) -> Result<Vec<Role>, HeaderError> {
                 &["u", "s", "texture_u", "texture_s"],
                 &["v", "t", "texture_v", "texture_t"],
             ];
+            // As MeshLab, Open3D and scanners write them (`alpha` is read past).
+            let colours: &[&[&str]] = &[
+                &["red", "diffuse_red", "r"],
+                &["green", "diffuse_green", "g"],
+                &["blue", "diffuse_blue", "b"],
+            ];
             for (names, role) in [
                 (normals, Role::Normal as fn(usize) -> Role),
                 (texcoords, Role::TexCoord),
+                (colours, Role::Colour),
             ] {
                 let found: Vec<Option<usize>> = names.iter().map(|n| find(n)).collect();
                 if found.iter().all(Option::is_some) {

@@ -150,6 +150,8 @@ struct MeshReader {
     vertex_count: usize,
     has_normals: bool,
     has_texcoords: bool,
+    /// Whether vertices have `red green blue` (vertex colours).
+    has_colours: bool,
     /// The faces of more than three corners, written as fans, for [`MeshReader::finish`].
     polygons: Vec<FanPolygon>,
 }
@@ -163,6 +165,7 @@ impl MeshReader {
             vertex_count: vertex.map_or(0, |i| header.elements[i].count),
             has_normals: vertex_roles.contains(&Role::Normal(0)),
             has_texcoords: vertex_roles.contains(&Role::TexCoord(0)),
+            has_colours: vertex_roles.contains(&Role::Colour(0)),
             polygons: Vec::new(),
         }
         .with_capacity(header, body_len)
@@ -185,6 +188,9 @@ impl MeshReader {
                     }
                     if self.has_texcoords {
                         self.scene.texcoords.reserve(count);
+                    }
+                    if self.has_colours {
+                        self.scene.colours.reserve(count);
                     }
                 }
                 "face" => self.scene.triangles.reserve(count),
@@ -254,6 +260,7 @@ impl MeshReader {
         let mut position = [0.0; 3];
         let mut normal = [0.0; 3];
         let mut texcoord = [0.0; 2];
+        let mut colour = [0.0; 3];
         for (property, &role) in element.properties.iter().zip(roles) {
             let name = property.name.as_str();
             match (property.ty, role) {
@@ -265,6 +272,9 @@ impl MeshReader {
                 }
                 (PropertyType::Scalar(ty), Role::TexCoord(axis)) => {
                     texcoord[axis] = body.float(ty, name)?;
+                }
+                (PropertyType::Scalar(ty), Role::Colour(axis)) => {
+                    colour[axis] = body.float(ty, name)? / ty.colour_range();
                 }
                 (PropertyType::Scalar(ty), _) => body.skip(ty, name)?,
                 (PropertyType::List { count, item }, Role::Indices) => {
@@ -290,6 +300,9 @@ impl MeshReader {
             }
             if self.has_texcoords {
                 self.scene.texcoords.push(Vec2::from(texcoord));
+            }
+            if self.has_colours {
+                self.scene.colours.push(Vec3::from(colour).max(Vec3::ZERO));
             }
         }
         Ok(())

@@ -6,6 +6,7 @@
 
 pub(super) mod clearcoat;
 pub(super) mod emissive_strength;
+pub(super) mod gpu_instancing;
 pub(super) mod ior;
 pub(super) mod pbr_specular_glossiness;
 pub(super) mod sheen;
@@ -40,9 +41,13 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
     emissive_strength::EXTENSION,
 ];
 
-/// The other extensions read: lights (by the scene walk) and texture transforms (on
-/// every texture reference).
-pub(super) const OTHER_EXTENSIONS: &[&str] = &["KHR_lights_punctual", texture_transform::NAME];
+/// The other extensions read: lights and mesh instancing (by the scene walk), and
+/// texture transforms (on every texture reference).
+pub(super) const OTHER_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    gpu_instancing::NAME,
+    texture_transform::NAME,
+];
 
 /// Whether extension `name` is read.
 pub(super) fn supported(name: &str) -> bool {

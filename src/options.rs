@@ -14,6 +14,9 @@ use crate::math::{Aabb, Float, Vec3, try_unit};
 use crate::sampler::MAX_SAMPLES_PER_PIXEL;
 use glam::DVec3;
 
+pub mod defs;
+pub use defs::{OPTIONS, OptionDef, OptionId};
+
 /// Vertical field of view in degrees of a camera that frames the scene
 /// ([`PartialOptions::framed`]) when neither a flag nor the scene file sets one: a
 /// model viewer's (three.js's `<model-viewer>` takes 30, Blender's default camera
@@ -175,6 +178,16 @@ pub enum Projection {
         /// Principal point's row.
         cy: Float,
     },
+}
+
+/// What camera rays that leave the scene see instead of the environment (which still
+/// lights it): `--background`, Python's `background=`, TOML's `environment.background`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Background {
+    /// A colour.
+    Colour(Vec3),
+    /// Nothing: the coverage is written as alpha (RGBA PNG, EXR `A`).
+    Transparent,
 }
 
 /// Options of one render. Build with [`Default`] and field updates, then
@@ -388,28 +401,47 @@ enum Field {
     Focus,
     Projection,
     Intrinsics,
+    EnvStrength,
+    EnvRotation,
 }
 
 impl Field {
+    /// The option's definition; `None` for a glTF camera's `ymag`, which only a file
+    /// sets.
+    fn id(self) -> Option<OptionId> {
+        Some(match self {
+            Field::Width => OptionId::Width,
+            Field::Height => OptionId::Height,
+            Field::Fov => OptionId::Fov,
+            Field::LookFrom => OptionId::LookFrom,
+            Field::LookTo => OptionId::LookTo,
+            Field::Up => OptionId::Up,
+            Field::Depth => OptionId::Depth,
+            Field::Spp => OptionId::Spp,
+            Field::Exposure => OptionId::Exposure,
+            Field::Seed => OptionId::Seed,
+            Field::Aperture => OptionId::ApertureRadius,
+            Field::Focus => OptionId::FocusDistance,
+            Field::Projection => return None,
+            Field::Intrinsics => OptionId::Intrinsics,
+            Field::EnvStrength => OptionId::EnvStrength,
+            Field::EnvRotation => OptionId::EnvRotation,
+        })
+    }
+
+    /// The flag that sets the option, as [`OPTIONS`] names it.
     fn flag(self) -> &'static str {
-        match self {
-            Field::Width => "--width",
-            Field::Height => "--height",
-            Field::Fov => "--fov",
-            Field::LookFrom => "--look-from",
-            Field::LookTo => "--look-to",
-            Field::Up => "--up",
-            Field::Depth => "--depth",
-            Field::Spp => "--spp",
-            Field::Exposure => "--exposure",
-            Field::Seed => "--seed",
-            Field::Aperture => "--aperture-radius",
-            Field::Focus => "--focus-distance",
-            // No flag sets it: only a glTF camera's `ymag`.
-            Field::Projection => "camera.ymag",
-            // No flag sets it: TOML's `camera.intrinsics`, Python's `intrinsics=`.
-            Field::Intrinsics => "--intrinsics",
-        }
+        self.id().map_or("camera.ymag", |id| OptionDef::of(id).flag)
+    }
+
+    /// The option's range check: `value` if allowed, else the error naming `origin`.
+    fn check(self, value: f64, origin: &Origins) -> Result<(), OptionsError> {
+        let range = self
+            .id()
+            .map_or(defs::Range::Any, |id| OptionDef::of(id).range);
+        range
+            .check(value)
+            .map_err(|message| single_error(self, origin(self), message))
     }
 
     /// The option's name in prose: `width`.
@@ -437,6 +469,8 @@ struct Values {
     aperture_radius: Float,
     focus_distance: Option<Float>,
     projection: Projection,
+    env_strength: Option<Float>,
+    env_rotation: Option<Float>,
 }
 
 impl From<&RenderOptions> for Values {
@@ -458,6 +492,8 @@ impl From<&RenderOptions> for Values {
             aperture_radius: o.aperture_radius,
             focus_distance: o.focus_distance,
             projection: o.projection,
+            env_strength: None,
+            env_rotation: None,
         }
     }
 }
@@ -480,13 +516,7 @@ impl Values {
             ));
         }
         let fov_degrees = self.fov_degrees;
-        if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
-            return Err(single_error(
-                Field::Fov,
-                origin(Field::Fov),
-                format!("{fov_degrees} is not strictly between 0 and 180"),
-            ));
-        }
+        Field::Fov.check(fov_degrees.into(), origin)?;
         for (field, point) in [
             (Field::LookFrom, self.look_from),
             (Field::LookTo, self.look_to),
@@ -522,41 +552,23 @@ impl Values {
                 "components must be finite and not all zero".into(),
             ));
         }
-        if self.exposure.is_nan() || self.exposure.abs() > MAX_EXPOSURE_STOPS {
-            return Err(single_error(
-                Field::Exposure,
-                origin(Field::Exposure),
-                format!(
-                    "{} is not between -{MAX_EXPOSURE_STOPS} and {MAX_EXPOSURE_STOPS} stops",
-                    self.exposure
-                ),
-            ));
+        Field::Exposure.check(self.exposure.into(), origin)?;
+        let seed = OptionDef::of(OptionId::Seed)
+            .range
+            .check_whole(self.seed)
+            .and_then(|()| u32::try_from(self.seed).map_err(|e| e.to_string()))
+            .map_err(|message| single_error(Field::Seed, origin(Field::Seed), message))?;
+        Field::Aperture.check(self.aperture_radius.into(), origin)?;
+        if let Some(focus) = self.focus_distance {
+            Field::Focus.check(focus.into(), origin)?;
         }
-        let seed = u32::try_from(self.seed).map_err(|_| {
-            single_error(
-                Field::Seed,
-                origin(Field::Seed),
-                format!("{} is not in 0..={}", self.seed, u32::MAX),
-            )
-        })?;
-        if !(self.aperture_radius.is_finite() && self.aperture_radius >= 0.0) {
-            return Err(single_error(
-                Field::Aperture,
-                origin(Field::Aperture),
-                format!(
-                    "{} is not a finite radius of 0 or more (0 is a pinhole)",
-                    self.aperture_radius
-                ),
-            ));
-        }
-        if let Some(focus) = self.focus_distance
-            && !(focus.is_finite() && focus > 0.0)
-        {
-            return Err(single_error(
-                Field::Focus,
-                origin(Field::Focus),
-                format!("{focus} is not a finite distance greater than 0"),
-            ));
+        for (field, value) in [
+            (Field::EnvStrength, self.env_strength),
+            (Field::EnvRotation, self.env_rotation),
+        ] {
+            if let Some(value) = value {
+                field.check(value.into(), origin)?;
+            }
         }
         if let Projection::Orthographic { half_height } = self.projection
             && !(half_height.is_finite() && half_height > 0.0)
@@ -746,6 +758,16 @@ pub struct PartialOptions {
     pub focus_distance: Option<Sourced<Float>>,
     /// Perspective or orthographic.
     pub projection: Option<Sourced<Projection>>,
+    /// The environment: an image file, or a colour `R,G,B` (not part of
+    /// [`RenderOptions`]: it is applied to the scene, as
+    /// `formats::environment::EnvironmentOptions` says).
+    pub env: Option<Sourced<String>>,
+    /// Multiplies the environment's radiance.
+    pub env_strength: Option<Sourced<Float>>,
+    /// Turns the environment about +Y, in degrees.
+    pub env_rotation: Option<Sourced<Float>>,
+    /// What camera rays that leave the scene see.
+    pub background: Option<Sourced<Background>>,
 }
 
 impl PartialOptions {
@@ -785,6 +807,10 @@ impl PartialOptions {
             aperture_radius: self.aperture_radius.or(fallback.aperture_radius),
             focus_distance: self.focus_distance.or(fallback.focus_distance),
             projection: self.projection.or(fallback.projection),
+            env: self.env.or(fallback.env),
+            env_strength: self.env_strength.or(fallback.env_strength),
+            env_rotation: self.env_rotation.or(fallback.env_rotation),
+            background: self.background.or(fallback.background),
         }
     }
 
@@ -915,6 +941,8 @@ impl PartialOptions {
             aperture_radius: value_or(&self.aperture_radius, d.aperture_radius),
             focus_distance: self.focus_distance.as_ref().map(|f| f.value),
             projection: value_or(&self.projection, d.projection),
+            env_strength: self.env_strength.as_ref().map(|s| s.value),
+            env_rotation: self.env_rotation.as_ref().map(|r| r.value),
         };
         values.check(&|field| match field {
             Field::Width => width.origin.clone(),
@@ -930,6 +958,8 @@ impl PartialOptions {
             Field::Aperture => origin_of(&self.aperture_radius),
             Field::Focus => origin_of(&self.focus_distance),
             Field::Projection | Field::Intrinsics => origin_of(&self.projection),
+            Field::EnvStrength => origin_of(&self.env_strength),
+            Field::EnvRotation => origin_of(&self.env_rotation),
         })
     }
 

@@ -6,6 +6,7 @@ from typing import Any, Callable, Dict, Literal, Optional, Sequence, Tuple, Unio
 
 import numpy as np
 import numpy.typing as npt
+from typing_extensions import TypedDict, Unpack
 
 from ._image import Image
 
@@ -24,16 +25,39 @@ OPTIONS: Tuple[str, ...]
 class SceneError(OSError): ...
 class RaytracerWarning(UserWarning): ...
 
+#: The keyword options of a render, as ``raytracer::options::OPTIONS`` defines them
+#: (tests/options_table.rs holds these classes to it).
+class RenderKeywords(TypedDict, total=False):
+    width: Optional[int]
+    height: Optional[int]
+    fov: Optional[float]
+    look_from: Optional[Vector]
+    look_to: Optional[Vector]
+    up: Optional[Vector]
+    camera_to_world: Optional[npt.ArrayLike]
+    intrinsics: Optional[Tuple[float, float, float, float]]
+    depth: Optional[int]
+    mode: Optional[Literal["full", "depth", "normal", "path"]]
+    spp: Optional[int]
+    exposure: Optional[float]
+    tonemap: Optional[Literal["standard", "khronos-neutral", "agx", "aces"]]
+    aperture_radius: Optional[float]
+    focus_distance: Optional[float]
+    seed: Optional[int]
+    default_light: Optional[bool]
+
+#: The keyword options of the scene: its environment and background.
+class SceneKeywords(TypedDict, total=False):
+    env: Union[StrPath, Vector, None]
+    env_strength: Optional[float]
+    env_rotation: Optional[float]
+    background: Optional[Vector]
+
+class Keywords(RenderKeywords, SceneKeywords, total=False): ...
+
 class Scene:
     def __init__(
-        self,
-        path: StrPath,
-        *,
-        confined_to: Optional[StrPath] = None,
-        env: Union[StrPath, Vector, None] = None,
-        env_strength: Optional[float] = None,
-        env_rotation: Optional[float] = None,
-        background: Optional[Vector] = None,
+        self, path: StrPath, *, confined_to: Optional[StrPath] = None, **environment: Unpack[SceneKeywords]
     ) -> None: ...
     @staticmethod
     def from_mesh(vertices: npt.ArrayLike, faces: npt.ArrayLike) -> "Scene": ...
@@ -49,7 +73,7 @@ class Scene:
     def object_names(self) -> list[str]: ...
     @property
     def counts(self) -> Dict[str, int]: ...
-    def camera_rays(self, **options: Any) -> Dict[str, npt.NDArray[np.float32]]: ...
+    def camera_rays(self, **options: Unpack[RenderKeywords]) -> Dict[str, npt.NDArray[np.float32]]: ...
     @property
     def path(self) -> Optional[str]: ...
     @property
@@ -60,25 +84,9 @@ class Scene:
         tile: Optional[Tuple[int, int, int, int]] = None,
         progress: Progress = None,
         aovs: Optional[Sequence[Aov]] = None,
-        width: Optional[int] = None,
-        height: Optional[int] = None,
-        fov: Optional[float] = None,
-        look_from: Optional[Vector] = None,
-        look_to: Optional[Vector] = None,
-        up: Optional[Vector] = None,
-        camera_to_world: Optional[npt.ArrayLike] = None,
-        intrinsics: Optional[Tuple[float, float, float, float]] = None,
-        mode: Optional[Mode] = None,
-        depth: Optional[int] = None,
-        spp: Optional[int] = None,
-        exposure: Optional[float] = None,
-        seed: Optional[int] = None,
-        tonemap: Optional[ToneMap] = None,
-        aperture_radius: Optional[float] = None,
-        focus_distance: Optional[float] = None,
-        default_light: Optional[bool] = None,
+        **options: Unpack[RenderKeywords],
     ) -> Union[Image, Dict[str, np.ndarray]]: ...
-    def options(self, **options: Any) -> Dict[str, Any]: ...
+    def options(self, **options: Unpack[RenderKeywords]) -> Dict[str, Any]: ...
     def intersect(self, origins: npt.ArrayLike, directions: npt.ArrayLike) -> Dict[str, np.ndarray]: ...
     def occluded(
         self, origins: npt.ArrayLike, directions: npt.ArrayLike, t_max: Union[float, npt.ArrayLike, None] = None
@@ -90,27 +98,7 @@ def render(
     tile: Optional[Tuple[int, int, int, int]] = None,
     progress: Progress = None,
     aovs: Optional[Sequence[Aov]] = None,
-    width: Optional[int] = None,
-    height: Optional[int] = None,
-    fov: Optional[float] = None,
-    look_from: Optional[Vector] = None,
-    look_to: Optional[Vector] = None,
-    up: Optional[Vector] = None,
-    camera_to_world: Optional[npt.ArrayLike] = None,
-    intrinsics: Optional[Tuple[float, float, float, float]] = None,
-    mode: Optional[Mode] = None,
-    depth: Optional[int] = None,
-    spp: Optional[int] = None,
-    exposure: Optional[float] = None,
-    seed: Optional[int] = None,
-    tonemap: Optional[ToneMap] = None,
-    aperture_radius: Optional[float] = None,
-    focus_distance: Optional[float] = None,
-    default_light: Optional[bool] = None,
-    env: Union[StrPath, Vector, None] = None,
-    env_strength: Optional[float] = None,
-    env_rotation: Optional[float] = None,
-    background: Optional[Vector] = None,
+    **options: Unpack[Keywords],
 ) -> Union[Image, Dict[str, np.ndarray]]: ...
 def postprocess(
     linear: npt.ArrayLike, mode: Mode = "full", exposure: float = 0.0, tonemap: Optional[ToneMap] = None

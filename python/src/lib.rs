@@ -31,8 +31,9 @@ use raytracer::film::{Aov, AovPlanes, Outputs};
 use raytracer::formats::environment::{EnvironmentNames, EnvironmentOptions};
 use raytracer::formats::{self, ParseErrorKind, SceneFormat};
 use raytracer::math::{Float, Vec3};
+use raytracer::options::defs::{Kind, Range, Value, choice};
 use raytracer::options::{
-    OptionsError, Origin, PartialOptions, Projection, Sourced, ToneMap, pose_from_matrix,
+    OPTIONS, OptionDef, OptionId, OptionsError, Origin, PartialOptions, ToneMap,
 };
 use raytracer::output::{self, UnknownFormatError, WriteError};
 use raytracer::postprocess::PostProcessing;
@@ -98,63 +99,16 @@ impl From<OptionsError> for Error {
     }
 }
 
-/// The names of the render options every render call takes as keyword arguments, in
-/// the order the documentation lists them (exported as ``raytracer.OPTIONS``).
-const OPTION_NAMES: [&str; 21] = [
-    "width",
-    "height",
-    "fov",
-    "look_from",
-    "look_to",
-    "up",
-    "camera_to_world",
-    "intrinsics",
-    "mode",
-    "depth",
-    "spp",
-    "exposure",
-    "seed",
-    "tonemap",
-    "aperture_radius",
-    "focus_distance",
-    "default_light",
-    "env",
-    "env_strength",
-    "env_rotation",
-    "background",
-];
-
-/// The options among [`OPTION_NAMES`] that belong to the scene rather than to one
-/// render: a [`Scene`] is built with them (they change what the scene emits).
-const SCENE_OPTION_NAMES: [&str; 4] = ["env", "env_strength", "env_rotation", "background"];
-
-/// The render options of one Python call, as given: `None` for each one left out.
-/// Converted to [`PartialOptions`] whose values come from the matching command-line
-/// flag ([`Origin::Flag`]), so that messages are the command line's; [`python_message`]
-/// then names the keywords instead.
+/// The render options of one Python call, as given, read as [`OPTIONS`] defines each
+/// keyword. Their values come from the matching command-line flag ([`Origin::Flag`]),
+/// so that messages are the command line's; [`python_message`] then names the
+/// keywords instead.
 #[derive(Default)]
 struct Given<'py> {
-    width: Option<Bound<'py, PyAny>>,
-    height: Option<Bound<'py, PyAny>>,
-    fov: Option<Bound<'py, PyAny>>,
-    look_from: Option<Bound<'py, PyAny>>,
-    look_to: Option<Bound<'py, PyAny>>,
-    up: Option<Bound<'py, PyAny>>,
-    camera_to_world: Option<Bound<'py, PyAny>>,
-    intrinsics: Option<Bound<'py, PyAny>>,
-    mode: Option<Bound<'py, PyAny>>,
-    depth: Option<Bound<'py, PyAny>>,
-    spp: Option<Bound<'py, PyAny>>,
-    exposure: Option<Bound<'py, PyAny>>,
-    seed: Option<Bound<'py, PyAny>>,
-    tonemap: Option<Bound<'py, PyAny>>,
-    aperture_radius: Option<Bound<'py, PyAny>>,
-    focus_distance: Option<Bound<'py, PyAny>>,
-    default_light: Option<Bound<'py, PyAny>>,
-    env: Option<Bound<'py, PyAny>>,
-    env_strength: Option<Bound<'py, PyAny>>,
-    env_rotation: Option<Bound<'py, PyAny>>,
-    background: Option<Bound<'py, PyAny>>,
+    /// The options given; `None` counts as left out.
+    options: PartialOptions,
+    /// The options given, in order.
+    given: Vec<&'static OptionDef>,
     /// `progress=`: not an option of the image, taken by render calls only.
     progress: Option<Bound<'py, PyAny>>,
     /// `aovs=`: the extra outputs, taken by render calls only.
@@ -163,71 +117,75 @@ struct Given<'py> {
 
 impl<'py> Given<'py> {
     /// The options among the keyword arguments of a call of `function`: one named
-    /// outside [`OPTION_NAMES`] is a `TypeError`, as Python raises for any function;
-    /// `None` counts as left out. `progress` is taken when `with_progress`.
+    /// outside [`OPTIONS`] is a `TypeError`, as Python raises for any function;
+    /// `None` counts as left out. `progress` and `aovs` are taken when
+    /// `with_progress`.
     fn from_keywords(
         function: &str,
         keywords: Option<&Bound<'py, PyDict>>,
         with_progress: bool,
     ) -> PyResult<Self> {
         let mut given = Given::default();
+        let mut options = Vec::new();
         for (key, value) in keywords.into_iter().flat_map(|k| k.iter()) {
             let name: String = key.extract()?;
             let slot = match name.as_str() {
-                "width" => &mut given.width,
-                "height" => &mut given.height,
-                "fov" => &mut given.fov,
-                "look_from" => &mut given.look_from,
-                "look_to" => &mut given.look_to,
-                "up" => &mut given.up,
-                "camera_to_world" => &mut given.camera_to_world,
-                "intrinsics" => &mut given.intrinsics,
-                "mode" => &mut given.mode,
-                "depth" => &mut given.depth,
-                "spp" => &mut given.spp,
-                "exposure" => &mut given.exposure,
-                "seed" => &mut given.seed,
-                "tonemap" => &mut given.tonemap,
-                "aperture_radius" => &mut given.aperture_radius,
-                "focus_distance" => &mut given.focus_distance,
-                "default_light" => &mut given.default_light,
-                "env" => &mut given.env,
-                "env_strength" => &mut given.env_strength,
-                "env_rotation" => &mut given.env_rotation,
-                "background" => &mut given.background,
                 "progress" if with_progress => &mut given.progress,
                 "aovs" if with_progress => &mut given.aovs,
                 _ => {
-                    return Err(PyTypeError::new_err(format!(
-                        "{function}() got an unexpected keyword argument '{name}'"
-                    )));
+                    let def = OptionDef::by_keyword(&name).ok_or_else(|| {
+                        PyTypeError::new_err(format!(
+                            "{function}() got an unexpected keyword argument '{name}'"
+                        ))
+                    })?;
+                    if !value.is_none() {
+                        options.push((def, value));
+                    }
+                    continue;
                 }
             };
             if !value.is_none() {
                 *slot = Some(value);
             }
         }
+        given.set_all(options)?;
         Ok(given)
     }
 
-    /// Refuses the scene's options ([`SCENE_OPTION_NAMES`]) in a call on a scene
+    /// Reads and stores each value as its definition says.
+    fn set_all(&mut self, options: Vec<(&'static OptionDef, Bound<'py, PyAny>)>) -> PyResult<()> {
+        let named = |id| options.iter().any(|(def, _)| def.id == id);
+        if named(OptionId::CameraToWorld)
+            && let Some(def) = [OptionId::LookFrom, OptionId::LookTo, OptionId::Up]
+                .into_iter()
+                .find(|id| named(*id))
+        {
+            return Err(PyValueError::new_err(format!(
+                "give camera_to_world or look_from, look_to and up, not both \
+                 (camera_to_world and {} given)",
+                OptionDef::of(def).python
+            )));
+        }
+        for (def, value) in options {
+            let read = python_value(def, &value).map_err(keyword_error)?;
+            def.store(&mut self.options, read, Origin::Flag(def.flag))
+                .map_err(|e| {
+                    PyValueError::new_err(python_message(&format!("invalid {}: {e}", def.flag)))
+                })?;
+            self.given.push(def);
+        }
+        Ok(())
+    }
+
+    /// Refuses the scene's options ([`OptionDef::scene`]) in a call on a scene
     /// already built.
     fn refuse_scene_options(&self, function: &str) -> PyResult<()> {
-        let given = [
-            &self.env,
-            &self.env_strength,
-            &self.env_rotation,
-            &self.background,
-        ];
-        match SCENE_OPTION_NAMES
-            .iter()
-            .zip(given)
-            .find(|(_, v)| v.is_some())
-        {
-            Some((name, _)) => Err(PyTypeError::new_err(format!(
-                "{function}() of a Scene cannot take {name}: the environment and background \
+        match self.given.iter().find(|def| def.scene) {
+            Some(def) => Err(PyTypeError::new_err(format!(
+                "{function}() of a Scene cannot take {}: the environment and background \
                  belong to the scene; give them to raytracer.Scene(...) or \
-                 Scene.from_arrays(...), or to raytracer.render(path, ...)"
+                 Scene.from_arrays(...), or to raytracer.render(path, ...)",
+                def.python
             ))),
             None => Ok(()),
         }
@@ -235,41 +193,54 @@ impl<'py> Given<'py> {
 
     /// The environment options given (`env`, `env_strength`, `env_rotation`,
     /// `background`).
-    fn environment(&self) -> PyResult<EnvironmentOptions> {
-        let env = self
-            .env
-            .as_ref()
-            .map(|v| -> PyResult<String> {
-                if let Ok(path) = v.extract::<PathBuf>() {
-                    return Ok(path.to_string_lossy().into_owned());
-                }
-                let colour = vector(v, "--env").map_err(|_| {
-                    PyTypeError::new_err(format!(
-                        "env must be an image file's path or a colour (r, g, b), not {v}"
-                    ))
-                })?;
-                Ok(format!("{},{},{}", colour.x, colour.y, colour.z))
-            })
-            .transpose()?;
-        Ok(EnvironmentOptions {
-            env,
-            strength: self
-                .env_strength
-                .as_ref()
-                .map(|v| number(v, "--env-strength"))
-                .transpose()?,
-            rotation: self
-                .env_rotation
-                .as_ref()
-                .map(|v| number(v, "--env-rotation"))
-                .transpose()?,
-            background: self
-                .background
-                .as_ref()
-                .map(|v| vector(v, "--background"))
-                .transpose()?,
-        })
+    fn environment(&self) -> EnvironmentOptions {
+        EnvironmentOptions::from_options(&self.options)
     }
+}
+
+/// The value of `def` in a Python object, checked for its kind only (ranges are
+/// checked once, after merging over the scene file's values). Messages name the
+/// command line's flags, for [`keyword_error`] to rename.
+fn python_value(def: &OptionDef, value: &Bound<'_, PyAny>) -> PyResult<Value> {
+    let flag = def.flag;
+    Ok(match def.kind {
+        Kind::Whole => Value::Whole(whole_number(value, flag)?),
+        Kind::Number => Value::Number(number(value, flag)?),
+        Kind::Vector | Kind::Background => Value::Vector(vector(value, flag)?),
+        Kind::Choice(choices) => {
+            let name = value
+                .extract::<String>()
+                .map_err(|e| PyTypeError::new_err(format!("{}: {e}", def.python)))?;
+            // Tone maps were taken in any letter case from the start (`"ACES"`);
+            // modes only as spelt.
+            let any_case = def.id == OptionId::ToneMap;
+            choice(choices, name.clone())
+                .or_else(|e| match any_case {
+                    true => choice(choices, name.to_lowercase()),
+                    false => Err(e),
+                })
+                .map_err(|e| PyValueError::new_err(format!("invalid {flag}: {e}")))?
+        }
+        Kind::SwitchOff => Value::Switch(
+            value
+                .extract::<bool>()
+                .map_err(|e| PyTypeError::new_err(format!("{}: {e}", def.python)))?,
+        ),
+        Kind::FileOrColour => {
+            if let Ok(path) = value.extract::<PathBuf>() {
+                return Ok(Value::Text(path.to_string_lossy().into_owned()));
+            }
+            let colour = vector(value, flag).map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "{} must be an image file's path or a colour (r, g, b), not {value}",
+                    def.python
+                ))
+            })?;
+            Value::Text(format!("{},{},{}", colour.x, colour.y, colour.z))
+        }
+        Kind::Matrix => Value::Matrix(camera_matrix(value)?),
+        Kind::Intrinsics => Value::Four(intrinsics(value)?),
+    })
 }
 
 impl Given<'_> {
@@ -306,78 +277,11 @@ impl Given<'_> {
     }
 }
 
-/// How Python's keywords name the environment options in messages.
-const ENVIRONMENT_KEYWORDS: EnvironmentNames = EnvironmentNames {
-    env: "env",
-    strength: "env_strength",
-    rotation: "env_rotation",
-};
-
 impl Given<'_> {
     /// The given values, converted but not range-checked: ranges are checked once,
-    /// after merging over the scene file's values. Messages name the keywords.
-    fn options(&self) -> PyResult<PartialOptions> {
-        self.options_as_flags().map_err(keyword_error)
-    }
-
-    /// [`Given::options`] with messages naming the command line's flags.
-    fn options_as_flags(&self) -> PyResult<PartialOptions> {
-        fn flag<T>(
-            value: Option<&Bound<'_, PyAny>>,
-            name: &'static str,
-            convert: impl Fn(&Bound<'_, PyAny>, &'static str) -> PyResult<T>,
-        ) -> PyResult<Option<Sourced<T>>> {
-            value
-                .map(|v| Ok(Sourced::new(convert(v, name)?, Origin::Flag(name))))
-                .transpose()
-        }
-        let mut options = PartialOptions {
-            width: flag(self.width.as_ref(), "--width", whole_number)?,
-            height: flag(self.height.as_ref(), "--height", whole_number)?,
-            fov_degrees: flag(self.fov.as_ref(), "--fov", number)?,
-            look_from: flag(self.look_from.as_ref(), "--look-from", vector)?,
-            look_to: flag(self.look_to.as_ref(), "--look-to", vector)?,
-            up: flag(self.up.as_ref(), "--up", vector)?,
-            depth: flag(self.depth.as_ref(), "--depth", whole_number)?,
-            mode: flag(self.mode.as_ref(), "--mode", |v, _| {
-                parse_mode(&v.extract::<String>()?)
-            })?,
-            samples_per_pixel: flag(self.spp.as_ref(), "--spp", whole_number)?,
-            exposure: flag(self.exposure.as_ref(), "--exposure", number)?,
-            seed: flag(self.seed.as_ref(), "--seed", whole_number)?,
-            default_light: flag(self.default_light.as_ref(), "--default-light", |v, _| {
-                v.extract::<bool>()
-                    .map_err(|e| PyTypeError::new_err(format!("default_light: {e}")))
-            })?,
-            tonemap: flag(self.tonemap.as_ref(), "--tonemap", |v, _| {
-                parse_tonemap(&v.extract::<String>()?)
-            })?,
-            aperture_radius: flag(self.aperture_radius.as_ref(), "--aperture-radius", number)?,
-            focus_distance: flag(self.focus_distance.as_ref(), "--focus-distance", number)?,
-            projection: flag(self.intrinsics.as_ref(), "--intrinsics", intrinsics)?,
-        };
-        if let Some(matrix) = &self.camera_to_world {
-            if let Some(name) = [
-                ("look_from", &self.look_from),
-                ("look_to", &self.look_to),
-                ("up", &self.up),
-            ]
-            .iter()
-            .find_map(|(name, v)| v.is_some().then_some(name))
-            {
-                return Err(PyValueError::new_err(format!(
-                    "give camera_to_world or look_from, look_to and up, not both \
-                     (camera_to_world and {name} given)"
-                )));
-            }
-            let pose = pose_from_matrix(camera_matrix(matrix)?)
-                .map_err(|e| PyValueError::new_err(format!("invalid camera_to_world: {e}")))?;
-            let from = |v: Vec3| Some(Sourced::new(v, Origin::Flag("--camera-to-world")));
-            options.look_from = from(pose.look_from);
-            options.look_to = from(pose.look_to);
-            options.up = from(pose.up);
-        }
-        Ok(options)
+    /// after merging over the scene file's values.
+    fn options(&self) -> PartialOptions {
+        self.options.clone()
     }
 }
 
@@ -401,17 +305,12 @@ fn camera_matrix(value: &Bound<'_, PyAny>) -> PyResult<[[f64; 4]; 4]> {
 }
 
 /// OpenCV's pinhole intrinsics `(fx, fy, cx, cy)` in pixels.
-fn intrinsics(value: &Bound<'_, PyAny>, _: &'static str) -> PyResult<Projection> {
+fn intrinsics(value: &Bound<'_, PyAny>) -> PyResult<[Float; 4]> {
     let numbers = value
         .extract::<Vec<f64>>()
         .map_err(|e| PyTypeError::new_err(format!("intrinsics: {e}")))?;
     match numbers[..] {
-        [fx, fy, cx, cy] => Ok(Projection::Intrinsics {
-            fx: fx as Float,
-            fy: fy as Float,
-            cx: cx as Float,
-            cy: cy as Float,
-        }),
+        [fx, fy, cx, cy] => Ok([fx as Float, fy as Float, cx as Float, cy as Float]),
         _ => Err(PyValueError::new_err(format!(
             "invalid intrinsics: four numbers (fx, fy, cx, cy), not {}",
             numbers.len()
@@ -450,9 +349,10 @@ fn python_message(message: &str) -> String {
             .map_or(rest.len(), |n| at + 2 + n);
         let flag = &rest[at..name_end];
         if starts_word && flag.len() > 2 {
-            out.push_str(&match flag {
-                "--no-default-light" => "default_light=False".to_string(),
-                flag => argument(flag),
+            out.push_str(&match OptionDef::by_flag(flag) {
+                Some(def) if def.kind == Kind::SwitchOff => format!("{}=False", def.python),
+                Some(def) => def.python.to_string(),
+                None => argument(flag),
             });
         } else {
             out.push_str(flag);
@@ -679,7 +579,7 @@ impl Loaded {
         test_gate("RAYTRACER_TEST_GATE_LOAD");
         let mut loaded = formats::load_with(path, access)?;
         environment
-            .apply(&mut loaded.description, ENVIRONMENT_KEYWORDS)
+            .apply(&mut loaded.description, EnvironmentNames::keywords())
             .map_err(Error::Environment)?;
         Ok(Loaded::build(
             Some(path.to_path_buf()),
@@ -901,15 +801,22 @@ impl PyScene {
         env_rotation: Option<Bound<'py, PyAny>>,
         background: Option<Bound<'py, PyAny>>,
     ) -> PyResult<PyScene> {
-        let environment = Given {
-            env,
-            env_strength,
-            env_rotation,
-            background,
-            ..Given::default()
-        }
-        .environment()
-        .map_err(keyword_error)?;
+        let mut given = Given::default();
+        given.set_all(
+            [env, env_strength, env_rotation, background]
+                .into_iter()
+                .zip([
+                    OptionId::Env,
+                    OptionId::EnvStrength,
+                    OptionId::EnvRotation,
+                    OptionId::Background,
+                ])
+                .filter_map(|(value, id)| {
+                    Some((OptionDef::of(id), value.filter(|v| !v.is_none())?))
+                })
+                .collect(),
+        )?;
+        let environment = given.environment();
         let loaded = py.detach(|| {
             let access = match confined_to {
                 Some(folder) => formats::FileAccess::confined_to(&folder).map_err(|error| {
@@ -1271,7 +1178,7 @@ impl PyScene {
 impl PyScene {
     /// The given options merged over the scene file's, checked.
     fn resolve(&self, given: &Given<'_>) -> PyResult<RenderOptions> {
-        Ok(self.loaded.resolve(given.options()?)?)
+        Ok(self.loaded.resolve(given.options())?)
     }
 
     fn render_given<'py>(
@@ -1448,8 +1355,8 @@ fn render<'py>(
         return scene.get().render_given(py, &given, tile);
     }
     let path: PathBuf = scene.extract()?;
-    let flags = given.options()?;
-    let environment = given.environment().map_err(keyword_error)?;
+    let flags = given.options();
+    let environment = given.environment();
     let tile = tile.map(self::tile).transpose()?;
     let progress = run::Progress::of(given.progress.as_ref())?;
     let aovs = given.aov_list()?;
@@ -1623,6 +1530,50 @@ fn _committed(path: PathBuf) -> bool {
 }
 
 /// The extension module `raytracer._raytracer`.
+/// Every render option as `raytracer::options::OPTIONS` defines it, for the package's
+/// tests: a list of dicts with ``python``, ``flag`` (``None`` without one), ``toml``
+/// (the dotted key, or ``None``), ``kind``, ``range`` (a tuple: its kind and bounds,
+/// or ``None``), ``choices``, ``example`` (as the command line spells it) and
+/// ``scene`` (whether it belongs to the scene).
+#[pyfunction]
+fn _option_table(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    OPTIONS
+        .iter()
+        .map(|def| {
+            let dict = PyDict::new(py);
+            dict.set_item("python", def.python)?;
+            dict.set_item("flag", def.cli.then_some(def.flag))?;
+            dict.set_item("toml", def.toml)?;
+            let kind = match def.kind {
+                Kind::Whole => "whole",
+                Kind::Number => "number",
+                Kind::Vector => "vector",
+                Kind::Choice(_) => "choice",
+                Kind::SwitchOff => "switch_off",
+                Kind::FileOrColour => "file_or_colour",
+                Kind::Background => "background",
+                Kind::Matrix => "matrix",
+                Kind::Intrinsics => "intrinsics",
+            };
+            dict.set_item("kind", kind)?;
+            let range = match def.range {
+                Range::Any => None,
+                Range::Whole(min, max) => Some(("whole", min as f64, max as f64)),
+                Range::Open(low, high) => Some(("open", low.into(), high.into())),
+                Range::Within(bound, _) => Some(("within", (-bound).into(), bound.into())),
+                Range::NotNegative(..) => Some(("not_negative", 0.0, f64::INFINITY)),
+                Range::Positive(_) => Some(("positive", 0.0, f64::INFINITY)),
+                Range::Finite => Some(("finite", f64::NEG_INFINITY, f64::INFINITY)),
+            };
+            dict.set_item("range", range)?;
+            dict.set_item("choices", def.choices())?;
+            dict.set_item("example", def.example)?;
+            dict.set_item("scene", def.scene)?;
+            Ok(dict)
+        })
+        .collect()
+}
+
 #[pymodule]
 fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SceneError", m.py().get_type::<SceneError>())?;
@@ -1637,6 +1588,10 @@ fn _raytracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_png, m)?)?;
     m.add_function(wrap_pyfunction!(_scene_files, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("OPTIONS", PyTuple::new(m.py(), OPTION_NAMES)?)?;
+    m.add(
+        "OPTIONS",
+        PyTuple::new(m.py(), OPTIONS.iter().map(|def| def.python))?,
+    )?;
+    m.add_function(wrap_pyfunction!(_option_table, m)?)?;
     Ok(())
 }

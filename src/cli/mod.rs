@@ -92,18 +92,7 @@ fn load_scene_noting_rig(
 /// `--env-strength`, `--env-rotation` and `--background` over the scene's.
 fn environment_flags(view: &ViewArgs, description: &mut SceneDescription) -> anyhow::Result<()> {
     use raytracer::formats::environment::{EnvironmentNames, EnvironmentOptions};
-    EnvironmentOptions {
-        env: view.env.clone(),
-        strength: view.env_strength,
-        rotation: view.env_rotation,
-        background: match view.background {
-            Some(values::Background::Colour(colour)) => Some(colour),
-            // Premultiplied: a camera ray that leaves the scene adds nothing to the
-            // colour, its pixel's alpha says how much of it was covered.
-            Some(values::Background::Transparent) => Some(raytracer::math::Vec3::ZERO),
-            None => None,
-        },
-    }
-    .apply(description, EnvironmentNames::FLAGS)
-    .map_err(anyhow::Error::msg)
+    EnvironmentOptions::from_options(&view.options())
+        .apply(description, EnvironmentNames::flags())
+        .map_err(anyhow::Error::msg)
 }

@@ -15,7 +15,7 @@ use raytracer::{
 use super::args::RenderArgs;
 use super::interrupt;
 use super::progress::Progress;
-use super::values::{Background, check_not_input};
+use super::values::check_not_input;
 
 /// Renders as `args` say.
 pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
@@ -31,7 +31,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
             args.output.display()
         );
     }
-    let transparent = args.view.background == Some(Background::Transparent);
+    let transparent = args.view.transparent();
     // The coverage is rendered for a transparent background too.
     let mut wanted = aovs.to_vec();
     if transparent && !wanted.contains(&Aov::Alpha) {

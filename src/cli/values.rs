@@ -10,6 +10,9 @@ use std::num::IntErrorKind;
 use std::path::Path;
 
 use raytracer::math::{Float, Vec3};
+pub use raytracer::options::Background;
+use raytracer::options::defs::Kind;
+use raytracer::options::{OPTIONS, OptionDef, OptionId};
 
 /// Most worker threads `-j` accepts: far beyond any core count, low enough that a
 /// typo cannot ask the system for millions of threads.
@@ -24,27 +27,21 @@ pub struct VectorFlag {
     pub example: &'static str,
 }
 
-/// `--look-from`.
-pub const LOOK_FROM: VectorFlag = VectorFlag {
-    name: "--look-from",
-    example: "0,0.7,1.75",
-};
-/// `--look-to`.
-pub const LOOK_TO: VectorFlag = VectorFlag {
-    name: "--look-to",
-    example: "0,0.7,0",
-};
-/// `--up`.
-pub const UP: VectorFlag = VectorFlag {
-    name: "--up",
-    example: "0,1,0",
-};
-/// `--background`.
-pub const BACKGROUND: VectorFlag = VectorFlag {
-    name: "--background",
-    example: "0.5,0.5,0.5",
-};
-const VECTOR_FLAGS: [VectorFlag; 4] = [LOOK_FROM, LOOK_TO, UP, BACKGROUND];
+/// The vector flag of `def` (a vector or a background colour), with its example.
+pub fn vector_flag(def: &OptionDef) -> VectorFlag {
+    VectorFlag {
+        name: def.flag,
+        example: def.example,
+    }
+}
+
+/// The flags whose value is a vector.
+fn vector_flags() -> impl Iterator<Item = VectorFlag> {
+    OPTIONS
+        .iter()
+        .filter(|d| d.cli && matches!(d.kind, Kind::Vector | Kind::Background))
+        .map(vector_flag)
+}
 
 /// A whole number: any sign, any size `i64` holds.
 pub fn whole_number(s: &str) -> Result<i64, String> {
@@ -88,21 +85,12 @@ pub fn vector(
     }
 }
 
-/// `--background`'s value: a colour, or no background at all.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Background {
-    /// `R,G,B`: what camera rays that leave the scene see.
-    Colour(Vec3),
-    /// `transparent`: coverage written as alpha (RGBA PNG, EXR `A`).
-    Transparent,
-}
-
 /// The parser of `--background`: `transparent` or a colour `R,G,B`.
 pub fn background(s: &str) -> Result<Background, String> {
     if s.trim().eq_ignore_ascii_case("transparent") {
         return Ok(Background::Transparent);
     }
-    vector(BACKGROUND)(s)
+    vector(vector_flag(OptionDef::of(OptionId::Background)))(s)
         .map(Background::Colour)
         .map_err(|e| format!("{e} (or 'transparent')"))
 }
@@ -125,7 +113,7 @@ pub fn aov_list(s: &str) -> Result<AovList, String> {
 pub fn split_vector(args: &[OsString]) -> Option<String> {
     let args: Vec<&str> = args.iter().map(|a| a.to_str().unwrap_or("")).collect();
     for (i, arg) in args.iter().enumerate() {
-        for flag in VECTOR_FLAGS {
+        for flag in vector_flags() {
             let (value, rest) = match arg.strip_prefix(flag.name) {
                 Some("") if i + 1 < args.len() => (args[i + 1], &args[i + 2..]),
                 Some(attached) if attached.starts_with('=') => (&attached[1..], &args[i + 1..]),
@@ -217,7 +205,7 @@ mod tests {
 
     #[test]
     fn vectors_take_negative_components_and_show_how_to_write_them() {
-        let parse = vector(LOOK_FROM);
+        let parse = vector(vector_flag(OptionDef::of(OptionId::LookFrom)));
         assert_eq!(parse("-0.5,1.5,0.98"), Ok(Vec3::new(-0.5, 1.5, 0.98)));
         assert_eq!(parse(" 1, 2 ,3"), Ok(Vec3::new(1.0, 2.0, 3.0)));
         let form = "a vector is written X,Y,Z, three numbers with commas and no spaces, \

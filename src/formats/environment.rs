@@ -8,6 +8,7 @@ use std::sync::Arc;
 use crate::description::SceneDescription;
 use crate::lights::environment::{EnvironmentDesc, EnvironmentRadiance};
 use crate::math::{Float, Vec3};
+use crate::options::{Background, OptionDef, OptionId, PartialOptions};
 use crate::textures::Texture;
 
 /// The environment and background a command line (`--env`, `--env-strength`,
@@ -40,14 +41,40 @@ pub struct EnvironmentNames {
 
 impl EnvironmentNames {
     /// The command line's flags.
-    pub const FLAGS: EnvironmentNames = EnvironmentNames {
-        env: "--env",
-        strength: "--env-strength",
-        rotation: "--env-rotation",
-    };
+    pub fn flags() -> EnvironmentNames {
+        EnvironmentNames {
+            env: OptionDef::of(OptionId::Env).flag,
+            strength: OptionDef::of(OptionId::EnvStrength).flag,
+            rotation: OptionDef::of(OptionId::EnvRotation).flag,
+        }
+    }
+
+    /// Python's keywords.
+    pub fn keywords() -> EnvironmentNames {
+        EnvironmentNames {
+            env: OptionDef::of(OptionId::Env).python,
+            strength: OptionDef::of(OptionId::EnvStrength).python,
+            rotation: OptionDef::of(OptionId::EnvRotation).python,
+        }
+    }
 }
 
 impl EnvironmentOptions {
+    /// The environment values of `options` (a transparent background is a black one:
+    /// premultiplied, a camera ray that leaves the scene adds nothing to the colour,
+    /// and its pixel's alpha says how much of it was covered).
+    pub fn from_options(options: &PartialOptions) -> EnvironmentOptions {
+        EnvironmentOptions {
+            env: options.env.as_ref().map(|e| e.value.clone()),
+            strength: options.env_strength.as_ref().map(|s| s.value),
+            rotation: options.env_rotation.as_ref().map(|r| r.value),
+            background: options.background.as_ref().map(|b| match b.value {
+                Background::Colour(colour) => colour,
+                Background::Transparent => Vec3::ZERO,
+            }),
+        }
+    }
+
     /// Whether no value is given.
     pub fn is_empty(&self) -> bool {
         self.env.is_none()
@@ -70,8 +97,16 @@ impl EnvironmentOptions {
         names: EnvironmentNames,
     ) -> Result<(), String> {
         let strength = self.strength.unwrap_or(1.0);
-        if strength.is_nan() || strength < 0.0 {
-            return Err(format!("{} {strength}: must be 0 or more", names.strength));
+        for (id, value, name) in [
+            (OptionId::EnvStrength, self.strength, names.strength),
+            (OptionId::EnvRotation, self.rotation, names.rotation),
+        ] {
+            if let Some(value) = value {
+                OptionDef::of(id)
+                    .range
+                    .check(value.into())
+                    .map_err(|e| format!("invalid {name}: {e}"))?;
+            }
         }
         if let Some(env) = &self.env {
             let colour: Vec<Float> = env

@@ -27,9 +27,8 @@ use super::{
 use crate::material::pbr::PbrMaterial;
 use crate::material::{Light, LightKind, Material, MaterialId};
 use crate::math::{Float, Vec3};
-use crate::options::{
-    Mode, Origin, PartialOptions, Projection, Sourced, ToneMap, pose_from_matrix,
-};
+use crate::options::defs::{Kind, Value, choice};
+use crate::options::{OptionDef, OptionId, Origin, PartialOptions};
 
 /// Reads a TOML scene file and the meshes it names (relative to its folder).
 ///
@@ -152,9 +151,9 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
 #[serde(deny_unknown_fields)]
 struct SceneFile {
     #[serde(default)]
-    camera: CameraTable,
+    camera: OptionTable,
     #[serde(default)]
-    render: RenderTable,
+    render: OptionTable,
     #[serde(default)]
     mesh: Vec<MeshTable>,
     #[serde(default)]
@@ -179,78 +178,61 @@ struct EnvironmentTable {
     file: Option<Spanned<String>>,
     color: Option<Spanned<Splat>>,
     strength: Option<Spanned<Float>>,
-    rotation: Option<Float>,
+    rotation: Option<Spanned<Float>>,
     background: Option<Splat>,
 }
 
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct CameraTable {
-    look_from: Option<Spanned<Point>>,
-    look_to: Option<Spanned<Point>>,
-    up: Option<Spanned<Point>>,
-    fov: Option<Spanned<Float>>,
-    width: Option<Spanned<i64>>,
-    height: Option<Spanned<i64>>,
-    aperture_radius: Option<Spanned<Float>>,
-    focus_distance: Option<Spanned<Float>>,
-    /// A camera-to-world matrix, four rows of four (OpenGL's convention), instead of
-    /// `look_from`, `look_to` and `up`.
-    matrix: Option<Spanned<[[f64; 4]; 4]>>,
-    /// OpenCV's pinhole intrinsics `[fx, fy, cx, cy]` in pixels, instead of `fov`.
-    intrinsics: Option<Spanned<[Float; 4]>>,
-}
+/// `[camera]` or `[render]`: its keys in file order with their values, read as
+/// [`OPTIONS`] defines them ([`Builder::options`]).
+#[derive(Default)]
+struct OptionTable(Vec<(String, Spanned<toml::Value>)>);
 
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct RenderTable {
-    mode: Option<Spanned<ModeName>>,
-    depth: Option<Spanned<i64>>,
-    spp: Option<Spanned<i64>>,
-    exposure: Option<Spanned<Float>>,
-    seed: Option<Spanned<i64>>,
-    default_light: Option<Spanned<bool>>,
-    tonemap: Option<Spanned<ToneMapName>>,
-}
-
-#[derive(Deserialize, Clone, Copy)]
-#[serde(rename_all = "kebab-case")]
-enum ToneMapName {
-    Standard,
-    KhronosNeutral,
-    Agx,
-    Aces,
-}
-
-impl From<ToneMapName> for ToneMap {
-    fn from(t: ToneMapName) -> ToneMap {
-        match t {
-            ToneMapName::Standard => ToneMap::Standard,
-            ToneMapName::KhronosNeutral => ToneMap::KhronosNeutral,
-            ToneMapName::Agx => ToneMap::Agx,
-            ToneMapName::Aces => ToneMap::Aces,
-        }
+impl OptionTable {
+    fn get(&self, key: &str) -> Option<&Spanned<toml::Value>> {
+        self.0.iter().find(|(k, _)| k == key).map(|(_, v)| v)
     }
 }
 
-#[derive(Deserialize, Clone, Copy)]
-#[serde(rename_all = "lowercase")]
-enum ModeName {
-    Full,
-    Depth,
-    Normal,
-    Path,
+impl<'de> Deserialize<'de> for OptionTable {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> de::Visitor<'de> for Visitor {
+            type Value = OptionTable;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table of options")
+            }
+            fn visit_map<A: de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+                let mut entries = Vec::new();
+                while let Some(entry) = map.next_entry()? {
+                    entries.push(entry);
+                }
+                Ok(OptionTable(entries))
+            }
+        }
+        deserializer.deserialize_map(Visitor)
+    }
 }
 
-impl From<ModeName> for Mode {
-    fn from(m: ModeName) -> Mode {
-        match m {
-            ModeName::Full => Mode::Full,
-            ModeName::Depth => Mode::Depth,
-            ModeName::Normal => Mode::Normal,
-            ModeName::Path => Mode::Path,
+/// A TOML value as an option of `kind` takes it; serde's message if it is of
+/// another type.
+fn option_value(kind: Kind, value: &toml::Value) -> Result<Value, String> {
+    let v = value.clone();
+    let read = match kind {
+        Kind::Whole => i64::deserialize(v).map(Value::Whole),
+        Kind::Number => Float::deserialize(v).map(Value::Number),
+        Kind::Vector => Point::deserialize(v).map(|p| Value::Vector(p.0)),
+        Kind::Choice(choices) => {
+            let name = String::deserialize(v).map_err(|e| e.message().trim_end().to_owned())?;
+            return choice(choices, name);
         }
-    }
+        Kind::SwitchOff => bool::deserialize(v).map(Value::Switch),
+        Kind::Matrix => <[[f64; 4]; 4]>::deserialize(v).map(Value::Matrix),
+        Kind::Intrinsics => <[Float; 4]>::deserialize(v).map(Value::Four),
+        Kind::FileOrColour | Kind::Background => {
+            unreachable!("the [environment] table is read by Builder::add_environment")
+        }
+    };
+    read.map_err(|e| e.message().trim_end().to_owned())
 }
 
 #[derive(Deserialize)]
@@ -569,37 +551,52 @@ impl Builder<'_> {
         })
     }
 
-    /// The file's render settings, each with its line. Not checked here: a flag
-    /// may replace a bad value. A camera `matrix` is read here (into `look_from`,
-    /// `look_to` and `up`, by [`pose_from_matrix`]), and refused with a LookAt key.
+    /// The file's render settings, each with its line, read as [`OPTIONS`]
+    /// defines the keys of `[camera]` and `[render]`. Not checked here: a flag may
+    /// replace a bad value. A camera `matrix` is read here (into `look_from`,
+    /// `look_to` and `up`, by [`crate::options::pose_from_matrix`]), and refused with
+    /// a LookAt key.
+    ///
+    /// [`OPTIONS`]: crate::options::OPTIONS
     fn options(
         &self,
-        camera: &CameraTable,
-        render: &RenderTable,
+        camera: &OptionTable,
+        render: &OptionTable,
     ) -> Result<PartialOptions, SceneError> {
-        let mut options = self.look_options(camera, render);
-        if let Some(matrix) = &camera.matrix {
-            let key = "camera.matrix";
-            if camera.look_from.is_some() || camera.look_to.is_some() || camera.up.is_some() {
-                return Err(self.error(
-                    matrix.span(),
-                    key,
-                    "give either a matrix or look_from, look_to and up, not both".into(),
-                ));
-            }
-            let pose = pose_from_matrix(*matrix.get_ref())
-                .map_err(|e| self.error(matrix.span(), key, e))?;
-            let sourced = |v: Vec3| Some(Sourced::new(v, self.origin(matrix.span(), key)));
-            options.look_from = sourced(pose.look_from);
-            options.look_to = sourced(pose.look_to);
-            options.up = sourced(pose.up);
-        }
-        if let Some(k) = &camera.intrinsics {
-            let [fx, fy, cx, cy] = *k.get_ref();
-            options.projection = Some(Sourced::new(
-                Projection::Intrinsics { fx, fy, cx, cy },
-                self.origin(k.span(), "camera.intrinsics"),
+        let mut options = PartialOptions::default();
+        if let Some(matrix) = camera.get("matrix")
+            && ["look_from", "look_to", "up"]
+                .iter()
+                .any(|k| camera.get(k).is_some())
+        {
+            return Err(self.error(
+                matrix.span(),
+                "camera.matrix",
+                "give either a matrix or look_from, look_to and up, not both".into(),
             ));
+        }
+        for (section, table) in [("camera", camera), ("render", render)] {
+            for (key, value) in &table.0 {
+                let span = value.span();
+                let Some((def, _)) = OptionDef::in_section(section).find(|(_, k)| k == key) else {
+                    let expected: Vec<String> = OptionDef::in_section(section)
+                        .map(|(_, k)| format!("`{k}`"))
+                        .collect();
+                    return Err(self.error(
+                        span,
+                        &format!("{section}.{key}"),
+                        format!(
+                            "unknown field `{key}`, expected one of {}",
+                            expected.join(", ")
+                        ),
+                    ));
+                };
+                let dotted = def.toml.unwrap_or(def.python);
+                let read = option_value(def.kind, value.get_ref())
+                    .map_err(|e| self.error(span.clone(), dotted, e))?;
+                def.store(&mut options, read, self.origin(span.clone(), dotted))
+                    .map_err(|e| self.error(span, dotted, e))?;
+            }
         }
         Ok(options)
     }
@@ -613,53 +610,22 @@ impl Builder<'_> {
         }
     }
 
-    /// The settings other than a matrix and intrinsics.
-    fn look_options(&self, camera: &CameraTable, render: &RenderTable) -> PartialOptions {
-        PartialOptions {
-            width: self.sourced(&camera.width, "camera.width"),
-            height: self.sourced(&camera.height, "camera.height"),
-            fov_degrees: self.sourced(&camera.fov, "camera.fov"),
-            look_from: self.sourced(&camera.look_from, "camera.look_from"),
-            look_to: self.sourced(&camera.look_to, "camera.look_to"),
-            up: self.sourced(&camera.up, "camera.up"),
-            depth: self.sourced(&render.depth, "render.depth"),
-            mode: self.sourced(&render.mode, "render.mode"),
-            samples_per_pixel: self.sourced(&render.spp, "render.spp"),
-            exposure: self.sourced(&render.exposure, "render.exposure"),
-            seed: self.sourced(&render.seed, "render.seed"),
-            default_light: self.sourced(&render.default_light, "render.default_light"),
-            tonemap: self.sourced(&render.tonemap, "render.tonemap"),
-            aperture_radius: self.sourced(&camera.aperture_radius, "camera.aperture_radius"),
-            focus_distance: self.sourced(&camera.focus_distance, "camera.focus_distance"),
-            projection: None,
-        }
-    }
-
-    /// The value of `key`, if given, with its line.
-    fn sourced<T: Copy + Into<U>, U>(
-        &self,
-        value: &Option<Spanned<T>>,
-        key: &'static str,
-    ) -> Option<Sourced<U>> {
-        value
-            .as_ref()
-            .map(|v| Sourced::new((*v.get_ref()).into(), self.origin(v.span(), key)))
-    }
-
     fn add_environment(&mut self, table: &EnvironmentTable) -> Result<(), SceneError> {
         use super::environment::{environment_colour, load_environment_map};
-        let strength = match &table.strength {
-            Some(s) if s.get_ref().is_nan() || *s.get_ref() < 0.0 => {
-                return Err(self.error(
-                    s.span(),
-                    "environment.strength",
-                    format!("{} is not 0 or more", s.get_ref()),
-                ));
+        // The ranges of `--env-strength` and `--env-rotation`.
+        for (id, value) in [
+            (OptionId::EnvStrength, &table.strength),
+            (OptionId::EnvRotation, &table.rotation),
+        ] {
+            if let Some(value) = value {
+                let def = OptionDef::of(id);
+                def.range
+                    .check((*value.get_ref()).into())
+                    .map_err(|e| self.error(value.span(), def.toml.unwrap_or(def.python), e))?;
             }
-            Some(s) => *s.get_ref(),
-            None => 1.0,
-        };
-        let rotation = table.rotation.unwrap_or(0.0);
+        }
+        let strength = table.strength.as_ref().map_or(1.0, |s| *s.get_ref());
+        let rotation = table.rotation.as_ref().map_or(0.0, |r| *r.get_ref());
         let mut desc = match (&table.file, &table.color) {
             (Some(file), None) => {
                 let path = match self.path.parent() {
@@ -1163,6 +1129,7 @@ fn physically_based(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::options::Mode;
     use std::fs;
 
     /// A folder with `tri.obj` (one triangle with `vn` normals, material `red` from
@@ -1367,7 +1334,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[camera]\nzoom = 2\n",
-                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `look_from`, `look_to`, `up`, `fov`, `width`, `height`, `aperture_radius`, `focus_distance`, `matrix`, `intrinsics`",
+                "DIR/s.toml:2: camera.zoom: unknown field `zoom`, expected one of `width`, `height`, `fov`, `look_from`, `look_to`, `up`, `matrix`, `intrinsics`, `aperture_radius`, `focus_distance`",
             ),
             (
                 "title = \"x\"\n",

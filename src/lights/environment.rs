@@ -305,11 +305,28 @@ fn pick(cdf: &[Float], u: Float) -> (usize, Float) {
 /// against which white and black models both stand out.
 pub const STUDIO_BACKDROP: Vec3 = Vec3::splat(0.2);
 
+/// The direction of the studio's key light (not unit length).
+pub const STUDIO_KEY: Vec3 = Vec3::new(-0.6, 0.6, 0.55);
+/// The least ratio of the irradiance of a surface facing the studio's key light to
+/// that of one facing away from it: three stops.
+pub const STUDIO_KEY_RATIO: Float = 6.0;
+/// The most irradiance the studio gives a surface facing its key light: a white
+/// (0.8) Lambertian surface there has radiance `0.8 * 4.5 / pi`, about 1.15.
+pub const STUDIO_KEY_IRRADIANCE: Float = 4.5;
+
 /// Path mode's default light for a scene that has none: a procedural studio, +Y up,
-/// facing a camera on +Z (the default framing): a dome brighter above than below, a
-/// large soft key light above and to the left of the camera, a smaller fill to the
+/// facing a camera on +Z (the default framing): a dim dome brighter above than below,
+/// a large soft key light above and to the left of the camera, a smaller fill to the
 /// right and a soft top light. Made as a 256 x 128 map, so it is sampled as any
 /// environment map is.
+///
+/// The key dominates, as a model viewer's studio does (three.js's `RoomEnvironment`,
+/// a photographer's 3:1 to 8:1 key-to-fill): a surface facing the key receives
+/// [`STUDIO_KEY_RATIO`] times the irradiance of one facing away from it, one facing the
+/// camera's left twice that of one facing its right, and a white surface facing the
+/// key stays near the tone map's shoulder (irradiance at most [`STUDIO_KEY_IRRADIANCE`]),
+/// so a white model shows its shape instead of a flat white (an earlier studio's dome
+/// gave 4.9, 1.6 and 6.0).
 pub fn studio() -> EnvironmentDesc {
     let (width, height) = (256u32, 128u32);
     let soft_box = |d: Vec3, centre: Vec3, radius_degrees: Float| {
@@ -325,10 +342,10 @@ pub fn studio() -> EnvironmentDesc {
             let u = (column as Float + 0.5) / width as Float;
             let d = uv_to_direction(Vec2::new(u, v));
             let t = ((d.y + 0.3) / 0.9).clamp(0.0, 1.0);
-            let dome = 0.3 + 0.5 * t * t * (3.0 - 2.0 * t);
-            let light = 5.0 * soft_box(d, Vec3::new(-0.6, 0.6, 0.55), 22.0)
-                + 2.0 * soft_box(d, Vec3::new(0.75, 0.3, 0.45), 16.0)
-                + 1.5 * soft_box(d, Vec3::Y, 25.0);
+            let dome = 0.12 + 0.25 * t * t * (3.0 - 2.0 * t);
+            let light = 5.0 * soft_box(d, STUDIO_KEY, 22.0)
+                + 0.9 * soft_box(d, Vec3::new(0.75, 0.3, 0.45), 16.0)
+                + 0.4 * soft_box(d, Vec3::Y, 25.0);
             let c = dome + light;
             texels.extend([c, c, c]);
         }
@@ -413,6 +430,49 @@ mod tests {
             rotation_degrees: 0.0,
         });
         assert!((turned.radiance(-Vec3::Z) - still.radiance(Vec3::X)).length() < 1e-5);
+    }
+
+    #[test]
+    fn the_studio_key_light_models_a_white_surface() {
+        // Irradiance E(n) = integral of L(d) max(0, n.d) over the sphere, by the
+        // midpoint rule on a 1024 x 512 grid in (u, v), dw = cos(latitude) du dv
+        // 2 pi^2: independent of the sampling code.
+        let (nu, nv) = (1024, 512);
+        let irradiance_in = |environment: &Environment, n: Vec3| {
+            let n = n.normalize();
+            let mut sum = 0.0f64;
+            for j in 0..nv {
+                for i in 0..nu {
+                    let uv = Vec2::new(
+                        (i as Float + 0.5) / nu as Float,
+                        (j as Float + 0.5) / nv as Float,
+                    );
+                    let d = uv_to_direction(uv);
+                    let cos = f64::from(n.dot(d).max(0.0));
+                    let latitude = (f64::from(uv.y) - 0.5) * std::f64::consts::PI;
+                    let dw = latitude.cos() * 2.0 * std::f64::consts::PI.powi(2) / (nu * nv) as f64;
+                    sum += f64::from(environment.radiance(d).x) * cos * dw;
+                }
+            }
+            sum as Float
+        };
+        // A constant environment of 1 gives pi: the rule is accurate.
+        let white = Environment::new(&EnvironmentDesc {
+            radiance: EnvironmentRadiance::Constant(Vec3::ONE),
+            strength: 1.0,
+            rotation_degrees: 0.0,
+        });
+        let e = irradiance_in(&white, Vec3::new(0.3, 0.5, -0.2));
+        assert!((e - PI).abs() < 1e-3 * PI, "{e}");
+        let studio = Environment::new(&studio());
+        let irradiance = |n: Vec3| irradiance_in(&studio, n);
+        let (toward, away) = (irradiance(STUDIO_KEY), irradiance(-STUDIO_KEY));
+        assert!(toward / away >= STUDIO_KEY_RATIO, "{toward} / {away}");
+        assert!(toward <= STUDIO_KEY_IRRADIANCE, "{toward}");
+        let (left, right) = (irradiance(Vec3::NEG_X), irradiance(Vec3::X));
+        assert!(left / right >= 2.0, "{left} / {right}");
+        // The shadowed side is lit, not black: a tenth of the key side at least.
+        assert!(away >= 0.1 * toward, "{away}");
     }
 
     #[test]

@@ -86,7 +86,7 @@ def test_messages_name_the_keywords():
         (dict(width=0), "invalid width: 0 is not in 1..=65536"),
         (dict(look_from=(1, 2, 3), look_to=(1, 2, 3)), "invalid look_from/look_to:"),
         (dict(aperture_radius=-1), "invalid aperture_radius:"),
-        (dict(env_strength=-1), "env_strength -1: must be 0 or more"),
+        (dict(env_strength=-1), "invalid env_strength: -1 is not a finite strength of 0 or more"),
         (dict(intrinsics=(0, 1, 2, 3)), "invalid intrinsics:"),
     ]
     for options, message in cases:

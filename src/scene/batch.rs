@@ -16,7 +16,9 @@
 //! distance wins may depend on the order in which the batch met them, and so on the
 //! batch's other rays. Batches are made of the samples of one pixel, the same in
 //! every run, on any number of threads and in any tile, so images stay deterministic.
-//! Scenes with cutouts are traced ray by ray.
+//! Scenes with cutouts are traced ray by ray; scenes with instances as packets
+//! through the top level ([`Scene::closest_found_packet`]), whose answers are the
+//! single rays' bit for bit.
 
 use std::mem::MaybeUninit;
 
@@ -100,9 +102,20 @@ impl Scene {
         active: u32,
         hits: &mut [Option<Hit>; BATCH],
     ) {
-        if self.ray_by_ray || active.count_ones() <= FEW_RAYS || self.wide.nodes.is_empty() {
+        if self.ray_by_ray
+            || active.count_ones() <= FEW_RAYS
+            || (self.wide.nodes.is_empty() && self.instances.is_none())
+        {
             for lane in lanes_of(active) {
                 hits[lane] = self.intersect(&rays[lane]);
+            }
+            return;
+        }
+        if let Some(instances) = &self.instances {
+            // Through the top level as a packet: the single-ray answers, bit for bit.
+            let found = self.closest_found_packet(instances, rays, active);
+            for lane in lanes_of(active) {
+                hits[lane] = found[lane].map(|found| self.found_hit(instances, &rays[lane], found));
             }
             return;
         }
@@ -192,10 +205,17 @@ impl Scene {
     /// The rays `rays[i]` of `active` that something blocks before `t_max[i]`, as a
     /// bit mask.
     pub fn occluded_batch(&self, rays: &[Ray; BATCH], t_max: &[Float; BATCH], active: u32) -> u32 {
-        if self.ray_by_ray || active.count_ones() <= FEW_RAYS || self.wide.nodes.is_empty() {
+        if self.ray_by_ray
+            || active.count_ones() <= FEW_RAYS
+            || (self.wide.nodes.is_empty() && self.instances.is_none())
+        {
             return lanes_of(active)
                 .filter(|&lane| self.occluded(&rays[lane], t_max[lane]))
                 .fold(0, |mask, lane| mask | 1 << lane);
+        }
+        if self.instances.is_some() {
+            // Through the top level as a packet.
+            return self.occluded_packet(rays, t_max, active);
         }
         let batch = RayPacket::new(rays);
         let limit = f32x16::from(*t_max);

@@ -230,7 +230,7 @@ impl Scene {
     /// If `hits` and `rays` differ in length.
     pub fn intersect_primitives(&self, rays: &[Ray], hits: &mut [Option<(u32, PrimHit)>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        if self.ray_by_ray || self.wide.nodes.is_empty() {
+        if self.ray_by_ray || (self.wide.nodes.is_empty() && self.instances.is_none()) {
             self.intersect_primitives_ray_by_ray(rays, hits);
             return;
         }
@@ -240,6 +240,12 @@ impl Scene {
                 self.intersect_primitives_in_packets(rays, hits);
             } else if rays.len() <= FEW_RAYS {
                 self.intersect_primitives_ray_by_ray(rays, hits);
+            } else if self.instances.is_some() {
+                // The stream walk knows one level: packets of sixteen go through the
+                // top level.
+                for (rays, hits) in rays.chunks(PACKET_SIZE).zip(hits.chunks_mut(PACKET_SIZE)) {
+                    hits.copy_from_slice(&self.named_packet(rays)[..rays.len()]);
+                }
             } else {
                 self.intersect_primitives_streamed(rays, hits);
             }
@@ -265,17 +271,17 @@ impl Scene {
             }
             if let Some(run) = contiguous(members) {
                 // Rays given in packet order (tiles of camera rays): no copy.
-                let found = self.closest_lanes_packet(&rays[run.clone()]);
+                let found = self.named_packet(&rays[run.clone()]);
                 for (hit, found) in hits[run].iter_mut().zip(found) {
-                    *hit = self.named(found);
+                    *hit = found;
                 }
                 continue;
             }
             let packet: [Ray; PACKET_SIZE] =
                 std::array::from_fn(|k| rays[members[k.min(members.len() - 1)] as usize]);
-            let found = self.closest_lanes_packet(&packet[..members.len()]);
+            let found = self.named_packet(&packet[..members.len()]);
             for (&i, found) in members.iter().zip(found) {
-                hits[i as usize] = self.named(found);
+                hits[i as usize] = found;
             }
         }
     }
@@ -297,7 +303,7 @@ impl Scene {
     pub fn occluded_rays(&self, rays: &[Ray], t_max: &[Float], blocked: &mut [bool]) {
         assert_eq!(rays.len(), t_max.len(), "one reach per ray");
         assert_eq!(rays.len(), blocked.len(), "one answer per ray");
-        if self.ray_by_ray || self.wide.nodes.is_empty() {
+        if self.ray_by_ray || (self.wide.nodes.is_empty() && self.instances.is_none()) {
             self.occluded_ray_by_ray(rays, t_max, blocked);
             return;
         }
@@ -311,6 +317,18 @@ impl Scene {
                 self.occluded_in_packets(rays, t_max, blocked);
             } else if rays.len() <= FEW_RAYS {
                 self.occluded_ray_by_ray(rays, t_max, blocked);
+            } else if self.instances.is_some() {
+                // Packets of sixteen through the top level, as above.
+                for ((rays, t_max), blocked) in rays
+                    .chunks(PACKET_SIZE)
+                    .zip(t_max.chunks(PACKET_SIZE))
+                    .zip(blocked.chunks_mut(PACKET_SIZE))
+                {
+                    let mask = self.occluded_packet(rays, t_max, (1 << rays.len()) - 1);
+                    for (k, blocked) in blocked.iter_mut().enumerate() {
+                        *blocked = mask >> k & 1 != 0;
+                    }
+                }
             } else {
                 self.occluded_streamed(rays, t_max, blocked);
             }

@@ -542,7 +542,7 @@ mod tests {
     use super::super::packet_tests::generated_description;
     use super::*;
     use crate::scene::BATCH;
-    use glam::{Affine3A, Quat};
+    use glam::{Affine3A, Quat, Vec3A};
     use rand::{Rng, SeedableRng};
 
     /// A generated mesh placed five times (turned, stretched, mirrored), and the same
@@ -702,6 +702,83 @@ mod tests {
         ] {
             crate::scene::packet_tests::check_agreement(&scene, look_from);
         }
+    }
+
+    /// Copies of one flat grid in one plane (shifted by quarter cells, turned a
+    /// quarter turn, mirrored: placements whose inverses are exact), so that rays
+    /// straight down meet several copies at exactly the same distance, on different
+    /// triangles and sides: each packet and array query still gives each ray the
+    /// copy its single-ray walk finds first.
+    #[test]
+    fn packets_keep_single_rays_answers_where_copies_tie() {
+        let n = 12u32;
+        let mut mesh = SceneDescription::default();
+        for j in 0..=n {
+            for i in 0..=n {
+                mesh.positions.push(Vec3::new(i as Float, 0.0, j as Float));
+            }
+        }
+        let at = |i: u32, j: u32| j * (n + 1) + i;
+        for j in 0..n {
+            for i in 0..n {
+                let [a, b, c, e] = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                for positions in [[a, c, b], [a, e, c]] {
+                    mesh.triangles.push(TriangleDesc {
+                        positions,
+                        material: MaterialId(0),
+                    });
+                }
+            }
+        }
+        let mut d = SceneDescription {
+            materials: vec![crate::material::Material::named("grey")],
+            ..SceneDescription::default()
+        };
+        d.meshes.push(mesh);
+        let size = n as Float;
+        let placements = [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(0.25, 0.0, 0.5)),
+            // A quarter turn about y, back over the same square.
+            Affine3A::from_cols(Vec3A::Z, Vec3A::Y, -Vec3A::X, Vec3A::new(0.0, 0.0, size)),
+            // Mirrored in x: its front is the grid's back.
+            Affine3A::from_cols(-Vec3A::X, Vec3A::Y, Vec3A::Z, Vec3A::new(size, 0.0, 0.0)),
+        ];
+        for world_from_object in placements {
+            d.instances.push(InstanceDesc {
+                mesh: 0,
+                world_from_object,
+                winding_kept: false,
+            });
+        }
+        let scene = Scene::build(d, &BvhParams::default());
+        assert!(!scene.ray_by_ray);
+        // Packets of sixteen neighbouring rays straight down through vertices,
+        // edges and faces, from several heights.
+        let rays: Vec<Ray> = (0..64 * 16)
+            .map(|k| {
+                let (x, z) = ((k % 47) as Float * 0.25, (k / 16 % 45) as Float * 0.25);
+                Ray::new(Vec3::new(x, 1.0 + (k / 16 % 3) as Float, z), -Vec3::Y)
+            })
+            .collect();
+        let mut found = vec![None; rays.len()];
+        scene.intersect_primitives(&rays, &mut found);
+        let mut hit_count = 0;
+        for (chunk, found) in rays.chunks(16).zip(found.chunks(16)) {
+            let mut hits = [None; 16];
+            scene.intersect_packet(chunk, &mut hits);
+            let mut ids = [0; 16];
+            scene.intersect_primitive_packet(chunk, &mut ids);
+            for (k, ray) in chunk.iter().enumerate() {
+                let single = scene.intersect(ray);
+                assert_eq!(format!("{:?}", hits[k]), format!("{single:?}"), "ray {k}");
+                let primitive = scene.intersect_primitive(ray);
+                assert_eq!(found[k], primitive);
+                assert_eq!(ids[k], primitive.map_or(u32::MAX, |(p, _)| p));
+                hit_count += usize::from(single.is_some());
+            }
+        }
+        assert!(hit_count > rays.len() * 9 / 10, "{hit_count} hits");
     }
 
     /// A packet moved into an instance's space holds, lane by lane, the rays

@@ -7,6 +7,14 @@ by side as a markdown table, with the median and range of the runs' pairwise rat
     python3 bench/embree/compare.py [--runs 3] [--repeat 3] [--threads 2] [SCENE]
 
 SCENE defaults to bench/work/dragon-full.obj with the camera of bench/README.md.
+With --instances (issue 39's field of dragons), Embree builds the scene's own
+triangles (the floor) beside one RTC_GEOMETRY_TYPE_INSTANCE per matrix of the .npy
+file over the mesh of --mesh, built once (its MESH.bin written by
+bench/embree/write_mesh.py into bench/work/), which SCENE places the same way:
+
+    python3 bench/instancing/make_field.py
+    python3 bench/embree/compare.py bench/work/field.toml --instances bench/work/field.npy \
+        --mesh bench/work/package/models/dragon_vrip.ply.gz
 Needs target/release/raytracer (cargo build --release) and libembree-dev; builds
 bench/work/embree_bench with bench/embree/build.sh when it is missing or older than its
 source. The rays are written once by `raytracer bench --dump-rays` and read by both.
@@ -71,7 +79,11 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--instances", help="(N, 4, 4) float32 .npy of the instances SCENE places")
+    parser.add_argument("--mesh", help="the PLY mesh those instances place")
     args = parser.parse_args()
+    if bool(args.instances) != bool(args.mesh):
+        parser.error("--instances and --mesh go together")
     ours_bin = ROOT / "target/release/raytracer"
     if not ours_bin.exists():
         sys.exit("compare.py: error: build target/release/raytracer first (cargo build --release)")
@@ -84,6 +96,11 @@ def main() -> None:
                 "--repeat", str(args.repeat)]
     embree_cmd = [str(embree_bin), str(rays), "--repeat", str(args.repeat),
                   "--threads", str(args.threads)]
+    if args.instances:
+        mesh_bin = ROOT / "bench/work/mesh.bin"
+        subprocess.run([sys.executable, str(ROOT / "bench/embree/write_mesh.py"), args.mesh,
+                        str(mesh_bin)], check=True)
+        embree_cmd += ["--mesh", str(mesh_bin), "--instances", args.instances]
     run_json(ours_cmd[:2] + ours_cmd[2:] + ["--dump-rays", str(rays)])
     ours, theirs = [], []
     for run in range(args.runs):

@@ -26,6 +26,18 @@
  *   u32 m, m shadow packets (u32 first, count)
  *   u32 n, n incoherent rays
  *
+ * Instanced scenes (issue 39's field of dragons, bench/instancing/make_field.py):
+ *
+ *   bench/embree/embree_bench rays.bin --mesh MESH.bin --instances FIELD.npy
+ *
+ * builds the rays file's own triangles (the floor) as one geometry of the scene, and
+ * the mesh once as a scene of its own, placed by one RTC_GEOMETRY_TYPE_INSTANCE
+ * geometry per matrix of FIELD.npy (an (N, 4, 4) float32 array of row-major
+ * world-from-object matrices, as `[[instances]]` reads it). Its build time is the
+ * commit of both scenes. MESH.bin (bench/embree/write_mesh.py), little-endian:
+ *   "RTMESH01", u32 vertex count, f32 x, y, z per vertex, u32 triangle count,
+ *   u32 a, b, c per triangle
+ *
  * Build: cc -O3 -march=native -fopenmp embree_bench.c -lembree3 -o embree_bench
  * (bench/embree/build.sh).
  */
@@ -240,6 +252,97 @@ static long occluded_packets(const Ray *rays, const Packet *packets, uint32_t m)
     return blocked;
 }
 
+/* The instanced mode's inputs (NULL without --mesh). */
+static float *mesh_vertices, *matrices;
+static uint32_t *mesh_triangles;
+static uint32_t n_mesh_vertices, n_mesh_triangles, n_instances;
+
+/* Reads MESH.bin into the mesh arrays. */
+static void read_mesh(const char *path) {
+    input = fopen(path, "rb");
+    if (!input) die("cannot open the --mesh file");
+    char magic[8];
+    read_exact(magic, 8);
+    if (memcmp(magic, "RTMESH01", 8)) die("--mesh: not a file of bench/embree/write_mesh.py");
+    n_mesh_vertices = read_u32();
+    mesh_vertices = read_array(n_mesh_vertices, 12, 16);
+    n_mesh_triangles = read_u32();
+    mesh_triangles = read_array(n_mesh_triangles, 12, 0);
+    fclose(input);
+}
+
+/* Reads an (N, 4, 4) little-endian float32 .npy file (version 1 or 2 header) into
+ * `matrices`: N row-major 4x4 matrices. */
+static void read_npy(const char *path) {
+    input = fopen(path, "rb");
+    if (!input) die("cannot open the --instances file");
+    unsigned char head[10];
+    read_exact(head, 10);
+    if (memcmp(head, "\x93NUMPY", 6)) die("--instances: not a .npy file");
+    uint32_t header_len;
+    if (head[6] == 1) {
+        header_len = head[8] | (uint32_t)head[9] << 8;
+    } else {
+        unsigned char more[2];
+        read_exact(more, 2);
+        header_len = head[8] | (uint32_t)head[9] << 8 | (uint32_t)more[0] << 16 |
+                     (uint32_t)more[1] << 24;
+    }
+    if (header_len > 65536) die("--instances: header too long");
+    char header[65537];
+    read_exact(header, header_len);
+    header[header_len] = 0;
+    if (!strstr(header, "'<f4'") || strstr(header, "'fortran_order': True"))
+        die("--instances: needs little-endian float32 in C order");
+    const char *shape = strstr(header, "'shape': (");
+    unsigned long n;
+    if (!shape || sscanf(shape, "'shape': (%lu, 4, 4)", &n) != 1 || n == 0 || n > 100000000)
+        die("--instances: needs shape (N, 4, 4)");
+    n_instances = (uint32_t)n;
+    matrices = read_array(n_instances, 64, 0);
+    fclose(input);
+}
+
+/* The scene of an instanced run: the floor's triangles (`vertices`, `triangles`) as
+ * one geometry, and each matrix placing the mesh's own scene (`*mesh_scene`, made
+ * here and released by the caller). Not committed. */
+static RTCScene new_instanced_scene(RTCDevice device, float *vertices, uint32_t n_vertices,
+                                    uint32_t *triangles, uint32_t n_triangles,
+                                    RTCScene *mesh_scene) {
+    RTCScene top = rtcNewScene(device);
+    rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_MEDIUM);
+    if (n_triangles > 0) {
+        RTCGeometry floor = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        rtcSetSharedGeometryBuffer(floor, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices, 0,
+                                   12, n_vertices);
+        rtcSetSharedGeometryBuffer(floor, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, triangles, 0,
+                                   12, n_triangles);
+        rtcCommitGeometry(floor);
+        rtcAttachGeometry(top, floor);
+        rtcReleaseGeometry(floor);
+    }
+    *mesh_scene = rtcNewScene(device);
+    rtcSetSceneBuildQuality(*mesh_scene, RTC_BUILD_QUALITY_MEDIUM);
+    RTCGeometry mesh = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetSharedGeometryBuffer(mesh, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, mesh_vertices, 0,
+                               12, n_mesh_vertices);
+    rtcSetSharedGeometryBuffer(mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh_triangles, 0,
+                               12, n_mesh_triangles);
+    rtcCommitGeometry(mesh);
+    rtcAttachGeometry(*mesh_scene, mesh);
+    rtcReleaseGeometry(mesh);
+    for (uint32_t i = 0; i < n_instances; i++) {
+        RTCGeometry instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(instance, *mesh_scene);
+        /* The first three rows of the row-major 4x4 matrix. */
+        rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &matrices[16 * i]);
+        rtcCommitGeometry(instance);
+        rtcAttachGeometry(top, instance);
+        rtcReleaseGeometry(instance);
+    }
+    return top;
+}
+
 #define MAX_REPEAT 100
 
 /* Times `call` `repeat` times: medians of wall and CPU seconds into `wall`, `cpu`. */
@@ -263,19 +366,24 @@ static void print_rate(const char *name, uint32_t n, double wall, double cpu) {
 }
 
 int main(int argc, char **argv) {
-    const char *path = NULL;
+    const char *path = NULL, *mesh_path = NULL, *instances_path = NULL;
     int repeat = 5, threads = 2;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--repeat") && i + 1 < argc)
             repeat = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--mesh") && i + 1 < argc)
+            mesh_path = argv[++i];
+        else if (!strcmp(argv[i], "--instances") && i + 1 < argc)
+            instances_path = argv[++i];
         else if (!strcmp(argv[i], "--threads") && i + 1 < argc)
             threads = atoi(argv[++i]);
         else if (argv[i][0] != '-' && !path)
             path = argv[i];
         else
-            die("usage: embree_bench RAYS.bin [--repeat N] [--threads T]");
+            die("usage: embree_bench RAYS.bin [--repeat N] [--threads T] [--mesh M --instances I]");
     }
-    if (!path) die("usage: embree_bench RAYS.bin [--repeat N] [--threads T]");
+    if (!path) die("usage: embree_bench RAYS.bin [--repeat N] [--threads T] [--mesh M --instances I]");
+    if (!mesh_path != !instances_path) die("--mesh and --instances go together");
     if (repeat < 1 || repeat > MAX_REPEAT) die("--repeat takes 1 to 100");
     if (threads < 1) die("--threads takes a positive number");
     input = fopen(path, "rb");
@@ -299,6 +407,10 @@ int main(int argc, char **argv) {
     n_incoherent = read_u32();
     incoherent = read_array(n_incoherent, sizeof(Ray), 0);
     fclose(input);
+    if (mesh_path) {
+        read_mesh(mesh_path);
+        read_npy(instances_path);
+    }
     omp_set_num_threads(threads);
 
     char config[64];
@@ -309,8 +421,20 @@ int main(int argc, char **argv) {
 
     /* Build: a new scene each time; only the commit is timed. */
     double builds[MAX_REPEAT], build_cpus[MAX_REPEAT];
+    RTCScene mesh_scene = NULL;
     for (int run = 0; run < repeat; run++) {
         if (scene) rtcReleaseScene(scene);
+        if (mesh_scene) rtcReleaseScene(mesh_scene);
+        if (mesh_path) {
+            scene = new_instanced_scene(device, vertices, n_vertices, triangles, n_triangles,
+                                        &mesh_scene);
+            double w0 = now(), c0 = cpu_now();
+            rtcCommitScene(mesh_scene);
+            rtcCommitScene(scene);
+            builds[run] = now() - w0;
+            build_cpus[run] = cpu_now() - c0;
+            continue;
+        }
         scene = rtcNewScene(device);
         rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
         RTCGeometry mesh = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -334,6 +458,8 @@ int main(int argc, char **argv) {
     printf("{\"peer\": \"embree\", \"version\": \"Embree %d.%d.%d (libembree-dev)\", "
            "\"native_ray16\": %ld, \"threads\": %d, \"triangles\": %u",
            RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH, ray16, threads, n_triangles);
+    if (mesh_path)
+        printf(", \"instances\": %u, \"mesh_triangles\": %u", n_instances, n_mesh_triangles);
     printf(", \"build_ms\": %.2f, \"build_cpu_ms\": %.2f", build * 1e3, build_cpu * 1e3);
     TIME(repeat, primary_hits, w, c, closest_single(primary, n_primary));
     printf(", \"primary_rays\": %u, \"primary_hits\": %ld", n_primary, primary_hits);
@@ -376,6 +502,7 @@ int main(int argc, char **argv) {
     print_rate("occlusion_stream", n_incoherent, w, c);
     printf("}\n");
     rtcReleaseScene(scene);
+    if (mesh_scene) rtcReleaseScene(mesh_scene);
     rtcReleaseDevice(device);
     return 0;
 }

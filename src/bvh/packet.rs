@@ -169,6 +169,15 @@ impl RayPacket {
             Ok(full) => transpose_full(full),
             Err(_) => transpose_partial(rays),
         };
+        RayPacket::from_parts(origin, dir, rays.len())
+    }
+
+    /// A packet of `len` rays (1 to [`PACKET_SIZE`]) given by coordinates, lane `i`
+    /// holding ray `i`: as [`RayPacket::new`] of those rays. Directions need not be
+    /// unit (an instance's rays in its mesh's space are not).
+    #[inline(always)]
+    pub fn from_parts(origin: [f32x16; 3], dir: [f32x16; 3], len: usize) -> RayPacket {
+        debug_assert!((1..=PACKET_SIZE).contains(&len));
         // `RayQuery::new`'s reciprocal, lane by lane: tiny components floored in
         // magnitude, then `1 / d`.
         let floor = f32x16::splat(MIN_DIR_COMPONENT);
@@ -180,8 +189,36 @@ impl RayPacket {
             origin,
             dir,
             inv_dir,
-            len: rays.len(),
+            len,
         }
+    }
+
+    /// Ray `lane` of the packet, bit for bit as given.
+    #[inline(always)]
+    pub fn ray(&self, lane: usize) -> Ray {
+        let at = |v: &[f32x16; 3]| {
+            crate::math::Vec3::new(
+                v[0].as_array()[lane],
+                v[1].as_array()[lane],
+                v[2].as_array()[lane],
+            )
+        };
+        Ray {
+            origin: at(&self.origin),
+            dir: at(&self.dir),
+        }
+    }
+
+    /// Number of rays given.
+    #[inline(always)]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Never true: a packet holds at least one ray.
+    #[inline(always)]
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
     }
 
     /// The mask of the rays given: bit `i` for ray `i`.
@@ -249,17 +286,20 @@ struct Stacks {
 }
 
 thread_local! {
-    static SPARE_STACKS: std::cell::Cell<Option<Box<Stacks>>> = const { std::cell::Cell::new(None) };
+    /// Two spare sets: a walk of an instance's mesh runs inside a leaf callback of
+    /// the top level's walk, and would otherwise allocate its stacks per instance.
+    static SPARE_STACKS: [std::cell::Cell<Option<Box<Stacks>>>; 2] =
+        const { [std::cell::Cell::new(None), std::cell::Cell::new(None)] };
 }
 
 /// The thread's stacks, lent for one walk and given back when dropped (a walk inside
-/// a leaf callback finds none spare and makes its own).
+/// a walk inside a leaf callback finds none spare and makes its own).
 struct LentStacks(Option<Box<Stacks>>);
 
 impl LentStacks {
     #[inline(always)]
     fn take() -> LentStacks {
-        let spare = SPARE_STACKS.with(|cell| cell.take());
+        let spare = SPARE_STACKS.with(|cells| cells[0].take().or_else(|| cells[1].take()));
         LentStacks(Some(spare.unwrap_or_else(|| {
             Box::new(Stacks {
                 packet: Box::new_uninit_slice(STACK_SIZE),
@@ -278,7 +318,14 @@ impl Drop for LentStacks {
     #[inline(always)]
     fn drop(&mut self) {
         let stacks = self.0.take();
-        SPARE_STACKS.with(|cell| cell.set(stacks));
+        SPARE_STACKS.with(|cells| match cells[0].take() {
+            None => cells[0].set(stacks),
+            // A nested walk gave its set back first.
+            first @ Some(_) => {
+                cells[0].set(first);
+                cells[1].set(stacks);
+            }
+        });
     }
 }
 

@@ -3,11 +3,11 @@
 //! own (its wide BVH, packets and shading data, in object space); a top-level wide
 //! BVH over the instances' world boxes leads a ray to the copies it may meet, where
 //! it is moved into the mesh's space and traced by the mesh's own single-ray walk.
-//! Everything a scene answers goes through here once: the packet, stream and batch
-//! queries trace an instanced scene ray by ray through [`Scene::intersect`],
-//! [`Scene::intersect_primitive`] and [`Scene::occluded`] (as they do for cutouts),
-//! so the traversal families gained instances in one place. A scene without
-//! instances has no top level and runs the one-level walks it always did.
+//! The packet, stream and batch queries walk the top level with a packet
+//! ([`Scene::closest_found_packet`], [`Instances::blockers_packet`]) and each copy
+//! it reaches with the packet moved into the mesh's space, with the answers of the
+//! single-ray queries bit for bit (scenes with cutouts go ray by ray). A scene
+//! without instances has no top level and runs the one-level walks it always did.
 //!
 //! A ray `o + t d` in the world is `o' + t d'` in the mesh's space with
 //! `o' = M^-1 o` and `d' = M^-1 d` (not normalized), so distances are the world's
@@ -17,8 +17,10 @@
 //! winding, so the hit's front side is the mesh's back.
 
 use glam::{Affine3A, Mat3A};
+use wide::f32x16;
 
 use super::*;
+use crate::bvh::{PACKET_SIZE, RayPacket, lanes_of};
 use crate::description::InstanceDesc;
 
 /// The instances of a two-level scene and the meshes they place.
@@ -68,6 +70,35 @@ impl Placed {
             dir: self.object_from_world.transform_vector3(ray.dir),
         }
     }
+}
+
+impl Placed {
+    /// The rays of `packet` in the mesh's space, bit for bit as
+    /// [`Placed::ray_in_object`] moves each (the same products and sums in the same
+    /// order, sixteen rays per operation).
+    #[inline(always)]
+    fn packet_in_object(&self, packet: &RayPacket) -> RayPacket {
+        let m = &self.object_from_world;
+        let columns = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
+        let linear = |v: &[f32x16; 3], row: usize| {
+            f32x16::splat(columns[0][row]) * v[0]
+                + f32x16::splat(columns[1][row]) * v[1]
+                + f32x16::splat(columns[2][row]) * v[2]
+        };
+        let origin = std::array::from_fn(|row| {
+            linear(&packet.origin, row) + f32x16::splat(m.translation[row])
+        });
+        let dir = std::array::from_fn(|row| linear(&packet.dir, row));
+        RayPacket::from_parts(origin, dir, packet.len())
+    }
+}
+
+/// The closest hit of a ray in a scene with instances: on the flat level (packet,
+/// lane, hit) or on a copy (instance in leaf order, then the same in its mesh).
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Found {
+    Flat(u32, usize, PrimHit),
+    Copy(u32, u32, usize, PrimHit),
 }
 
 /// The top level's parameters: one instance per leaf (a leaf's instances are each a
@@ -185,6 +216,38 @@ impl Instances {
         found
     }
 
+    /// The rays of `packet` in `active` that a copy blocks before their `t_max`, as
+    /// a mask: the top level walked by the packet, each instance it reaches walked
+    /// by the packet moved into its mesh's space. Any-hit answers do not depend on
+    /// the order of the walk, so they are [`Instances::occluded`]'s.
+    #[inline(always)]
+    pub(super) fn blockers_packet(&self, packet: &RayPacket, active: u32, t_max: &f32x16) -> u32 {
+        if active == 0 {
+            return 0;
+        }
+        let mut reach = *t_max;
+        self.top.walk_packet_any(
+            packet,
+            active,
+            &mut reach,
+            |first, count, reached, t_max| {
+                let mut blocked = 0;
+                for placed in &self.placed[first as usize..(first + count) as usize] {
+                    let mesh = &self.meshes[placed.mesh as usize];
+                    let local = placed.packet_in_object(packet);
+                    let mut reach = *t_max;
+                    let open = reached & !blocked;
+                    blocked |= mesh.blockers_packet(&local, |ray| local.ray(ray), open, &mut reach);
+                    if blocked == reached {
+                        break;
+                    }
+                }
+                blocked
+            },
+            |first, _| crate::memory::prefetch_lines(&self.placed[first as usize], 1),
+        )
+    }
+
     /// Whether a copy blocks `ray` before `t_max`.
     #[inline]
     fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
@@ -270,7 +333,10 @@ impl Scene {
         scene.warnings.append(&mut warnings);
         scene.build_times.tree += started.elapsed();
         scene.instances = Some(Box::new(built));
-        scene.ray_by_ray = true;
+        // Cutouts are traced ray by ray; other scenes' packets, batches and streams
+        // walk the top level with their packets.
+        scene.ray_by_ray = scene.has_cutouts
+            || (scene.instances.as_ref()).is_some_and(|i| i.meshes.iter().any(|m| m.ray_by_ray));
         scene
     }
 
@@ -278,16 +344,129 @@ impl Scene {
     /// level's hit and the copies' within it.
     #[inline(never)]
     pub(super) fn intersect_instanced(&self, instances: &Instances, ray: &Ray) -> Option<Hit> {
+        let found = self.closest_found(instances, ray)?;
+        Some(self.found_hit(instances, ray, found))
+    }
+
+    /// The closest hit of `ray` in a scene with instances: the flat level's first,
+    /// then the copies' nearer than it (strictly: a copy's hit at the flat hit's
+    /// distance loses).
+    #[inline]
+    pub(super) fn closest_found(&self, instances: &Instances, ray: &Ray) -> Option<Found> {
         let flat = self.closest_lane(ray);
         let mut t_max = flat.map_or(Float::INFINITY, |(_, _, hit)| hit.t);
         if let Some((index, packet, lane, hit)) = instances.closest(ray, &mut t_max) {
-            return Some(instances.hit(ray, index, packet, lane, hit));
+            return Some(Found::Copy(index, packet, lane, hit));
         }
         let (packet, lane, hit) = flat?;
-        Some(if self.prim_texcoords.is_empty() {
-            self.hit_details(ray, packet, lane, hit)
-        } else {
-            self.textured_hit_details(ray, packet, lane, hit)
+        Some(Found::Flat(packet, lane, hit))
+    }
+
+    /// The [`Hit`] of `ray` at `found`.
+    #[inline]
+    pub(super) fn found_hit(&self, instances: &Instances, ray: &Ray, found: Found) -> Hit {
+        match found {
+            Found::Copy(index, packet, lane, hit) => instances.hit(ray, index, packet, lane, hit),
+            Found::Flat(packet, lane, hit) if self.prim_texcoords.is_empty() => {
+                self.hit_details(ray, packet, lane, hit)
+            }
+            Found::Flat(packet, lane, hit) => self.textured_hit_details(ray, packet, lane, hit),
+        }
+    }
+
+    /// The primitive (numbered as [`Scene::intersect_primitive`] names it) and hit
+    /// at `found`.
+    #[inline]
+    pub(super) fn found_prim(&self, instances: &Instances, found: Found) -> Option<(u32, PrimHit)> {
+        match found {
+            Found::Copy(index, packet, lane, hit) => {
+                let mesh = instances.placed[index as usize].mesh as usize;
+                let prim = instances.meshes[mesh].packets[packet as usize].prim(lane)?;
+                Some((instances.first_prim[mesh] + prim, hit))
+            }
+            Found::Flat(packet, lane, hit) => self.named(Some((packet, lane, hit))),
+        }
+    }
+
+    /// [`Scene::closest_found`] of each of `rays` (1 to [`PACKET_SIZE`]) in the
+    /// mask `active` (`None` for the others), bit for bit: the flat level walked by
+    /// the packet, then the top level, each instance it reaches walked by the packet
+    /// moved into its mesh's space ([`Placed::packet_in_object`]: distances along a
+    /// ray are the same in both spaces, so one `t_max` per ray serves all). A ray
+    /// whose answer could depend on the order of the walk (as
+    /// [`Scene::nearest_packet`] tells, the instance's box entry counted on its way)
+    /// is traced again alone: on the flat level before the copies, through the copies
+    /// after.
+    pub(super) fn closest_found_packet(
+        &self,
+        instances: &Instances,
+        rays: &[Ray],
+        active: u32,
+    ) -> [Option<Found>; PACKET_SIZE] {
+        let packet = RayPacket::new(rays);
+        let mut t_max = f32x16::splat(Float::INFINITY);
+        let mut flat = [None; PACKET_SIZE];
+        let flat_ties = self.nearest_packet(
+            &packet,
+            |ray| rays[ray],
+            active,
+            &mut t_max,
+            None,
+            &mut flat,
+        );
+        // The flat level's answers first, as a single ray finds them (its floor's
+        // flat box makes many ties), so that the copies are searched within them.
+        for ray in lanes_of(flat_ties) {
+            flat[ray] = self.closest_lane(&rays[ray]);
+            t_max.as_mut_array()[ray] = flat[ray].map_or(Float::INFINITY, |(_, _, hit)| hit.t);
+        }
+        let mut ties = 0;
+        let mut copies = [None; PACKET_SIZE];
+        // The instance of each ray's nearest copy hit, if any.
+        let mut which = [u32::MAX; PACKET_SIZE];
+        instances.top.walk_packet_closest(
+            &packet,
+            active,
+            &mut t_max,
+            |first, count, reached, t_max, path| {
+                for index in first..first + count {
+                    let placed = &instances.placed[index as usize];
+                    let mesh = &instances.meshes[placed.mesh as usize];
+                    let local = placed.packet_in_object(&packet);
+                    let before = *t_max;
+                    ties |= mesh.nearest_packet(
+                        &local,
+                        |ray| local.ray(ray),
+                        reached,
+                        t_max,
+                        Some(*path),
+                        &mut copies,
+                    );
+                    // A nearer hit lowers the ray's `t_max`, and only a nearer one.
+                    for ray in lanes_of(t_max.simd_lt(before).to_bitmask() & reached) {
+                        which[ray] = index;
+                    }
+                }
+            },
+            |first, _| crate::memory::prefetch_lines(&instances.placed[first as usize], 1),
+        );
+        std::array::from_fn(|ray| {
+            if active >> ray & 1 == 0 {
+                None
+            } else if ties >> ray & 1 != 0 {
+                // The copies again for this ray alone, within the flat level's hit.
+                let mut t_max = flat[ray].map_or(Float::INFINITY, |(_, _, hit)| hit.t);
+                match instances.closest(&rays[ray], &mut t_max) {
+                    Some((index, packet, lane, hit)) => Some(Found::Copy(index, packet, lane, hit)),
+                    None => flat[ray].map(|(packet, lane, hit)| Found::Flat(packet, lane, hit)),
+                }
+            } else if which[ray] != u32::MAX {
+                let (packet, lane, hit) = copies[ray]?;
+                Some(Found::Copy(which[ray], packet, lane, hit))
+            } else {
+                let (packet, lane, hit) = flat[ray]?;
+                Some(Found::Flat(packet, lane, hit))
+            }
         })
     }
 
@@ -317,14 +496,8 @@ impl Scene {
         instances: &Instances,
         ray: &Ray,
     ) -> Option<(u32, PrimHit)> {
-        let flat = self.closest_lane(ray);
-        let mut t_max = flat.map_or(Float::INFINITY, |(_, _, hit)| hit.t);
-        if let Some((index, packet, lane, hit)) = instances.closest(ray, &mut t_max) {
-            let mesh = instances.placed[index as usize].mesh as usize;
-            let prim = instances.meshes[mesh].packets[packet as usize].prim(lane)?;
-            return Some((instances.first_prim[mesh] + prim, hit));
-        }
-        self.named(flat)
+        let found = self.closest_found(instances, ray)?;
+        self.found_prim(instances, found)
     }
 
     /// [`Scene::occluded`] in a scene with instances.
@@ -370,7 +543,7 @@ mod tests {
     use super::super::packet_tests::generated_description;
     use super::*;
     use crate::scene::BATCH;
-    use glam::{Affine3A, Quat};
+    use glam::{Affine3A, Quat, Vec3A};
     use rand::{Rng, SeedableRng};
 
     /// A generated mesh placed five times (turned, stretched, mirrored), and the same
@@ -382,6 +555,18 @@ mod tests {
             lights: mesh.lights.clone(),
             ..SceneDescription::default()
         };
+        // A floor of the flat level's own, under the copies: its box is flat, so
+        // many rays' hits on it come before their box entry (ties the packet walk
+        // settles ray by ray).
+        for [x, z] in [[-6.0, -6.0], [6.0, -6.0], [6.0, 6.0], [-6.0, 6.0]] {
+            d.positions.push(Vec3::new(x, -0.3, z));
+        }
+        for positions in [[0, 2, 1], [0, 3, 2]] {
+            d.triangles.push(TriangleDesc {
+                positions,
+                material: MaterialId(0),
+            });
+        }
         d.meshes.push(SceneDescription {
             materials: Vec::new(),
             lights: Vec::new(),
@@ -474,19 +659,177 @@ mod tests {
             assert_eq!(found[i], scene.intersect_primitive(ray));
             assert_eq!(blocked[i], scene.occluded(ray, 3.0));
         }
-        for chunk in rays.chunks_exact(BATCH) {
+        for (round, chunk) in rays.chunks_exact(BATCH).enumerate() {
             let batch: &[Ray; BATCH] = chunk.try_into().unwrap();
+            // Every ray, then some of them.
+            let active = match round % 3 {
+                0 => u32::MAX >> (32 - BATCH),
+                1 => 0x5a3c,
+                _ => 0x0101,
+            };
             let mut hits = [None; BATCH];
-            scene.intersect_batch(batch, u32::MAX >> (32 - BATCH), &mut hits);
+            scene.intersect_batch(batch, active, &mut hits);
             let mut packet_hits = [None; BATCH];
             scene.intersect_packet(chunk, &mut packet_hits);
-            let blocked = scene.occluded_batch(batch, &[3.0; BATCH], u32::MAX >> (32 - BATCH));
+            let mut ids = [0; BATCH];
+            scene.intersect_primitive_packet(chunk, &mut ids);
+            let blocked = scene.occluded_batch(batch, &[3.0; BATCH], active);
             let packet_blocked = scene.occluded_packet(chunk, &[3.0; BATCH], u32::MAX);
             for (k, ray) in chunk.iter().enumerate() {
-                assert_eq!(hits[k], scene.intersect(ray));
-                assert_eq!(packet_hits[k], scene.intersect(ray));
-                assert_eq!(blocked >> k & 1 == 1, scene.occluded(ray, 3.0));
+                let single = scene.intersect(ray);
+                let on = active >> k & 1 == 1;
+                assert_eq!(hits[k], if on { single } else { None });
+                assert_eq!(packet_hits[k], single);
+                let id = scene.intersect_primitive(ray).map_or(u32::MAX, |(p, _)| p);
+                assert_eq!(ids[k], id);
+                assert_eq!(blocked >> k & 1 == 1, on && scene.occluded(ray, 3.0));
                 assert_eq!(packet_blocked >> k & 1 == 1, scene.occluded(ray, 3.0));
+            }
+        }
+    }
+
+    /// Packets, batches and streams of an instanced scene without cutouts walk the
+    /// top level with their packets rather than ray by ray, and coherent packets
+    /// (camera tiles, including rays straight down through the copies' shared edges
+    /// and vertices, and their shadow rays) agree with single rays bit for bit.
+    #[test]
+    fn coherent_packets_through_instances_agree_with_single_rays() {
+        let (scene, _) = scenes();
+        assert!(!scene.ray_by_ray, "an instanced scene is traced ray by ray");
+        for look_from in [
+            Vec3::new(0.0, 4.5, 4.0),
+            Vec3::new(3.7, 1.4, -2.1),
+            Vec3::new(0.0, 6.0, 0.0001),
+        ] {
+            crate::scene::packet_tests::check_agreement(&scene, look_from);
+        }
+    }
+
+    /// Copies of one flat grid in one plane (shifted by quarter cells, turned a
+    /// quarter turn, mirrored: placements whose inverses are exact), so that rays
+    /// straight down meet several copies at exactly the same distance, on different
+    /// triangles and sides: each packet and array query still gives each ray the
+    /// copy its single-ray walk finds first.
+    #[test]
+    fn packets_keep_single_rays_answers_where_copies_tie() {
+        let n = 12u32;
+        let mut mesh = SceneDescription::default();
+        for j in 0..=n {
+            for i in 0..=n {
+                mesh.positions.push(Vec3::new(i as Float, 0.0, j as Float));
+            }
+        }
+        let at = |i: u32, j: u32| j * (n + 1) + i;
+        for j in 0..n {
+            for i in 0..n {
+                let [a, b, c, e] = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                for positions in [[a, c, b], [a, e, c]] {
+                    mesh.triangles.push(TriangleDesc {
+                        positions,
+                        material: MaterialId(0),
+                    });
+                }
+            }
+        }
+        let mut d = SceneDescription {
+            materials: vec![crate::material::Material::named("grey")],
+            ..SceneDescription::default()
+        };
+        d.meshes.push(mesh);
+        let size = n as Float;
+        let placements = [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(0.25, 0.0, 0.5)),
+            // A quarter turn about y, back over the same square.
+            Affine3A::from_cols(Vec3A::Z, Vec3A::Y, -Vec3A::X, Vec3A::new(0.0, 0.0, size)),
+            // Mirrored in x: its front is the grid's back.
+            Affine3A::from_cols(-Vec3A::X, Vec3A::Y, Vec3A::Z, Vec3A::new(size, 0.0, 0.0)),
+        ];
+        for world_from_object in placements {
+            d.instances.push(InstanceDesc {
+                mesh: 0,
+                world_from_object,
+                winding_kept: false,
+            });
+        }
+        let scene = Scene::build(d, &BvhParams::default());
+        assert!(!scene.ray_by_ray);
+        // Packets of sixteen neighbouring rays straight down through vertices,
+        // edges and faces, from several heights.
+        let rays: Vec<Ray> = (0..64 * 16)
+            .map(|k| {
+                let (x, z) = ((k % 47) as Float * 0.25, (k / 16 % 45) as Float * 0.25);
+                Ray::new(Vec3::new(x, 1.0 + (k / 16 % 3) as Float, z), -Vec3::Y)
+            })
+            .collect();
+        let mut found = vec![None; rays.len()];
+        scene.intersect_primitives(&rays, &mut found);
+        let mut hit_count = 0;
+        for (chunk, found) in rays.chunks(16).zip(found.chunks(16)) {
+            let mut hits = [None; 16];
+            scene.intersect_packet(chunk, &mut hits);
+            let mut ids = [0; 16];
+            scene.intersect_primitive_packet(chunk, &mut ids);
+            for (k, ray) in chunk.iter().enumerate() {
+                let single = scene.intersect(ray);
+                assert_eq!(format!("{:?}", hits[k]), format!("{single:?}"), "ray {k}");
+                let primitive = scene.intersect_primitive(ray);
+                assert_eq!(found[k], primitive);
+                assert_eq!(ids[k], primitive.map_or(u32::MAX, |(p, _)| p));
+                hit_count += usize::from(single.is_some());
+            }
+        }
+        assert!(hit_count > rays.len() * 9 / 10, "{hit_count} hits");
+    }
+
+    /// A packet moved into an instance's space holds, lane by lane, the rays
+    /// `Placed::ray_in_object` moves one by one, bit for bit (the mesh walks then
+    /// compute what the single-ray walks compute).
+    #[test]
+    fn packets_move_into_a_mesh_as_single_rays_do() {
+        let (scene, _) = scenes();
+        let instances = scene.instances.as_ref().unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        for placed in &instances.placed {
+            for len in [16, 5] {
+                let rays: Vec<Ray> = (0..len)
+                    .map(|_| {
+                        let v = |rng: &mut rand::rngs::StdRng| {
+                            Vec3::new(
+                                rng.random_range(-9.0..9.0),
+                                rng.random_range(-9.0..9.0),
+                                rng.random_range(-9.0..9.0),
+                            )
+                        };
+                        Ray::new(v(&mut rng), v(&mut rng))
+                    })
+                    .collect();
+                let local = placed.packet_in_object(&RayPacket::new(&rays));
+                assert_eq!(local.len(), len);
+                let expected = RayPacket::new(
+                    &rays
+                        .iter()
+                        .map(|r| placed.ray_in_object(r))
+                        .collect::<Vec<_>>(),
+                );
+                for (k, ray) in rays.iter().enumerate() {
+                    let moved = placed.ray_in_object(ray);
+                    let got = local.ray(k);
+                    assert_eq!(
+                        got.origin.to_array().map(f32::to_bits),
+                        moved.origin.to_array().map(f32::to_bits)
+                    );
+                    assert_eq!(
+                        got.dir.to_array().map(f32::to_bits),
+                        moved.dir.to_array().map(f32::to_bits)
+                    );
+                    for axis in 0..3 {
+                        assert_eq!(
+                            local.inv_dir[axis].as_array()[k].to_bits(),
+                            expected.inv_dir[axis].as_array()[k].to_bits()
+                        );
+                    }
+                }
             }
         }
     }

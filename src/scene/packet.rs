@@ -48,9 +48,16 @@ impl Scene {
     /// If `rays` is empty, longer than [`PACKET_SIZE`], or not as long as `hits`.
     pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        if self.instances.is_some() {
+        if self.ray_by_ray {
             for (hit, ray) in hits.iter_mut().zip(rays) {
                 *hit = self.intersect(ray);
+            }
+            return;
+        }
+        if let Some(instances) = &self.instances {
+            let found = self.closest_found_packet(instances, rays, (1 << rays.len()) - 1);
+            for ((hit, ray), found) in hits.iter_mut().zip(rays).zip(found) {
+                *hit = found.map(|found| self.found_hit(instances, ray, found));
             }
             return;
         }
@@ -79,20 +86,26 @@ impl Scene {
     /// As [`Scene::intersect_packet`].
     pub fn intersect_primitive_packet(&self, rays: &[Ray], ids: &mut [u32]) {
         assert_eq!(rays.len(), ids.len(), "one id per ray");
-        if self.instances.is_some() {
-            for (id, ray) in ids.iter_mut().zip(rays) {
-                *id = self
-                    .intersect_primitive(ray)
-                    .map_or(u32::MAX, |(prim, _)| prim);
-            }
-            return;
+        for (id, found) in ids.iter_mut().zip(self.named_packet(rays)) {
+            *id = found.map_or(u32::MAX, |(prim, _)| prim);
         }
-        let found = self.closest_lanes_packet(rays);
-        for (id, found) in ids.iter_mut().zip(found) {
-            *id = found
-                .and_then(|(packet, lane, _)| self.packets[packet as usize].prim(lane))
-                .unwrap_or(u32::MAX);
+    }
+
+    /// [`Scene::intersect_primitive`] of each of `rays` (1 to [`PACKET_SIZE`]), as a
+    /// packet unless the scene is traced ray by ray.
+    #[inline(always)]
+    pub(super) fn named_packet(&self, rays: &[Ray]) -> [Option<(u32, PrimHit)>; PACKET_SIZE] {
+        if self.ray_by_ray {
+            return std::array::from_fn(|k| {
+                rays.get(k).and_then(|ray| self.intersect_primitive(ray))
+            });
         }
+        if let Some(instances) = &self.instances {
+            let found = self.closest_found_packet(instances, rays, (1 << rays.len()) - 1);
+            return found.map(|found| found.and_then(|found| self.found_prim(instances, found)));
+        }
+        self.closest_lanes_packet(rays)
+            .map(|found| self.named(found))
     }
 
     /// Which of `rays` (at most [`PACKET_SIZE`]) in the mask `active` something
@@ -113,21 +126,40 @@ impl Scene {
         let mut limits = [0.0; PACKET_SIZE];
         limits[..rays.len()].copy_from_slice(t_max);
         let mut limits = f32x16::from(limits);
+        let blocked = self.blockers_packet(&packet, |ray| rays[ray], active, &mut limits);
+        match &self.instances {
+            Some(instances) => {
+                blocked | instances.blockers_packet(&packet, active & !blocked, &limits)
+            }
+            None => blocked,
+        }
+    }
+
+    /// The rays of `packet` in `active` that a primitive of this level blocks before
+    /// their `t_max` (not lowered), as a mask; `ray_of(i)` is ray `i` of the packet.
+    #[inline(always)]
+    pub(super) fn blockers_packet(
+        &self,
+        packet: &RayPacket,
+        ray_of: impl Fn(usize) -> Ray + Copy,
+        active: u32,
+        limits: &mut f32x16,
+    ) -> u32 {
         self.wide.walk_packet_any(
-            &packet,
+            packet,
             active,
-            &mut limits,
+            limits,
             |first, count, reached, t_max| {
                 let mut blocked = 0u32;
                 for packet_index in first..first + count {
                     let prims = &self.packets[packet_index as usize];
                     let open = reached & !blocked;
                     if prims.holds_spheres() {
-                        blocked |= sphere_blockers(prims, rays, open, t_max);
+                        blocked |= sphere_blockers(prims, ray_of, open, t_max);
                     } else if open.count_ones() <= FEW_RAYS {
                         let limits = t_max.as_array();
                         for ray in lanes_of(open) {
-                            if prims.occludes(&PacketRay::new(&rays[ray]), limits[ray]) {
+                            if prims.occludes(&PacketRay::new(&ray_of(ray)), limits[ray]) {
                                 blocked |= 1 << ray;
                             }
                         }
@@ -162,27 +194,62 @@ impl Scene {
         }
         let packet = RayPacket::new(rays);
         let mut t_max = f32x16::splat(Float::INFINITY);
-        // Rays whose answer in single-ray traversal depends on its visiting order: they
-        // met two primitives at exactly the same distance, or a hit before the entry
-        // distance of a box around it.
+        let ties = self.nearest_packet(
+            &packet,
+            |ray| rays[ray],
+            packet.all(),
+            &mut t_max,
+            None,
+            &mut best,
+        );
+        for ray in lanes_of(ties) {
+            best[ray] = self.closest_lane(&rays[ray]);
+        }
+        best
+    }
+
+    /// The closest-hit packet walk of this level for the rays of `packet` in
+    /// `active` (`ray_of(i)` is ray `i`): lowers their `t_max` and records each
+    /// nearer hit in `best`. Returns the rays whose answer in single-ray traversal
+    /// depends on its visiting order: they met two primitives at exactly the same
+    /// distance, or a hit before the entry distance of a box around it (this
+    /// level's boxes, or the entry `path` into the instance's box that led here).
+    #[inline(always)]
+    pub(super) fn nearest_packet(
+        &self,
+        packet: &RayPacket,
+        ray_of: impl Fn(usize) -> Ray + Copy,
+        active: u32,
+        t_max: &mut f32x16,
+        path: Option<f32x16>,
+        best: &mut [LaneHit; PACKET_SIZE],
+    ) -> u32 {
         let mut ties = 0u32;
-        let walk = |first: u32, count: u32, reached: u32, t_max: &mut f32x16, path: &f32x16| {
+        let walk = |first: u32,
+                    count: u32,
+                    reached: u32,
+                    t_max: &mut f32x16,
+                    path_here: &f32x16| {
+            let path = &match path {
+                Some(outer) => path_here.fast_max(outer),
+                None => *path_here,
+            };
             for packet_index in first..first + count {
                 let prims = &self.packets[packet_index as usize];
                 if prims.holds_spheres() {
                     ties |=
-                        nearest_spheres(prims, packet_index, rays, reached, t_max, path, &mut best);
+                        nearest_spheres(prims, packet_index, ray_of, reached, t_max, path, best);
                     continue;
                 }
                 if reached.count_ones() <= FEW_RAYS {
                     ties |= nearest_triangles_ray_by_ray(
                         prims,
                         packet_index,
-                        rays,
+                        ray_of,
                         reached,
                         t_max,
                         path,
-                        &mut best,
+                        best,
                     );
                     continue;
                 }
@@ -219,13 +286,10 @@ impl Scene {
             }
         };
         self.wide
-            .walk_packet_closest(&packet, packet.all(), &mut t_max, walk, |first, count| {
+            .walk_packet_closest(packet, active, t_max, walk, |first, count| {
                 self.prefetch_packets(first, count)
             });
-        for ray in lanes_of(ties) {
-            best[ray] = self.closest_lane(&rays[ray]);
-        }
-        best
+        ties
     }
 }
 
@@ -237,7 +301,7 @@ impl Scene {
 fn nearest_spheres(
     prims: &TrianglePacket,
     packet_index: u32,
-    rays: &[Ray],
+    ray_of: impl Fn(usize) -> Ray,
     reached: u32,
     t_max: &mut f32x16,
     path: &f32x16,
@@ -252,7 +316,7 @@ fn nearest_spheres(
                 break;
             };
             // `next_up`: also report a hit at exactly `t_max`, a tie.
-            if let Some(hit) = shape.intersect(&rays[ray], limits[ray].next_up()) {
+            if let Some(hit) = shape.intersect(&ray_of(ray), limits[ray].next_up()) {
                 ties |= offer(ray, (packet_index, lane, hit), limits, path, best);
             }
         }
@@ -289,7 +353,7 @@ fn offer(
 fn nearest_triangles_ray_by_ray(
     prims: &TrianglePacket,
     packet_index: u32,
-    rays: &[Ray],
+    ray_of: impl Fn(usize) -> Ray,
     reached: u32,
     t_max: &mut f32x16,
     path: &f32x16,
@@ -300,7 +364,7 @@ fn nearest_triangles_ray_by_ray(
     let limits = t_max.as_mut_array();
     for ray in lanes_of(reached) {
         // `next_up`: also report hits at exactly `t_max`, ties.
-        let (hits, t, u, v) = prims.hits(&PacketRay::new(&rays[ray]), limits[ray].next_up());
+        let (hits, t, u, v) = prims.hits(&PacketRay::new(&ray_of(ray)), limits[ray].next_up());
         for lane in lanes_of(hits) {
             let hit = PrimHit {
                 t: t[lane],
@@ -315,13 +379,18 @@ fn nearest_triangles_ray_by_ray(
 
 /// The rays of `open` that a sphere of `prims` blocks before their `t_max`.
 #[inline(never)]
-fn sphere_blockers(prims: &TrianglePacket, rays: &[Ray], open: u32, t_max: &f32x16) -> u32 {
+fn sphere_blockers(
+    prims: &TrianglePacket,
+    ray_of: impl Fn(usize) -> Ray,
+    open: u32,
+    t_max: &f32x16,
+) -> u32 {
     let limits = t_max.as_array();
     lanes_of(open)
         .filter(|&ray| {
             (0..LANES)
                 .map_while(|lane| prims.shape(lane))
-                .any(|shape| shape.intersect(&rays[ray], limits[ray]).is_some())
+                .any(|shape| shape.intersect(&ray_of(ray), limits[ray]).is_some())
         })
         .fold(0, |mask, ray| mask | 1 << ray)
 }
@@ -434,7 +503,7 @@ pub(crate) mod tests {
 
     /// Packet hits and single-ray hits agree exactly on camera rays of 4x4 tiles, and
     /// packet and single-ray shadow rays agree on which are blocked.
-    fn check_agreement(scene: &Scene, look_from: Vec3) {
+    pub(crate) fn check_agreement(scene: &Scene, look_from: Vec3) {
         let camera = Camera::new(look_from, Vec3::new(0.0, 0.1, 0.0), 50.0, 96, 64);
         let (mut checked, mut shadow_checked, mut blocked) = (0, 0, 0);
         for top in (0..64).step_by(4) {

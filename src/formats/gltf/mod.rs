@@ -145,8 +145,7 @@ pub fn parse_gltf_with(
 ///
 /// # Errors
 /// Names an extension the file requires that this reader does not implement (such
-/// as `KHR_draco_mesh_compression`, `EXT_meshopt_compression`,
-/// `KHR_mesh_quantization` or `KHR_texture_basisu`). Required extensions that are
+/// as `EXT_meshopt_compression`, `KHR_mesh_quantization` or `KHR_texture_basisu`). Required extensions that are
 /// implemented are taken off the list the `gltf` crate validates, which knows only
 /// those it has types for.
 fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> {

@@ -116,6 +116,22 @@ fn truncated_or_bit_flipped_draco_data_is_an_error_naming_the_file_and_primitive
             "cut at {cut}: {error}"
         );
     }
+    // Counts other than the accessors declare.
+    let error = error_of(
+        |json| {
+            let position = json["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            json["accessors"][position]["count"] = Value::from(2020);
+        },
+        &bin,
+    );
+    assert!(
+        error.contains(
+            "mesh 0 primitive 0: KHR_draco_mesh_compression: the Draco data holds 2019 vertices, the POSITION accessor says 2020"
+        ),
+        "{error}"
+    );
     // Bits flipped in the header and the connectivity: errors.
     for at in [0, 7, 8, 12, 176, 352, 880] {
         let mut flipped = bin.clone();

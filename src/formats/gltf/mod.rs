@@ -145,9 +145,9 @@ pub fn parse_gltf_with(
 ///
 /// # Errors
 /// Names an extension the file requires that this reader does not implement (such
-/// as `EXT_meshopt_compression`, `KHR_mesh_quantization` or `KHR_texture_basisu`). Required extensions that are
-/// implemented are taken off the list the `gltf` crate validates, which knows only
-/// those it has types for.
+/// as `EXT_meshopt_compression`, `KHR_mesh_quantization` or `KHR_texture_basisu`).
+/// Required extensions that are implemented are taken off the list the `gltf` crate
+/// validates, which knows only those it has types for.
 fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> {
     if let Some(name) = root
         .extensions_required

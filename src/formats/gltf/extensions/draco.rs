@@ -22,6 +22,17 @@ pub(in super::super) const NAME: &str = "KHR_draco_mesh_compression";
 /// view, so that the `gltf` crate, which does not know the extension, takes them for
 /// valid. The reader never reads these accessors but their counts.
 pub(in super::super) fn give_views(root: &mut Root, draco: &HashMap<(usize, usize), Value>) {
+    // An accessor that a primitive without the extension also reads keeps its
+    // missing view (and the `gltf` crate's error).
+    let mut plain = std::collections::HashSet::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if !draco.contains_key(&(m, p)) {
+                let accessors = primitive.attributes.values().chain(&primitive.indices);
+                plain.extend(accessors.map(|a| a.value()));
+            }
+        }
+    }
     for (&(m, p), extension) in draco {
         let Some(view) = (extension.get("bufferView").and_then(Value::as_u64))
             .and_then(|v| usize::try_from(v).ok())
@@ -38,6 +49,7 @@ pub(in super::super) fn give_views(root: &mut Root, draco: &HashMap<(usize, usiz
             .collect();
         for a in accessors {
             if let Some(accessor) = root.accessors.get_mut(a)
+                && !plain.contains(&a)
                 && accessor.buffer_view.is_none()
                 && accessor.sparse.is_none()
             {

@@ -371,7 +371,7 @@ fn unknown_extensions_warn_and_unsupported_required_ones_are_errors() {
             "extension EXT_meshopt_compression is not supported; the file is read without it",
         ]
     );
-    for required in ["KHR_draco_mesh_compression", "EXT_meshopt_compression"] {
+    for required in ["KHR_texture_basisu", "EXT_meshopt_compression"] {
         let path = fixture.gltf(
             "required",
             &[r#"{"name": "a"}"#],

@@ -91,15 +91,17 @@ pub fn parse_gltf_with(
     let mut root = document.into_json();
     let unsupported = check_extensions(&mut root).map_err(fail)?;
     let unbounded = fill_position_bounds(&mut root);
-    let document = Document::from_json(root).map_err(invalid)?;
-    // Materials, and the nodes' instancing, are read from the file's own JSON (see
-    // `material`): the `gltf` crate keeps neither.
-    let instancing = (document.extensions_used()).any(|e| e == extensions::gpu_instancing::NAME);
-    let (raw_materials, instancing) = if document.materials().len() == 0 && !instancing {
-        (Vec::new(), HashMap::new())
+    // Materials, the nodes' instancing and the primitives' Draco compression are read
+    // from the file's own JSON (see `material`): the `gltf` crate keeps none of them.
+    let used = |name: &str| root.extensions_used.iter().any(|e| e == name);
+    let raw = used(extensions::gpu_instancing::NAME) || used(extensions::draco::NAME);
+    let (raw_materials, instancing, draco) = if root.materials.is_empty() && !raw {
+        (Vec::new(), HashMap::new(), HashMap::new())
     } else {
         raw_json(bytes).map_err(invalid)?
     };
+    extensions::draco::give_views(&mut root, &draco);
+    let document = Document::from_json(root).map_err(invalid)?;
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let buffers = read_buffers(&document, blob, &folder, access).map_err(fail)?;
@@ -125,6 +127,7 @@ pub fn parse_gltf_with(
         instanced: HashMap::new(),
         raw_materials,
         instancing,
+        draco,
         problems: MaterialProblems::default(),
     };
     for name in unsupported {
@@ -158,10 +161,9 @@ pub fn parse_gltf_with(
 ///
 /// # Errors
 /// Names an extension the file requires that this reader does not implement (such
-/// as `KHR_draco_mesh_compression`, `EXT_meshopt_compression`,
-/// `KHR_mesh_quantization` or `KHR_texture_basisu`). Required extensions that are
-/// implemented are taken off the list the `gltf` crate validates, which knows only
-/// those it has types for.
+/// as `EXT_meshopt_compression`, `KHR_mesh_quantization` or `KHR_texture_basisu`).
+/// Required extensions that are implemented are taken off the list the `gltf` crate
+/// validates, which knows only those it has types for.
 fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> {
     if let Some(name) = root
         .extensions_required
@@ -185,8 +187,19 @@ fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> 
 
 /// The JSON object of every material, as the file has it (the JSON of a `.gltf`,
 /// or the JSON chunk of a `.glb`), and the `EXT_mesh_gpu_instancing` object of each
-/// node that has one, by node index.
-fn raw_json(bytes: &[u8]) -> Result<(Vec<Value>, HashMap<usize, Value>), gltf::Error> {
+/// node that has one, by node index, and the `KHR_draco_mesh_compression` object of
+/// each primitive that has one, by mesh and primitive index.
+#[allow(clippy::type_complexity)]
+fn raw_json(
+    bytes: &[u8],
+) -> Result<
+    (
+        Vec<Value>,
+        HashMap<usize, Value>,
+        HashMap<(usize, usize), Value>,
+    ),
+    gltf::Error,
+> {
     let json = if bytes.starts_with(b"glTF") {
         gltf::binary::Glb::from_slice(bytes)?.json
     } else {
@@ -209,7 +222,22 @@ fn raw_json(bytes: &[u8]) -> Result<(Vec<Value>, HashMap<usize, Value>), gltf::E
             }
         }
     }
-    Ok((materials, instancing))
+    let mut draco = HashMap::new();
+    if let Some(Value::Array(meshes)) = root.get_mut("meshes") {
+        for (m, mesh) in meshes.iter_mut().enumerate() {
+            if let Some(Value::Array(primitives)) = mesh.get_mut("primitives") {
+                for (p, primitive) in primitives.iter_mut().enumerate() {
+                    let extension = (primitive.get_mut("extensions"))
+                        .and_then(|e| e.get_mut(extensions::draco::NAME))
+                        .map(Value::take);
+                    if let Some(extension) = extension {
+                        draco.insert((m, p), extension);
+                    }
+                }
+            }
+        }
+    }
+    Ok((materials, instancing, draco))
 }
 
 /// The data of every buffer: the GLB's binary chunk, a data URI or a file beside the
@@ -632,6 +660,9 @@ struct Reader<'a> {
     raw_materials: Vec<Value>,
     /// The `EXT_mesh_gpu_instancing` object of each node that has one.
     instancing: HashMap<usize, Value>,
+    /// The `KHR_draco_mesh_compression` object of each primitive that has one, by
+    /// mesh and primitive index.
+    draco: HashMap<(usize, usize), Value>,
     /// Problems of the materials' values, for one warning per kind.
     problems: MaterialProblems,
 }
@@ -786,6 +817,34 @@ impl Reader<'_> {
         Ok(())
     }
 
+    /// Decodes `primitive`'s `KHR_draco_mesh_compression` object `extension`: its
+    /// buffer view checked against its buffer, its counts against the accessors'.
+    fn decode_draco(
+        &self,
+        primitive: &gltf::Primitive<'_>,
+        extension: &Value,
+    ) -> Result<extensions::draco::Decoded, String> {
+        let name = extensions::draco::NAME;
+        let index = (extension.get("bufferView").and_then(Value::as_u64))
+            .ok_or_else(|| format!("{name}: no 'bufferView'"))?;
+        let view = usize::try_from(index)
+            .ok()
+            .and_then(|i| self.document.views().nth(i))
+            .ok_or_else(|| format!("{name}: buffer view {index} does not exist"))?;
+        let bytes = (self.buffers.get(view.buffer().index()))
+            .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
+            .ok_or_else(|| format!("{name}: buffer view {index} lies outside its buffer"))?;
+        let vertices = primitive
+            .get(&gltf::Semantic::Positions)
+            .ok_or_else(|| format!("{name}: no POSITION accessor"))?
+            .count();
+        let declared = extensions::draco::Declared {
+            vertices,
+            indices: primitive.indices().map(|a| a.count()),
+        };
+        extensions::draco::decode(extension, bytes, &declared)
+    }
+
     fn add_mesh(&mut self, mesh: &gltf::Mesh<'_>, world: &Mat4) -> Result<(), String> {
         // Normals go through the inverse transpose; a mirroring transform turns the
         // winding around, which glTF says to undo.
@@ -806,69 +865,105 @@ impl Reader<'_> {
                 );
                 continue;
             }
-            // The accessors are checked before the crate's reader touches them.
-            let checked = |expected: &Expected, accessor: Option<gltf::Accessor<'_>>| match accessor
-                .map(|a| check_accessor(&a, expected, &self.buffers))
-            {
-                None | Some(Ok(())) => Ok(None),
-                Some(Err(AccessorProblem::Type(message))) => Ok(Some(message)),
-                Some(Err(AccessorProblem::Bounds(message))) => Err(format!("{name}: {message}")),
+            let draco = match self.draco.get(&(mesh.index(), primitive.index())) {
+                Some(extension) => Some(
+                    self.decode_draco(&primitive, extension)
+                        .map_err(|e| format!("{name}: {e}"))?,
+                ),
+                None => None,
             };
-            let position_type = checked(&POSITIONS, primitive.get(&gltf::Semantic::Positions))?;
-            let normal_type = checked(&NORMALS, primitive.get(&gltf::Semantic::Normals))?;
-            let texcoord_type = checked(&TEXCOORDS, primitive.get(&gltf::Semantic::TexCoords(0)))?;
-            if let Some(message) = checked(&INDICES, primitive.indices())? {
-                return Err(format!("{name}: {message}"));
-            }
-            for message in [&position_type, &normal_type, &texcoord_type]
-                .into_iter()
-                .flatten()
-            {
-                self.warn(format!("{name}: {message}; ignored"));
-            }
-            let buffers = &self.buffers;
-            let reader = primitive.reader(|buffer| buffers.get(buffer.index()).map(Vec::as_slice));
-            let positions = match position_type {
-                None => reader.read_positions(),
-                Some(_) => None,
-            };
-            let Some(positions) = positions else {
-                self.warn(format!("{name}: no readable POSITION; skipped"));
-                continue;
-            };
-            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
-            let count = positions.len();
-            let normals: Option<Vec<Vec3>> = (normal_type.is_none())
-                .then(|| reader.read_normals())
-                .flatten()
-                .map(|n| n.map(Vec3::from).collect::<Vec<_>>())
-                .filter(|n| n.len() == count);
-            let texcoords: Option<Vec<Vec2>> = (texcoord_type.is_none())
-                .then(|| reader.read_tex_coords(0))
-                .flatten()
-                .map(|t| {
-                    // glTF's v runs down the image; this renderer's runs up.
-                    t.into_f32()
-                        .map(|[u, v]| Vec2::new(u, 1.0 - v))
-                        .collect::<Vec<_>>()
-                })
-                .filter(|t| t.len() == count);
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(indices) => indices.into_u32().collect(),
-                None if primitive.indices().is_some() => {
-                    return Err(format!("{name}: the indices' data lies outside its buffer"));
+            let (positions, normals, texcoords, indices, colours) = match draco {
+                Some(d) => {
+                    let vec3 = |v: Vec<[f32; 3]>| v.into_iter().map(Vec3::from).collect::<Vec<_>>();
+                    let texcoords = d.texcoords.map(|t| {
+                        // glTF's v runs down the image; this renderer's runs up.
+                        t.into_iter().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect()
+                    });
+                    let colours = d.colours.map(vec3);
+                    (
+                        vec3(d.positions),
+                        d.normals.map(vec3),
+                        texcoords,
+                        d.indices,
+                        colours,
+                    )
                 }
-                None => (0..count as u32).collect(),
+                None => {
+                    // The accessors are checked before the crate's reader touches them.
+                    let checked =
+                        |expected: &Expected, accessor: Option<gltf::Accessor<'_>>| match accessor
+                            .map(|a| check_accessor(&a, expected, &self.buffers))
+                        {
+                            None | Some(Ok(())) => Ok(None),
+                            Some(Err(AccessorProblem::Type(message))) => Ok(Some(message)),
+                            Some(Err(AccessorProblem::Bounds(message))) => {
+                                Err(format!("{name}: {message}"))
+                            }
+                        };
+                    let position_type =
+                        checked(&POSITIONS, primitive.get(&gltf::Semantic::Positions))?;
+                    let normal_type = checked(&NORMALS, primitive.get(&gltf::Semantic::Normals))?;
+                    let texcoord_type =
+                        checked(&TEXCOORDS, primitive.get(&gltf::Semantic::TexCoords(0)))?;
+                    if let Some(message) = checked(&INDICES, primitive.indices())? {
+                        return Err(format!("{name}: {message}"));
+                    }
+                    for message in [&position_type, &normal_type, &texcoord_type]
+                        .into_iter()
+                        .flatten()
+                    {
+                        self.warn(format!("{name}: {message}; ignored"));
+                    }
+                    let buffers = &self.buffers;
+                    let reader =
+                        primitive.reader(|buffer| buffers.get(buffer.index()).map(Vec::as_slice));
+                    let positions = match position_type {
+                        None => reader.read_positions(),
+                        Some(_) => None,
+                    };
+                    let Some(positions) = positions else {
+                        self.warn(format!("{name}: no readable POSITION; skipped"));
+                        continue;
+                    };
+                    let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+                    let count = positions.len();
+                    let normals: Option<Vec<Vec3>> = (normal_type.is_none())
+                        .then(|| reader.read_normals())
+                        .flatten()
+                        .map(|n| n.map(Vec3::from).collect::<Vec<_>>())
+                        .filter(|n| n.len() == count);
+                    let texcoords: Option<Vec<Vec2>> = (texcoord_type.is_none())
+                        .then(|| reader.read_tex_coords(0))
+                        .flatten()
+                        .map(|t| {
+                            // glTF's v runs down the image; this renderer's runs up.
+                            t.into_f32()
+                                .map(|[u, v]| Vec2::new(u, 1.0 - v))
+                                .collect::<Vec<_>>()
+                        })
+                        .filter(|t| t.len() == count);
+                    let indices: Vec<u32> = match reader.read_indices() {
+                        Some(indices) => indices.into_u32().collect(),
+                        None if primitive.indices().is_some() => {
+                            return Err(format!(
+                                "{name}: the indices' data lies outside its buffer"
+                            ));
+                        }
+                        None => (0..count as u32).collect(),
+                    };
+                    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
+                        return Err(format!(
+                            "{name}: index {bad} out of range ({count} vertices)"
+                        ));
+                    }
+                    let colours: Option<Vec<Vec3>> = reader
+                        .read_colors(0)
+                        .map(|c| c.into_rgb_f32().map(Vec3::from).collect::<Vec<_>>())
+                        .filter(|c| c.len() == count);
+                    (positions, normals, texcoords, indices, colours)
+                }
             };
-            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
-                return Err(format!(
-                    "{name}: index {bad} out of range ({count} vertices)"
-                ));
-            }
-            let colours: Option<Vec<Vec3>> = reader
-                .read_colors(0)
-                .map(|c| c.into_rgb_f32().map(Vec3::from).collect::<Vec<_>>())
-                .filter(|c| c.len() == count);
+            let count = positions.len();
             // Placed in the world, every value must be finite: a buffer may hold NaN,
             // and a huge transform may overflow.
             let positions: Vec<Vec3> = positions

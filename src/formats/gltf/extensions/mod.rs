@@ -5,6 +5,7 @@
 //! `extensionsRequired` are an error (see [`super::check_extensions`]).
 
 pub(super) mod clearcoat;
+pub(super) mod draco;
 pub(super) mod emissive_strength;
 pub(super) mod gpu_instancing;
 pub(super) mod ior;
@@ -41,10 +42,12 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
     emissive_strength::EXTENSION,
 ];
 
-/// The other extensions read: lights and mesh instancing (by the scene walk), and
+/// The other extensions read: lights and mesh instancing (by the scene walk), Draco
+/// compressed primitives (by the mesh reader), and
 /// texture transforms (on every texture reference).
 pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
+    draco::NAME,
     gpu_instancing::NAME,
     texture_transform::NAME,
 ];

@@ -154,10 +154,11 @@ fn materials_map_base_colour_metal_roughness_emission_and_the_alpha_mask() {
         let (checker, lamp, ghost, metal) = (&m[0], &m[1], &m[2], &m[3]);
         assert_eq!(checker.name, "checker");
         // Dielectric: Kd is the base colour, Ks 4 percent; roughness 1 spreads the
-        // highlight all over (Ns 0).
+        // highlight as far as a Phong lobe goes (Ns 1, a cosine: Walter's 0 would be
+        // flat).
         assert_eq!(checker.diffuse, Vec3::new(1.0, 0.5, 0.25));
         assert!(close(checker.specular, Vec3::splat(0.04)));
-        assert_eq!(checker.shininess, 0.0);
+        assert_eq!(checker.shininess, 1.0);
         assert_eq!(checker.ambient, Vec3::ZERO);
         // The base colour texture multiplies Kd: red in the top left (glTF uv 0, 0).
         let top_left = checker.at(Vec2::new(0.25, 0.75)).diffuse;

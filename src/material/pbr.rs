@@ -244,12 +244,15 @@ impl PbrValues {
     /// incidence (the dielectric's `f0`, turning into the base colour as the
     /// material turns metal, so that a metal keeps its colour in its highlights), and
     /// `Ns` the exponent whose highlight is as wide as a GGX lobe of
-    /// `alpha = roughness^2` (Walter et al. 2007: `Ns = 2 / alpha^2 - 2`). The
-    /// ambient and emission are left as they are.
+    /// `alpha = roughness^2` (Walter et al. 2007: `Ns = 2 / alpha^2 - 2`), at least
+    /// 1: below it (roughness above 0.84) SPEC's `max(0, cos)^Ns` adds `Ks` nearly
+    /// flat wherever a light reaches, and a rough metal, all `Ks`, would show no
+    /// shape (the default light rig drops such a highlight altogether: the metal
+    /// came out black). The ambient and emission are left as they are.
     pub fn phong(&self, values: &mut SurfaceValues) {
         let alpha_squared = self.roughness.powi(4);
         values.shininess = if alpha_squared > 0.0 {
-            (2.0 / alpha_squared - 2.0).clamp(0.0, MAX_SHININESS)
+            (2.0 / alpha_squared - 2.0).clamp(1.0, MAX_SHININESS)
         } else {
             MAX_SHININESS
         };
@@ -305,5 +308,37 @@ mod tests {
         assert_eq!(values.diffuse, Vec3::ZERO);
         assert_eq!(values.specular, gold.base_color);
         assert!(values.shininess > 200.0);
+    }
+
+    #[test]
+    fn the_roughest_metal_keeps_a_cosine_highlight() {
+        // Roughness 1 gives Walter's exponent 0: flat `Ks` in SPEC's formula, which
+        // the default rig drops (a black model). The approximation stops at 1.
+        let rough = PbrMaterial {
+            metallic: 1.0,
+            roughness: 1.0,
+            ..PbrMaterial::default()
+        };
+        let mut values = SurfaceValues {
+            ambient: Vec3::ZERO,
+            diffuse: Vec3::ZERO,
+            specular: Vec3::ZERO,
+            emission: Vec3::ZERO,
+            shininess: 0.0,
+        };
+        rough.constants().phong(&mut values);
+        assert_eq!(values.shininess, 1.0);
+        assert_eq!(values.specular, Vec3::ONE);
+        // Smoother surfaces keep Walter's exponent: roughness 0.5 gives 2/0.0625 - 2.
+        let half = PbrMaterial {
+            roughness: 0.5,
+            ..rough
+        };
+        half.constants().phong(&mut values);
+        assert!(
+            (values.shininess - 30.0).abs() < 1e-3,
+            "{}",
+            values.shininess
+        );
     }
 }

@@ -1,12 +1,18 @@
 //! glTF's compressed geometry: `KHR_draco_mesh_compression`, checked against the
 //! uncompressed model (`tests/data/gltf/draco/expected.json`, written by its
-//! `make_expected.py` from the uncompressed 2CylinderEngine), and corrupt Draco data.
+//! `make_expected.py` from the uncompressed 2CylinderEngine), and corrupt Draco data;
+//! `EXT_meshopt_compression` (with `KHR_mesh_quantization`), checked against the
+//! uncompressed torus that `tests/data/gltf/meshopt/make_fixtures.py` wrote and
+//! gltfpack compressed, and corrupt meshopt streams.
+
+mod support;
 
 use std::path::{Path, PathBuf};
 
 use gltf::json::Value;
+use raytracer::description::SceneDescription;
 use raytracer::formats;
-use raytracer::math::Vec3;
+use raytracer::math::{Vec2, Vec3};
 
 fn draco_fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -155,4 +161,254 @@ fn truncated_or_bit_flipped_draco_data_is_an_error_naming_the_file_and_primitive
             );
         }
     }
+}
+
+fn meshopt_fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/gltf/meshopt")
+        .join(name)
+}
+
+/// A loaded file's description, its instances flattened.
+fn described(path: &Path) -> SceneDescription {
+    let mut loaded = formats::load(path).unwrap_or_else(|e| panic!("{e}"));
+    loaded.description.flatten_instances().unwrap();
+    loaded.description
+}
+
+/// The triangles of `d` as corner positions, each snapped to the nearest of
+/// `vertices` (the source's distinct positions, seam copies merged) and rotated to
+/// begin at its least corner, winding kept; sorted. Panics when a corner lies
+/// farther than `tolerance` from every source position.
+fn snapped_triangles(d: &SceneDescription, vertices: &[Vec3], tolerance: f32) -> Vec<[usize; 3]> {
+    let snap = |p: Vec3| -> usize {
+        let (best, distance) = (vertices.iter().enumerate())
+            .map(|(i, v)| (i, v.distance(p)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        assert!(
+            distance <= tolerance,
+            "{p} is {distance} from every source vertex"
+        );
+        best
+    };
+    let mut triangles: Vec<[usize; 3]> = (d.triangles.iter())
+        .map(|t| {
+            let [a, b, c] = t.positions.map(|i| snap(d.positions[i as usize]));
+            match a.min(b).min(c) {
+                m if m == a => [a, b, c],
+                m if m == b => [b, c, a],
+                _ => [c, a, b],
+            }
+        })
+        .collect();
+    triangles.sort_unstable();
+    triangles
+}
+
+/// The source's distinct positions (its seams' copies merged).
+fn distinct_positions(d: &SceneDescription) -> Vec<Vec3> {
+    let mut distinct: Vec<Vec3> = Vec::new();
+    for &p in &d.positions {
+        if distinct.iter().all(|q| q.distance(p) > 1e-5) {
+            distinct.push(p);
+        }
+    }
+    distinct
+}
+
+/// Each vertex of `d`, by its triangles' corners: (position, normal, texture
+/// coordinate).
+fn corners(d: &SceneDescription) -> Vec<(Vec3, Vec3, Vec2)> {
+    let mut out = Vec::new();
+    for (t, triangle) in d.triangles.iter().enumerate() {
+        let normals = d.triangle_normals[t].unwrap();
+        let texcoords = d.triangle_texcoords[t].unwrap();
+        for k in 0..3 {
+            out.push((
+                d.positions[triangle.positions[k] as usize],
+                // Normals are placed by the inverse transpose of the node's
+                // transform (gltfpack's dequantizing scale among them), and
+                // normalized by the scene.
+                d.normals[normals[k] as usize].normalize(),
+                d.texcoords[texcoords[k] as usize],
+            ));
+        }
+    }
+    out
+}
+
+#[test]
+fn meshopt_files_decode_to_the_uncompressed_sources_triangles_normals_and_texcoords() {
+    let source = described(&meshopt_fixture("torus.glb"));
+    let vertices = distinct_positions(&source);
+    let source_corners = corners(&source);
+    // File, position tolerance (gltfpack's 14-bit integer positions over the torus'
+    // 2.8 extent: 1.7e-4 a step; exponential-filtered floats; plain floats),
+    // normal tolerance (8-bit and 12-bit octahedral; plain floats), and whether the
+    // texture coordinates are the source's as they are (quantized ones are scaled
+    // back by KHR_texture_transform when sampled, checked by the render below).
+    for (file, position_tolerance, normal_tolerance, plain_texcoords) in [
+        ("torus-quantized.glb", 2e-4, 0.02, false),
+        ("torus-filters.glb", 1e-4, 2e-3, true),
+        ("torus-float.glb", 0.0, 0.0, true),
+    ] {
+        let d = described(&meshopt_fixture(file));
+        assert_eq!(d.triangles.len(), source.triangles.len(), "{file}");
+        // The same triangles (gltfpack reorders vertices and triangles), wound alike.
+        assert_eq!(
+            snapped_triangles(&d, &vertices, position_tolerance + 1e-6),
+            snapped_triangles(&source, &vertices, 1e-5),
+            "{file}"
+        );
+        // Every corner's normal (and texture coordinate) is the source's at that
+        // position, within the quantization.
+        for (p, n, uv) in corners(&d) {
+            let near = (source_corners.iter())
+                .filter(|(q, _, _)| q.distance(p) <= position_tolerance + 1e-6);
+            let (normal_error, uv_error) = near.fold((f32::MAX, f32::MAX), |(a, b), (_, m, w)| {
+                (a.min(m.distance(n)), b.min(w.distance(uv)))
+            });
+            assert!(
+                normal_error <= normal_tolerance + 1e-6,
+                "{file}: normal {n} at {p} is {normal_error} from the source's"
+            );
+            if plain_texcoords {
+                assert!(
+                    uv_error <= 1e-5,
+                    "{file}: texture coordinate {uv} at {p} is {uv_error} from the source's"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn meshopt_files_render_as_the_uncompressed_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let flags = ["--width", "64", "--height", "48"];
+    let source = support::render(
+        &meshopt_fixture("torus.glb"),
+        &dir.path().join("s.png"),
+        &flags,
+    );
+    for file in [
+        "torus-quantized.glb",
+        "torus-filters.glb",
+        "torus-float.glb",
+    ] {
+        let out = dir.path().join("c.png");
+        let image = support::render(&meshopt_fixture(file), &out, &flags);
+        // Quantized normals shade a few levels apart, and quantized positions move
+        // silhouettes and texture seams by a fraction of a pixel: as many as 1% of
+        // the pixels may differ by more than 8 levels.
+        let (count, most) = support::differences_over(&source, &image, 8);
+        assert!(
+            count * 100 <= 64 * 48,
+            "{file}: {count} pixels differ by more than 8 levels (by up to {most})"
+        );
+    }
+}
+
+/// A `.glb`'s JSON and binary chunk.
+fn split_glb(bytes: &[u8]) -> (Value, Vec<u8>) {
+    let glb = gltf::binary::Glb::from_slice(bytes).unwrap();
+    let json = gltf::json::deserialize::from_slice(&glb.json).unwrap();
+    (json, glb.bin.unwrap().into_owned())
+}
+
+/// A `.glb` of `json` and `bin`.
+fn join_glb(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut text = gltf::json::serialize::to_vec(json).unwrap();
+    text.resize(text.len().next_multiple_of(4), b' ');
+    let mut bin = bin.to_vec();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let mut out = Vec::new();
+    let total = 12 + 8 + text.len() + 8 + bin.len();
+    for word in [0x4654_6C67, 2, total as u32, text.len() as u32, 0x4E4F_534A] {
+        out.extend_from_slice(&u32::to_le_bytes(word));
+    }
+    out.extend_from_slice(&text);
+    out.extend_from_slice(&u32::to_le_bytes(bin.len() as u32));
+    out.extend_from_slice(&u32::to_le_bytes(0x004E_4942));
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// Loads `json` and `bin` as one `.glb`: its error, if any (which must name the
+/// file), and never a panic.
+fn meshopt_error(json: &Value, bin: &[u8]) -> Option<String> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.glb");
+    std::fs::write(&path, join_glb(json, bin)).unwrap();
+    let result = std::panic::catch_unwind(|| formats::load(&path).err());
+    let error = result.unwrap_or_else(|_| panic!("a panic"))?.to_string();
+    assert!(
+        error.starts_with(&path.display().to_string()),
+        "the error does not name the file: {error}"
+    );
+    Some(error)
+}
+
+#[test]
+fn truncated_corrupt_or_impossible_meshopt_streams_are_errors_naming_the_file_and_view() {
+    let (json, bin) = split_glb(&std::fs::read(meshopt_fixture("torus-filters.glb")).unwrap());
+    let loaded = meshopt_error(&json, &bin);
+    assert_eq!(loaded, None, "the fixture itself must load");
+    let name = "EXT_meshopt_compression";
+    let views: Vec<usize> = (0..json["bufferViews"].as_array().unwrap().len())
+        .filter(|&v| !json["bufferViews"][v]["extensions"][name].is_null())
+        .collect();
+    assert_eq!(
+        views.len(),
+        4,
+        "positions, normals, texture coordinates, indices"
+    );
+    for &view in &views {
+        let extension = &json["bufferViews"][view]["extensions"][name];
+        let offset = extension["byteOffset"].as_u64().unwrap() as usize;
+        let length = extension["byteLength"].as_u64().unwrap() as usize;
+        let named = format!("buffer view {view}: {name}");
+        // Cut short, at several lengths.
+        for cut in [0, 1, 16, length / 2, length - 1] {
+            let mut json = json.clone();
+            json["bufferViews"][view]["extensions"][name]["byteLength"] = Value::from(cut);
+            let error = meshopt_error(&json, &bin).unwrap_or_default();
+            assert!(error.contains(&named), "view {view} cut at {cut}: {error}");
+        }
+        // Another codec or version: the header byte.
+        let mut broken = bin.clone();
+        broken[offset] ^= 0x40;
+        let error = meshopt_error(&json, &broken).unwrap_or_default();
+        assert!(
+            error.contains(&format!("{named}: the stream begins with byte")),
+            "{error}"
+        );
+        // Bits flipped anywhere: an error naming the view, or other values (meshopt
+        // streams have no checksum), never a panic.
+        for at in (1..length).step_by(53) {
+            let mut broken = bin.clone();
+            broken[offset + at] ^= 0xA5;
+            if let Some(error) = meshopt_error(&json, &broken) {
+                assert!(error.contains("broken.glb: "), "byte {at}: {error}");
+            }
+        }
+    }
+    // More elements than the stream can hold: refused before anything is allocated.
+    let mut huge = json.clone();
+    huge["bufferViews"][views[0]]["extensions"][name]["count"] = Value::from(1u64 << 40);
+    let error = meshopt_error(&huge, &bin).unwrap_or_default();
+    assert!(error.contains("cannot come from"), "{error}");
+    // A stream in a buffer that does not exist, or in the fallback buffer.
+    for (buffer, message) in [(7, "buffer 7 does not exist"), (1, "a fallback buffer")] {
+        let mut json = json.clone();
+        json["bufferViews"][views[0]]["extensions"][name]["buffer"] = Value::from(buffer);
+        let error = meshopt_error(&json, &bin).unwrap_or_default();
+        assert!(error.contains(message), "{error}");
+    }
+    // A stride the mode does not allow (the decoder would assert it).
+    let mut json = json.clone();
+    json["bufferViews"][views[3]]["extensions"][name]["byteStride"] = Value::from(3);
+    let error = meshopt_error(&json, &bin).unwrap_or_default();
+    assert!(error.contains("not 2 or 4"), "{error}");
 }

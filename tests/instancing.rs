@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::Path;
 
-use support::{raytracer, read_png, stderr, write_png};
+use support::{differences, raytracer, render, stderr, write_png};
 
 /// A UV sphere of `rings` x `segments` quads split into triangles, with unit vertex
 /// normals and texture coordinates, in material `skin`; and a lamp quad facing -y,
@@ -177,41 +177,6 @@ fn flattened_toml(dir: &Path) -> String {
         writeln!(toml, "[[mesh]]\nfile = \"lamp.obj\"\ntransform = {t}").unwrap();
     }
     toml
-}
-
-/// Renders `scene` with `flags` into `out` and returns its RGB bytes.
-fn render(scene: &Path, out: &Path, flags: &[&str]) -> Vec<u8> {
-    let mut args = vec![
-        "render",
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "-q",
-    ];
-    args.extend(flags);
-    let output = raytracer(&args);
-    assert!(output.status.success(), "{}", stderr(&output));
-    read_png(out).2
-}
-
-/// Pixels that differ, and by how much at most (over channels, in 8-bit steps).
-fn differences(a: &[u8], b: &[u8]) -> (usize, u8) {
-    assert_eq!(a.len(), b.len());
-    let mut count = 0;
-    let mut most = 0;
-    for (p, q) in a.chunks(3).zip(b.chunks(3)) {
-        let d = p
-            .iter()
-            .zip(q)
-            .map(|(x, y)| x.abs_diff(*y))
-            .max()
-            .unwrap_or(0);
-        if d > 0 {
-            count += 1;
-            most = most.max(d);
-        }
-    }
-    (count, most)
 }
 
 fn scenes() -> (tempfile::TempDir, std::path::PathBuf, std::path::PathBuf) {

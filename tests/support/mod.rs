@@ -196,3 +196,44 @@ pub fn vertex_coloured_gltf(dir: &Path, textured: bool) -> PathBuf {
     std::fs::write(&path, gltf).unwrap();
     path
 }
+
+/// Renders `scene` with `flags` into `out` and returns its RGB bytes.
+pub fn render(scene: &Path, out: &Path, flags: &[&str]) -> Vec<u8> {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "-q",
+    ];
+    args.extend(flags);
+    let output = raytracer(&args);
+    assert!(output.status.success(), "{}", stderr(&output));
+    read_png(out).2
+}
+
+/// Pixels that differ, and by how much at most (over channels, in 8-bit steps).
+pub fn differences(a: &[u8], b: &[u8]) -> (usize, u8) {
+    differences_over(a, b, 0)
+}
+
+/// Pixels that differ by more than `levels` (over channels, in 8-bit steps), and by
+/// how much the most different one does.
+pub fn differences_over(a: &[u8], b: &[u8], levels: u8) -> (usize, u8) {
+    assert_eq!(a.len(), b.len());
+    let mut count = 0;
+    let mut most = 0;
+    for (p, q) in a.chunks(3).zip(b.chunks(3)) {
+        let d = p
+            .iter()
+            .zip(q)
+            .map(|(x, y)| x.abs_diff(*y))
+            .max()
+            .unwrap_or(0);
+        if d > levels {
+            count += 1;
+        }
+        most = most.max(d);
+    }
+    (count, most)
+}

@@ -94,17 +94,34 @@ pub fn parse_gltf_with(
     // Materials, the nodes' instancing and the primitives' Draco compression are read
     // from the file's own JSON (see `material`): the `gltf` crate keeps none of them.
     let used = |name: &str| root.extensions_used.iter().any(|e| e == name);
-    let raw = used(extensions::gpu_instancing::NAME) || used(extensions::draco::NAME);
-    let (raw_materials, instancing, draco) = if root.materials.is_empty() && !raw {
-        (Vec::new(), HashMap::new(), HashMap::new())
+    let raw = used(extensions::gpu_instancing::NAME)
+        || used(extensions::draco::NAME)
+        || used(extensions::meshopt::NAME);
+    let RawJson {
+        materials: raw_materials,
+        instancing,
+        draco,
+        meshopt,
+    } = if root.materials.is_empty() && !raw {
+        RawJson::default()
     } else {
         raw_json(bytes).map_err(invalid)?
     };
     extensions::draco::give_views(&mut root, &draco);
+    let compressed = compressed_views(&mut root, &meshopt).map_err(fail)?;
     let document = Document::from_json(root).map_err(invalid)?;
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let buffers = read_buffers(&document, blob, &folder, access).map_err(fail)?;
+    let buffers = read_buffers(
+        &document,
+        blob,
+        &folder,
+        access,
+        &meshopt.fallbacks,
+        compressed.len(),
+    )
+    .and_then(|buffers| decode_views(buffers, &compressed))
+    .map_err(fail)?;
     let mut reader = Reader {
         path,
         access,
@@ -185,21 +202,38 @@ fn check_extensions(root: &mut gltf::json::Root) -> Result<Vec<String>, String> 
     Ok(unsupported)
 }
 
-/// The JSON object of every material, as the file has it (the JSON of a `.gltf`,
-/// or the JSON chunk of a `.glb`), and the `EXT_mesh_gpu_instancing` object of each
-/// node that has one, by node index, and the `KHR_draco_mesh_compression` object of
-/// each primitive that has one, by mesh and primitive index.
-#[allow(clippy::type_complexity)]
-fn raw_json(
-    bytes: &[u8],
-) -> Result<
-    (
-        Vec<Value>,
-        HashMap<usize, Value>,
-        HashMap<(usize, usize), Value>,
-    ),
-    gltf::Error,
-> {
+/// What this reader takes from the file's own JSON (the JSON of a `.gltf`, or the
+/// JSON chunk of a `.glb`), since the `gltf` crate keeps none of it.
+#[derive(Default)]
+struct RawJson {
+    /// The JSON object of every material.
+    materials: Vec<Value>,
+    /// The `EXT_mesh_gpu_instancing` object of each node that has one, by node index.
+    instancing: HashMap<usize, Value>,
+    /// The `KHR_draco_mesh_compression` object of each primitive that has one, by
+    /// mesh and primitive index.
+    draco: HashMap<(usize, usize), Value>,
+    meshopt: MeshoptJson,
+}
+
+/// The `EXT_meshopt_compression` objects of a file.
+#[derive(Default)]
+struct MeshoptJson {
+    /// The extension's object of each buffer view that has one, by view index.
+    views: Vec<(usize, Value)>,
+    /// The buffers marked `"fallback": true`: never read (they may have no `uri`).
+    fallbacks: Vec<usize>,
+}
+
+/// The extension object `name` of `object`, taken out of it.
+fn take_extension(object: &mut Value, name: &str) -> Option<Value> {
+    (object.get_mut("extensions"))
+        .and_then(|e| e.get_mut(name))
+        .map(Value::take)
+}
+
+/// Reads [`RawJson`] from the bytes of a `.gltf` or `.glb`.
+fn raw_json(bytes: &[u8]) -> Result<RawJson, gltf::Error> {
     let json = if bytes.starts_with(b"glTF") {
         gltf::binary::Glb::from_slice(bytes)?.json
     } else {
@@ -207,50 +241,164 @@ fn raw_json(
     };
     let mut root: Value =
         gltf::json::deserialize::from_slice(&json).map_err(gltf::Error::Deserialize)?;
-    let materials = match root.get_mut("materials").map(Value::take) {
-        Some(Value::Array(materials)) => materials,
-        _ => Vec::new(),
+    let mut raw = RawJson {
+        materials: match root.get_mut("materials").map(Value::take) {
+            Some(Value::Array(materials)) => materials,
+            _ => Vec::new(),
+        },
+        ..RawJson::default()
     };
-    let mut instancing = HashMap::new();
     if let Some(Value::Array(nodes)) = root.get_mut("nodes") {
         for (index, node) in nodes.iter_mut().enumerate() {
-            let extension = (node.get_mut("extensions"))
-                .and_then(|e| e.get_mut(extensions::gpu_instancing::NAME))
-                .map(Value::take);
-            if let Some(extension) = extension {
-                instancing.insert(index, extension);
+            if let Some(extension) = take_extension(node, extensions::gpu_instancing::NAME) {
+                raw.instancing.insert(index, extension);
             }
         }
     }
-    let mut draco = HashMap::new();
     if let Some(Value::Array(meshes)) = root.get_mut("meshes") {
         for (m, mesh) in meshes.iter_mut().enumerate() {
             if let Some(Value::Array(primitives)) = mesh.get_mut("primitives") {
                 for (p, primitive) in primitives.iter_mut().enumerate() {
-                    let extension = (primitive.get_mut("extensions"))
-                        .and_then(|e| e.get_mut(extensions::draco::NAME))
-                        .map(Value::take);
-                    if let Some(extension) = extension {
-                        draco.insert((m, p), extension);
+                    if let Some(extension) = take_extension(primitive, extensions::draco::NAME) {
+                        raw.draco.insert((m, p), extension);
                     }
                 }
             }
         }
     }
-    Ok((materials, instancing, draco))
+    let name = extensions::meshopt::NAME;
+    if let Some(Value::Array(views)) = root.get_mut("bufferViews") {
+        for (index, view) in views.iter_mut().enumerate() {
+            if let Some(extension) = take_extension(view, name) {
+                raw.meshopt.views.push((index, extension));
+            }
+        }
+    }
+    if let Some(Value::Array(buffers)) = root.get_mut("buffers") {
+        for (index, buffer) in buffers.iter_mut().enumerate() {
+            let fallback = take_extension(buffer, name)
+                .and_then(|e| e.get("fallback").and_then(Value::as_bool));
+            if fallback == Some(true) {
+                raw.meshopt.fallbacks.push(index);
+            }
+        }
+    }
+    Ok(raw)
+}
+
+/// A buffer view to decode: its index and its `EXT_meshopt_compression` object.
+struct CompressedView {
+    view: usize,
+    compressed: extensions::meshopt::Compressed,
+}
+
+/// Points each buffer view with `EXT_meshopt_compression` at a buffer of its own,
+/// appended to `root`'s (in the order of the views), which [`decode_views`] fills
+/// with its decoded data; the view keeps its length, now from byte 0. Returns the
+/// views to decode.
+///
+/// # Errors
+/// An extension object that is malformed or breaks the extension's rules (named by
+/// its buffer view), or a stream in a buffer that does not exist or is a fallback.
+fn compressed_views(
+    root: &mut gltf::json::Root,
+    meshopt: &MeshoptJson,
+) -> Result<Vec<CompressedView>, String> {
+    use gltf::json::validation::USize64;
+    let name = extensions::meshopt::NAME;
+    let buffers = root.buffers.len();
+    let mut views = Vec::with_capacity(meshopt.views.len());
+    for (index, extension) in &meshopt.views {
+        let fail = |message: String| format!("buffer view {index}: {name}: {message}");
+        let compressed = extensions::meshopt::Compressed::parse(extension).map_err(fail)?;
+        if compressed.buffer >= buffers {
+            return Err(fail(format!(
+                "buffer {} does not exist ({buffers} buffers)",
+                compressed.buffer
+            )));
+        }
+        if meshopt.fallbacks.contains(&compressed.buffer) {
+            return Err(fail(format!(
+                "its stream is in buffer {}, a fallback buffer",
+                compressed.buffer
+            )));
+        }
+        let Some(view) = root.buffer_views.get_mut(*index) else {
+            continue;
+        };
+        let size = compressed.decoded_size().map_err(fail)?;
+        if view.byte_length.0 > size as u64 {
+            return Err(fail(format!(
+                "it decodes to {size} bytes, less than the view's byteLength of {}",
+                view.byte_length.0
+            )));
+        }
+        view.buffer = gltf::json::Index::new((buffers + views.len()) as u32);
+        view.byte_offset = Some(USize64(0));
+        views.push(CompressedView {
+            view: *index,
+            compressed,
+        });
+    }
+    for view in &views {
+        root.buffers.push(gltf::json::Buffer {
+            byte_length: USize64(view.compressed.decoded_size().unwrap_or(0) as u64),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+    }
+    Ok(views)
+}
+
+/// Appends the decoded data of each of `views` to `buffers` (the file's own buffers,
+/// as [`read_buffers`] read them), as [`compressed_views`] pointed them.
+///
+/// # Errors
+/// A stream outside its buffer, or one the decoder refuses; named by its view.
+fn decode_views(
+    mut buffers: Vec<Vec<u8>>,
+    views: &[CompressedView],
+) -> Result<Vec<Vec<u8>>, String> {
+    let own = buffers.len();
+    for CompressedView { view, compressed } in views {
+        let fail = |message: String| {
+            let name = extensions::meshopt::NAME;
+            format!("buffer view {view}: {name}: {message}")
+        };
+        let source = &buffers[..own][compressed.buffer];
+        let decoded = compressed
+            .stream(source)
+            .and_then(|stream| compressed.decode(stream))
+            .map_err(fail)?;
+        buffers.push(decoded);
+    }
+    Ok(buffers)
 }
 
 /// The data of every buffer: the GLB's binary chunk, a data URI or a file beside the
 /// glTF file; each at least as long as the file says.
+///
+/// `EXT_meshopt_compression`'s fallback buffers (`fallbacks`) are left empty, and
+/// the buffers [`compressed_views`] appended (the last ones) are left out, for
+/// [`decode_views`] to fill.
 fn read_buffers(
     document: &Document,
     mut blob: Option<Vec<u8>>,
     folder: &Path,
     access: &FileAccess,
+    fallbacks: &[usize],
+    decoded: usize,
 ) -> Result<Vec<Vec<u8>>, String> {
-    let mut buffers = Vec::new();
-    for buffer in document.buffers() {
+    let own = document.buffers().len() - decoded;
+    let mut buffers = Vec::with_capacity(own + decoded);
+    for buffer in document.buffers().take(own) {
         let index = buffer.index();
+        if fallbacks.contains(&index) {
+            buffers.push(Vec::new());
+            continue;
+        }
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 format!("buffer {index} refers to the binary chunk, and there is none")
@@ -415,25 +563,76 @@ struct Expected {
     dimensions: gltf::accessor::Dimensions,
 }
 
+/// Floats, or (`KHR_mesh_quantization`) 8- and 16-bit integers, normalized or not.
+const QUANTIZED: &[gltf::accessor::DataType] = &[
+    gltf::accessor::DataType::F32,
+    gltf::accessor::DataType::I8,
+    gltf::accessor::DataType::U8,
+    gltf::accessor::DataType::I16,
+    gltf::accessor::DataType::U16,
+];
 const POSITIONS: Expected = Expected {
     what: "POSITION",
-    types: &[gltf::accessor::DataType::F32],
+    types: QUANTIZED,
     dimensions: gltf::accessor::Dimensions::Vec3,
 };
+/// `KHR_mesh_quantization` allows normalized signed integers only; an unsigned or
+/// unnormalized one is read as such (whatever it gives is normalised by the scene).
 const NORMALS: Expected = Expected {
     what: "NORMAL",
-    types: &[gltf::accessor::DataType::F32],
+    types: QUANTIZED,
     dimensions: gltf::accessor::Dimensions::Vec3,
 };
 const TEXCOORDS: Expected = Expected {
     what: "TEXCOORD_0",
-    types: &[
-        gltf::accessor::DataType::U8,
-        gltf::accessor::DataType::U16,
-        gltf::accessor::DataType::F32,
-    ],
+    types: QUANTIZED,
     dimensions: gltf::accessor::Dimensions::Vec2,
 };
+
+/// The values of an attribute `accessor` (checked by [`check_accessor`]) as floats:
+/// integer components (core glTF's normalized texture coordinates, and every
+/// attribute under `KHR_mesh_quantization`) as glTF reads them, normalized ones
+/// divided by their type's maximum (signed ones no less than -1), others as they
+/// are. `None` for another component type.
+fn read_floats<const N: usize>(
+    accessor: gltf::Accessor<'_>,
+    buffers: &[Vec<u8>],
+) -> Option<Vec<[f32; N]>>
+where
+    [f32; N]: gltf::accessor::Item,
+    [i8; N]: gltf::accessor::Item,
+    [u8; N]: gltf::accessor::Item,
+    [i16; N]: gltf::accessor::Item,
+    [u16; N]: gltf::accessor::Item,
+{
+    use gltf::accessor::DataType;
+    fn convert<T: Copy, const N: usize>(
+        accessor: gltf::Accessor<'_>,
+        buffers: &[Vec<u8>],
+        to_float: impl Fn(T) -> f32,
+    ) -> Option<Vec<[f32; N]>>
+    where
+        [T; N]: gltf::accessor::Item,
+    {
+        let values = gltf::accessor::Iter::<[T; N]>::new(accessor, |buffer| {
+            buffers.get(buffer.index()).map(Vec::as_slice)
+        })?;
+        Some(values.map(|v| v.map(&to_float)).collect())
+    }
+    let normalized = accessor.normalized();
+    let scale = move |value: f32, max: f32| match normalized {
+        true => (value / max).max(-1.0),
+        false => value,
+    };
+    match accessor.data_type() {
+        DataType::F32 => convert::<f32, N>(accessor, buffers, |x| x),
+        DataType::I8 => convert::<i8, N>(accessor, buffers, |x| scale(x as f32, 127.0)),
+        DataType::U8 => convert::<u8, N>(accessor, buffers, |x| scale(x as f32, 255.0)),
+        DataType::I16 => convert::<i16, N>(accessor, buffers, |x| scale(x as f32, 32767.0)),
+        DataType::U16 => convert::<u16, N>(accessor, buffers, |x| scale(x as f32, 65535.0)),
+        DataType::U32 => None,
+    }
+}
 const INDICES: Expected = Expected {
     what: "indices",
     types: &[
@@ -917,31 +1116,32 @@ impl Reader<'_> {
                     let buffers = &self.buffers;
                     let reader =
                         primitive.reader(|buffer| buffers.get(buffer.index()).map(Vec::as_slice));
-                    let positions = match position_type {
-                        None => reader.read_positions(),
-                        Some(_) => None,
+                    let attribute = |semantic: gltf::Semantic, problem: &Option<String>| {
+                        primitive.get(&semantic).filter(|_| problem.is_none())
                     };
+                    let positions = attribute(gltf::Semantic::Positions, &position_type)
+                        .and_then(|a| read_floats::<3>(a, buffers));
                     let Some(positions) = positions else {
                         self.warn(format!("{name}: no readable POSITION; skipped"));
                         continue;
                     };
-                    let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+                    let positions: Vec<Vec3> = positions.into_iter().map(Vec3::from).collect();
                     let count = positions.len();
-                    let normals: Option<Vec<Vec3>> = (normal_type.is_none())
-                        .then(|| reader.read_normals())
-                        .flatten()
-                        .map(|n| n.map(Vec3::from).collect::<Vec<_>>())
-                        .filter(|n| n.len() == count);
-                    let texcoords: Option<Vec<Vec2>> = (texcoord_type.is_none())
-                        .then(|| reader.read_tex_coords(0))
-                        .flatten()
-                        .map(|t| {
-                            // glTF's v runs down the image; this renderer's runs up.
-                            t.into_f32()
-                                .map(|[u, v]| Vec2::new(u, 1.0 - v))
-                                .collect::<Vec<_>>()
-                        })
-                        .filter(|t| t.len() == count);
+                    let normals: Option<Vec<Vec3>> =
+                        attribute(gltf::Semantic::Normals, &normal_type)
+                            .and_then(|a| read_floats::<3>(a, buffers))
+                            .map(|n| n.into_iter().map(Vec3::from).collect::<Vec<_>>())
+                            .filter(|n| n.len() == count);
+                    let texcoords: Option<Vec<Vec2>> =
+                        attribute(gltf::Semantic::TexCoords(0), &texcoord_type)
+                            .and_then(|a| read_floats::<2>(a, buffers))
+                            .map(|t| {
+                                // glTF's v runs down the image; this renderer's runs up.
+                                t.into_iter()
+                                    .map(|[u, v]| Vec2::new(u, 1.0 - v))
+                                    .collect::<Vec<_>>()
+                            })
+                            .filter(|t| t.len() == count);
                     let indices: Vec<u32> = match reader.read_indices() {
                         Some(indices) => indices.into_u32().collect(),
                         None if primitive.indices().is_some() => {

@@ -9,6 +9,7 @@ pub(super) mod draco;
 pub(super) mod emissive_strength;
 pub(super) mod gpu_instancing;
 pub(super) mod ior;
+pub(super) mod meshopt;
 pub(super) mod pbr_specular_glossiness;
 pub(super) mod sheen;
 pub(super) mod specular;
@@ -43,12 +44,15 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
 ];
 
 /// The other extensions read: lights and mesh instancing (by the scene walk), Draco
-/// compressed primitives (by the mesh reader), and
+/// compressed primitives (by the mesh reader), meshopt compressed buffer views
+/// (decoded as the buffers are read), quantized attributes (by the mesh reader), and
 /// texture transforms (on every texture reference).
 pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     draco::NAME,
     gpu_instancing::NAME,
+    meshopt::NAME,
+    "KHR_mesh_quantization",
     texture_transform::NAME,
 ];
 

@@ -187,7 +187,7 @@ impl Scene {
                 let (packet, lane_in_packet) = (id / LANES as u32, (id % LANES as u32) as usize);
                 // As `Scene::intersect`: texture coordinates and bumps in textured
                 // scenes only.
-                if self.prim_texcoords.is_empty() {
+                if !self.second_phase {
                     self.hit_details_inline(&rays[lane], packet, lane_in_packet, hit)
                 } else {
                     self.textured_hit_details(&rays[lane], packet, lane_in_packet, hit)
@@ -404,12 +404,37 @@ mod tests {
     #[test]
     fn batches_find_what_single_rays_find_in_a_textured_scene() {
         let scene = textured_box();
-        assert!(
-            !scene.prim_texcoords.is_empty(),
-            "the scene is not textured"
-        );
+        assert!(scene.second_phase, "the scene is not textured");
         let (tested, hit) = check_against_single_rays(&scene, 4, 0.9);
         assert!(tested > 2_000 && hit * 10 > tested * 8, "{hit} of {tested}");
+    }
+
+    /// A quad whose corners are red, green, blue and white (OBJ's `v x y z r g b`)
+    /// and no maps: its hits take the second phase for their colour, yet the scene
+    /// keeps no texture coordinate indices.
+    #[test]
+    fn coloured_scenes_without_maps_keep_no_texture_coordinates_yet_colour_their_hits() {
+        let obj =
+            "v -1 0 -1 1 0 0\nv 1 0 -1 0 1 0\nv 1 0 1 0 0 1\nv -1 0 1 1 1 1\nf 1 2 3\nf 1 3 4\n";
+        let description = formats::parse_obj(obj.as_bytes(), Path::new("quad.obj")).unwrap();
+        let scene = Scene::build(description, &BvhParams::default());
+        assert!(scene.second_phase);
+        assert!(
+            scene.prim_texcoords.is_empty(),
+            "{} texture coordinate indices",
+            scene.prim_texcoords.len()
+        );
+        // Straight down onto the first triangle's centroid: a third each of red,
+        // green and blue, through batches and single rays alike.
+        let rays: [Ray; BATCH] =
+            std::array::from_fn(|_| Ray::new(Vec3::new(1.0 / 3.0, 1.0, -1.0 / 3.0), Vec3::NEG_Y));
+        let mut hits = [None; BATCH];
+        scene.intersect_batch(&rays, 0xFFFF, &mut hits);
+        for hit in hits.into_iter().chain([scene.intersect(&rays[0])]) {
+            let colour = hit.expect("a hit").colour;
+            let error = (colour - Vec3::splat(1.0 / 3.0)).abs().max_element();
+            assert!(error < 1e-5, "{colour}");
+        }
     }
 
     #[test]

@@ -331,12 +331,11 @@ impl Scene {
                     },
                 )
                 .collect()
-        } else if !colours.is_empty() {
-            // Only so that hits take the second phase, which interpolates colours.
-            vec![[NO_TEXCOORDS; 3]; order.len()]
         } else {
             Vec::new()
         };
+        // Colours are interpolated by the second phase too.
+        let second_phase = textured || !colours.is_empty();
         let texcoords = if textured { texcoords } else { Vec::new() };
         // Vertex colours by the corners' position indices, every position given one
         // (white past the description's last).
@@ -390,6 +389,7 @@ impl Scene {
             source: order,
             objects,
             prim_texcoords,
+            second_phase,
             colours,
             prim_colours,
             has_cutouts,

@@ -270,7 +270,7 @@ impl Instances {
         let placed = &self.placed[index as usize];
         let mesh = &self.meshes[placed.mesh as usize];
         let local = placed.ray_in_object(ray);
-        let inner = if mesh.prim_texcoords.is_empty() {
+        let inner = if !mesh.second_phase {
             mesh.hit_details(&local, packet, lane, hit)
         } else {
             mesh.textured_hit_details(&local, packet, lane, hit)
@@ -367,7 +367,7 @@ impl Scene {
     pub(super) fn found_hit(&self, instances: &Instances, ray: &Ray, found: Found) -> Hit {
         match found {
             Found::Copy(index, packet, lane, hit) => instances.hit(ray, index, packet, lane, hit),
-            Found::Flat(packet, lane, hit) if self.prim_texcoords.is_empty() => {
+            Found::Flat(packet, lane, hit) if !self.second_phase => {
                 self.hit_details(ray, packet, lane, hit)
             }
             Found::Flat(packet, lane, hit) => self.textured_hit_details(ray, packet, lane, hit),

@@ -156,11 +156,12 @@ pub struct Scene {
     objects: objects::Objects,
     /// Indices into `texcoords` of each primitive's corners (leaf order), or
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
-    /// scenes neither store nor interpolate texture coordinates. Its being non-empty
-    /// is what sends hits through [`Scene::textured_hit_details`], which vertex
-    /// colours need too: a coloured scene keeps it (all `NO_TEXCOORDS` if it has no
-    /// maps).
+    /// scenes neither store nor interpolate texture coordinates.
     prim_texcoords: Vec<[u32; 3]>,
+    /// Whether hits take the second phase, [`Scene::textured_hit_details`]: the
+    /// scene has texture coordinates for its maps, or vertex colours. One flag, so
+    /// that a coloured scene without maps stores no texture coordinate indices.
+    second_phase: bool,
     /// The description's vertex colours ([`SceneDescription::colours`]); empty
     /// unless some triangle has one.
     colours: Vec<Vec3>,

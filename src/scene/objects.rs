@@ -115,7 +115,7 @@ impl Scene {
         (packet, lane, found): (u32, usize, PrimHit),
     ) -> Option<(Hit, u32)> {
         let prim = self.packets[packet as usize].prim(lane)?;
-        let hit = if self.prim_texcoords.is_empty() {
+        let hit = if !self.second_phase {
             self.hit_details(ray, packet, lane, found)
         } else {
             self.textured_hit_details(ray, packet, lane, found)

@@ -66,7 +66,7 @@ impl Scene {
         // As `Scene::intersect`: texture coordinates and bumps in textured scenes only.
         // One loop for each, so that an untextured hit is built in place: built on
         // the stack in pieces and then copied whole, it stalls the copy's loads.
-        if self.prim_texcoords.is_empty() {
+        if !self.second_phase {
             for ((hit, ray), found) in answers {
                 *hit = found
                     .map(|(packet, lane, prim)| self.hit_details_inline(ray, packet, lane, prim));

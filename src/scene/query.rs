@@ -14,7 +14,7 @@ impl Scene {
         // Texture coordinates and bumps: in textured scenes only, out of line, so
         // that the hits of other scenes pay one predictable branch for them and are
         // written in place as before.
-        if !self.prim_texcoords.is_empty() {
+        if self.second_phase {
             return Some(self.textured_hit_details(ray, packet, lane, hit));
         }
         Some(self.hit_details(ray, packet, lane, hit))
@@ -354,7 +354,7 @@ impl Scene {
             }
         }
         closest.map(|(packet, lane, hit)| {
-            if self.prim_texcoords.is_empty() {
+            if !self.second_phase {
                 self.hit_details(ray, packet, lane, hit)
             } else {
                 self.textured_hit_details(ray, packet, lane, hit)

@@ -17,33 +17,18 @@
 Run it from anywhere (needs Node.js and npm for gltfpack); it writes beside itself.
 """
 
-import base64
 import json
 import math
 import struct
 import subprocess
-import zlib
+import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+# The PNG writer of the other glTF fixtures (tests/data/gltf/make_fixtures.py).
+sys.path.insert(0, str(HERE.parent))
+from make_fixtures import png  # noqa: E402
 GLTFPACK = ["npx", "--yes", "gltfpack@1.3"]
-
-
-def png(width, height, rows):
-    """An 8-bit RGB PNG; rows of (r, g, b) tuples, top first."""
-    raw = b"".join(b"\0" + bytes(c for pixel in row for c in pixel) for row in rows)
-
-    def chunk(kind, data):
-        body = kind + data
-        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
-
-    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
-    return (
-        b"\x89PNG\r\n\x1a\n"
-        + chunk(b"IHDR", header)
-        + chunk(b"IDAT", zlib.compress(raw))
-        + chunk(b"IEND", b"")
-    )
 
 
 def torus(major=32, minor=16, big=1.0, small=0.4):

@@ -406,6 +406,14 @@ fn truncated_corrupt_or_impossible_meshopt_streams_are_errors_naming_the_file_an
         let error = meshopt_error(&json, &bin).unwrap_or_default();
         assert!(error.contains(message), "{error}");
     }
+    // A stride other than the buffer view's.
+    let mut other = json.clone();
+    other["bufferViews"][views[0]]["extensions"][name]["byteStride"] = Value::from(16);
+    let error = meshopt_error(&other, &bin).unwrap_or_default();
+    assert!(
+        error.contains("a byteStride of 16, the buffer view's is 12"),
+        "{error}"
+    );
     // A stride the mode does not allow (the decoder would assert it).
     let mut json = json.clone();
     json["bufferViews"][views[3]]["extensions"][name]["byteStride"] = Value::from(3);

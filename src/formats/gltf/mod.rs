@@ -326,6 +326,16 @@ fn compressed_views(
         let Some(view) = root.buffer_views.get_mut(*index) else {
             continue;
         };
+        // Accessors step through the view by its own stride: the stream's elements
+        // must be that size.
+        if let Some(stride) = view.byte_stride
+            && stride.0 != compressed.byte_stride
+        {
+            return Err(fail(format!(
+                "a byteStride of {}, the buffer view's is {}",
+                compressed.byte_stride, stride.0
+            )));
+        }
         let size = compressed.decoded_size().map_err(fail)?;
         if view.byte_length.0 > size as u64 {
             return Err(fail(format!(

@@ -45,7 +45,9 @@ pub(in super::super) struct Compressed {
     pub(in super::super) buffer: usize,
     byte_offset: usize,
     byte_length: usize,
-    byte_stride: usize,
+    /// The size of each element, which the buffer view's `byteStride` (if it has
+    /// one) must be.
+    pub(in super::super) byte_stride: usize,
     count: usize,
     mode: Mode,
     filter: Filter,

@@ -351,6 +351,21 @@ fn meshopt_error(json: &Value, bin: &[u8]) -> Option<String> {
 }
 
 #[test]
+fn meshopt_fallback_buffers_are_never_read() {
+    let (mut json, bin) = split_glb(&std::fs::read(meshopt_fixture("torus-filters.glb")).unwrap());
+    let fallback = &mut json["buffers"][1];
+    assert_eq!(
+        fallback["extensions"]["EXT_meshopt_compression"]["fallback"],
+        Value::Bool(true)
+    );
+    // gltfpack's fallback has no uri; one naming a file that is not there, and
+    // claiming a terabyte, is not read either.
+    fallback["uri"] = Value::from("missing.bin");
+    fallback["byteLength"] = Value::from(1u64 << 40);
+    assert_eq!(meshopt_error(&json, &bin), None);
+}
+
+#[test]
 fn truncated_corrupt_or_impossible_meshopt_streams_are_errors_naming_the_file_and_view() {
     let (json, bin) = split_glb(&std::fs::read(meshopt_fixture("torus-filters.glb")).unwrap());
     let loaded = meshopt_error(&json, &bin);

@@ -235,8 +235,10 @@ fn render_with<I: Integrator>(
     let width = tile.width as usize;
     let band_len = width * band_rows as usize;
     let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
-    // Every pixel's extra outputs, if any are asked for, cut into the bands' parts.
-    let mut extra = vec![AovPixel::MISS; if wanted.any() { pixels.len() } else { 0 }];
+    // Every pixel's extra outputs, if any are asked for, cut into the bands' parts
+    // (each band sets its own before tracing).
+    let mut extra = SpareAovPixels::take();
+    extra.resize(if wanted.any() { pixels.len() } else { 0 }, AovPixel::MISS);
     let mut extra_bands: Vec<&mut [AovPixel]> = extra.chunks_mut(band_len).collect();
     extra_bands.resize_with(pixels.len().div_ceil(band_len), Default::default);
     // Bands in order.
@@ -281,6 +283,7 @@ fn render_with<I: Integrator>(
     for (i, pixel) in extra.iter().enumerate() {
         planes.set(i, pixel);
     }
+    SpareAovPixels::give_back(extra);
     let (mut rays, mut tracing, mut total) = (RayCounts::default(), Duration::ZERO, Duration::ZERO);
     for (band_rays, band_tracing, band_total) in bands {
         rays += band_rays;
@@ -298,6 +301,43 @@ fn render_with<I: Integrator>(
             .then(|| tracing.as_secs_f64() / total.as_secs_f64()),
     };
     (Outputs { film, aovs: planes }, rays, times)
+}
+
+/// The extra outputs' working buffer of the last render, kept for the next: a
+/// program rendering frame after frame (a Dask worker, whose nanny sets
+/// `MALLOC_TRIM_THRESHOLD_` so that glibc maps every large block afresh) would
+/// otherwise take a page fault on every page of it each frame. Locked twice a render;
+/// a render that finds it taken (another render on another thread) allocates its own.
+struct SpareAovPixels;
+
+/// [`SpareAovPixels`]'s buffer.
+static SPARE_AOV_PIXELS: std::sync::Mutex<Vec<AovPixel>> = std::sync::Mutex::new(Vec::new());
+
+impl SpareAovPixels {
+    /// Buffers larger than this (about 1,600 x 1,600 pixels) are not kept.
+    const MAX_KEPT_BYTES: usize = 100 << 20;
+
+    /// The spare buffer, empty (its capacity kept), or a new one.
+    fn take() -> Vec<AovPixel> {
+        let mut spare = match SPARE_AOV_PIXELS.try_lock() {
+            Ok(mut spare) => std::mem::take(&mut *spare),
+            Err(_) => Vec::new(),
+        };
+        spare.clear();
+        spare
+    }
+
+    /// Keeps `buffer` for the next render, unless it is too large or one is kept.
+    fn give_back(buffer: Vec<AovPixel>) {
+        if buffer.capacity() * std::mem::size_of::<AovPixel>() > Self::MAX_KEPT_BYTES {
+            return;
+        }
+        if let Ok(mut spare) = SPARE_AOV_PIXELS.try_lock()
+            && spare.capacity() < buffer.capacity()
+        {
+            *spare = buffer;
+        }
+    }
 }
 
 #[cfg(test)]

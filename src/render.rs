@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::film::{Aov, AovPlanes, Film, Outputs};
-use crate::integrators::aov::{AovPixel, AovSet, aov_band};
+use crate::integrators::aov::{AovPixel, AovSet, BandAovs, finish_band};
 use crate::integrators::{Band, Integrator, ModeIntegrator, TileContext, TraceClock};
 use crate::math::Vec3;
 use crate::options::RenderOptions;
@@ -121,16 +121,17 @@ pub fn render_with_progress(
 }
 
 /// [`render`] with the extra outputs `aovs` ([`Aov`]: depth, normal, albedo, alpha,
-/// object and material ids) in the same pass: the camera rays of the colour's
-/// samples are traced again for them, only when some are asked for.
+/// object and material ids) in the same pass: from the hits of the camera rays the
+/// colour's integrator traces (and, for the ids at more than one sample per pixel,
+/// a ray through each pixel centre).
 pub fn render_outputs(scene: &Scene, options: &RenderOptions, aovs: &[Aov]) -> Outputs {
     render_outputs_with_stats(scene, options, aovs, &|_| {}, false).0
 }
 
 /// [`render_outputs`], calling `row_done` and counting rays as
 /// [`render_with_progress`] does, and with `timed` timing the tracing as
-/// [`render_with_stats`] does. The counts are those of the colour's rays: the extra
-/// outputs' rays are not counted.
+/// [`render_with_stats`] does. The counts are those of the colour's rays: the
+/// centre rays of the ids at more than one sample per pixel are not counted.
 pub fn render_outputs_with_stats(
     scene: &Scene,
     options: &RenderOptions,
@@ -232,51 +233,62 @@ fn render_with<I: Integrator>(
     let wanted = AovSet::of(aovs);
     let band_rows = integrator.band_rows(&context).max(1);
     let width = tile.width as usize;
+    let band_len = width * band_rows as usize;
     let mut pixels = vec![Vec3::ZERO; width * tile.height as usize];
-    // Bands in order, each with its pixels' extra outputs (none unless asked for).
-    let bands: Vec<(RayCounts, Duration, Duration, Vec<AovPixel>)> = pixels
-        .par_chunks_mut(width * band_rows as usize)
+    // Every pixel's extra outputs, if any are asked for, cut into the bands' parts
+    // (each band sets its own before tracing).
+    let mut extra = SpareAovPixels::take();
+    extra.resize(if wanted.any() { pixels.len() } else { 0 }, AovPixel::MISS);
+    let mut extra_bands: Vec<&mut [AovPixel]> = extra.chunks_mut(band_len).collect();
+    extra_bands.resize_with(pixels.len().div_ceil(band_len), Default::default);
+    // Bands in order.
+    let bands: Vec<(RayCounts, Duration, Duration)> = pixels
+        .par_chunks_mut(band_len)
+        .zip(extra_bands)
         .zip(
             (tile.y..tile.y + tile.height)
                 .into_par_iter()
                 .step_by(band_rows as usize),
         )
-        .map(|(pixels, top)| {
+        .map(|((pixels, extra), top)| {
             let band_start = timed.then(Instant::now);
             let mut rays = RayCounts::default();
             let mut clock = TraceClock::new(timed);
             let rows = (pixels.len() / width) as u32;
+            let aovs = if wanted.any() {
+                BandAovs::new(&context, wanted, extra)
+            } else {
+                BandAovs::none()
+            };
             let band = Band {
                 left: tile.x,
                 top,
                 width: tile.width,
                 rows,
                 pixels,
+                aovs,
             };
             integrator.trace_band(&context, band, &mut rays, &mut clock);
-            let mut extra = Vec::new();
             if wanted.any() {
-                let rect = (tile.x, top, tile.width, rows);
-                aov_band(&context, rect, wanted, &mut extra);
+                finish_band(&context, wanted, extra, (tile.x, top, tile.width));
             }
             for row in top..top + rows {
                 row_done(row);
             }
             let band_time = band_start.map_or(Duration::ZERO, |start| start.elapsed());
-            (rays, clock.time().unwrap_or_default(), band_time, extra)
+            (rays, clock.time().unwrap_or_default(), band_time)
         })
         .collect();
     let mut planes = AovPlanes::new(aovs, pixels.len());
+    for (i, pixel) in extra.iter().enumerate() {
+        planes.set(i, pixel);
+    }
+    SpareAovPixels::give_back(extra);
     let (mut rays, mut tracing, mut total) = (RayCounts::default(), Duration::ZERO, Duration::ZERO);
-    let mut i = 0;
-    for (band_rays, band_tracing, band_total, extra) in bands {
+    for (band_rays, band_tracing, band_total) in bands {
         rays += band_rays;
         tracing += band_tracing;
         total += band_total;
-        for pixel in extra {
-            planes.set(i, &pixel);
-            i += 1;
-        }
     }
     let film = Film {
         width: tile.width,
@@ -291,13 +303,52 @@ fn render_with<I: Integrator>(
     (Outputs { film, aovs: planes }, rays, times)
 }
 
+/// The extra outputs' working buffer of the last render, kept for the next: a
+/// program rendering frame after frame (a Dask worker, whose nanny sets
+/// `MALLOC_TRIM_THRESHOLD_` so that glibc maps every large block afresh) would
+/// otherwise take a page fault on every page of it each frame. Locked twice a render;
+/// a render that finds it taken (another render on another thread) allocates its own.
+struct SpareAovPixels;
+
+/// [`SpareAovPixels`]'s buffer.
+static SPARE_AOV_PIXELS: std::sync::Mutex<Vec<AovPixel>> = std::sync::Mutex::new(Vec::new());
+
+impl SpareAovPixels {
+    /// Buffers larger than this (about 1,600 x 1,600 pixels) are not kept.
+    const MAX_KEPT_BYTES: usize = 100 << 20;
+
+    /// The spare buffer, empty (its capacity kept), or a new one.
+    fn take() -> Vec<AovPixel> {
+        let mut spare = match SPARE_AOV_PIXELS.try_lock() {
+            Ok(mut spare) => std::mem::take(&mut *spare),
+            Err(_) => Vec::new(),
+        };
+        spare.clear();
+        spare
+    }
+
+    /// Keeps `buffer` for the next render, unless it is too large or one is kept.
+    fn give_back(buffer: Vec<AovPixel>) {
+        if buffer.capacity() * std::mem::size_of::<AovPixel>() > Self::MAX_KEPT_BYTES {
+            return;
+        }
+        if let Ok(mut spare) = SPARE_AOV_PIXELS.try_lock()
+            && spare.capacity() < buffer.capacity()
+        {
+            *spare = buffer;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::integrators::WhittedIntegrator;
+    use crate::integrators::aov::PixelAovs;
     use crate::math::Ray;
+    use crate::options::Mode;
     use crate::sampler::PixelSample;
-    use crate::scene::Scene;
+    use crate::scene::{Hit, Scene};
 
     /// An integrator as a path tracer uses the sampler: three dimensions per camera
     /// ray, mixed with where the ray goes.
@@ -312,6 +363,17 @@ mod tests {
             &self,
             _: &Scene,
             ray: &Ray,
+            sample: &mut PixelSample,
+            _: &mut RayCounts,
+        ) -> Vec3 {
+            self.radiance_of(&empty_scene(), ray, None, sample, &mut RayCounts::default())
+        }
+
+        fn radiance_of(
+            &self,
+            _: &Scene,
+            ray: &Ray,
+            _: Option<Hit>,
             sample: &mut PixelSample,
             _: &mut RayCounts,
         ) -> Vec3 {
@@ -366,9 +428,9 @@ mod tests {
         }
     }
 
-    /// Full mode's packet bands make exactly the film of the ray-by-ray loop, with
-    /// the same ray counts, for whole images and for tiles whose edges cut the 4x4
-    /// packets.
+    /// Full mode's packet bands make exactly the film and the extra outputs of the
+    /// ray-by-ray loop, with the same ray counts, for whole images and for tiles
+    /// whose edges cut the 4x4 packets.
     #[test]
     fn whitted_packets_render_exactly_the_single_ray_film() {
         let scene = crate::scene::packet_tests::generated_scene(60, true, 3);
@@ -396,12 +458,17 @@ mod tests {
                 &options,
                 &ByPixel(whitted),
                 tile,
-                &[],
+                &Aov::ALL,
                 &|_| {},
                 false,
             );
             let (packets, packet_rays, times) =
-                render_with(&scene, &options, &whitted, tile, &[], &|_| {}, true);
+                render_with(&scene, &options, &whitted, tile, &Aov::ALL, &|_| {}, true);
+            assert_eq!(
+                format!("{:?}", single.aovs),
+                format!("{:?}", packets.aovs),
+                "{tile}: outputs"
+            );
             let (single, packets) = (single.film, packets.film);
             let bits = |film: &Film| -> Vec<[u32; 3]> {
                 film.pixels
@@ -431,14 +498,115 @@ mod tests {
             self.0.dimensions()
         }
 
-        fn radiance(
+        fn radiance_of(
             &self,
             scene: &Scene,
             ray: &Ray,
+            hit: Option<Hit>,
             sample: &mut PixelSample,
             rays: &mut RayCounts,
         ) -> Vec3 {
-            self.0.radiance(scene, ray, sample, rays)
+            self.0.radiance_of(scene, ray, hit, sample, rays)
+        }
+    }
+
+    /// An integrator whose every pixel traces the one ray it holds (the centre
+    /// pixel's), whatever the pixel: its outputs must be those of the rays it
+    /// traced, not of a pass of their own.
+    struct Axis(Ray);
+
+    impl Integrator for Axis {
+        fn dimensions(&self) -> u32 {
+            0
+        }
+
+        fn radiance_of(
+            &self,
+            _: &Scene,
+            _: &Ray,
+            hit: Option<Hit>,
+            _: &mut PixelSample,
+            _: &mut RayCounts,
+        ) -> Vec3 {
+            Vec3::splat(hit.map_or(-1.0, |hit| hit.t))
+        }
+
+        fn pixel(
+            &self,
+            scene: &Scene,
+            _: &Camera,
+            _: &PixelSampler,
+            _: (u32, u32, u32),
+            _: &mut RayCounts,
+            aovs: &mut PixelAovs,
+        ) -> Vec3 {
+            Vec3::splat(aovs.intersect(scene, &self.0).map_or(-1.0, |hit| hit.t))
+        }
+    }
+
+    /// The outputs are those of the hits the integrator found for its camera rays:
+    /// an integrator tracing the centre pixel's ray for every pixel gets its depth
+    /// and object in every pixel, though the camera's own rays see other depths.
+    #[test]
+    fn outputs_are_the_hits_of_the_integrators_rays() {
+        let scene = crate::scene::packet_tests::generated_scene(60, true, 3);
+        let options = RenderOptions {
+            width: 21,
+            height: 15,
+            look_from: Vec3::new(0.3, 1.2, 1.8),
+            look_to: Vec3::new(0.0, 0.1, 0.0),
+            fov_degrees: 55.0,
+            ..RenderOptions::default()
+        };
+        let (column, row) = (options.width / 2, options.height / 2);
+        let axis = Axis(Camera::for_options(&options).pixel_ray(column, row));
+        let whole = Tile::whole(&options);
+        let aovs = [Aov::Depth, Aov::ObjectId];
+        let axis = render_with(&scene, &options, &axis, whole, &aovs, &|_| {}, false).0;
+        let seen = render_region(&scene, &options, whole, &aovs, &|_| {}, false).0;
+        let centre = (row * options.width + column) as usize;
+        let depths = |o: &Outputs| o.aovs.depth.clone().unwrap();
+        let (axis_depth, seen_depth) = (depths(&axis), depths(&seen));
+        let at_centre = seen_depth[centre];
+        assert!(at_centre.is_finite(), "the axis hits the scene");
+        assert!(axis_depth.iter().all(|&d| d == at_centre), "{axis_depth:?}");
+        assert!(seen_depth.iter().any(|&d| d != at_centre), "{seen_depth:?}");
+        let objects = axis.aovs.object_id.unwrap();
+        let centre_object = seen.aovs.object_id.unwrap()[centre];
+        assert!(objects.iter().all(|&o| o == centre_object), "{objects:?}");
+    }
+
+    /// Asking for every output leaves the colour bit for bit as it was, in full
+    /// mode's packets and pixel by pixel and in path mode's batches; at one sample
+    /// and at several, the ids of the latter from a ray through the pixel centre.
+    #[test]
+    fn outputs_leave_the_colour_as_it_was() {
+        let scene = crate::scene::packet_tests::generated_scene(60, true, 3);
+        for (mode, samples_per_pixel) in [
+            (Mode::Full, 1),
+            (Mode::Full, 3),
+            (Mode::Path, 1),
+            (Mode::Path, 5),
+        ] {
+            let options = RenderOptions {
+                width: 19,
+                height: 13,
+                look_from: Vec3::new(0.3, 1.2, 1.8),
+                look_to: Vec3::new(0.0, 0.1, 0.0),
+                fov_degrees: 55.0,
+                mode,
+                samples_per_pixel,
+                ..RenderOptions::default()
+            };
+            let whole = Tile::whole(&options);
+            let plain = render_region(&scene, &options, whole, &[], &|_| {}, false);
+            let all = render_region(&scene, &options, whole, &Aov::ALL, &|_| {}, false);
+            let label = format!("{mode:?} at {samples_per_pixel}");
+            assert_eq!(plain.0.film, all.0.film, "{label}");
+            assert_eq!(plain.1, all.1, "{label}: rays");
+            let alpha = all.0.aovs.alpha.unwrap();
+            assert!(alpha.contains(&1.0), "{label}");
+            assert!(alpha.contains(&0.0), "{label}");
         }
     }
 

@@ -246,6 +246,11 @@ def from_trimesh(obj):
         material = getattr(visual, "material", None)
         if getattr(visual, "uv", None) is not None and len(visual.uv) == len(mesh.vertices):
             entry["uvs"] = visual.uv
+        # Per-vertex colours (a PLY file's, say): 8-bit RGBA, which `colors` reads as
+        # the PLY reader reads `uchar` channels (divided by 255). Face colours have
+        # no counterpart in the scene and are left out.
+        if getattr(visual, "kind", None) == "vertex":
+            entry["colors"] = visual.vertex_colors
         if material is not None:
             entry["material"] = _trimesh_material(material)
             if "uvs" not in entry:

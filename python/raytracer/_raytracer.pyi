@@ -84,6 +84,7 @@ class Scene:
         tile: Optional[Tuple[int, int, int, int]] = None,
         progress: Progress = None,
         aovs: Optional[Sequence[Aov]] = None,
+        denoise: bool = False,
         **options: Unpack[RenderKeywords],
     ) -> Union[Image, Dict[str, np.ndarray]]: ...
     def options(self, **options: Unpack[RenderKeywords]) -> Dict[str, Any]: ...
@@ -98,6 +99,7 @@ def render(
     tile: Optional[Tuple[int, int, int, int]] = None,
     progress: Progress = None,
     aovs: Optional[Sequence[Aov]] = None,
+    denoise: bool = False,
     **options: Unpack[Keywords],
 ) -> Union[Image, Dict[str, np.ndarray]]: ...
 def postprocess(

@@ -113,12 +113,15 @@ struct Given<'py> {
     progress: Option<Bound<'py, PyAny>>,
     /// `aovs=`: the extra outputs, taken by render calls only.
     aovs: Option<Bound<'py, PyAny>>,
+    /// `denoise=`: post-processing, as the command line's `--denoise` (not an option
+    /// of the image, so not in [`OPTIONS`]), taken by render calls only.
+    denoise: Option<Bound<'py, PyAny>>,
 }
 
 impl<'py> Given<'py> {
     /// The options among the keyword arguments of a call of `function`: one named
     /// outside [`OPTIONS`] is a `TypeError`, as Python raises for any function;
-    /// `None` counts as left out. `progress` and `aovs` are taken when
+    /// `None` counts as left out. `progress`, `aovs` and `denoise` are taken when
     /// `with_progress`.
     fn from_keywords(
         function: &str,
@@ -132,6 +135,7 @@ impl<'py> Given<'py> {
             let slot = match name.as_str() {
                 "progress" if with_progress => &mut given.progress,
                 "aovs" if with_progress => &mut given.aovs,
+                "denoise" if with_progress => &mut given.denoise,
                 _ => {
                     let def = OptionDef::by_keyword(&name).ok_or_else(|| {
                         PyTypeError::new_err(format!(
@@ -244,6 +248,25 @@ fn python_value(def: &OptionDef, value: &Bound<'_, PyAny>) -> PyResult<Value> {
 }
 
 impl Given<'_> {
+    /// Whether `denoise=True` was given; an error naming the keyword if this build
+    /// has no denoiser, before any work, as the command line's `--denoise`.
+    fn denoise(&self) -> PyResult<bool> {
+        let Some(value) = &self.denoise else {
+            return Ok(false);
+        };
+        let denoise: bool = value.extract().map_err(|_| {
+            PyTypeError::new_err(format!("denoise must be True or False, not {value}"))
+        })?;
+        if denoise && raytracer::postprocess::check_denoiser().is_err() {
+            return Err(PyValueError::new_err(
+                "denoise=True: these bindings were built without the denoiser: rebuild them \
+                 with `maturin build --release --features denoise`, with OIDN_DIR naming Intel \
+                 Open Image Denoise (for example the `oidn` folder of PyPI's `pyoidn` wheel)",
+            ));
+        }
+        Ok(denoise)
+    }
+
     /// The extra outputs `aovs=` asks for: `None` when not given (the render returns
     /// the colour image alone), else their list (then a dict).
     fn aov_list(&self) -> PyResult<Option<Vec<Aov>>> {
@@ -931,9 +954,11 @@ impl PyScene {
 
     /// A scene of a ``trimesh.Trimesh`` or ``trimesh.Scene`` (``pip install
     /// trimesh``): its meshes with their transforms, vertex normals when the mesh
-    /// has them, texture coordinates and materials (a ``SimpleMaterial``'s colours,
-    /// glossiness and image; a ``PBRMaterial``'s base colour, metallic, roughness,
-    /// emission and base colour texture), through :meth:`from_arrays`, without a file.
+    /// has them, texture coordinates, vertex colours (``visual.vertex_colors`` of a
+    /// ``ColorVisuals`` whose ``kind`` is ``'vertex'``, 8-bit as a PLY file's) and
+    /// materials (a ``SimpleMaterial``'s colours, glossiness and image; a
+    /// ``PBRMaterial``'s base colour, metallic, roughness, emission and base colour
+    /// texture), through :meth:`from_arrays`, without a file.
     #[staticmethod]
     fn from_trimesh<'py>(py: Python<'py>, mesh: Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         py.import("raytracer._arrays")?
@@ -1187,20 +1212,69 @@ impl PyScene {
         given: &Given<'py>,
         tile_value: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let denoise = given.denoise()?;
         let options = self.resolve(given)?;
         let tile = tile_value.map(tile).transpose()?;
         let progress = run::Progress::of(given.progress.as_ref())?;
         let aovs = given.aov_list()?;
-        let outputs = run::render(
+        let outputs = render_outputs(
             py,
             Arc::clone(&self.loaded),
             options,
             tile,
-            aovs.clone().unwrap_or_default(),
+            (aovs.as_deref().unwrap_or_default(), denoise),
             &progress,
         )?;
         result_of(py, outputs, aovs.is_some(), &options)
     }
+}
+
+/// [`run::render`] with the outputs `aovs`, denoised if `denoise` (path mode's
+/// colour, guided by its albedo and normal, rendered in the same pass and dropped
+/// unless asked for, as the command line's `--denoise`; other modes are returned as
+/// rendered, with a warning).
+fn render_outputs(
+    py: Python<'_>,
+    loaded: Arc<Loaded>,
+    options: RenderOptions,
+    tile: Option<Tile>,
+    (aovs, denoise): (&[Aov], bool),
+    progress: &run::Progress<'_>,
+) -> PyResult<Outputs> {
+    let denoising = denoise && options.mode == Mode::Path;
+    if denoise && !denoising {
+        let mode = mode_name(options.mode);
+        warn(
+            py,
+            &[format!(
+                "denoise applies to path mode only; {mode} mode is returned as rendered"
+            )],
+        )?;
+    }
+    let mut rendered = aovs.to_vec();
+    for guide in [Aov::Albedo, Aov::Normal] {
+        if denoising && !rendered.contains(&guide) {
+            rendered.push(guide);
+        }
+    }
+    let outputs = run::render(py, loaded, options, tile, rendered, progress)?;
+    if !denoising {
+        return Ok(outputs);
+    }
+    let Outputs {
+        film,
+        aovs: mut planes,
+    } = outputs;
+    let film = py
+        .detach(|| film.denoised(&planes))
+        .map_err(|e| PyValueError::new_err(format!("denoise=True: {e}")))?;
+    if !aovs.contains(&Aov::Albedo) {
+        planes.albedo = None;
+    }
+    if !aovs.contains(&Aov::Normal) {
+        planes.normal = None;
+    }
+    Ok(Outputs { film, aovs: planes })
 }
 
 /// What a render call returns: the colour image alone ([`image_of`]), or with `aovs`
@@ -1334,7 +1408,11 @@ fn warn(py: Python<'_>, messages: &[String]) -> PyResult<()> {
 /// to the same pixels of the whole image. ``progress`` is ``None`` (the default: no
 /// report), ``True`` (a tqdm bar; ``pip install tqdm``) or a callable taking ``(done,
 /// total)`` in rows, called from the calling thread; an exception it raises stops the
-/// render and is raised.
+/// render and is raised. ``denoise=True`` removes path mode's Monte Carlo noise with
+/// Intel Open Image Denoise, guided by the albedo and normal rendered in the same pass,
+/// as ``--denoise`` does (other modes are returned as rendered, with a warning); it
+/// needs bindings built with ``--features denoise``, else it is a ``ValueError``
+/// (default ``False``).
 ///
 /// Raises ``ValueError`` for a bad option (naming the keyword) and :class:`SceneError`
 /// (an ``OSError``) for a scene file that cannot be read or is malformed, with the
@@ -1350,6 +1428,7 @@ fn render<'py>(
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let given = Given::from_keywords("render", options, true)?;
+    let denoise = given.denoise()?;
     if let Ok(scene) = scene.cast::<PyScene>() {
         given.refuse_scene_options("render")?;
         return scene.get().render_given(py, &given, tile);
@@ -1374,8 +1453,8 @@ fn render<'py>(
         Ok::<_, Error>((loaded, options))
     })?;
     warn(py, &loaded.scene.warnings)?;
-    let aov_list = aovs.clone().unwrap_or_default();
-    let outputs = run::render(py, Arc::new(loaded), options, tile, aov_list, &progress)?;
+    let wanted = (aovs.as_deref().unwrap_or_default(), denoise);
+    let outputs = render_outputs(py, Arc::new(loaded), options, tile, wanted, &progress)?;
     result_of(py, outputs, aovs.is_some(), &options)
 }
 

@@ -1,7 +1,7 @@
-//! The extra outputs of a pixel ([`Aov`]): what the camera rays of its
-//! samples hit, traced again beside the colour's integrator, with the same camera
-//! rays (so coverage matches the colour's samples exactly). Traced only for a render
-//! that asks for outputs: others pay nothing.
+//! The extra outputs of a pixel ([`Aov`]): what the camera rays of its samples hit,
+//! taken from the hits the colour's integrator finds for them ([`BandAovs`],
+//! [`PixelAovs`]), so each camera ray is traced once. Filled only for a render that
+//! asks for outputs: others pay one predictable branch per camera ray.
 
 use std::fmt;
 use std::str::FromStr;
@@ -117,9 +117,9 @@ impl FromStr for Aov {
 /// Which of the outputs a render asks for, as flags tested per pixel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AovSet {
-    /// Depth, normal, albedo or alpha: every sample's ray is traced.
+    /// Depth, normal, albedo or alpha: every sample's hit counts.
     pub surfaces: bool,
-    /// Object or material id: the ray through the pixel centre is traced.
+    /// Object or material id: the hit through the pixel centre names them.
     pub ids: bool,
     /// Albedo: the material is looked up at each hit.
     pub albedo: bool,
@@ -171,74 +171,217 @@ impl AovPixel {
     };
 }
 
-/// The outputs `set` asks for of the pixels of columns `left..left + width` of rows
-/// `top..top + rows`, row by row, into `out`: [`aov_pixel`] of each, bit for bit; at
-/// one sample per pixel through a pinhole, each 4x4 tile's camera rays are traced as
-/// one packet ([`Scene::intersect_object_packet`]).
-pub fn aov_band(
-    context: &TileContext,
-    (left, top, width, rows): (u32, u32, u32, u32),
-    set: AovSet,
-    out: &mut Vec<AovPixel>,
-) {
-    let start = out.len();
-    out.resize(start + (width * rows) as usize, AovPixel::MISS);
-    let out = &mut out[start..];
-    if context.sampler.count() != 1 || !context.camera.is_pinhole() {
-        for (i, pixel) in out.iter_mut().enumerate() {
-            let (column, row) = (left + i as u32 % width, top + i as u32 / width);
-            *pixel = aov_pixel(context, column, row, set);
+impl AovPixel {
+    /// Where a pixel's sums start, before [`AovPixel::finish`]: nothing hit yet.
+    const EMPTY: AovPixel = AovPixel {
+        depth: 0.0,
+        normal: Vec3::ZERO,
+        albedo: Vec3::ZERO,
+        alpha: 0.0,
+        object: -1,
+        material: -1,
+    };
+
+    /// Adds camera ray `ray`'s hit `hit` to the sums of the float outputs (`alpha`
+    /// counts the hits until [`AovPixel::finish`]).
+    #[inline]
+    fn add(&mut self, scene: &Scene, ray: &Ray, hit: &Hit, forward: Vec3, set: AovSet) {
+        self.depth += hit.t * ray.dir.dot(forward);
+        self.normal += hit.ns;
+        self.alpha += 1.0;
+        if set.albedo {
+            self.albedo += albedo(scene, hit);
         }
-        return;
     }
-    let forward = context.camera.forward();
-    let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
-    let mut hits = [None; PACKET_SIZE];
-    for tile_top in (top..top + rows).step_by(4) {
-        let tile_rows = (top + rows - tile_top).min(4);
-        for tile_left in (left..left + width).step_by(4) {
-            let columns = (left + width - tile_left).min(4);
-            let count = (columns * tile_rows) as usize;
-            context
-                .camera
-                .tile_rays(tile_left, tile_top, columns, tile_rows, &mut rays);
-            context
-                .scene
-                .intersect_object_packet(&rays[..count], &mut hits[..count]);
-            for (k, (ray, hit)) in rays[..count].iter().zip(&hits[..count]).enumerate() {
-                let (column, row) = (k as u32 % columns, k as u32 / columns);
-                let i = ((tile_top - top + row) * width + tile_left - left + column) as usize;
-                out[i] = one_hit(context.scene, ray, hit.as_ref(), forward, set);
+
+    /// The sums of `samples` camera rays made means: depth over the rays that hit
+    /// (infinity if none did), the others over all of them (a miss counts as zero).
+    fn finish(&mut self, samples: u32) {
+        let hits = self.alpha;
+        if hits == 0.0 {
+            self.depth = Float::INFINITY;
+            return;
+        }
+        let n = samples as Float;
+        self.depth /= hits;
+        self.normal /= n;
+        self.albedo /= n;
+        self.alpha = hits / n;
+    }
+}
+
+/// The extra outputs of a band of pixels, filled from the hits of the camera rays
+/// the colour's integrator traces ([`PixelAovs::intersect`],
+/// [`BandAovs::intersect_packet`]): one pass, no ray traced twice. Ids come from
+/// those hits at one sample per pixel, whose ray goes through the pixel centre;
+/// with more, no sample goes through the centre (they are jittered in strata), so
+/// [`BandAovs::finish`] traces a ray of its own through each pixel centre, for the
+/// ids alone.
+#[derive(Debug)]
+pub struct BandAovs<'a> {
+    set: AovSet,
+    /// Whether the ids come from the integrator's hits (one sample per pixel).
+    ids_from_hits: bool,
+    forward: Vec3,
+    /// One per pixel of the band, row by row; empty when no output is asked for.
+    pixels: &'a mut [AovPixel],
+}
+
+impl<'a> BandAovs<'a> {
+    /// No outputs: the integrator's queries are the scene's own.
+    pub fn none() -> BandAovs<'a> {
+        BandAovs {
+            set: AovSet::default(),
+            ids_from_hits: false,
+            forward: Vec3::ZERO,
+            pixels: &mut [],
+        }
+    }
+
+    /// The outputs `set` of a band of `pixels.len()` pixels rendered in `context`,
+    /// written into `pixels` (whatever they held).
+    pub fn new(context: &TileContext, set: AovSet, pixels: &'a mut [AovPixel]) -> BandAovs<'a> {
+        pixels.fill(AovPixel::EMPTY);
+        BandAovs {
+            set,
+            ids_from_hits: set.ids && context.sampler.count() == 1,
+            forward: context.camera.forward(),
+            pixels,
+        }
+    }
+
+    /// Whether any output is asked for.
+    #[inline]
+    pub fn wanted(&self) -> bool {
+        !self.pixels.is_empty()
+    }
+
+    /// The outputs of the band's pixel `i` (row by row).
+    #[inline]
+    pub fn pixel(&mut self, i: usize) -> PixelAovs<'_> {
+        PixelAovs {
+            set: self.set,
+            ids_from_hits: self.ids_from_hits,
+            forward: self.forward,
+            out: self.pixels.get_mut(i),
+        }
+    }
+
+    /// The closest hits of a tile's camera rays `rays` (coherent, at most a packet)
+    /// into `hits`, traced as one packet ([`Scene::intersect_packet`], or
+    /// [`Scene::intersect_object_packet`] when ids are asked for: bit for bit the same
+    /// hits), and added to the outputs of the band's pixels `pixel(k)` of each ray `k`.
+    #[inline]
+    pub fn intersect_packet(
+        &mut self,
+        scene: &Scene,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+        pixel: impl Fn(usize) -> usize,
+    ) {
+        if !self.wanted() {
+            scene.intersect_packet(rays, hits);
+            return;
+        }
+        if self.ids_from_hits {
+            let mut found = [None; PACKET_SIZE];
+            let found = &mut found[..rays.len()];
+            scene.intersect_object_packet(rays, found);
+            for (k, (hit, found)) in hits.iter_mut().zip(found.iter()).enumerate() {
+                *hit = found.map(|(hit, _)| hit);
+                self.pixel(pixel(k)).record(scene, &rays[k], found.as_ref());
+            }
+            return;
+        }
+        scene.intersect_packet(rays, hits);
+        for (k, hit) in hits.iter().enumerate() {
+            if let Some(hit) = hit {
+                let out = &mut self.pixels[pixel(k)];
+                out.add(scene, &rays[k], hit, self.forward, self.set);
             }
         }
     }
 }
 
-/// [`aov_pixel`] of a pixel whose one camera ray `ray` found `hit` (with its object).
-fn one_hit(
-    scene: &Scene,
-    ray: &Ray,
-    hit: Option<&(Hit, u32)>,
-    forward: Vec3,
+/// Makes the sums a [`BandAovs`] of `set` added up in `pixels` (the pixels of
+/// columns `left..left + width` of rows `top..`, row by row) means of `context`'s
+/// samples per pixel, and sets their ids by a ray of their own through each pixel
+/// centre where the integrator's rays did not go through it.
+pub fn finish_band(
+    context: &TileContext,
     set: AovSet,
-) -> AovPixel {
-    let Some((hit, object)) = hit else {
-        return AovPixel::MISS;
-    };
-    let mut out = AovPixel::MISS;
-    if set.ids {
+    pixels: &mut [AovPixel],
+    (left, top, width): (u32, u32, u32),
+) {
+    let count = context.sampler.count();
+    let centre_ids = set.ids && count != 1;
+    for (i, out) in pixels.iter_mut().enumerate() {
+        out.finish(count);
+        if centre_ids {
+            let (column, row) = (left + i as u32 % width, top + i as u32 / width);
+            (out.object, out.material) = centre_ids_of(context, column, row);
+        }
+    }
+}
+
+/// The extra outputs of one pixel while its camera rays are traced: where an
+/// integrator's [`PixelAovs::intersect`] puts what each ray hits.
+#[derive(Debug)]
+pub struct PixelAovs<'a> {
+    set: AovSet,
+    ids_from_hits: bool,
+    forward: Vec3,
+    /// `None` when no output is asked for.
+    out: Option<&'a mut AovPixel>,
+}
+
+impl PixelAovs<'_> {
+    /// No outputs: [`PixelAovs::intersect`] is [`Scene::intersect`].
+    pub fn none() -> PixelAovs<'static> {
+        PixelAovs {
+            set: AovSet::default(),
+            ids_from_hits: false,
+            forward: Vec3::ZERO,
+            out: None,
+        }
+    }
+
+    /// Whether any output is asked for.
+    #[inline]
+    pub fn wanted(&self) -> bool {
+        self.out.is_some()
+    }
+
+    /// The closest hit of the pixel's camera ray `ray` ([`Scene::intersect`], or
+    /// [`Scene::intersect_object`] when its ids are asked for: the same hit), added
+    /// to the pixel's outputs.
+    #[inline]
+    pub fn intersect(&mut self, scene: &Scene, ray: &Ray) -> Option<Hit> {
+        if self.out.is_none() {
+            return scene.intersect(ray);
+        }
+        if self.ids_from_hits {
+            let found = scene.intersect_object(ray);
+            self.record(scene, ray, found.as_ref());
+            return found.map(|(hit, _)| hit);
+        }
+        let hit = scene.intersect(ray);
+        if let (Some(out), Some(hit)) = (&mut self.out, &hit) {
+            out.add(scene, ray, hit, self.forward, self.set);
+        }
+        hit
+    }
+
+    /// Adds `found`, the hit of `ray` with its object, to the outputs, the ids with it.
+    #[inline]
+    fn record(&mut self, scene: &Scene, ray: &Ray, found: Option<&(Hit, u32)>) {
+        let (Some(out), Some((hit, object))) = (&mut self.out, found) else {
+            return;
+        };
+        out.add(scene, ray, hit, self.forward, self.set);
         out.object = *object as i32;
         out.material = hit.material.0 as i32;
     }
-    if set.surfaces {
-        out.depth = hit.t * ray.dir.dot(forward);
-        out.normal = hit.ns;
-        out.alpha = 1.0;
-        if set.albedo {
-            out.albedo = albedo(scene, hit);
-        }
-    }
-    out
 }
 
 /// The reflectance colour at `hit`: `Kd`, or a physically based material's base
@@ -251,109 +394,14 @@ fn albedo(scene: &Scene, hit: &Hit) -> Vec3 {
     }
 }
 
-/// The outputs `set` asks for of pixel (`column`, `row`): its samples' camera rays are
-/// those the colour's integrator traced ([`crate::PixelSampler::average`]'s positions
-/// and [`crate::Camera::sample_ray`]); the ids are those of sample 0's ray through the
-/// pixel centre (with one sample per pixel, the colour's own ray).
-pub fn aov_pixel(context: &TileContext, column: u32, row: u32, set: AovSet) -> AovPixel {
-    let TileContext {
-        scene,
-        camera,
-        sampler,
-        image_width,
-    } = *context;
-    let mut out = AovPixel::MISS;
-    let pixel_index = row as u64 * image_width as u64 + column as u64;
-    let (x0, y0) = (column as Float, row as Float);
-    let forward = camera.forward();
-    let count = sampler.count();
-    // With one sample a pixel, sample 0's ray is the centre's: traced once for both.
-    let mut centre_hit = None;
-    if set.ids {
-        let ray = camera.sample_ray(x0 + 0.5, y0 + 0.5, &sampler.sample(pixel_index, 0));
-        if let Some((hit, object)) = scene.intersect_object(&ray) {
-            out.object = object as i32;
-            out.material = hit.material.0 as i32;
-            centre_hit = Some(hit);
-        }
-    }
-    if !set.surfaces {
-        return out;
-    }
-    let (mut depth, mut normal, mut albedo, mut hits) = (0.0, Vec3::ZERO, Vec3::ZERO, 0u32);
-    for sample in 0..count {
-        let offset = sampler.offset(pixel_index, sample);
-        let values = sampler.sample(pixel_index, sample);
-        let ray = camera.sample_ray(x0 + offset.x, y0 + offset.y, &values);
-        let hit = match (count, set.ids) {
-            (1, true) => centre_hit,
-            _ => scene.intersect(&ray),
-        };
-        let Some(hit) = hit else {
-            continue;
-        };
-        hits += 1;
-        depth += hit.t * ray.dir.dot(forward);
-        normal += hit.ns;
-        if set.albedo {
-            albedo += self::albedo(scene, &hit);
-        }
-    }
-    if hits > 0 {
-        let n = count as Float;
-        out.depth = depth / hits as Float;
-        out.normal = normal / n;
-        out.albedo = albedo / n;
-        out.alpha = hits as Float / n;
-    }
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::camera::Camera;
-    use crate::sampler::PixelSampler;
-
-    /// The packets of `aov_band` give exactly `aov_pixel`'s outputs, for a band
-    /// whose edges cut the 4x4 tiles.
-    #[test]
-    fn packets_give_each_pixels_outputs() {
-        let scene = crate::scene::packet_tests::generated_scene(60, true, 3);
-        let (width, height) = (37, 23);
-        let camera = Camera::new(
-            Vec3::new(0.3, 1.2, 1.8),
-            Vec3::new(0.0, 0.1, 0.0),
-            55.0,
-            width,
-            height,
-        );
-        let sampler = PixelSampler::new(1, 0);
-        let context = TileContext {
-            scene: &scene,
-            camera: &camera,
-            sampler: &sampler,
-            image_width: width,
-        };
-        let set = AovSet::of(&Aov::ALL);
-        let (left, top, w, h) = (3, 2, 30, 19);
-        let mut band = Vec::new();
-        aov_band(&context, (left, top, w, h), set, &mut band);
-        let (mut hits, mut misses) = (0, 0);
-        for (i, got) in band.iter().enumerate() {
-            let (column, row) = (left + i as u32 % w, top + i as u32 / w);
-            let expected = aov_pixel(&context, column, row, set);
-            assert_eq!(
-                format!("{got:?}"),
-                format!("{expected:?}"),
-                "pixel ({column}, {row})"
-            );
-            if got.object >= 0 {
-                hits += 1;
-            } else {
-                misses += 1;
-            }
-        }
-        assert!(hits > 100 && misses > 10, "{hits} hits, {misses} misses");
+/// The object and material ids of pixel (`column`, `row`): those of the ray through
+/// its centre (with sample 0's lens position); -1 on a miss.
+fn centre_ids_of(context: &TileContext, column: u32, row: u32) -> (i32, i32) {
+    let pixel_index = row as u64 * context.image_width as u64 + column as u64;
+    let (x, y) = (column as Float + 0.5, row as Float + 0.5);
+    let ray = (context.camera).sample_ray(x, y, &context.sampler.sample(pixel_index, 0));
+    match context.scene.intersect_object(&ray) {
+        Some((hit, object)) => (object as i32, hit.material.0 as i32),
+        None => (-1, -1),
     }
 }

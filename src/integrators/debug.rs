@@ -3,7 +3,7 @@
 use super::Integrator;
 use crate::math::{Float, Ray, Vec3};
 use crate::sampler::PixelSample;
-use crate::scene::Scene;
+use crate::scene::{Hit, Scene};
 use crate::stats::RayCounts;
 
 /// Depth mode: the distance from the ray origin to the nearest hit in every channel;
@@ -18,8 +18,15 @@ impl Integrator for DepthIntegrator {
     }
 
     #[inline]
-    fn radiance(&self, scene: &Scene, ray: &Ray, _: &mut PixelSample, _: &mut RayCounts) -> Vec3 {
-        Vec3::splat(scene.intersect(ray).map_or(Float::INFINITY, |hit| hit.t))
+    fn radiance_of(
+        &self,
+        _: &Scene,
+        _: &Ray,
+        hit: Option<Hit>,
+        _: &mut PixelSample,
+        _: &mut RayCounts,
+    ) -> Vec3 {
+        Vec3::splat(hit.map_or(Float::INFINITY, |hit| hit.t))
     }
 }
 
@@ -34,7 +41,14 @@ impl Integrator for NormalIntegrator {
     }
 
     #[inline]
-    fn radiance(&self, scene: &Scene, ray: &Ray, _: &mut PixelSample, _: &mut RayCounts) -> Vec3 {
-        scene.intersect(ray).map_or(Vec3::ZERO, |hit| hit.ns)
+    fn radiance_of(
+        &self,
+        _: &Scene,
+        _: &Ray,
+        hit: Option<Hit>,
+        _: &mut PixelSample,
+        _: &mut RayCounts,
+    ) -> Vec3 {
+        hit.map_or(Vec3::ZERO, |hit| hit.ns)
     }
 }

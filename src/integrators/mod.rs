@@ -21,13 +21,15 @@ pub use debug::{DepthIntegrator, NormalIntegrator};
 pub use path::PathIntegrator;
 pub use whitted::WhittedIntegrator;
 
+use aov::{BandAovs, PixelAovs};
+
 use std::time::{Duration, Instant};
 
 use crate::camera::Camera;
 use crate::math::{Float, Ray, Vec3};
 use crate::options::{Mode, RenderOptions};
 use crate::sampler::{PixelSample, PixelSampler};
-use crate::scene::Scene;
+use crate::scene::{Hit, Scene};
 use crate::stats::RayCounts;
 
 /// What every band of one render shares: the scene, the camera, the sampler placing
@@ -47,7 +49,8 @@ pub struct TileContext<'a> {
 }
 
 /// A band of rows of the image to trace: columns `left..left + width` of rows
-/// `top..top + rows`, into `pixels` (`width * rows` values, row by row).
+/// `top..top + rows`, into `pixels` (`width * rows` values, row by row), with the
+/// extra outputs of the same pixels taken from the camera rays' hits (`aovs`).
 #[derive(Debug)]
 pub struct Band<'a> {
     /// The leftmost column, in the whole image.
@@ -60,6 +63,8 @@ pub struct Band<'a> {
     pub rows: u32,
     /// The band's linear values, row by row.
     pub pixels: &'a mut [Vec3],
+    /// The band's extra outputs, filled from the hits of its camera rays.
+    pub aovs: BandAovs<'a>,
 }
 
 /// Adds up the time spent tracing ray packets apart from shading, for `--stats`,
@@ -105,18 +110,34 @@ pub trait Integrator: Sync {
     /// The linear value of the camera ray `ray`, drawing from `sample` the random
     /// values it needs; the secondary rays it traces are added to `rays` (the camera
     /// ray is counted by the caller).
+    #[inline]
     fn radiance(
         &self,
         scene: &Scene,
         ray: &Ray,
         sample: &mut PixelSample,
         rays: &mut RayCounts,
+    ) -> Vec3 {
+        self.radiance_of(scene, ray, scene.intersect(ray), sample, rays)
+    }
+
+    /// [`Integrator::radiance`] of the camera ray `ray` whose closest hit the caller
+    /// traced (`hit`: [`Scene::intersect`]'s answer), so that the extra outputs take
+    /// the same hit ([`PixelAovs::intersect`]).
+    fn radiance_of(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: Option<Hit>,
+        sample: &mut PixelSample,
+        rays: &mut RayCounts,
     ) -> Vec3;
 
     /// The linear value of pixel (`column`, `row`) of an image `width` pixels wide:
     /// the mean of [`Integrator::radiance`] over the camera rays `sampler` places in
-    /// it, each counted as a primary ray in `rays`. An integrator may override this to
-    /// trace the pixel's rays together, if it gives each the same value.
+    /// it, each counted as a primary ray in `rays`, their hits added to the pixel's
+    /// extra outputs `aovs`. An integrator may override this to trace the pixel's
+    /// rays together, if it gives each the same value and the same hit.
     #[inline]
     fn pixel(
         &self,
@@ -125,11 +146,13 @@ pub trait Integrator: Sync {
         sampler: &PixelSampler,
         (column, row, width): (u32, u32, u32),
         rays: &mut RayCounts,
+        aovs: &mut PixelAovs,
     ) -> Vec3 {
         sampler.average(column, row, width, |x: Float, y: Float, sample| {
             rays.primary += 1;
             let ray = camera.sample_ray(x, y, sample);
-            self.radiance(scene, &ray, sample, rays)
+            let hit = aovs.intersect(scene, &ray);
+            self.radiance_of(scene, &ray, hit, sample, rays)
         })
     }
 
@@ -166,6 +189,8 @@ pub fn trace_band_by_pixel<I: Integrator + ?Sized>(
     rays: &mut RayCounts,
 ) {
     let width = band.width as usize;
+    let mut aovs = band.aovs;
+    let mut i = 0;
     for (line, row) in band.pixels.chunks_exact_mut(width).zip(band.top..) {
         for (pixel, column) in line.iter_mut().zip(band.left..) {
             *pixel = integrator.pixel(
@@ -174,7 +199,9 @@ pub fn trace_band_by_pixel<I: Integrator + ?Sized>(
                 context.sampler,
                 (column, row, context.image_width),
                 rays,
+                &mut aovs.pixel(i),
             );
+            i += 1;
         }
     }
 }
@@ -238,6 +265,17 @@ impl Integrator for ModeIntegrator {
         each!(self, i => i.radiance(scene, ray, sample, rays))
     }
 
+    fn radiance_of(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: Option<Hit>,
+        sample: &mut PixelSample,
+        rays: &mut RayCounts,
+    ) -> Vec3 {
+        each!(self, i => i.radiance_of(scene, ray, hit, sample, rays))
+    }
+
     fn pixel(
         &self,
         scene: &Scene,
@@ -245,8 +283,9 @@ impl Integrator for ModeIntegrator {
         sampler: &PixelSampler,
         pixel: (u32, u32, u32),
         rays: &mut RayCounts,
+        aovs: &mut PixelAovs,
     ) -> Vec3 {
-        each!(self, i => i.pixel(scene, camera, sampler, pixel, rays))
+        each!(self, i => i.pixel(scene, camera, sampler, pixel, rays, aovs))
     }
 
     fn band_rows(&self, context: &TileContext) -> u32 {

@@ -28,6 +28,7 @@
 //! Materials: [`crate::bxdfs`]; lights: [`crate::lights`].
 
 use super::Integrator;
+use super::aov::PixelAovs;
 use crate::bvh::lanes_of;
 use crate::bxdfs::Bsdf;
 use crate::bxdfs::gltf::GltfBsdf;
@@ -443,12 +444,14 @@ impl PathIntegrator {
     }
 
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,
-    /// then its shadow rays, as one batch.
+    /// then its shadow rays, as one batch; the first step's hits are `first_hits`
+    /// when the caller traced them (for the extra outputs).
     fn trace_batch(
         &self,
         scene: &Scene,
         paths: &mut [PathState; BATCH],
         count: usize,
+        mut first_hits: Option<[Option<Hit>; BATCH]>,
         rays: &mut RayCounts,
     ) {
         let mut alive = if count >= BATCH {
@@ -464,7 +467,10 @@ impl PathIntegrator {
             for lane in lanes_of(alive) {
                 batch_rays[lane] = paths[lane].ray;
             }
-            scene.intersect_batch(&batch_rays, alive, &mut hits);
+            match first_hits.take() {
+                Some(first) => hits = first,
+                None => scene.intersect_batch(&batch_rays, alive, &mut hits),
+            }
             let mut shadowed = 0;
             for lane in lanes_of(alive) {
                 let step = self.step(scene, &mut paths[lane], hits[lane], rays);
@@ -494,17 +500,23 @@ impl Integrator for PathIntegrator {
         self.max_depth.saturating_mul(DIMENSIONS_PER_BOUNCE)
     }
 
-    /// Radiance arriving along the camera ray `ray`, one path's estimate.
-    fn radiance(
+    /// Radiance arriving along the camera ray `ray` (whose closest hit is `hit`),
+    /// one path's estimate.
+    fn radiance_of(
         &self,
         scene: &Scene,
         ray: &Ray,
+        hit: Option<Hit>,
         sample: &mut PixelSample,
         rays: &mut RayCounts,
     ) -> Vec3 {
         let mut path = PathState::new(*ray, sample.clone());
+        let mut first_hit = Some(hit);
         loop {
-            let hit = scene.intersect(&path.ray);
+            let hit = match first_hit.take() {
+                Some(hit) => hit,
+                None => scene.intersect(&path.ray),
+            };
             let step = self.step(scene, &mut path, hit, rays);
             if let Some((shadow_ray, t)) = step.shadow
                 && !scene.occluded(&shadow_ray, t)
@@ -520,7 +532,9 @@ impl Integrator for PathIntegrator {
     }
 
     /// The pixel's paths, [`BATCH`] at a time, each traced as [`Self::radiance`]
-    /// traces it.
+    /// traces it; with extra outputs, their camera rays' hits are traced for the
+    /// outputs and the paths alike ([`PixelAovs::intersect`], ray by ray: the
+    /// batch's hits are bit for bit the same).
     fn pixel(
         &self,
         scene: &Scene,
@@ -528,6 +542,7 @@ impl Integrator for PathIntegrator {
         sampler: &PixelSampler,
         (column, row, width): (u32, u32, u32),
         rays: &mut RayCounts,
+        aovs: &mut PixelAovs,
     ) -> Vec3 {
         let count = sampler.count();
         let pixel_index = row as u64 * width as u64 + column as u64;
@@ -544,7 +559,14 @@ impl Integrator for PathIntegrator {
                 PathState::new(ray, values)
             });
             rays.primary += size as u64;
-            self.trace_batch(scene, &mut paths, size, rays);
+            let first_hits = aovs.wanted().then(|| {
+                let mut hits = [None; BATCH];
+                for (hit, path) in hits.iter_mut().zip(&paths[..size]) {
+                    *hit = aovs.intersect(scene, &path.ray);
+                }
+                hits
+            });
+            self.trace_batch(scene, &mut paths, size, first_hits, rays);
             for path in &paths[..size] {
                 sum += saturate_finite(path.radiance);
             }
@@ -609,6 +631,7 @@ fn mean(v: Vec3) -> Float {
 mod tests {
     use super::*;
     use crate::bvh::BvhParams;
+    use crate::integrators::aov::PixelAovs;
     use crate::options::{Mode, RenderOptions};
     use crate::sampler::PixelSampler;
     use std::path::Path;
@@ -645,7 +668,9 @@ mod tests {
         for row in 0..options.height {
             for column in 0..options.width {
                 let at = (column, row, options.width);
-                let batched = integrator.pixel(&scene, &camera, &sampler, at, &mut batched_rays);
+                let no_outputs = &mut PixelAovs::none();
+                let batched =
+                    integrator.pixel(&scene, &camera, &sampler, at, &mut batched_rays, no_outputs);
                 let single = sampler.average(column, row, options.width, |x, y, sample| {
                     single_rays.primary += 1;
                     integrator.radiance(&scene, &camera.ray(x, y), sample, &mut single_rays)

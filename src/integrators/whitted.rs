@@ -26,14 +26,15 @@ impl Integrator for WhittedIntegrator {
     }
 
     #[inline]
-    fn radiance(
+    fn radiance_of(
         &self,
         scene: &Scene,
         ray: &Ray,
+        hit: Option<Hit>,
         _: &mut PixelSample,
         rays: &mut RayCounts,
     ) -> Vec3 {
-        trace(scene, ray, self.max_depth, false, rays)
+        trace_from(scene, ray, hit, self.max_depth, false, rays)
     }
 
     fn band_rows(&self, context: &TileContext) -> u32 {
@@ -46,8 +47,8 @@ impl Integrator for WhittedIntegrator {
 
     /// At one sample per pixel through a pinhole, the pixel centres' camera rays of
     /// each 4x4 tile of the band, and their shadow rays, traced as packets
-    /// ([`WhittedIntegrator::radiance_packet`]): bit for bit the values of
-    /// [`Integrator::pixel`], which traces every other band.
+    /// ([`WhittedIntegrator::radiance_packet`]): bit for bit the values (and the
+    /// extra outputs) of [`Integrator::pixel`], which traces every other band.
     fn trace_band(
         &self,
         context: &TileContext,
@@ -62,7 +63,9 @@ impl Integrator for WhittedIntegrator {
         let width = band.width as usize;
         let mut scratch = PacketScratch::default();
         let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
+        let mut hits = [None; PACKET_SIZE];
         let mut values = [Vec3::ZERO; PACKET_SIZE];
+        let mut aovs = band.aovs;
         for left in (band.left..band.left + band.width).step_by(PACKET_TILE as usize) {
             let columns = (band.left + band.width - left).min(PACKET_TILE);
             for top in (band.top..band.top + band.rows).step_by(PACKET_TILE as usize) {
@@ -72,9 +75,16 @@ impl Integrator for WhittedIntegrator {
                     .tile_rays(left, top, columns, rows, &mut camera_rays);
                 let count = (columns * rows) as usize;
                 rays.primary += count as u64;
-                self.radiance_packet(
+                // Ray `k` of the tile is the band's pixel `band_pixel(k)`.
+                let first = ((top - band.top) * band.width + left - band.left) as usize;
+                let band_pixel =
+                    |k: usize| first + k / columns as usize * width + k % columns as usize;
+                let (camera_rays, hits) = (&camera_rays[..count], &mut hits[..count]);
+                clock.trace(|| aovs.intersect_packet(context.scene, camera_rays, hits, band_pixel));
+                self.shade_packet(
                     context.scene,
-                    &camera_rays[..count],
+                    camera_rays,
+                    hits,
                     &mut values[..count],
                     rays,
                     &mut scratch,
@@ -102,8 +112,21 @@ impl Integrator for WhittedIntegrator {
 ///
 /// The result is always finite ([`saturate_finite`]), so that no sum or product of
 /// huge scene values can reach the film as infinity or NaN.
+#[inline(always)]
 fn trace(scene: &Scene, ray: &Ray, depth: u32, inside: bool, rays: &mut RayCounts) -> Vec3 {
-    let Some(hit) = scene.intersect(ray) else {
+    trace_from(scene, ray, scene.intersect(ray), depth, inside, rays)
+}
+
+/// [`trace`] of `ray` whose closest hit `hit` is known.
+fn trace_from(
+    scene: &Scene,
+    ray: &Ray,
+    hit: Option<Hit>,
+    depth: u32,
+    inside: bool,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let Some(hit) = hit else {
         return Vec3::ZERO;
     };
     let shadows = ShadowRays {
@@ -328,11 +351,32 @@ impl WhittedIntegrator {
         scratch: &mut PacketScratch,
         clock: &mut TraceClock,
     ) {
-        assert_eq!(camera_rays.len(), out.len(), "one value per ray");
-        let count = camera_rays.len();
         let mut hits = [None; PACKET_SIZE];
-        let hits = &mut hits[..count];
+        let hits = &mut hits[..camera_rays.len()];
         clock.trace(|| scene.intersect_packet(camera_rays, hits));
+        self.shade_packet(scene, camera_rays, hits, out, rays, scratch, clock);
+    }
+
+    /// [`WhittedIntegrator::radiance_packet`] of the camera rays `camera_rays` whose
+    /// closest hits `hits` are known (traced as a packet).
+    ///
+    /// # Panics
+    /// If `camera_rays` is empty, longer than [`PACKET_SIZE`], or not as long as
+    /// `hits` and `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_packet(
+        &self,
+        scene: &Scene,
+        camera_rays: &[Ray],
+        hits: &[Option<Hit>],
+        out: &mut [Vec3],
+        rays: &mut RayCounts,
+        scratch: &mut PacketScratch,
+        clock: &mut TraceClock,
+    ) {
+        assert_eq!(camera_rays.len(), out.len(), "one value per ray");
+        assert_eq!(camera_rays.len(), hits.len(), "one hit per ray");
+        let count = camera_rays.len();
 
         // Spots, directional lights and ranges are shaded hit by hit
         // (`direct_light`); the lanes know plain point lights only.

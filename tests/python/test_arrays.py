@@ -137,6 +137,23 @@ def test_a_trimesh_renders_as_the_obj_it_came_from(files):
         raytracer.Scene.from_trimesh(42)
 
 
+def test_a_trimesh_with_vertex_colors_renders_as_the_ply_it_came_from(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    colors = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0]])
+    header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+    header += "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    header += "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+    vertices = [f"{x} {y} {z} {r} {g} {b}" for (x, y, z), (r, g, b) in zip(QUAD, colors)]
+    faces = [f"3 {a} {b} {c}" for a, b, c in QUAD_FACES]
+    (tmp_path / "q.ply").write_text(header + "\n".join(vertices + faces) + "\n")
+    expected = raytracer.render(tmp_path / "q.ply", **VIEW)
+    loaded = trimesh.load(tmp_path / "q.ply", process=False)
+    assert loaded.visual.kind == "vertex"
+    assert np.array_equal(raytracer.Scene.from_trimesh(loaded).render(**VIEW), expected)
+    plain = raytracer.Scene.from_arrays(meshes=[dict(vertices=QUAD, faces=QUAD_FACES)])
+    assert not np.array_equal(plain.render(**VIEW), expected)
+
+
 def test_aovs_depth_and_object_ids_are_the_analytic_ones():
     """Two quads on the plane z = 0 seen by an intrinsics camera at z = D looking down
     -Z: the z-depth is D wherever they are, inf elsewhere, and each object id covers

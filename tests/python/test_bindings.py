@@ -392,6 +392,25 @@ def test_a_scene_confined_to_a_folder_opens_nothing_outside_it(tmp_path):
         raytracer.Scene(obj, confined_to=tmp_path / "missing")
 
 
+def test_denoise_needs_the_denoiser_as_the_command_lines_flag_does(tmp_path, run_cli):
+    """`denoise=` is `--denoise`: in a build without the denoiser (CI's), an error
+    naming the keyword before any work, as the command line's is; `False` renders as
+    without it."""
+    size = {"width": 16, "height": 12, "mode": "path", "spp": 2}
+    flags = ["--width", 16, "--height", 12, "--mode", "path", "--spp", 2, *CAMERA_FLAGS]
+    result = run_cli("render", CORNELL_OBJ, "-o", tmp_path / "cli.png", "-q", "--denoise", *flags)
+    if result.returncode == 0:
+        pytest.skip("built with the denoiser")
+    assert "no denoiser" in result.stderr
+    for scene in (CORNELL_OBJ, raytracer.Scene(CORNELL_OBJ)):
+        with pytest.raises(ValueError, match=r"^denoise=True: .* without the denoiser"):
+            raytracer.render(scene, denoise=True, **size, **CAMERA)
+        with pytest.raises(TypeError, match="denoise must be True or False"):
+            raytracer.render(scene, denoise="yes", **size, **CAMERA)
+    plain = raytracer.render(CORNELL_OBJ, **size, **CAMERA)
+    assert np.array_equal(raytracer.render(CORNELL_OBJ, denoise=False, **size, **CAMERA), plain)
+
+
 def test_tonemap_and_lens_keywords_are_the_command_lines(tmp_path, run_cli):
     size = {"width": 20, "height": 15, "mode": "path", "spp": 2}
     lens = {"aperture_radius": 0.05, "focus_distance": 1.5}

@@ -244,85 +244,83 @@ def test_workers_keep_a_scene_until_one_of_its_files_changes(client, cornell_cop
     assert set(client.run(lambda: len(rd._jobs)).values()) == {0}
 
 
-def test_a_lost_workers_tiles_are_recomputed(tmp_path, monkeypatch):
-    from distributed import Client
+class GatedCluster:
+    """A fresh local cluster of two worker processes whose renders wait at a gate (a
+    test hook of the bindings): each writes `gate.<pid>` and waits until `gate`
+    exists. A worker killed while it waits there surely loses the work it was doing:
+    found by the gate, not by a clock."""
 
-    options = dict(width=96, height=72, spp=4, **CAMERA)
-    expected = raytracer.render(CORNELL_OBJ, **options)
-    # The workers' tile renders wait at a gate (a test hook of the bindings): each
-    # writes `gate.<pid>` and waits until `gate` exists. A worker killed while it waits
-    # there surely loses the tile it was rendering.
-    gate = tmp_path / "gate"
-    monkeypatch.setenv("RAYTRACER_TEST_GATE_RENDER", str(gate))
-    with start_cluster(2) as cluster, Client(cluster) as client:
-        monkeypatch.delenv("RAYTRACER_TEST_GATE_RENDER")
-        client.wait_for_workers(2)
-        workers = set(client.run(os.getpid).values())
+    def __init__(self, client, gate):
+        self.client = client
+        self.gate = gate
+        self.workers = set(client.run(os.getpid).values())
+
+    def kill_a_worker_during(self, work):
+        """Runs `work()` on a thread, kills the first worker found waiting at the gate,
+        opens the gate and, once `work` has ended, returns the killed worker's pid."""
         result = {}
 
-        def render():
+        def run():
             try:
-                result["linear"] = rd.render(CORNELL_OBJ, client, tile_size=8, **options)
+                work()
             except BaseException as error:  # noqa: BLE001 - reported by the assertion below
                 result["error"] = error
 
-        thread = threading.Thread(target=render)
+        thread = threading.Thread(target=run)
         thread.start()
         waiting = []
         for _ in range(120_000):
-            waiting = [int(m.suffix[1:]) for m in tmp_path.glob("gate.*")]
+            waiting = [int(m.suffix[1:]) for m in self.gate.parent.glob("gate.*")]
             if waiting or not thread.is_alive():
                 break
             time.sleep(0.001)
-        assert len(waiting) >= 1 and set(waiting) <= workers, (waiting, workers, result)
+        assert len(waiting) >= 1 and set(waiting) <= self.workers, (waiting, self.workers, result)
         os.kill(waiting[0], signal.SIGKILL)
-        gate.touch()
+        self.gate.touch()
         thread.join()
         assert "error" not in result, result
-        assert np.array_equal(bits(result["linear"]), bits(expected))
+        return waiting[0]
 
 
-def test_render_many_yields_every_frame_once_when_a_worker_is_lost(tmp_path, monkeypatch):
-    """A worker killed in the middle of a frame (found by the render gate, not by a
-    clock): its task's frames are rendered again on the other worker (or on the one
-    the nanny starts), and every frame is yielded exactly once, equal to a local
-    render."""
+@pytest.fixture
+def gated_cluster(tmp_path, monkeypatch):
+    """A :class:`GatedCluster` of its own for a test that kills one of its workers."""
     from distributed import Client
 
+    gate = tmp_path / "gate"
+    monkeypatch.setenv("RAYTRACER_TEST_GATE_RENDER", str(gate))
+    with start_cluster(2) as cluster, Client(cluster) as client:
+        # Only the workers started above wait at the gate, not the local renders.
+        monkeypatch.delenv("RAYTRACER_TEST_GATE_RENDER")
+        client.wait_for_workers(2)
+        yield GatedCluster(client, gate)
+
+
+def test_a_lost_workers_tiles_are_recomputed(gated_cluster):
+    options = dict(width=96, height=72, spp=4, **CAMERA)
+    expected = raytracer.render(CORNELL_OBJ, **options)
+    result = {}
+
+    def render():
+        result["linear"] = rd.render(CORNELL_OBJ, gated_cluster.client, tile_size=8, **options)
+
+    gated_cluster.kill_a_worker_during(render)
+    assert np.array_equal(bits(result["linear"]), bits(expected))
+
+
+def test_render_many_yields_every_frame_once_when_a_worker_is_lost(gated_cluster):
+    """A worker killed in the middle of a frame: its task's frames are rendered again
+    on the other worker (or on the one the nanny starts), and every frame is yielded
+    exactly once, equal to a local render."""
     cameras = [dict(look_from=(x, 0.7, 1.75), look_to=(0.0, 0.7, 0.0)) for x in (-0.4, -0.2, 0.0, 0.2, 0.4, 0.6)]
     common = dict(width=24, height=18, fov=60, spp=2)
     aovs = ["depth", "normal", "object_id"]
-    gate = tmp_path / "gate"
-    monkeypatch.setenv("RAYTRACER_TEST_GATE_RENDER", str(gate))
-    with start_cluster(2) as cluster, Client(cluster) as client:
-        monkeypatch.delenv("RAYTRACER_TEST_GATE_RENDER")
-        client.wait_for_workers(2)
-        workers = set(client.run(os.getpid).values())
-        frames = rd.render_many(CORNELL_OBJ, cameras, client, aovs=aovs, frames_per_task=2, **common)
-        seen = []
-        result = {}
-
-        def collect():
-            try:
-                seen.extend(frames)
-            except BaseException as error:  # noqa: BLE001 - reported by the assertion below
-                result["error"] = error
-
-        thread = threading.Thread(target=collect)
-        thread.start()
-        waiting = []
-        for _ in range(120_000):
-            waiting = [int(m.suffix[1:]) for m in tmp_path.glob("gate.*")]
-            if waiting or not thread.is_alive():
-                break
-            time.sleep(0.001)
-        assert len(waiting) >= 1 and set(waiting) <= workers, (waiting, workers, result)
-        # Killed while it renders the first frame of a task: that task is lost.
-        os.kill(waiting[0], signal.SIGKILL)
-        gate.touch()
-        thread.join()
-        assert "error" not in result, result
-        assert waiting[0] not in client.run(os.getpid).values()
+    client = gated_cluster.client
+    frames = rd.render_many(CORNELL_OBJ, cameras, client, aovs=aovs, frames_per_task=2, **common)
+    seen = []
+    # Killed while it renders the first frame of a task: that task is lost.
+    killed = gated_cluster.kill_a_worker_during(lambda: seen.extend(frames))
+    assert killed not in client.run(os.getpid).values()
     assert sorted(index for index, _ in seen) == list(range(len(cameras)))
     for index, frame in seen:
         expected = raytracer.render(CORNELL_OBJ, aovs=aovs, **common, **cameras[index])

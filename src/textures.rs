@@ -427,9 +427,10 @@ impl Texture {
         matches!(self.texels, Texels::U8(_))
     }
 
-    /// Texel `(x, y)` (in range) as linear RGBA.
+    /// Texel `(x, y)` (in range, row 0 at the top) as linear RGBA: what
+    /// [`Texture::bilinear`] filters.
     #[inline(always)]
-    fn texel(&self, x: usize, y: usize, encoding: Encoding) -> [Float; 4] {
+    pub fn texel(&self, x: usize, y: usize, encoding: Encoding) -> [Float; 4] {
         let channels = self.channels as usize;
         let at = (y * self.width as usize + x) * channels;
         let colour = |value: Float| match encoding {

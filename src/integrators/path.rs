@@ -255,15 +255,15 @@ impl PathIntegrator {
         let ray = path.ray;
         let Some(hit) = hit else {
             if let Some(environment) = &self.environment {
-                let seen = match self.background {
-                    Some(colour) if path.depth == 0 => colour,
-                    _ => environment.radiance(ray.dir),
-                };
-                let weight = if path.previous_delta {
-                    1.0
-                } else {
-                    let light_pdf = self.environment_probability * environment.pdf(ray.dir);
-                    power_heuristic(path.previous_pdf, light_pdf)
+                let (seen, weight) = match self.background {
+                    Some(colour) if path.depth == 0 => (colour, 1.0),
+                    _ if path.previous_delta => (environment.radiance(ray.dir), 1.0),
+                    _ => {
+                        // Radiance and density from one conversion of the direction.
+                        let (seen, pdf) = environment.radiance_and_pdf(ray.dir);
+                        let light_pdf = self.environment_probability * pdf;
+                        (seen, power_heuristic(path.previous_pdf, light_pdf))
+                    }
                 };
                 path.radiance += path.throughput * seen * weight;
             }

@@ -272,7 +272,42 @@ impl WideBvh {
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
-        self.walk::<true, T, F>(ray, t_max, items, leaf)
+        self.walk::<true, T, F>(0, ray, t_max, items, leaf)
+    }
+
+    /// [`WideBvh::walk_ordered`] of the subtree under node `node` alone: a batch
+    /// walk hands a ray that has left its batch's company the rest of its way
+    /// down from where it is, rather than from the root.
+    #[inline(always)]
+    pub fn walk_ordered_from<T, F>(
+        &self,
+        node: u32,
+        ray: &RayQuery,
+        t_max: &mut Float,
+        items: &[T],
+        leaf: F,
+    ) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        self.walk::<true, T, F>(node, ray, t_max, items, leaf)
+    }
+
+    /// [`WideBvh::walk_any`] of the subtree under node `node` alone, as
+    /// [`WideBvh::walk_ordered_from`].
+    #[inline(always)]
+    pub fn walk_any_from<T, F>(
+        &self,
+        node: u32,
+        ray: &RayQuery,
+        t_max: &mut Float,
+        items: &[T],
+        leaf: F,
+    ) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        self.walk::<false, T, F>(node, ray, t_max, items, leaf)
     }
 
     /// As [`WideBvh::walk_ordered`] for any-hit queries, where the first blocker found
@@ -284,7 +319,7 @@ impl WideBvh {
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
-        self.walk::<false, T, F>(ray, t_max, items, leaf)
+        self.walk::<false, T, F>(0, ray, t_max, items, leaf)
     }
 
     /// Asks for the memory of a child put on the stack, if it is a node, so that it
@@ -304,6 +339,7 @@ impl WideBvh {
     #[inline(always)]
     fn walk<const ORDERED: bool, T, F>(
         &self,
+        start: u32,
         ray: &RayQuery,
         t_max: &mut Float,
         items: &[T],
@@ -317,7 +353,7 @@ impl WideBvh {
         }
         // Uninitialised: zeroing 10 KB per ray would cost more than many node visits.
         let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
-        let mut walk = Walk::new(ray);
+        let mut walk = Walk::new(ray, start);
         loop {
             match self.step::<ORDERED, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf) {
                 Step::Going => {}
@@ -477,13 +513,13 @@ struct Walk {
 }
 
 impl Walk {
-    /// A walk of `ray` from the root.
+    /// A walk of `ray` from node `start` (0: the root).
     #[inline(always)]
-    fn new(ray: &RayQuery) -> Walk {
+    fn new(ray: &RayQuery, start: u32) -> Walk {
         Walk {
             slabs: WideRay::new(ray),
             current: ChildRef {
-                index: 0,
+                index: start,
                 item_count: 0,
             },
             stack_len: 0,

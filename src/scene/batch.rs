@@ -26,9 +26,9 @@ use std::mem::MaybeUninit;
 use wide::f32x16;
 
 use super::{Hit, Scene};
-use crate::bvh::{PACKET_SIZE, RayPacket, STACK_SIZE, WideNode, lane_mask, lanes_of};
+use crate::bvh::{PACKET_SIZE, RayPacket, RayQuery, STACK_SIZE, WideNode, lane_mask, lanes_of};
 use crate::math::{Float, Ray};
-use crate::shapes::{LANES, PrimHit, Shape, sphere_across_rays, triangle_across_rays};
+use crate::shapes::{LANES, PacketRay, PrimHit, Shape, sphere_across_rays, triangle_across_rays};
 
 /// Rays per batch: one AVX-512 register of `f32` per coordinate.
 pub const BATCH: usize = PACKET_SIZE;
@@ -58,9 +58,12 @@ fn shape_across(
 }
 
 /// Pushes onto `stack` each child of `node` that some ray of `rays` in `batch` meets
-/// with an entry distance below its `t_max`, with the mask of those rays.
+/// with an entry distance below its `t_max`, with the mask of those rays and the
+/// least of their entry distances; if `ORDERED`, nearest last (on top), by that
+/// distance, so that a closest-hit walk finds near hits first and skips what lies
+/// behind them, as a single ray's ordered walk does.
 #[inline(always)]
-fn push_met_children(
+fn push_met_children<const ORDERED: bool>(
     batch: &RayPacket,
     node: &WideNode,
     t_max: f32x16,
@@ -70,17 +73,44 @@ fn push_met_children(
 ) {
     // Slots in use: an unused slot's box is inverted.
     let used = node.planes[0].simd_le(node.planes[1]).to_bitmask();
+    let run_start = *stack_len;
+    let open = lane_mask(rays);
     for slot in lanes_of(used) {
         let planes = [0, 1, 2, 3, 4, 5].map(|p| node.planes[p].as_array()[slot]);
-        let met = batch.hit_child::<false>(&planes, t_max).0.to_bitmask() & rays;
+        let (met, t_enter) = batch.hit_child::<false>(&planes, t_max);
+        let met_mask = met & open;
+        let met = met_mask.to_bitmask() & rays;
         if met != 0 {
             debug_assert!(*stack_len < STACK_SIZE);
+            let t_enter = if ORDERED {
+                (met_mask
+                    .select(t_enter, f32x16::splat(Float::INFINITY))
+                    .to_array())
+                .into_iter()
+                .fold(Float::INFINITY, Float::min)
+            } else {
+                0.0
+            };
             stack[*stack_len].write(Pending {
                 index: node.child[slot],
                 item_count: node.item_count[slot],
                 rays: met,
+                t_enter,
             });
             *stack_len += 1;
+        }
+    }
+    if ORDERED {
+        // Insertion sort by decreasing entry distance: at most eight entries.
+        for i in run_start + 1..*stack_len {
+            // SAFETY: entries `run_start..stack_len` were written just above.
+            let entry = unsafe { stack[i].assume_init() };
+            let mut j = i;
+            while j > run_start && unsafe { stack[j - 1].assume_init() }.t_enter < entry.t_enter {
+                stack[j] = stack[j - 1];
+                j -= 1;
+            }
+            stack[j].write(entry);
         }
     }
 }
@@ -92,6 +122,9 @@ struct Pending {
     index: u32,
     item_count: u32,
     rays: u32,
+    /// The least entry distance of `rays` into its box (0 in any-hit walks): a ray
+    /// whose closest hit so far is no farther has nothing more to find there.
+    t_enter: Float,
 }
 
 impl Scene {
@@ -119,31 +152,23 @@ impl Scene {
         let mut v_best = f32x16::ZERO;
         // Packet index times LANES plus lane, as bits in a float lane.
         let mut id_best = f32x16::splat(Float::from_bits(u32::MAX));
-        // Rays traced one by one, whose entries are final.
-        let mut alone = 0u32;
-        let mut open = lane_mask(active);
+        let open = lane_mask(active);
         let mut stack = [const { MaybeUninit::<Pending>::uninit() }; STACK_SIZE];
         stack[0].write(Pending {
             index: 0,
             item_count: 0,
             rays: active,
+            t_enter: 0.0,
         });
         let mut stack_len = 1;
         while stack_len > 0 {
             stack_len -= 1;
             // SAFETY: entries below `stack_len` were written before.
             let pending = unsafe { stack[stack_len].assume_init() };
-            let reached = pending.rays & !alone;
+            // Rays whose closest hit so far lies before every entry into this box.
+            let done = t_best.simd_le(f32x16::splat(pending.t_enter)).to_bitmask();
+            let reached = pending.rays & !done;
             if reached == 0 {
-                continue;
-            }
-            // A leaf costs the batch little more than one ray: test it whoever is left.
-            if pending.item_count == 0 && reached.count_ones() <= FEW_RAYS {
-                for lane in lanes_of(reached) {
-                    hits[lane] = self.intersect(&rays[lane]);
-                }
-                alone |= reached;
-                open = lane_mask(active & !alone);
                 continue;
             }
             if pending.item_count > 0 {
@@ -167,8 +192,37 @@ impl Scene {
                 }
                 continue;
             }
+            if reached.count_ones() <= FEW_RAYS {
+                // A node costs the batch about what it costs one ray: a ray alone
+                // here goes down this subtree by itself, nearest first, from its
+                // closest hit so far, and stays in the batch for the rest.
+                for lane in lanes_of(reached) {
+                    let mut t_max = t_best.as_array()[lane];
+                    let ray = &rays[lane];
+                    let lanes = PacketRay::new(ray);
+                    let mut closest = None;
+                    self.wide.walk_ordered_from(
+                        pending.index,
+                        &RayQuery::new(ray),
+                        &mut t_max,
+                        &self.packets,
+                        |first, count, t_max| {
+                            self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest);
+                            false
+                        },
+                    );
+                    if let Some((packet, packet_lane, hit)) = closest {
+                        t_best.as_mut_array()[lane] = hit.t;
+                        u_best.as_mut_array()[lane] = hit.u;
+                        v_best.as_mut_array()[lane] = hit.v;
+                        id_best.as_mut_array()[lane] =
+                            Float::from_bits(packet * LANES as u32 + packet_lane as u32);
+                    }
+                }
+                continue;
+            }
             let node = &self.wide.nodes[pending.index as usize];
-            push_met_children(&batch, node, t_best, reached, &mut stack, &mut stack_len);
+            push_met_children::<true>(&batch, node, t_best, reached, &mut stack, &mut stack_len);
         }
         let (t, u, v, id) = (
             t_best.to_array(),
@@ -176,7 +230,7 @@ impl Scene {
             v_best.to_array(),
             id_best.to_array(),
         );
-        for lane in lanes_of(active & !alone) {
+        for lane in lanes_of(active) {
             let id = id[lane].to_bits();
             hits[lane] = (id != u32::MAX).then(|| {
                 let hit = PrimHit {
@@ -216,6 +270,7 @@ impl Scene {
             index: 0,
             item_count: 0,
             rays: active,
+            t_enter: 0.0,
         });
         let mut stack_len = 1;
         while stack_len > 0 && blocked != active {
@@ -224,19 +279,6 @@ impl Scene {
             let pending = unsafe { stack[stack_len].assume_init() };
             let open = pending.rays & !blocked;
             if open == 0 {
-                continue;
-            }
-            if pending.item_count == 0 && open.count_ones() <= FEW_RAYS {
-                for lane in lanes_of(open) {
-                    if self.occluded(&rays[lane], t_max[lane]) {
-                        blocked |= 1 << lane;
-                    }
-                }
-                // Their answer is final: drop them from every pending entry.
-                for entry in &mut stack[..stack_len] {
-                    // SAFETY: as above.
-                    unsafe { entry.assume_init_mut() }.rays &= !open;
-                }
                 continue;
             }
             if pending.item_count > 0 {
@@ -256,8 +298,28 @@ impl Scene {
                 }
                 continue;
             }
+            if open.count_ones() <= FEW_RAYS {
+                // As in `intersect_batch`: a ray alone here goes down this subtree
+                // by itself.
+                for lane in lanes_of(open) {
+                    let ray = &rays[lane];
+                    let lanes = PacketRay::new(ray);
+                    let mut reach = t_max[lane];
+                    let found = self.wide.walk_any_from(
+                        pending.index,
+                        &RayQuery::new(ray),
+                        &mut reach,
+                        &self.packets,
+                        |first, count, reach| self.blocker_in_leaf(&lanes, first, count, *reach),
+                    );
+                    if found {
+                        blocked |= 1 << lane;
+                    }
+                }
+                continue;
+            }
             let node = &self.wide.nodes[pending.index as usize];
-            push_met_children(&batch, node, limit, open, &mut stack, &mut stack_len);
+            push_met_children::<false>(&batch, node, limit, open, &mut stack, &mut stack_len);
         }
         blocked & active
     }

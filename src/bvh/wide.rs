@@ -732,8 +732,9 @@ mod tests {
 
     /// At a node whose leaves and interior children the ray both meets, the
     /// any-hit walk tests the leaves first; the closest-hit walk goes by distance.
+    /// A walk from a node visits the leaves under it alone.
     #[test]
-    fn any_hit_walks_visit_a_node_s_leaves_before_its_children() {
+    fn any_hit_walks_visit_leaves_first_and_walks_from_a_node_stay_below_it() {
         let unit = |x: f32| Aabb {
             min: Vec3::new(x, -1.0, -1.0),
             max: Vec3::new(x + 1.0, 1.0, 1.0),
@@ -771,6 +772,22 @@ mod tests {
         };
         assert_eq!(visits(false), [0, 1]);
         assert_eq!(visits(true), [1, 0]);
+        // From node 1, a walk sees that node's subtree alone: its leaf of item 1,
+        // not the root's leaf of item 0 that the ray also meets.
+        for ordered in [false, true] {
+            let mut seen = Vec::new();
+            let leaf = |first: u32, _: u32, _: &mut Float| {
+                seen.push(first);
+                false
+            };
+            let mut t_max = Float::INFINITY;
+            if ordered {
+                bvh.walk_ordered_from(1, &ray, &mut t_max, &items, leaf);
+            } else {
+                bvh.walk_any_from(1, &ray, &mut t_max, &items, leaf);
+            }
+            assert_eq!(seen, [1], "ordered: {ordered}");
+        }
         let mut seen = Vec::new();
         bvh.walk_stream_any(&[ray], &[Float::INFINITY], &items, |_, first, _, _| {
             seen.push(first);

@@ -756,38 +756,28 @@ mod tests {
             .unwrap();
         let ray = RayQuery::new(&crate::math::Ray::new(Vec3::new(-1.0, 0.0, 0.0), Vec3::X));
         let items = [0u8; 2];
-        let visits = |ordered: bool| {
+        // The leaves a walk visits, from the root or from node `from`.
+        let visits = |ordered: bool, from: Option<u32>| {
             let mut seen = Vec::new();
             let leaf = |first: u32, _: u32, _: &mut Float| {
                 seen.push(first);
                 false
             };
             let mut t_max = Float::INFINITY;
-            if ordered {
-                bvh.walk_ordered(&ray, &mut t_max, &items, leaf);
-            } else {
-                bvh.walk_any(&ray, &mut t_max, &items, leaf);
-            }
+            match (ordered, from) {
+                (true, None) => bvh.walk_ordered(&ray, &mut t_max, &items, leaf),
+                (false, None) => bvh.walk_any(&ray, &mut t_max, &items, leaf),
+                (true, Some(node)) => bvh.walk_ordered_from(node, &ray, &mut t_max, &items, leaf),
+                (false, Some(node)) => bvh.walk_any_from(node, &ray, &mut t_max, &items, leaf),
+            };
             seen
         };
-        assert_eq!(visits(false), [0, 1]);
-        assert_eq!(visits(true), [1, 0]);
+        assert_eq!(visits(false, None), [0, 1]);
+        assert_eq!(visits(true, None), [1, 0]);
         // From node 1, a walk sees that node's subtree alone: its leaf of item 1,
         // not the root's leaf of item 0 that the ray also meets.
-        for ordered in [false, true] {
-            let mut seen = Vec::new();
-            let leaf = |first: u32, _: u32, _: &mut Float| {
-                seen.push(first);
-                false
-            };
-            let mut t_max = Float::INFINITY;
-            if ordered {
-                bvh.walk_ordered_from(1, &ray, &mut t_max, &items, leaf);
-            } else {
-                bvh.walk_any_from(1, &ray, &mut t_max, &items, leaf);
-            }
-            assert_eq!(seen, [1], "ordered: {ordered}");
-        }
+        assert_eq!(visits(false, Some(1)), [1]);
+        assert_eq!(visits(true, Some(1)), [1]);
         let mut seen = Vec::new();
         bvh.walk_stream_any(&[ray], &[Float::INFINITY], &items, |_, first, _, _| {
             seen.push(first);

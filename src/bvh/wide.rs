@@ -272,7 +272,42 @@ impl WideBvh {
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
-        self.walk::<true, T, F>(ray, t_max, items, leaf)
+        self.walk::<true, T, F>(0, ray, t_max, items, leaf)
+    }
+
+    /// [`WideBvh::walk_ordered`] of the subtree under node `node` alone: a batch
+    /// walk hands a ray that has left its batch's company the rest of its way
+    /// down from where it is, rather than from the root.
+    #[inline(always)]
+    pub fn walk_ordered_from<T, F>(
+        &self,
+        node: u32,
+        ray: &RayQuery,
+        t_max: &mut Float,
+        items: &[T],
+        leaf: F,
+    ) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        self.walk::<true, T, F>(node, ray, t_max, items, leaf)
+    }
+
+    /// [`WideBvh::walk_any`] of the subtree under node `node` alone, as
+    /// [`WideBvh::walk_ordered_from`].
+    #[inline(always)]
+    pub fn walk_any_from<T, F>(
+        &self,
+        node: u32,
+        ray: &RayQuery,
+        t_max: &mut Float,
+        items: &[T],
+        leaf: F,
+    ) -> bool
+    where
+        F: FnMut(u32, u32, &mut Float) -> bool,
+    {
+        self.walk::<false, T, F>(node, ray, t_max, items, leaf)
     }
 
     /// As [`WideBvh::walk_ordered`] for any-hit queries, where the first blocker found
@@ -284,7 +319,7 @@ impl WideBvh {
     where
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
-        self.walk::<false, T, F>(ray, t_max, items, leaf)
+        self.walk::<false, T, F>(0, ray, t_max, items, leaf)
     }
 
     /// Asks for the memory of a child put on the stack, if it is a node, so that it
@@ -304,6 +339,7 @@ impl WideBvh {
     #[inline(always)]
     fn walk<const ORDERED: bool, T, F>(
         &self,
+        start: u32,
         ray: &RayQuery,
         t_max: &mut Float,
         items: &[T],
@@ -317,7 +353,7 @@ impl WideBvh {
         }
         // Uninitialised: zeroing 10 KB per ray would cost more than many node visits.
         let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
-        let mut walk = Walk::new(ray);
+        let mut walk = Walk::new(ray, start);
         loop {
             match self.step::<ORDERED, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf) {
                 Step::Going => {}
@@ -477,13 +513,13 @@ struct Walk {
 }
 
 impl Walk {
-    /// A walk of `ray` from the root.
+    /// A walk of `ray` from node `start` (0: the root).
     #[inline(always)]
-    fn new(ray: &RayQuery) -> Walk {
+    fn new(ray: &RayQuery, start: u32) -> Walk {
         Walk {
             slabs: WideRay::new(ray),
             current: ChildRef {
-                index: 0,
+                index: start,
                 item_count: 0,
             },
             stack_len: 0,
@@ -696,8 +732,9 @@ mod tests {
 
     /// At a node whose leaves and interior children the ray both meets, the
     /// any-hit walk tests the leaves first; the closest-hit walk goes by distance.
+    /// A walk from a node visits the leaves under it alone.
     #[test]
-    fn any_hit_walks_visit_a_node_s_leaves_before_its_children() {
+    fn any_hit_walks_visit_leaves_first_and_walks_from_a_node_stay_below_it() {
         let unit = |x: f32| Aabb {
             min: Vec3::new(x, -1.0, -1.0),
             max: Vec3::new(x + 1.0, 1.0, 1.0),
@@ -719,22 +756,28 @@ mod tests {
             .unwrap();
         let ray = RayQuery::new(&crate::math::Ray::new(Vec3::new(-1.0, 0.0, 0.0), Vec3::X));
         let items = [0u8; 2];
-        let visits = |ordered: bool| {
+        // The leaves a walk visits, from the root or from node `from`.
+        let visits = |ordered: bool, from: Option<u32>| {
             let mut seen = Vec::new();
             let leaf = |first: u32, _: u32, _: &mut Float| {
                 seen.push(first);
                 false
             };
             let mut t_max = Float::INFINITY;
-            if ordered {
-                bvh.walk_ordered(&ray, &mut t_max, &items, leaf);
-            } else {
-                bvh.walk_any(&ray, &mut t_max, &items, leaf);
-            }
+            match (ordered, from) {
+                (true, None) => bvh.walk_ordered(&ray, &mut t_max, &items, leaf),
+                (false, None) => bvh.walk_any(&ray, &mut t_max, &items, leaf),
+                (true, Some(node)) => bvh.walk_ordered_from(node, &ray, &mut t_max, &items, leaf),
+                (false, Some(node)) => bvh.walk_any_from(node, &ray, &mut t_max, &items, leaf),
+            };
             seen
         };
-        assert_eq!(visits(false), [0, 1]);
-        assert_eq!(visits(true), [1, 0]);
+        assert_eq!(visits(false, None), [0, 1]);
+        assert_eq!(visits(true, None), [1, 0]);
+        // From node 1, a walk sees that node's subtree alone: its leaf of item 1,
+        // not the root's leaf of item 0 that the ray also meets.
+        assert_eq!(visits(false, Some(1)), [1]);
+        assert_eq!(visits(true, Some(1)), [1]);
         let mut seen = Vec::new();
         bvh.walk_stream_any(&[ray], &[Float::INFINITY], &items, |_, first, _, _| {
             seen.push(first);

@@ -2,7 +2,7 @@
 //! soups, sphere sets and the deer mesh, the BVH's closest hit equals the linear
 //! scan's, any-hit agrees with closest-hit, and `Bvh::validate` holds.
 
-mod support;
+use crate::support;
 
 use proptest::prelude::*;
 use proptest::test_runner::Config;

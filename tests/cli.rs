@@ -1,7 +1,7 @@
 //! Drives the `raytracer` binary: successful renders, argument validation before any
 //! work, error messages and exit codes, and atomic output.
 
-mod support;
+use crate::support;
 
 use support::{raytracer, stderr};
 

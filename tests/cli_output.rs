@@ -1,7 +1,7 @@
 //! Drives the binary for what users see: --quiet, --version, output formats by
 //! extension, and --spp determinism.
 
-mod support;
+use crate::support;
 
 use std::fs;
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! warning, which `--no-default-light` turns off; under the rig, `Ka` is a fraction of
 //! the rig's ambient light, so that an exported model (`Ka 1 1 1`) is not washed out.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! the default, an unknown PLY header line is skipped. (Truly broken input stays an
 //! error: `tests/malformed.rs`.) Scenes: `tests/data/forgiving/`.
 
-mod support;
+use crate::support;
 
 use std::path::{Path, PathBuf};
 

@@ -3,8 +3,7 @@
 //! the committed fuzz corpus (`fuzz/corpus/<target>/`), through the same checks
 //! the fuzz targets run (`tests/support/fuzz_checks.rs`).
 
-#[path = "support/fuzz_checks.rs"]
-mod fuzz_checks;
+use crate::fuzz_checks;
 
 use std::fs;
 use std::path::{Path, PathBuf};

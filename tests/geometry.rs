@@ -6,7 +6,7 @@
 //! `f32`, whose unit roundoff is 6e-8, and a hit goes through about ten dependent
 //! roundings on values up to ~5, so we allow 1e-4 relative to max(1, |value|).
 
-mod support;
+use crate::support;
 
 use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::math::{Ray, Vec3, reflect, refract};

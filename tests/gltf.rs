@@ -11,7 +11,7 @@ use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::options::Origin;
 use raytracer::{BvhParams, Scene};
 
-mod support;
+use crate::support;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -5,7 +5,7 @@
 //! uncompressed torus that `tests/data/gltf/meshopt/make_fixtures.py` wrote and
 //! gltfpack compressed, and corrupt meshopt streams.
 
-mod support;
+use crate::support;
 
 use std::path::{Path, PathBuf};
 

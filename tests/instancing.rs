@@ -5,7 +5,7 @@
 //! placed copies), non-uniform and mirroring scales; and bad placements are errors
 //! naming the file and entry.
 
-mod support;
+use crate::support;
 
 use std::fmt::Write as _;
 use std::fs;

@@ -2,7 +2,7 @@
 //! applied to the linear EXR, the thin lens's defocus disc, glTF orthographic cameras,
 //! a lone `--look-from` aiming at the scene's centre, and bad lens values named.
 
-mod support;
+use crate::support;
 
 use support::{raytracer, stderr};
 

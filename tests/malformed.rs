@@ -3,7 +3,7 @@
 //! valid after all, such as CRLF line ends and tabs). The small files live in
 //! `tests/data/malformed/`; large or special ones are made in a temporary folder.
 
-mod support;
+use crate::support;
 
 use std::fs;
 use std::path::{Path, PathBuf};

@@ -3,9 +3,8 @@
 //! hits), and in the degenerate cases one by one: zero-area triangles, zero-length
 //! `vn`, rays parallel to a triangle or grazing a sphere, empty images.
 
-#[path = "support/fuzz_checks.rs"]
-mod fuzz_checks;
-mod support;
+use crate::fuzz_checks;
+use crate::support;
 
 use std::path::Path;
 

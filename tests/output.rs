@@ -2,7 +2,7 @@
 //! centre-ray renderer, more samples are deterministic for any thread count, and
 //! OpenEXR files give back the film's values.
 
-mod support;
+use crate::support;
 
 use std::fs;
 

@@ -2,7 +2,7 @@
 //! half-written, and a failure, a refused place or Ctrl-C leaves the previous file as
 //! it was and no temporary file behind.
 
-mod support;
+use crate::support;
 
 use std::fs;
 use std::io;

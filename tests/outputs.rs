@@ -4,7 +4,7 @@
 //! renderer: the closed-form depth of a plane, the projected rectangles of two
 //! meshes, the covered area of a square's edges.
 
-mod support;
+use crate::support;
 
 use std::fs;
 use std::path::Path;

@@ -3,7 +3,7 @@
 //! a white furnace, a point light's inverse-square falloff, one-sided emitters, and
 //! determinism across threads, tiles and seeds.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

@@ -3,7 +3,7 @@
 //! physically based keys, and the warnings and errors about bad values. Every glTF
 //! fixture is written here: one triangle per material, from a `.bin` beside it.
 
-mod support;
+use crate::support;
 
 use support::write_png;
 

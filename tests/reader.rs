@@ -1,7 +1,7 @@
 //! The OBJ/MTL reader: counts and values of the `box` scene, negative indices,
 //! polygons, every face form, and every error with its exact message.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

@@ -8,7 +8,7 @@
 //! cargo test --release --test real_files -- --ignored --nocapture
 //! ```
 
-mod support;
+use crate::support;
 
 use std::path::{Path, PathBuf};
 

@@ -3,7 +3,7 @@
 //! RGB distance 2. Each case's similarity is printed; a failing case leaves its
 //! render and a difference image under `target/reference-failures/`.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 

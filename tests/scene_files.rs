@@ -3,7 +3,7 @@
 //! value, one dimension keeps the aspect ratio), `raytracer info`, and the bundled
 //! TOML scenes.
 
-mod support;
+use crate::support;
 
 use support::raytracer;
 

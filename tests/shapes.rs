@@ -2,8 +2,6 @@
 //! (ear clipping in the best-fit plane; convex ones keep SPEC's fan), and smoothing
 //! groups give faces without `vn` smooth vertex normals.
 
-mod support;
-
 use std::fmt::Write;
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! sRGB decoding, MTL map options, cutouts, missing files, and what the integrators
 //! make of textured values. Each test writes its own tiny images and scene.
 
-mod support;
+use crate::support;
 
 use support::write_png;
 

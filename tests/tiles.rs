@@ -1,7 +1,7 @@
 //! `render_tile`: any part of the image, bit-identical to the same pixels of the
 //! whole render, and a clear error for a tile that is not inside the image.
 
-mod support;
+use crate::support;
 
 use raytracer::math::Vec3;
 use raytracer::{Film, Mode, RenderOptions, Tile, TileError, render, render_tile};

@@ -4,7 +4,7 @@
 //! mode render a uniformly coloured mesh exactly as the same mesh whose material has
 //! that colour; instanced coloured meshes render as their flattened copies.
 
-mod support;
+use crate::support;
 
 use std::fmt::Write as _;
 use std::fs;

@@ -265,6 +265,17 @@ impl PbrValues {
 mod tests {
     use super::*;
 
+    /// Phong values for `phong` to fill in, all zero.
+    fn blank() -> SurfaceValues {
+        SurfaceValues {
+            ambient: Vec3::ZERO,
+            diffuse: Vec3::ZERO,
+            specular: Vec3::ZERO,
+            emission: Vec3::ZERO,
+            shininess: 0.0,
+        }
+    }
+
     #[test]
     fn glass_defaults_reflect_four_percent_head_on() {
         let values = PbrMaterial::default().constants();
@@ -297,13 +308,7 @@ mod tests {
             roughness: 0.3,
             ..PbrMaterial::default()
         };
-        let mut values = SurfaceValues {
-            ambient: Vec3::ZERO,
-            diffuse: Vec3::ZERO,
-            specular: Vec3::ZERO,
-            emission: Vec3::ZERO,
-            shininess: 1.0,
-        };
+        let mut values = blank();
         gold.constants().phong(&mut values);
         assert_eq!(values.diffuse, Vec3::ZERO);
         assert_eq!(values.specular, gold.base_color);
@@ -319,13 +324,7 @@ mod tests {
             roughness: 1.0,
             ..PbrMaterial::default()
         };
-        let mut values = SurfaceValues {
-            ambient: Vec3::ZERO,
-            diffuse: Vec3::ZERO,
-            specular: Vec3::ZERO,
-            emission: Vec3::ZERO,
-            shininess: 0.0,
-        };
+        let mut values = blank();
         rough.constants().phong(&mut values);
         assert_eq!(values.shininess, 1.0);
         assert_eq!(values.specular, Vec3::ONE);

@@ -43,6 +43,37 @@ pub(crate) fn advise_huge_pages<T>(v: &Vec<T>) {
     let _ = v;
 }
 
+/// Moves the whole 2 MiB pages of `v`'s elements onto huge pages now, keeping their
+/// contents (Linux's `MADV_COLLAPSE`: a copy of each 2 MiB into a huge page),
+/// whatever [`advise_huge_pages`] decided when they were written. For data that
+/// rays will read at random many times over, such as a mesh that thousands of
+/// instances place: its nodes and packets outgrow what the processor's TLB maps
+/// with small pages, and each visit of a copy then waits for page walks as well as
+/// for the caches. Nothing happens where the kernel cannot (no THP support, a
+/// kernel before 6.1, no free huge page): a hint, which changes no contents.
+pub(crate) fn collapse_into_huge_pages<T>(v: &[T]) {
+    #[cfg(target_os = "linux")]
+    {
+        /// `MADV_COLLAPSE` of `<linux/mman.h>` (not exported by `libc` on every
+        /// target environment).
+        const MADV_COLLAPSE: libc::c_int = 25;
+        let start = (v.as_ptr() as usize).next_multiple_of(HUGE_PAGE_BYTES);
+        let end =
+            (v.as_ptr() as usize + std::mem::size_of_val(v)) / HUGE_PAGE_BYTES * HUGE_PAGE_BYTES;
+        if end <= start {
+            return;
+        }
+        for advice in [libc::MADV_HUGEPAGE, MADV_COLLAPSE] {
+            // SAFETY: the range lies inside `v`'s buffer, mapped and ours, and is
+            // 2 MiB aligned; both advices change how its pages are backed, never
+            // their contents. Failure leaves small pages, so results are ignored.
+            unsafe { libc::madvise(start as *mut libc::c_void, end - start, advice) };
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}
+
 /// Whether fresh huge pages have been found dear in this process.
 #[cfg(target_os = "linux")]
 static HUGE_PAGES_DEAR: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);

@@ -147,6 +147,10 @@ impl Instances {
                 ..mesh
             };
             let (mut scene, _, _) = Scene::build_level(description, params);
+            // Every copy's rays read the mesh at random: on huge pages, a visit
+            // waits for the caches but not for page walks as well.
+            crate::memory::collapse_into_huge_pages(&scene.wide.nodes);
+            crate::memory::collapse_into_huge_pages(&scene.packets);
             warnings.append(&mut scene.warnings);
             first_prim.push(prim_count as u32);
             first_source.push(source_count);

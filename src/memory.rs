@@ -139,6 +139,20 @@ fn back_with_huge_pages(start: usize, end: usize) {
     }
 }
 
+/// Marks huge pages dear for the rest of the process, as a slow fault would: for
+/// tests of what asks for huge pages whatever they cost.
+#[cfg(all(test, target_os = "linux"))]
+pub(crate) fn find_huge_pages_dear() {
+    HUGE_PAGES_DEAR.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether the kernel has transparent huge pages at all (`madvise` for them fails
+/// otherwise).
+#[cfg(all(test, target_os = "linux"))]
+pub(crate) fn thp_supported() -> bool {
+    std::path::Path::new("/sys/kernel/mm/transparent_hugepage/enabled").exists()
+}
+
 /// The CPU time of the calling thread: a fault's cost, not the time the thread was
 /// preempted meanwhile (the host's work for a cold page counts, as the guest's
 /// system time).
@@ -822,6 +836,22 @@ mod tests {
     /// The `VmFlags` line of `/proc/self/smaps` for the mapping holding `address`.
     fn vm_flags(address: usize) -> String {
         smaps_field(address, "VmFlags:")
+    }
+
+    /// Even once huge pages have been found dear, a collapse asks for them (the
+    /// mapping is marked `hg`, where the kernel has transparent huge pages) and keeps
+    /// the contents.
+    #[test]
+    fn collapse_asks_for_huge_pages_and_keeps_contents() {
+        let data: Vec<u32> = (0..2 * MIB as u32).collect();
+        find_huge_pages_dear();
+        advise_huge_pages(&data);
+        let inside = (data.as_ptr() as usize).next_multiple_of(HUGE_PAGE_BYTES);
+        collapse_into_huge_pages(&data);
+        assert!(data.iter().enumerate().all(|(i, &x)| x == i as u32));
+        if thp_supported() {
+            assert!(vm_flags(inside).contains(" hg"), "{}", vm_flags(inside));
+        }
     }
 
     /// Once huge pages have been found dear, fresh blocks and buffers written end

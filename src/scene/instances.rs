@@ -608,6 +608,34 @@ mod tests {
         (Scene::build(d, &params), Scene::build(flat, &params))
     }
 
+    /// A mesh that instances place is asked onto huge pages after its build (its
+    /// nodes and packets, which every copy's rays read at random), even where the
+    /// build's fresh arrays got small ones.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn an_instanced_mesh_asks_for_huge_pages() {
+        crate::memory::find_huge_pages_dear();
+        // 2 x 230^2 triangles: some 26,000 packets, over 4 MiB.
+        let mut d = SceneDescription::default();
+        d.meshes.push(generated_description(230, false, 7));
+        for x in [0.0, 3.0] {
+            d.instances.push(InstanceDesc {
+                mesh: 0,
+                world_from_object: Affine3A::from_translation(Vec3::new(x, 0.0, 0.0)),
+                winding_kept: false,
+            });
+        }
+        let scene = Scene::build(d, &BvhParams::default());
+        let mesh = &scene.instances.as_ref().unwrap().meshes[0];
+        let packets = mesh.packets.as_ptr() as usize;
+        let inside = packets.next_multiple_of(2 << 20);
+        assert!(inside + (2 << 20) <= packets + std::mem::size_of_val(&mesh.packets[..]));
+        if crate::memory::thp_supported() {
+            let flags = crate::memory::smaps_field(inside, "VmFlags:");
+            assert!(flags.contains(" hg"), "{flags}");
+        }
+    }
+
     #[test]
     fn every_query_family_answers_through_instances_as_the_flattened_scene_does() {
         let (scene, flat) = scenes();

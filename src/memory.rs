@@ -43,6 +43,37 @@ pub(crate) fn advise_huge_pages<T>(v: &Vec<T>) {
     let _ = v;
 }
 
+/// Moves the whole 2 MiB pages of `v`'s elements onto huge pages now, keeping their
+/// contents (Linux's `MADV_COLLAPSE`: a copy of each 2 MiB into a huge page),
+/// whatever [`advise_huge_pages`] decided when they were written. For data that
+/// rays will read at random many times over, such as a mesh that thousands of
+/// instances place: its nodes and packets outgrow what the processor's TLB maps
+/// with small pages, and each visit of a copy then waits for page walks as well as
+/// for the caches. Nothing happens where the kernel cannot (no THP support, a
+/// kernel before 6.1, no free huge page): a hint, which changes no contents.
+pub(crate) fn collapse_into_huge_pages<T>(v: &[T]) {
+    #[cfg(target_os = "linux")]
+    {
+        /// `MADV_COLLAPSE` of `<linux/mman.h>` (not exported by `libc` on every
+        /// target environment).
+        const MADV_COLLAPSE: libc::c_int = 25;
+        let start = (v.as_ptr() as usize).next_multiple_of(HUGE_PAGE_BYTES);
+        let end =
+            (v.as_ptr() as usize + std::mem::size_of_val(v)) / HUGE_PAGE_BYTES * HUGE_PAGE_BYTES;
+        if end <= start {
+            return;
+        }
+        for advice in [libc::MADV_HUGEPAGE, MADV_COLLAPSE] {
+            // SAFETY: the range lies inside `v`'s buffer, mapped and ours, and is
+            // 2 MiB aligned; both advices change how its pages are backed, never
+            // their contents. Failure leaves small pages, so results are ignored.
+            unsafe { libc::madvise(start as *mut libc::c_void, end - start, advice) };
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}
+
 /// Whether fresh huge pages have been found dear in this process.
 #[cfg(target_os = "linux")]
 static HUGE_PAGES_DEAR: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
@@ -106,6 +137,20 @@ fn back_with_huge_pages(start: usize, end: usize) {
         // The pages not faulted in yet get small ones; those that were stay.
         advise(start, libc::MADV_NOHUGEPAGE);
     }
+}
+
+/// Marks huge pages dear for the rest of the process, as a slow fault would: for
+/// tests of what asks for huge pages whatever they cost.
+#[cfg(all(test, target_os = "linux"))]
+pub(crate) fn find_huge_pages_dear() {
+    HUGE_PAGES_DEAR.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether the kernel has transparent huge pages at all (`madvise` for them fails
+/// otherwise).
+#[cfg(all(test, target_os = "linux"))]
+pub(crate) fn thp_supported() -> bool {
+    std::path::Path::new("/sys/kernel/mm/transparent_hugepage/enabled").exists()
 }
 
 /// The CPU time of the calling thread: a fault's cost, not the time the thread was
@@ -791,6 +836,22 @@ mod tests {
     /// The `VmFlags` line of `/proc/self/smaps` for the mapping holding `address`.
     fn vm_flags(address: usize) -> String {
         smaps_field(address, "VmFlags:")
+    }
+
+    /// Even once huge pages have been found dear, a collapse asks for them (the
+    /// mapping is marked `hg`, where the kernel has transparent huge pages) and keeps
+    /// the contents.
+    #[test]
+    fn collapse_asks_for_huge_pages_and_keeps_contents() {
+        let data: Vec<u32> = (0..2 * MIB as u32).collect();
+        find_huge_pages_dear();
+        advise_huge_pages(&data);
+        let inside = (data.as_ptr() as usize).next_multiple_of(HUGE_PAGE_BYTES);
+        collapse_into_huge_pages(&data);
+        assert!(data.iter().enumerate().all(|(i, &x)| x == i as u32));
+        if thp_supported() {
+            assert!(vm_flags(inside).contains(" hg"), "{}", vm_flags(inside));
+        }
     }
 
     /// Once huge pages have been found dear, fresh blocks and buffers written end

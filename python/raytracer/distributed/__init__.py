@@ -38,6 +38,10 @@ environment limits them. One worker thread per process (``--nthreads 1``) is eno
 
 ``python -m raytracer.distributed SCENE -o OUT.png`` is the command-line version
 (``--help`` lists its flags).
+
+:func:`render_many` renders one whole frame per camera instead (several frames to a
+task), yielding the frames, or with ``output_dir=`` having the workers write them
+(:func:`raytracer.dataset.write_frame`) and yielding their small records.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ import ipaddress
 import os
 import pickle
 import shutil
+import sys
 import tempfile
 import threading
 import uuid
@@ -576,13 +581,88 @@ def _render_frames(
     for it."""
     scene = _job(job).load(path, bundle)
     out = []
-    for index, options in enumerate(frames, first):
-        frame = scene.render(**options)
-        if writer is not None:
-            out.append(writer(scene, index, frame, **options))
-        else:
-            out.append(np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()})
+    with _recycled_pages():
+        for index, options in enumerate(frames, first):
+            frame = scene.render(**options)
+            if writer is not None:
+                out.append(writer(scene, index, frame, **options))
+            else:
+                out.append(np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()})
     return out
+
+
+#: glibc's ``mallopt`` parameters (malloc.h).
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: What :func:`_recycled_pages` sets while frames render: blocks up to this size from
+#: the heap, and at most this much free memory at its top kept.
+ROOMY_MMAP_THRESHOLD = 32 << 20
+ROOMY_TRIM_THRESHOLD = 64 << 20
+_roomy_lock = threading.Lock()
+_roomy_tasks = 0
+
+
+@contextlib.contextmanager
+def _recycled_pages():
+    """While frames render in this process: lets glibc's malloc reuse the pages of a
+    frame's freed buffers for the next, when the process was started with
+    ``MALLOC_TRIM_THRESHOLD_`` (as Dask's nanny starts workers, to return freed memory
+    at once). That setting turns off glibc's adaptive thresholds: every block above
+    128 KiB (a 256x256 frame's colour is 768 KiB) is mapped afresh and unmapped when
+    freed, and each of its pages faults again, a tenth of a small frame's CPU
+    (BENCHMARKS.md, ``render_many``). The process's own settings are restored, and its
+    free memory returned (``malloc_trim``), when the last task using this ends.
+    Nothing changes elsewhere (another C library, or no such setting)."""
+    global _roomy_tasks
+    libc = _glibc()
+    trim = os.environ.get("MALLOC_TRIM_THRESHOLD_")
+    if libc is None or trim is None:
+        yield
+        return
+    with _roomy_lock:
+        if _roomy_tasks == 0:
+            libc.mallopt(_M_MMAP_THRESHOLD, ROOMY_MMAP_THRESHOLD)
+            libc.mallopt(_M_TRIM_THRESHOLD, ROOMY_TRIM_THRESHOLD)
+        _roomy_tasks += 1
+    try:
+        yield
+    finally:
+        with _roomy_lock:
+            _roomy_tasks -= 1
+            if _roomy_tasks == 0:
+                # glibc's values under MALLOC_TRIM_THRESHOLD_: that threshold, and
+                # MALLOC_MMAP_THRESHOLD_ or the fixed 128 KiB.
+                libc.mallopt(_M_MMAP_THRESHOLD, _int(os.environ.get("MALLOC_MMAP_THRESHOLD_"), 128 << 10))
+                libc.mallopt(_M_TRIM_THRESHOLD, _int(trim, 128 << 10))
+                libc.malloc_trim(0)
+
+
+def _int(text: Optional[str], default: int) -> int:
+    try:
+        return int(text) if text is not None else default
+    except ValueError:
+        return default
+
+
+_libc: Any = None
+
+
+def _glibc() -> Any:
+    """glibc through ctypes, or ``None`` on another C library or system."""
+    global _libc
+    if _libc is None:
+        _libc = False
+        if sys.platform.startswith("linux"):
+            import ctypes
+
+            try:
+                libc = ctypes.CDLL("libc.so.6")
+                libc.gnu_get_libc_version  # noqa: B018 - glibc's own function, or AttributeError
+                libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+                libc.malloc_trim.argtypes = [ctypes.c_size_t]
+                _libc = libc
+            except (OSError, AttributeError):
+                pass
+    return _libc or None
 
 
 def _check_output_dir(output_dir: str, color_format: str) -> Optional[str]:

@@ -15,7 +15,7 @@ baseline:
   into a folder under --out, emptied before each run, and only small records reach
   this process.
 
-    python3 bench/render_many.py --frames 60 --size 128 [--scene bench/dragon.toml] [--repeat 3] [--modes client,write]
+    python3 bench/render_many.py --frames 60 --size 128 [--scene bench/dragon.toml] [--repeat 3] [--modes drop,client,write] [--nanny-malloc]
 """
 
 import argparse
@@ -82,6 +82,15 @@ def process_cpu(_):
     return cpu_seconds(resource.getrusage(resource.RUSAGE_SELF))
 
 
+def keep_nanny_malloc():
+    """Run on the workers with --nanny-malloc: render_many's frames then render under
+    the nanny's MALLOC_TRIM_THRESHOLD_ (raytracer.distributed._recycled_pages finds no
+    glibc)."""
+    import raytracer.distributed
+
+    raytracer.distributed._libc = False
+
+
 def cpu_seconds(usage) -> float:
     return usage.ru_utime + usage.ru_stime
 
@@ -94,6 +103,7 @@ def main():
     p.add_argument("--spp", type=int, default=1)
     p.add_argument("--repeat", type=int, default=3, help="rounds of runs (each mode local, then Dask)")
     p.add_argument("--modes", default="client,write")
+    p.add_argument("--nanny-malloc", action="store_true", help="workers keep the nanny's malloc settings while rendering (render_many lifts them)")
     p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "work"), help="where the write mode's frames go")
     args = p.parse_args()
     modes = args.modes.split(",")
@@ -115,6 +125,8 @@ def main():
     results = {mode: {"local": [], "dask": [], "local_cpu": [], "dask_cpu": [], "ratio": [], "cpu_ratio": []} for mode in modes}
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0") as cluster, Client(cluster) as client:
         client.wait_for_workers(2)
+        if args.nanny_malloc:
+            client.run(keep_nanny_malloc)
         # The chunks render_many makes of these frames, for the pool too.
         per_task = raytracer.distributed._frames_per_task(client, [dict(common, **c) for c in cams])
         for _ in range(args.repeat):

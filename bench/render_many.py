@@ -154,20 +154,25 @@ def main():
                     pool.close()
                     pool.join()
                 local = time.perf_counter() - started
-                local_cpu = cpu_seconds(resource.getrusage(resource.RUSAGE_CHILDREN)) - before_pool - children + time.process_time() - own
+                parent = time.process_time() - own
+                pool_cpu = cpu_seconds(resource.getrusage(resource.RUSAGE_CHILDREN)) - before_pool - children
+                local_cpu = pool_cpu + parent
                 assert done == args.frames
                 if out:
                     assert len(os.listdir(folder)) == args.frames * (len(AOVS) + 2)
                 empty()
                 raytracer.distributed.forget(client)
                 loads = sum(client.run(lambda: raytracer.distributed._loads).values())
-                before = sum(client.run(time.process_time).values()) + time.process_time()
+                workers_before = sum(client.run(time.process_time).values())
+                own = time.process_time()
                 started = time.perf_counter()
                 frames = raytracer.distributed.render_many(args.scene, cams, client, aovs=AOVS, output_dir=out, **common)
                 count = sum(1 for _ in frames)
                 dask = time.perf_counter() - started
                 # The workers' and this process's (the client's and the local cluster's scheduler's).
-                dask_cpu = sum(client.run(time.process_time).values()) + time.process_time() - before
+                own = time.process_time() - own
+                workers = sum(client.run(time.process_time).values()) - workers_before
+                dask_cpu = workers + own
                 loads = sum(client.run(lambda: raytracer.distributed._loads).values()) - loads
                 assert count == args.frames
                 if out:
@@ -176,7 +181,7 @@ def main():
                 for name, value in [("local", local), ("dask", dask), ("local_cpu", local_cpu), ("dask_cpu", dask_cpu), ("ratio", dask / local), ("cpu_ratio", dask_cpu / local_cpu)]:
                     r[name].append(value)
                 print(
-                    f"{mode}: local {local:.2f} s ({local_cpu:.2f} s CPU), render_many {dask:.2f} s ({dask_cpu:.2f} s CPU; "
+                    f"{mode}: local {local:.2f} s ({local_cpu:.2f} s CPU: pool {pool_cpu:.2f}, parent {parent:.2f}), render_many {dask:.2f} s ({dask_cpu:.2f} s CPU: workers {workers:.2f}, client's process {own:.2f}; "
                     f"scene read {loads} times): {dask / local:.2f} ({dask_cpu / local_cpu:.2f} in CPU), load {os.getloadavg()[0]:.1f}",
                     flush=True,
                 )

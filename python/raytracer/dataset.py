@@ -39,22 +39,29 @@ import numpy as np
 import raytracer
 from raytracer.cameras import opencv_from_camera_to_world
 
-__all__ = ["COLOR_FORMATS", "camera_pose", "check_output_dir", "frame_files", "write_frame"]
+__all__ = ["COLOR_FORMATS", "camera_pose", "check_output_dir", "frame_files", "output_path", "write_frame"]
 
 #: The colour's file formats: ``png`` (8-bit, post-processed) or ``exr`` (linear).
 COLOR_FORMATS = ("png", "exr")
+
+
+def output_path(output_dir: "str | os.PathLike[str]", color_format: str = "png") -> str:
+    """The absolute path of ``output_dir`` (as this process names it; nothing is
+    asked of the file system); a ``ValueError`` naming the argument when it is not a
+    path, or when ``color_format`` is not one of :data:`COLOR_FORMATS`."""
+    if color_format not in COLOR_FORMATS:
+        raise ValueError(f"invalid color_format: {color_format!r} is not one of {', '.join(COLOR_FORMATS)}")
+    try:
+        return os.path.abspath(os.fspath(output_dir))
+    except TypeError:
+        raise ValueError(f"invalid output_dir: {output_dir!r} is not a path") from None
 
 
 def check_output_dir(output_dir: "str | os.PathLike[str]", color_format: str = "png") -> str:
     """The absolute path of ``output_dir``, made if missing; a ``ValueError`` naming
     the argument when it is not a folder this process can write in, or when
     ``color_format`` is not one of :data:`COLOR_FORMATS`."""
-    if color_format not in COLOR_FORMATS:
-        raise ValueError(f"invalid color_format: {color_format!r} is not one of {', '.join(COLOR_FORMATS)}")
-    try:
-        folder = os.path.abspath(os.fspath(output_dir))
-    except TypeError:
-        raise ValueError(f"invalid output_dir: {output_dir!r} is not a path") from None
+    folder = output_path(output_dir, color_format)
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise ValueError(f"invalid output_dir: {folder} is not a folder")
     try:

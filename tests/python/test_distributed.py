@@ -564,3 +564,40 @@ def test_render_many_writes_every_frame_once_when_a_worker_is_lost(gated_cluster
     gated_cluster.kill_a_worker_during(lambda: seen.extend(written))
     assert sorted(index for index, _ in seen) == list(range(len(RING)))
     assert_written_as_rendered_locally(dict(seen), RING, folder)
+
+
+def test_frames_render_with_recycled_pages_and_the_process_settings_come_back(monkeypatch):
+    """Under Dask's nanny (MALLOC_TRIM_THRESHOLD_ set), a task's frames render with
+    glibc's thresholds raised (its freed buffers' pages reused), and glibc's values
+    under that setting (that threshold, a 128 KiB mmap threshold) are restored and
+    the free memory trimmed when the task ends; without the setting nothing is
+    touched. glibc itself is stood in for: the calls are what is checked."""
+    calls = []
+
+    class Libc:
+        def mallopt(self, parameter, value):
+            calls.append(("mallopt", parameter, value, rd._roomy_tasks))
+            return 1
+
+        def malloc_trim(self, pad):
+            calls.append(("malloc_trim", pad))
+            return 1
+
+    monkeypatch.setattr(rd, "_libc", Libc())
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")
+    frames = rd._render_frames([dict(width=8, height=6, **CAMERA)] * 2, 0, "recycled-test", str(CORNELL_OBJ), None)
+    rd._forget("recycled-test")
+    assert np.array_equal(bits(frames[1]), bits(raytracer.render(CORNELL_OBJ, width=8, height=6, **CAMERA)))
+    trim, mmap = rd._M_TRIM_THRESHOLD, rd._M_MMAP_THRESHOLD
+    assert calls == [
+        ("mallopt", mmap, rd.ROOMY_MMAP_THRESHOLD, 0),
+        ("mallopt", trim, rd.ROOMY_TRIM_THRESHOLD, 0),
+        ("mallopt", mmap, 128 << 10, 0),
+        ("mallopt", trim, 65536, 0),
+        ("malloc_trim", 0),
+    ]
+    calls.clear()
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_")
+    rd._render_frames([dict(width=8, height=6)], 0, "recycled-test", str(CORNELL_OBJ), None)
+    rd._forget("recycled-test")
+    assert calls == []

@@ -270,15 +270,10 @@ def render_many(
     if writer is not None and not callable(writer):
         raise ValueError(f"invalid writer: {writer!r} is not callable")
     if output_dir is not None:
-        from raytracer.dataset import COLOR_FORMATS, write_frame
+        from raytracer.dataset import output_path, write_frame
 
-        if color_format not in COLOR_FORMATS:
-            raise ValueError(f"invalid color_format: {color_format!r} is not one of {', '.join(COLOR_FORMATS)}")
-        try:
-            # Absolute: a worker's working folder may be another.
-            output_dir = os.path.abspath(os.fspath(output_dir))
-        except TypeError:
-            raise ValueError(f"invalid output_dir: {output_dir!r} is not a path") from None
+        # Absolute: a worker's working folder may be another.
+        output_dir = output_path(output_dir, color_format)
         # Every worker connected now must be able to write there (made if missing).
         client.wait_for_workers(1)
         for error in client.run(_check_output_dir, output_dir, color_format).values():

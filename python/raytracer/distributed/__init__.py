@@ -604,8 +604,8 @@ def _recycled_pages():
     at once). That setting turns off glibc's adaptive thresholds: every block above
     128 KiB (a 256x256 frame's colour is 768 KiB) is mapped afresh and unmapped when
     freed, and each of its pages faults again, a tenth of a small frame's CPU
-    (BENCHMARKS.md, ``render_many``). The process's own settings are restored, and its
-    free memory returned (``malloc_trim``), when the last task using this ends.
+    (BENCHMARKS.md, ``render_many``). The process's own settings are restored when
+    the last task using this ends.
     Nothing changes elsewhere (another C library, or no such setting)."""
     global _roomy_tasks
     libc = _glibc()
@@ -628,7 +628,9 @@ def _recycled_pages():
                 # MALLOC_MMAP_THRESHOLD_ or the fixed 128 KiB.
                 libc.mallopt(_M_MMAP_THRESHOLD, _int(os.environ.get("MALLOC_MMAP_THRESHOLD_"), 128 << 10))
                 libc.mallopt(_M_TRIM_THRESHOLD, _int(trim, 128 << 10))
-                libc.malloc_trim(0)
+                # No malloc_trim(0) here: it drops every free page of the heap,
+                # which the next task faults in again (1.5x the page faults of a
+                # worker of 150 frames); the next free above the threshold trims.
 
 
 def _int(text: Optional[str], default: int) -> int:
@@ -653,7 +655,6 @@ def _glibc() -> Any:
                 libc = ctypes.CDLL("libc.so.6")
                 libc.gnu_get_libc_version  # noqa: B018 - glibc's own function, or AttributeError
                 libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
-                libc.malloc_trim.argtypes = [ctypes.c_size_t]
                 _libc = libc
             except (OSError, AttributeError):
                 pass

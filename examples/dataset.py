@@ -1,9 +1,12 @@
 """Writes a small BlenderProc-style dataset of a scene: for each camera on a ring
 around it, the colour (PNG), depth (float32 .npy, z-depth along the optical axis, inf
 on a miss), normals (world space, .npy), segmentation (object ids, int32 .npy, -1 on a
-miss; their names in cameras.json) and one camera JSON file with every pose (OpenCV and OpenGL
-conventions, intrinsics), rendering the frames on a local Dask cluster (or in this
-process with --local).
+miss) and its pose (a JSON file per frame: OpenGL and OpenCV conventions,
+intrinsics), then `cameras.json` with every pose and the objects' names. The frames
+are rendered and written by the workers of a local Dask cluster
+(`render_many(..., output_dir=...)`: only the small records come back), or by this
+process with --local; either way by `raytracer.dataset.write_frame`, so the files are
+the same.
 
     python3 examples/dataset.py examples/cornell-box/scene.obj out/ --frames 8 --size 128
 """
@@ -17,7 +20,7 @@ import numpy as np
 
 import raytracer
 import raytracer.distributed
-from raytracer.cameras import opencv_from_camera_to_world
+from raytracer.dataset import write_frame
 
 
 def ring(centre, radius, height, frames):
@@ -58,39 +61,25 @@ def main():
     common = dict(width=args.size, height=args.size, spp=args.spp)
     aovs = ["depth", "normal", "object_id"]
     if args.local:
-        frames = ((i, raytracer.render(scene, aovs=aovs, **common, **camera)) for i, camera in enumerate(cameras))
+        records = (
+            (i, write_frame(scene, i, raytracer.render(scene, aovs=aovs, **common, **camera), args.out, **common, **camera))
+            for i, camera in enumerate(cameras)
+        )
         client = None
     else:
         from dask.distributed import Client, LocalCluster
 
         client = Client(LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=":0"))
-        frames = raytracer.distributed.render_many(args.scene, cameras, client, aovs=aovs, **common)
-    for i, frame in frames:
-        stem = os.path.join(args.out, f"{i:04d}")
-        raytracer.write_image(frame["color"], f"{stem}_color.png")
-        np.save(f"{stem}_depth.npy", frame["depth"])
-        np.save(f"{stem}_normal.npy", frame["normal"])
-        np.save(f"{stem}_segmentation.npy", frame["object_id"])
-        print(f"frame {i} written")
-    records = []
-    for i, pose in enumerate(poses):
-        rotation, translation = opencv_from_camera_to_world(pose)
-        records.append(
-            {
-                "frame": i,
-                "cam2world_opengl": pose.tolist(),
-                "R_world2cam_opencv": rotation.tolist(),
-                "t_world2cam_opencv": translation.tolist(),
-                "K": [[intrinsics[0], 0, intrinsics[2]], [0, intrinsics[1], intrinsics[3]], [0, 0, 1]],
-                "width": args.size,
-                "height": args.size,
-            }
-        )
+        # Each worker writes its frames into args.out; what comes back is the record.
+        records = raytracer.distributed.render_many(args.scene, cameras, client, aovs=aovs, output_dir=args.out, **common)
+    poses = {}
+    for i, record in records:
+        poses[i] = {"frame": i, **record["pose"]}
+        print(f"frame {i} written: {', '.join(os.path.basename(path) for path in record['files'].values())}")
     with open(os.path.join(args.out, "cameras.json"), "w") as f:
-        json.dump({"objects": scene.object_names, "frames": records}, f, indent=1)
+        json.dump({"objects": scene.object_names, "frames": [poses[i] for i in sorted(poses)]}, f, indent=1)
     if client is not None:
         client.close()
-
 
 if __name__ == "__main__":
     main()

@@ -26,6 +26,9 @@ The package is a thin layer over the Rust library (the ``raytracer`` command's):
   :meth:`Scene.occluded` whether anything blocks each ray within a distance.
 - :mod:`raytracer.distributed` renders tiles on a Dask cluster (``pip install
   "raytracer[distributed]"``); ``python -m raytracer.distributed`` is its command.
+  Its ``render_many`` renders a frame per camera, the workers writing them as a
+  dataset with ``output_dir=`` (:mod:`raytracer.dataset`: a file per output and the
+  camera's pose as JSON).
 
 Every render call takes the keyword options named in :data:`OPTIONS` (``width``,
 ``height``, ``fov``, ``look_from``, ``look_to``, ``up``, ``camera_to_world``,

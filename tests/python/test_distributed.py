@@ -462,3 +462,141 @@ def test_render_many_yields_each_cameras_frame_and_reads_the_scene_once_per_work
         next(rd.render_many(CORNELL_OBJ, cameras, client, frames_per_task=0))
     with pytest.raises(TypeError, match="unexpected option 'colour'"):
         next(rd.render_many(CORNELL_OBJ, [dict(colour=1)], client))
+
+
+# --- render_many(output_dir=...): frames written by the workers -------------------------
+
+RING = [dict(look_from=(x, 0.7, 1.75), look_to=(0.0, 0.7, 0.0)) for x in (-0.4, -0.2, 0.0, 0.2, 0.4, 0.6)]
+SMALL = dict(width=24, height=18, fov=60, spp=2)
+AOVS = ["depth", "normal", "object_id"]
+
+
+def assert_written_as_rendered_locally(records, cameras, folder, color_format="png"):
+    """Each record's files hold what a local render of its camera gives: the colour's
+    file the bytes `raytracer.write_image` writes of the local linear image, each
+    output its array; and the folder holds nothing else."""
+    assert sorted(records) == list(range(len(cameras)))
+    names = set()
+    for index, record in records.items():
+        expected = raytracer.render(CORNELL_OBJ, aovs=AOVS, **SMALL, **cameras[index])
+        files = record["files"]
+        assert record["frame"] == index and set(files) == {"color", *AOVS, "camera"}
+        local = folder.parent / f"local.{color_format}"
+        raytracer.write_image(expected["color"], local)
+        assert open(files["color"], "rb").read() == local.read_bytes(), index
+        for name in AOVS:
+            written = np.load(files[name])
+            assert written.dtype == expected[name].dtype and np.array_equal(bits(written), bits(expected[name])), (index, name)
+        names |= {os.path.basename(path) for path in files.values()}
+    assert {p.name for p in folder.iterdir()} == names
+
+
+def test_render_many_writes_each_frame_on_the_workers(client, tmp_path):
+    folder = tmp_path / "frames"  # made by the workers
+    written = rd.render_many(CORNELL_OBJ, RING, client, aovs=AOVS, output_dir=folder, frames_per_task=2, **SMALL)
+    records = dict(written)
+    assert_written_as_rendered_locally(records, RING, folder)
+    # The pose in each frame's JSON file, as a matrix camera with intrinsics, renders
+    # what its look-at camera did (within rounding: the matrix is rounded to float32).
+    import json
+
+    for index in (0, 3):
+        pose = json.loads(open(records[index]["files"]["camera"]).read())
+        assert pose == {"frame": index, **records[index]["pose"]}
+        K = np.array(pose["K"])
+        matrix = raytracer.render(
+            CORNELL_OBJ,
+            aovs=["depth"],
+            camera_to_world=np.array(pose["cam2world_opengl"]),
+            intrinsics=(K[0, 0], K[1, 1], K[0, 2], K[1, 2]),
+            width=pose["width"],
+            height=pose["height"],
+            spp=SMALL["spp"],
+        )["depth"]
+        look_at = np.load(records[index]["files"]["depth"])
+        assert np.allclose(matrix, look_at, rtol=1e-4, atol=0), index
+    # Linear EXR colour, in a folder that exists.
+    exr = tmp_path / "exr"
+    exr.mkdir()
+    records = dict(rd.render_many(CORNELL_OBJ, RING[:3], client, aovs=AOVS, output_dir=exr, color_format="exr", **SMALL))
+    assert_written_as_rendered_locally(records, RING[:3], exr, "exr")
+
+
+def test_render_many_runs_a_writer_of_ones_own_on_the_workers(client):
+    def writer(scene, index, frame, **options):
+        return index, os.getpid(), float(frame["depth"].sum()), options["look_from"]
+
+    yielded = dict(rd.render_many(CORNELL_OBJ, RING[:4], client, aovs=["depth"], writer=writer, **SMALL))
+    workers = set(client.run(os.getpid).values())
+    for index, (said, pid, depth, look_from) in yielded.items():
+        expected = raytracer.render(CORNELL_OBJ, aovs=["depth"], **SMALL, **RING[index])["depth"]
+        assert said == index and pid in workers and look_from == RING[index]["look_from"]
+        assert depth == float(expected.sum())
+
+
+def test_render_many_refuses_an_output_dir_it_cannot_write_in(client, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    cases = {
+        afile: f"invalid output_dir: {afile} is not a folder",
+        afile / "below": f"invalid output_dir: cannot write in {afile / 'below'}: Not a directory",
+        3: "invalid output_dir: 3 is not a path",
+    }
+    for output_dir, message in cases.items():
+        # Raised by the call, before any frame.
+        with pytest.raises(ValueError) as error:
+            rd.render_many(CORNELL_OBJ, RING, client, output_dir=output_dir)
+        assert str(error.value) == message
+    with pytest.raises(ValueError, match="invalid color_format: 'jpg' is not one of png, exr"):
+        rd.render_many(CORNELL_OBJ, RING, client, output_dir=tmp_path, color_format="jpg")
+    with pytest.raises(ValueError, match="output_dir or writer, not both"):
+        rd.render_many(CORNELL_OBJ, RING, client, output_dir=tmp_path, writer=print)
+    assert [p.name for p in tmp_path.iterdir()] == ["afile"]
+
+
+def test_render_many_writes_every_frame_once_when_a_worker_is_lost(gated_cluster, tmp_path):
+    """As test_render_many_yields_every_frame_once_when_a_worker_is_lost, the frames
+    written by the workers: every index is yielded once, and every file holds what
+    a local render gives (a rerun frame replaced whole)."""
+    folder = tmp_path / "frames"
+    written = rd.render_many(CORNELL_OBJ, RING, gated_cluster.client, aovs=AOVS, output_dir=folder, frames_per_task=2, **SMALL)
+    seen = []
+    gated_cluster.kill_a_worker_during(lambda: seen.extend(written))
+    assert sorted(index for index, _ in seen) == list(range(len(RING)))
+    assert_written_as_rendered_locally(dict(seen), RING, folder)
+
+
+def test_frames_render_with_recycled_pages_and_the_process_settings_come_back(monkeypatch):
+    """Under Dask's nanny (MALLOC_TRIM_THRESHOLD_ set), a task's frames render with
+    glibc's thresholds raised (its freed buffers' pages reused), and glibc's values
+    under that setting (that threshold, a 128 KiB mmap threshold) are restored when
+    the task ends, and nothing trimmed; without the setting nothing is touched.
+    glibc itself is stood in for: the calls are what is checked."""
+    calls = []
+
+    class Libc:
+        def mallopt(self, parameter, value):
+            calls.append(("mallopt", parameter, value, rd._roomy_tasks))
+            return 1
+
+        def malloc_trim(self, pad):
+            calls.append(("malloc_trim", pad))
+            return 1
+
+    monkeypatch.setattr(rd, "_libc", Libc())
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")
+    frames = rd._render_frames([dict(width=8, height=6, **CAMERA)] * 2, 0, "recycled-test", str(CORNELL_OBJ), None)
+    rd._forget("recycled-test")
+    assert np.array_equal(bits(frames[1]), bits(raytracer.render(CORNELL_OBJ, width=8, height=6, **CAMERA)))
+    trim, mmap = rd._M_TRIM_THRESHOLD, rd._M_MMAP_THRESHOLD
+    assert calls == [
+        ("mallopt", mmap, rd.ROOMY_MMAP_THRESHOLD, 0),
+        ("mallopt", trim, rd.ROOMY_TRIM_THRESHOLD, 0),
+        ("mallopt", mmap, 128 << 10, 0),
+        ("mallopt", trim, 65536, 0),
+    ]
+    calls.clear()
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_")
+    rd._render_frames([dict(width=8, height=6)], 0, "recycled-test", str(CORNELL_OBJ), None)
+    rd._forget("recycled-test")
+    assert calls == []

@@ -38,16 +38,22 @@ environment limits them. One worker thread per process (``--nthreads 1``) is eno
 
 ``python -m raytracer.distributed SCENE -o OUT.png`` is the command-line version
 (``--help`` lists its flags).
+
+:func:`render_many` renders one whole frame per camera instead (several frames to a
+task), yielding the frames, or with ``output_dir=`` having the workers write them
+(:func:`raytracer.dataset.write_frame`) and yielding their small records.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import ipaddress
 import os
 import pickle
 import shutil
+import sys
 import tempfile
 import threading
 import uuid
@@ -199,6 +205,9 @@ def render_many(
     client: Any,
     *,
     aovs: Optional[Sequence[str]] = None,
+    output_dir: "str | os.PathLike[str] | None" = None,
+    color_format: str = "png",
+    writer: Optional[Callable[..., Any]] = None,
     ship: Optional[bool] = None,
     frames_per_task: Optional[int] = None,
     **options: Any,
@@ -221,9 +230,25 @@ def render_many(
     takes to render. A lost worker costs only its tasks' frames, which Dask renders
     again elsewhere. Raises what :func:`raytracer.render` raises, from the worker
     that found it, when its frame is reached.
-    """
-    from distributed import as_completed
 
+    ``output_dir``: the workers write each frame there themselves, as
+    :func:`raytracer.dataset.write_frame` does (colour as PNG, or linear EXR with
+    ``color_format="exr"``; each extra output as ``.npy``; the pose as JSON), and
+    ``frame`` is the small record it returns (``{"frame": index, "files": {output:
+    path}, "pose": {...}}``) instead of the arrays: the frames never travel, which is
+    most of what Dask costs on small frames (BENCHMARKS.md, ``render_many``). The
+    folder must be one every worker sees at the same path (shared storage, or the
+    client's machine for a local cluster); it is made if missing, and a path that is
+    not a folder every connected worker can write in is a ``ValueError`` naming
+    ``output_dir``, raised by this call. A frame rendered again after a lost worker
+    replaces its files whole (each is written atomically).
+    ``writer``: a function of your own run on the workers instead,
+    ``writer(scene, index, frame, **options)`` with the worker's
+    :class:`raytracer.Scene`, the frame and the options it was rendered with
+    (``aovs`` among them), returning what to yield for it.
+
+    Arguments are checked by this call, before any frame is rendered.
+    """
     cameras = [dict(camera) for camera in cameras]
     for camera in [options, *cameras]:
         unknown = sorted(set(camera) - set(OPTIONS))
@@ -240,6 +265,35 @@ def render_many(
     if frames_per_task is None:
         frames_per_task = _frames_per_task(client, frames)
     groups = [range(i, min(i + frames_per_task, len(frames))) for i in range(0, len(frames), frames_per_task)]
+    if output_dir is not None and writer is not None:
+        raise ValueError("render_many() takes output_dir or writer, not both")
+    if writer is not None and not callable(writer):
+        raise ValueError(f"invalid writer: {writer!r} is not callable")
+    if output_dir is not None:
+        from raytracer.dataset import output_path, write_frame
+
+        # Absolute: a worker's working folder may be another.
+        output_dir = output_path(output_dir, color_format)
+        # Every worker connected now must be able to write there (made if missing).
+        client.wait_for_workers(1)
+        for error in client.run(_check_output_dir, output_dir, color_format).values():
+            if error is not None:
+                raise ValueError(error)
+        writer = functools.partial(write_frame, output_dir=output_dir, color_format=color_format)
+    return _render_many(scene, client, frames, groups, writer, ship)
+
+
+def _render_many(
+    scene: "str | os.PathLike[str]",
+    client: Any,
+    frames: "list[dict]",
+    groups: "list[range]",
+    writer: Optional[Callable[..., Any]],
+    ship: Optional[bool],
+) -> Iterator["tuple[int, Any]"]:
+    """:func:`render_many`'s generator, its arguments checked."""
+    from distributed import as_completed
+
     with _scene_on_workers(client, scene, ship) as (key, path, bundle):
         task = f"raytracer-{uuid.uuid4().hex}"
         keys = [f"{task}-frames-{group.start}-{group.stop}" for group in groups]
@@ -247,9 +301,11 @@ def render_many(
         futures = client.map(
             _render_frames,
             [[frames[i] for i in group] for group in groups],
+            [group.start for group in groups],
             job=key,
             path=path,
             bundle=bundle,
+            writer=writer,
             key=keys,
         )
         index = dict(zip(keys, groups))
@@ -507,15 +563,115 @@ def _render_tile(tile: tuple, job: str, path: str, bundle: Optional[dict], optio
     return _job(job).load(path, bundle).render(tile=tile, **options)
 
 
-def _render_frames(frames: "list[dict]", job: str, path: str, bundle: Optional[dict]) -> list:
-    """Task: renders whole frames, one per dict of options (each a plain array, or a
-    dict with ``aovs``)."""
+def _render_frames(
+    frames: "list[dict]",
+    first: int,
+    job: str,
+    path: str,
+    bundle: Optional[dict],
+    writer: Optional[Callable[..., Any]] = None,
+) -> list:
+    """Task: renders whole frames, one per dict of options, the first of them frame
+    ``first``: each a plain array, or a dict with ``aovs``; or what ``writer`` returns
+    for it."""
     scene = _job(job).load(path, bundle)
     out = []
-    for options in frames:
-        frame = scene.render(**options)
-        out.append(np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()})
+    with _recycled_pages():
+        for index, options in enumerate(frames, first):
+            frame = scene.render(**options)
+            if writer is not None:
+                out.append(writer(scene, index, frame, **options))
+            else:
+                out.append(np.asarray(frame) if isinstance(frame, np.ndarray) else {k: np.asarray(v) for k, v in frame.items()})
     return out
+
+
+#: glibc's ``mallopt`` parameters (malloc.h).
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: What :func:`_recycled_pages` sets while frames render: blocks up to this size from
+#: the heap, and at most this much free memory at its top kept.
+ROOMY_MMAP_THRESHOLD = 32 << 20
+ROOMY_TRIM_THRESHOLD = 64 << 20
+_roomy_lock = threading.Lock()
+_roomy_tasks = 0
+
+
+@contextlib.contextmanager
+def _recycled_pages():
+    """While frames render in this process: lets glibc's malloc reuse the pages of a
+    frame's freed buffers for the next, when the process was started with
+    ``MALLOC_TRIM_THRESHOLD_`` (as Dask's nanny starts workers, to return freed memory
+    at once). That setting turns off glibc's adaptive thresholds: every block above
+    128 KiB (a 256x256 frame's colour is 768 KiB) is mapped afresh and unmapped when
+    freed, and each of its pages faults again, a tenth of a small frame's CPU
+    (BENCHMARKS.md, ``render_many``). The process's own settings are restored when
+    the last task using this ends.
+    Nothing changes elsewhere (another C library, or no such setting)."""
+    global _roomy_tasks
+    libc = _glibc()
+    trim = os.environ.get("MALLOC_TRIM_THRESHOLD_")
+    if libc is None or trim is None:
+        yield
+        return
+    with _roomy_lock:
+        if _roomy_tasks == 0:
+            libc.mallopt(_M_MMAP_THRESHOLD, ROOMY_MMAP_THRESHOLD)
+            libc.mallopt(_M_TRIM_THRESHOLD, ROOMY_TRIM_THRESHOLD)
+        _roomy_tasks += 1
+    try:
+        yield
+    finally:
+        with _roomy_lock:
+            _roomy_tasks -= 1
+            if _roomy_tasks == 0:
+                # glibc's values under MALLOC_TRIM_THRESHOLD_: that threshold, and
+                # MALLOC_MMAP_THRESHOLD_ or the fixed 128 KiB.
+                libc.mallopt(_M_MMAP_THRESHOLD, _int(os.environ.get("MALLOC_MMAP_THRESHOLD_"), 128 << 10))
+                libc.mallopt(_M_TRIM_THRESHOLD, _int(trim, 128 << 10))
+                # No malloc_trim(0) here: it drops every free page of the heap,
+                # which the next task faults in again (1.5x the page faults of a
+                # worker of 150 frames); the next free above the threshold trims.
+
+
+def _int(text: Optional[str], default: int) -> int:
+    try:
+        return int(text) if text is not None else default
+    except ValueError:
+        return default
+
+
+_libc: Any = None
+
+
+def _glibc() -> Any:
+    """glibc through ctypes, or ``None`` on another C library or system."""
+    global _libc
+    if _libc is None:
+        _libc = False
+        if sys.platform.startswith("linux"):
+            import ctypes
+
+            try:
+                libc = ctypes.CDLL("libc.so.6")
+                libc.gnu_get_libc_version  # noqa: B018 - glibc's own function, or AttributeError
+                libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+                _libc = libc
+            except (OSError, AttributeError):
+                pass
+    return _libc or None
+
+
+def _check_output_dir(output_dir: str, color_format: str) -> Optional[str]:
+    """Run on every worker by :func:`render_many`: why it cannot write frames in
+    ``output_dir`` (see :func:`raytracer.dataset.check_output_dir`), or ``None``.
+    Returned, not raised: a worker logs what a run raises."""
+    from raytracer.dataset import check_output_dir
+
+    try:
+        check_output_dir(output_dir, color_format)
+    except ValueError as error:
+        return str(error)
+    return None
 
 
 def _forget(job: str) -> None:

@@ -25,7 +25,7 @@ use gltf::json::Value;
 use super::error::SceneError;
 use super::file::read_regular_file;
 use super::material_check::MaterialProblems;
-use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
+use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, finite, read_file};
 use crate::material::{Light, LightKind, Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, Projection, RenderOptions, Sourced};
@@ -159,6 +159,7 @@ pub fn parse_gltf_with(
         ));
     }
     reader.read_scene().map_err(fail)?;
+    finite::drop_non_finite_triangles(&mut reader.scene, path);
     for message in reader.problems.messages() {
         reader.warn(message);
     }
@@ -1174,18 +1175,12 @@ impl Reader<'_> {
                 }
             };
             let count = positions.len();
-            // Placed in the world, every value must be finite: a buffer may hold NaN,
-            // and a huge transform may overflow.
+            // A buffer may hold NaN, and a huge transform may overflow: the triangles
+            // at such positions are dropped once the file is read (`formats::finite`).
             let positions: Vec<Vec3> = positions
                 .iter()
                 .map(|&p| world.transform_point3(p))
                 .collect();
-            if let Some(bad) = positions.iter().position(|p| !p.is_finite()) {
-                self.warn(format!(
-                    "{name}: vertex {bad} has a position that is not finite (in the file or once placed); skipped"
-                ));
-                continue;
-            }
             let normals: Option<Vec<Vec3>> =
                 normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect());
             let normals = match normals {

@@ -253,6 +253,8 @@ fn meshopt_files_decode_to_the_uncompressed_sources_triangles_normals_and_texcoo
         ("torus-quantized.glb", 2e-4, 0.02, false),
         ("torus-filters.glb", 1e-4, 2e-3, true),
         ("torus-float.glb", 0.0, 0.0, true),
+        // gltfpack's defaults as KHR_meshopt_compression: version 1 vertex streams.
+        ("torus-khr.glb", 2e-4, 0.02, false),
     ] {
         let d = described(&meshopt_fixture(file));
         assert_eq!(d.triangles.len(), source.triangles.len(), "{file}");
@@ -297,6 +299,7 @@ fn meshopt_files_render_as_the_uncompressed_source() {
         "torus-quantized.glb",
         "torus-filters.glb",
         "torus-float.glb",
+        "torus-khr.glb",
     ] {
         let out = dir.path().join("c.png");
         let image = support::render(&meshopt_fixture(file), &out, &flags);

@@ -1,8 +1,9 @@
 //! What other tools write and read renders here too, with one warning per kind naming
 //! the file and line: OBJ `l` and `p` elements and faces of fewer than 3 vertices are
 //! skipped, an MTL `Ns` below 0 is read as 0, a missing `.mtl` leaves its materials at
-//! the default, an unknown PLY header line is skipped. (Truly broken input stays an
-//! error: `tests/malformed.rs`.) Scenes: `tests/data/forgiving/`.
+//! the default, an unknown PLY header line is skipped, the triangles at vertices whose
+//! position is NaN or infinite are dropped. (Truly broken input stays an error:
+//! `tests/malformed.rs`.) Scenes: `tests/data/forgiving/`, or written by the test.
 
 use crate::support;
 
@@ -17,11 +18,16 @@ fn forgiving_dir() -> PathBuf {
 /// Renders `scene` (in the forgiving folder) looking down -z from the origin; returns
 /// the warnings printed, in order, and the image.
 fn render(scene: &str) -> (Vec<String>, Vec<u8>) {
+    render_in(&forgiving_dir(), scene)
+}
+
+/// [`render`] for a scene in `dir`.
+fn render_in(dir: &Path, scene: &str) -> (Vec<String>, Vec<u8>) {
     let out_dir = tempfile::tempdir().unwrap();
     let out = out_dir.path().join("out.png");
     let output = Command::cargo_bin("raytracer")
         .unwrap()
-        .current_dir(forgiving_dir())
+        .current_dir(dir)
         .args(["render", scene, "-o"])
         .arg(&out)
         .args(["--width", "32", "--height", "24", "-j", "1"])
@@ -109,4 +115,230 @@ fn an_unknown_ply_header_line_is_skipped() {
         ]
     );
     assert!(centre(&rgb)[0] > 50);
+}
+
+/// A vertex list and faces (0-based corners) with two vertices the reader cannot
+/// place (`bad`), and the faces left once those using them are dropped.
+struct NonFinite {
+    vertices: Vec<[f32; 3]>,
+    faces: Vec<Vec<u32>>,
+    bad: [usize; 2],
+}
+
+impl NonFinite {
+    fn new() -> NonFinite {
+        NonFinite {
+            // A quad and a triangle in view, and vertices 4 (NaN) and 6 (beyond f32)
+            // used by a triangle each and by a concave pentagon.
+            vertices: vec![
+                [-1.0, -1.0, -3.0],
+                [1.0, -1.0, -3.0],
+                [1.0, 1.0, -3.0],
+                [-1.0, 1.0, -3.0],
+                [f32::NAN, 0.0, -3.0],
+                [0.0, 2.0, -3.0],
+                [f32::INFINITY, 0.5, -3.0],
+            ],
+            faces: vec![
+                vec![0, 1, 2, 3],
+                vec![0, 1, 4],
+                vec![3, 2, 5],
+                vec![4, 2, 3],
+                vec![0, 6, 2],
+                vec![0, 1, 6, 2, 5],
+            ],
+            bad: [4, 6],
+        }
+    }
+
+    /// The same scene written without the faces using a bad vertex, the bad
+    /// vertices at a finite place no face uses: what the reader should make of it.
+    fn without_bad(&self) -> NonFinite {
+        let mut vertices = self.vertices.clone();
+        for &b in &self.bad {
+            vertices[b] = [0.0, 0.0, -3.0];
+        }
+        let faces = (self.faces.iter())
+            .filter(|f| f.iter().all(|c| !self.bad.contains(&(*c as usize))))
+            .cloned()
+            .collect();
+        NonFinite {
+            vertices,
+            faces,
+            bad: self.bad,
+        }
+    }
+
+    fn obj(&self) -> String {
+        let mut text = String::new();
+        for (i, v) in self.vertices.iter().enumerate() {
+            // As scanners and converters write them: `nan` and a number past f32.
+            let x = match v[0] {
+                x if x.is_nan() => "nan".to_string(),
+                x if x.is_infinite() => "1e39".to_string(),
+                x => x.to_string(),
+            };
+            text += &format!("v {x} {} {}  # {i}\n", v[1], v[2]);
+        }
+        for f in &self.faces {
+            let corners: Vec<String> = f.iter().map(|c| (c + 1).to_string()).collect();
+            text += &format!("f {}\n", corners.join(" "));
+        }
+        text
+    }
+
+    fn ply_header(&self, format: &str) -> String {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            self.vertices.len(),
+            self.faces.len()
+        )
+    }
+
+    /// Vertex 4 is NaN in its normal (as the first NaN of Assimp's `pond.0.ply`), not
+    /// its position: a vertex that cannot be shaded goes the same way.
+    fn normal(&self, i: usize) -> [f32; 3] {
+        match self.vertices[i][0].is_nan() {
+            true => [f32::NAN, 0.0, 1.0],
+            false => [0.0, 0.0, 1.0],
+        }
+    }
+
+    fn ply_ascii(&self) -> Vec<u8> {
+        let mut text = self.ply_header("ascii");
+        for (i, v) in self.vertices.iter().enumerate() {
+            let [a, b, c] = self.normal(i);
+            let x = match v[0] {
+                x if x.is_infinite() => "inf".to_string(),
+                x => x.to_string(),
+            };
+            text += &format!("{x} {} {} {a} {b} {c}\n", v[1], v[2]);
+        }
+        for f in &self.faces {
+            let corners: Vec<String> = f.iter().map(u32::to_string).collect();
+            text += &format!("{} {}\n", f.len(), corners.join(" "));
+        }
+        text.into_bytes()
+    }
+
+    fn ply_binary(&self) -> Vec<u8> {
+        let mut bytes = self.ply_header("binary_little_endian").into_bytes();
+        for (i, v) in self.vertices.iter().enumerate() {
+            let x = if v[0].is_nan() { 0.0 } else { v[0] };
+            for value in [x, v[1], v[2]].into_iter().chain(self.normal(i)) {
+                bytes.extend(value.to_le_bytes());
+            }
+        }
+        for f in &self.faces {
+            bytes.push(f.len() as u8);
+            for c in f {
+                bytes.extend((*c as i32).to_le_bytes());
+            }
+        }
+        bytes
+    }
+
+    /// A glTF file of the faces as triangle fans, not indexed, its buffer in
+    /// `dir/stem.bin`; without the triangles (glTF has no polygons) using a bad
+    /// vertex unless `all`.
+    fn gltf(&self, dir: &Path, stem: &str, all: bool) -> String {
+        let mut bin = Vec::new();
+        let mut count = 0;
+        let fans = self
+            .faces
+            .iter()
+            .flat_map(|f| (1..f.len() - 1).map(|k| [f[0], f[k], f[k + 1]]));
+        for triangle in fans.filter(|t| all || t.iter().all(|c| !self.bad.contains(&(*c as usize))))
+        {
+            for c in triangle {
+                for value in self.vertices[c as usize] {
+                    bin.extend(value.to_le_bytes());
+                }
+                count += 1;
+            }
+        }
+        std::fs::write(dir.join(format!("{stem}.bin")), &bin).unwrap();
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0}}], "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+  "buffers": [{{"uri": "{stem}.bin", "byteLength": {len}}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": {len}}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": {count}, "type": "VEC3",
+    "min": [-1, -1, -3], "max": [1, 2, -3]}}]}}"#,
+            len = bin.len()
+        )
+    }
+}
+
+/// Renders `bad` and `good` (file contents, written into one folder as `name.EXT`
+/// and `good.EXT`) and checks that they render alike and that the first gives one
+/// warning more, naming it with the counts, `dropped` triangles.
+fn renders_as_without_its_bad_vertices(ext: &str, bad: &[u8], good: &[u8], dropped: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    let name = format!("non-finite.{ext}");
+    let good_name = format!("good.{ext}");
+    std::fs::write(dir.path().join(&name), bad).unwrap();
+    std::fs::write(dir.path().join(&good_name), good).unwrap();
+    let (warnings, rgb) = render_in(dir.path(), &name);
+    let (good_warnings, good_rgb) = render_in(dir.path(), &good_name);
+    assert_eq!(support::differences(&rgb, &good_rgb), (0, 0), "{ext}");
+    // Something was rendered: not a blank image on both sides.
+    assert!(rgb.chunks(3).any(|p| p != [0, 0, 0]), "{ext}");
+    let expected = format!(
+        "{name}: 2 vertices with a non-finite coordinate (NaN or infinite); the \
+         {dropped} triangles using them are dropped"
+    );
+    let mut without = warnings.clone();
+    let at = without.iter().position(|w| *w == expected);
+    assert!(at.is_some(), "{ext}: {warnings:?}");
+    without.remove(at.unwrap());
+    let renamed: Vec<String> = good_warnings
+        .iter()
+        .map(|w| w.replace(&good_name, &name))
+        .collect();
+    assert_eq!(without, renamed, "{ext}");
+}
+
+#[test]
+fn obj_triangles_at_non_finite_vertices_are_dropped_with_one_warning() {
+    let scene = NonFinite::new();
+    let good = scene.without_bad();
+    // Three triangles and the pentagon's three.
+    renders_as_without_its_bad_vertices("obj", scene.obj().as_bytes(), good.obj().as_bytes(), 6);
+}
+
+#[test]
+fn ply_triangles_at_non_finite_vertices_are_dropped_with_one_warning() {
+    let scene = NonFinite::new();
+    let good = scene.without_bad();
+    renders_as_without_its_bad_vertices("ply", &scene.ply_ascii(), &good.ply_ascii(), 6);
+    renders_as_without_its_bad_vertices("ply", &scene.ply_binary(), &good.ply_binary(), 6);
+}
+
+#[test]
+fn gltf_triangles_at_non_finite_positions_are_dropped_with_one_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = NonFinite::new();
+    let bad = scene.gltf(dir.path(), "non-finite", true);
+    let good = scene.gltf(dir.path(), "good", false);
+    // The buffers are named by the test's folder; both files go next to them.
+    for (name, text) in [("non-finite.gltf", &bad), ("good.gltf", &good)] {
+        std::fs::write(dir.path().join(name), text).unwrap();
+    }
+    let (warnings, rgb) = render_in(dir.path(), "non-finite.gltf");
+    let (good_warnings, good_rgb) = render_in(dir.path(), "good.gltf");
+    assert_eq!(support::differences(&rgb, &good_rgb), (0, 0));
+    assert_eq!(
+        warnings.len(),
+        good_warnings.len() + 1,
+        "{warnings:?} {good_warnings:?}"
+    );
+    // Unindexed: each of the five triangles has its own copy of its bad corner.
+    assert!(
+        warnings.contains(
+            &"non-finite.gltf: 5 vertices with a non-finite coordinate (NaN or infinite); the 5 \
+          triangles using them are dropped"
+                .to_string()
+        )
+    );
 }

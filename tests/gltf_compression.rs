@@ -3,7 +3,8 @@
 //! `make_expected.py` from the uncompressed 2CylinderEngine), and corrupt Draco data;
 //! `EXT_meshopt_compression` (with `KHR_mesh_quantization`), checked against the
 //! uncompressed torus that `tests/data/gltf/meshopt/make_fixtures.py` wrote and
-//! gltfpack compressed, and corrupt meshopt streams.
+//! gltfpack compressed, the same files as `KHR_meshopt_compression`, and corrupt
+//! meshopt streams of both.
 
 use crate::support;
 
@@ -252,6 +253,8 @@ fn meshopt_files_decode_to_the_uncompressed_sources_triangles_normals_and_texcoo
         ("torus-quantized.glb", 2e-4, 0.02, false),
         ("torus-filters.glb", 1e-4, 2e-3, true),
         ("torus-float.glb", 0.0, 0.0, true),
+        // gltfpack's defaults as KHR_meshopt_compression: version 1 vertex streams.
+        ("torus-khr.glb", 2e-4, 0.02, false),
     ] {
         let d = described(&meshopt_fixture(file));
         assert_eq!(d.triangles.len(), source.triangles.len(), "{file}");
@@ -296,6 +299,7 @@ fn meshopt_files_render_as_the_uncompressed_source() {
         "torus-quantized.glb",
         "torus-filters.glb",
         "torus-float.glb",
+        "torus-khr.glb",
     ] {
         let out = dir.path().join("c.png");
         let image = support::render(&meshopt_fixture(file), &out, &flags);
@@ -434,4 +438,97 @@ fn truncated_corrupt_or_impossible_meshopt_streams_are_errors_naming_the_file_an
     json["bufferViews"][views[3]]["extensions"][name]["byteStride"] = Value::from(3);
     let error = meshopt_error(&json, &bin).unwrap_or_default();
     assert!(error.contains("not 2 or 4"), "{error}");
+}
+
+/// `torus-filters.glb` with `EXT_meshopt_compression` renamed
+/// `KHR_meshopt_compression` throughout: the KHR extension reads EXT's streams
+/// (vertex codec version 0) as they are, as its specification says.
+fn khr_twin(json: &Value) -> Value {
+    let text = gltf::json::serialize::to_string(json).unwrap();
+    let renamed = text.replace("EXT_meshopt_compression", "KHR_meshopt_compression");
+    gltf::json::deserialize::from_str(&renamed).unwrap()
+}
+
+#[test]
+fn khr_meshopt_files_render_as_their_ext_twins() {
+    let (json, bin) = split_glb(&std::fs::read(meshopt_fixture("torus-filters.glb")).unwrap());
+    let dir = tempfile::tempdir().unwrap();
+    let khr = dir.path().join("khr.glb");
+    std::fs::write(&khr, join_glb(&khr_twin(&json), &bin)).unwrap();
+    let flags = ["--width", "64", "--height", "48"];
+    let ext = support::render(
+        &meshopt_fixture("torus-filters.glb"),
+        &dir.path().join("e.png"),
+        &flags,
+    );
+    let image = support::render(&khr, &dir.path().join("k.png"), &flags);
+    assert_eq!(support::differences(&ext, &image), (0, 0));
+    assert!(ext.iter().any(|&b| b > 0));
+}
+
+/// A deterministic stream of numbers (xorshift64*), for the corruption loop.
+struct Numbers(u64);
+
+impl Numbers {
+    fn below(&mut self, n: usize) -> usize {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 33) as usize % n.max(1)
+    }
+}
+
+/// Fuzz-style, with both extensions: meshopt views with their streams cut, bytes
+/// overwritten, and counts, strides and offsets changed at random give an error
+/// naming the file, or a description the fuzz targets' checks accept; never a panic,
+/// a crash or an allocation beyond what the stream's size allows (the reader
+/// refuses counts larger than a stream can hold before allocating).
+#[test]
+fn corrupted_meshopt_views_of_either_extension_are_errors_or_sound_descriptions() {
+    let (ext, bin) = split_glb(&std::fs::read(meshopt_fixture("torus-filters.glb")).unwrap());
+    let dir = tempfile::tempdir().unwrap();
+    let mut numbers = Numbers(0x9e37_79b9_7f4a_7c15);
+    let (mut errors, mut loaded) = (0, 0);
+    for (json, name) in [
+        (ext.clone(), "EXT_meshopt_compression"),
+        (khr_twin(&ext), "KHR_meshopt_compression"),
+    ] {
+        let views: Vec<usize> = (0..json["bufferViews"].as_array().unwrap().len())
+            .filter(|&v| !json["bufferViews"][v]["extensions"][name].is_null())
+            .collect();
+        for _ in 0..150 {
+            let (mut json, mut bin) = (json.clone(), bin.clone());
+            let view = views[numbers.below(views.len())];
+            let extension = &mut json["bufferViews"][view]["extensions"][name];
+            let offset = extension["byteOffset"].as_u64().unwrap() as usize;
+            let length = extension["byteLength"].as_u64().unwrap() as usize;
+            let count = extension["count"].as_u64().unwrap() as usize;
+            match numbers.below(5) {
+                0 => extension["byteLength"] = Value::from(numbers.below(length + 8)),
+                1 => extension["count"] = Value::from(numbers.below(4 * count + 2)),
+                2 => {
+                    let strides = [0, 1, 2, 3, 4, 6, 8, 12, 16, 256, 260];
+                    extension["byteStride"] = Value::from(strides[numbers.below(strides.len())]);
+                }
+                3 => extension["byteOffset"] = Value::from(numbers.below(bin.len() + 8)),
+                _ => {
+                    for _ in 0..1 + numbers.below(8) {
+                        let at = offset + numbers.below(length);
+                        bin[at] = numbers.below(256) as u8;
+                    }
+                }
+            }
+            let glb = join_glb(&json, &bin);
+            match std::panic::catch_unwind(|| formats::parse_gltf(&glb, Path::new("c.glb"))) {
+                Err(_) => panic!("a panic"),
+                Ok(Err(_)) => errors += 1,
+                Ok(Ok(_)) => loaded += 1,
+            }
+            // The fuzz targets' own checks: an error names the file, a description
+            // holds no index out of range and no non-finite value in use.
+            crate::fuzz_checks::check_gltf(&glb, dir.path());
+        }
+    }
+    // Both outcomes occur: the loop reaches the decoders, not only the checks.
+    assert!(errors > 0 && loaded > 0, "{errors} errors, {loaded} loaded");
 }

@@ -2,10 +2,16 @@
 //! and the documentation say: each fails here when an option is added, renamed or
 //! retyped in one place and not the other. (The table reaching every front end with
 //! the same values and range errors is `tests/python/test_options_table.py`.)
+//!
+//! The option tables of `docs/cli.md` and `docs/scene-format.md` are made from the
+//! table, between `<!-- options: NAME -->` and `<!-- end of options -->`; after a
+//! change to `src/options/defs.rs`,
+//! `REGENERATE_DOCS=1 cargo test --release --test integration options_table::`
+//! writes them again.
 
 use std::path::Path;
 
-use raytracer::options::defs::{markdown_table, python_stub};
+use raytracer::options::defs::{cli_table, markdown_table, python_stub, toml_table};
 
 fn read(path: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
@@ -43,4 +49,49 @@ fn the_documentation_lists_every_option_as_the_table_does() {
         docs.contains(&expected),
         "docs/options.md lacks, or differs from, the table's\n{expected}"
     );
+}
+
+/// The text between `<!-- options: NAME -->` and the next `<!-- end of options -->`
+/// of `page`, and where it lies.
+fn section(page: &str, name: &str) -> Option<std::ops::Range<usize>> {
+    let start_marker = format!("<!-- options: {name} -->\n");
+    let start = page.find(&start_marker)? + start_marker.len();
+    let end = start + page[start..].find("<!-- end of options -->")?;
+    Some(start..end)
+}
+
+#[test]
+fn the_cli_and_scene_file_pages_show_the_tables_made_from_options() {
+    let regenerate = std::env::var_os("REGENERATE_DOCS").is_some();
+    let pages: [(&str, Vec<(&str, String)>); 2] = [
+        ("docs/cli.md", vec![("flags", cli_table())]),
+        (
+            "docs/scene-format.md",
+            ["camera", "render", "environment"]
+                .into_iter()
+                .map(|s| (s, toml_table(s)))
+                .collect(),
+        ),
+    ];
+    for (page, sections) in pages {
+        let mut text = read(page);
+        for (name, expected) in sections {
+            let range = section(&text, name)
+                .unwrap_or_else(|| panic!("{page} has no <!-- options: {name} --> section"));
+            if regenerate {
+                text.replace_range(range, &expected);
+                continue;
+            }
+            assert!(
+                text[range] == expected,
+                "{page}'s {name} table differs from src/options/defs.rs's OPTIONS; \
+                 REGENERATE_DOCS=1 cargo test --release --test integration options_table:: \
+                 writes it again. Expected:\n{expected}"
+            );
+        }
+        if regenerate {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(page);
+            std::fs::write(path, text).unwrap();
+        }
+    }
 }

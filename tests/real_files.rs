@@ -150,7 +150,9 @@ const EXPECTED_ERRORS: [(&str, &str); 4] = [
     ),
     (
         "pond.0.ply",
-        "pond.0.ply: vertex 692: non-finite value 'NaN'",
+        // 69 bytes short of its 70,051 vertices: the NaNs in it (from vertex 692 on)
+        // are a warning, the truncation is not.
+        "pond.0.ply: vertex 70048: file ends inside the element",
     ),
 ];
 

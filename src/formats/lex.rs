@@ -83,18 +83,43 @@ pub(crate) fn show(token: &[u8]) -> String {
 /// no UTF-8 check and about twice as fast as `str::parse`.
 #[inline]
 pub(crate) fn float(token: &[u8]) -> Result<Float, ParseErrorKind> {
-    if let Some((value, rest)) = decimal::parse_short(token)
-        && rest.is_empty()
-    {
-        return Ok(value);
-    }
-    let value: Float =
-        fast_float2::parse(token).map_err(|_| ParseErrorKind::BadNumber(show(token)))?;
+    let value = any_float(token)?;
     if value.is_finite() {
         Ok(value)
     } else {
         Err(ParseErrorKind::NonFinite(show(token)))
     }
+}
+
+/// Parses one number, `nan`, `inf` and numbers too large for a `Float` included:
+/// vertex positions, where a non-finite one is a warning (`formats::finite`) rather
+/// than an error. Text that is not a number is still an error.
+#[inline]
+pub(crate) fn any_float(token: &[u8]) -> Result<Float, ParseErrorKind> {
+    if let Some((value, rest)) = decimal::parse_short(token)
+        && rest.is_empty()
+    {
+        return Ok(value);
+    }
+    fast_float2::parse(token).map_err(|_| ParseErrorKind::BadNumber(show(token)))
+}
+
+/// Parses the next three tokens as a vertex position, whose coordinates may be
+/// non-finite (see [`any_float`]).
+#[inline]
+pub(crate) fn position<'a>(
+    tokens: &mut impl Iterator<Item = &'a [u8]>,
+) -> Result<Vec3, ParseErrorKind> {
+    let mut values = [0.0; 3];
+    for (found, slot) in values.iter_mut().enumerate() {
+        let token = tokens.next().ok_or(ParseErrorKind::TooFewValues {
+            statement: "v",
+            expected: 3,
+            found,
+        })?;
+        *slot = any_float(token)?;
+    }
+    Ok(Vec3::from(values))
 }
 
 /// Parses the next `N` tokens as numbers; `statement` names the line in errors.

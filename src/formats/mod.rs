@@ -18,6 +18,7 @@ mod decimal;
 pub mod environment;
 mod error;
 mod file;
+mod finite;
 mod gltf;
 mod lex;
 mod material_check;

@@ -30,7 +30,9 @@ use std::sync::{Mutex, PoisonError};
 use rayon::prelude::*;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
-use super::{FileAccess, SceneDescription, SphereDesc, TriangleDesc, file, lex, mtl, read_file};
+use super::{
+    FileAccess, SceneDescription, SphereDesc, TriangleDesc, file, finite, lex, mtl, read_file,
+};
 use crate::material::{Light, Material, MaterialId};
 use crate::math::{Vec2, Vec3};
 use crate::memory;
@@ -124,14 +126,16 @@ fn parse_in_chunks(
     parser: Parser,
 ) -> Result<SceneDescription, SceneError> {
     let chunks = split_into_chunks(text, chunk_bytes);
-    match parser {
+    let mut scene = match parser {
         Parser::Fast => {
             let surveys = chunks.par_iter().map(|text| survey::survey(text)).collect();
             parse_surveyed(&chunks, surveys, path, access)
         }
         #[cfg(test)]
         Parser::General => parse_generally(&chunks, path, access),
-    }
+    }?;
+    finite::drop_non_finite_triangles(&mut scene, path);
+    Ok(scene)
 }
 
 /// Refuses binary data, which would otherwise be read as lines of unknown
@@ -892,7 +896,7 @@ impl Chunk {
     ) -> Result<(), ParseErrorKind> {
         match keyword {
             b"v" => {
-                let position = lex::vec3("v", &mut tokens)?;
+                let position = lex::position(&mut tokens)?;
                 if let Some(colour) = vertex_colour(tokens) {
                     self.colours.push((self.positions.len() as u32, colour));
                 }

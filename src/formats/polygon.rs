@@ -143,10 +143,22 @@ pub(crate) fn recut_fan(
     texcoords: Option<&mut [Option<[u32; 3]>]>,
 ) {
     let count = fan.len() + 2;
-    let point = |k: usize| {
+    let index = |k: usize| {
         let (t, c) = fan_corner(k);
-        positions[fan[t].positions[c] as usize]
+        fan[t].positions[c]
     };
+    let point = |k: usize| positions[index(k) as usize];
+    // A face with a corner that is not finite goes whole, not the fan's triangles at
+    // that corner alone: each is given the corner, and `formats::finite` drops them.
+    if let Some(bad) = (0..count)
+        .map(index)
+        .find(|&i| !positions[i as usize].is_finite())
+    {
+        for triangle in fan.iter_mut() {
+            triangle.positions[0] = bad;
+        }
+        return;
+    }
     // Quads, the common polygon, without an allocation.
     let triangulation = if count == 4 {
         triangulate(&[point(0), point(1), point(2), point(3)])

@@ -1129,7 +1129,7 @@ fn physically_based(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::options::Mode;
+    use crate::options::{Mode, OPTIONS};
     use std::fs;
 
     /// A folder with `tri.obj` (one triangle with `vn` normals, material `red` from
@@ -1322,6 +1322,24 @@ al = [0.1, 0.2, 0.7]
             folder.error("[[mesh]]\nfile = \"ball.obj\"\ntransform = { scale = [1, 2, 1] }\n"),
             "DIR/s.toml:3: mesh.transform.scale: spheres need the same scale on every axis"
         );
+    }
+
+    /// `[environment]` is read by a table of its own (`EnvironmentTable`: a file or
+    /// a colour, read and checked together), not key by key from `OPTIONS`: its keys
+    /// must still be the table's, so that the documentation made from `OPTIONS`
+    /// lists what the reader takes.
+    #[test]
+    fn the_environment_keys_are_those_of_the_options_table() {
+        let message = Folder::new().error("[environment]\nbogus = 1\n");
+        let (_, listed) = message.split_once("expected one of ").unwrap();
+        let mut read: Vec<&str> = listed.split(", ").map(|k| k.trim_matches('`')).collect();
+        let mut declared: Vec<&str> = (OPTIONS.iter())
+            .flat_map(OptionDef::toml_keys)
+            .filter_map(|k| k.strip_prefix("environment."))
+            .collect();
+        read.sort_unstable();
+        declared.sort_unstable();
+        assert_eq!(read, declared, "{message}");
     }
 
     #[test]

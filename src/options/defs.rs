@@ -193,6 +193,10 @@ pub struct OptionDef {
     pub cli: bool,
     /// The key of a TOML scene file, `section.key`: `camera.width`.
     pub toml: Option<&'static str>,
+    /// Another key of the same table that sets the option another way: the
+    /// environment's `environment.color` beside its `environment.file`, both of
+    /// which `--env` replaces.
+    pub toml_also: Option<&'static str>,
     /// The Python keyword argument: `width`.
     pub python: &'static str,
     /// Whether the option belongs to the scene rather than to one render (what the
@@ -261,6 +265,12 @@ impl OptionDef {
         origin: Origin,
     ) -> Result<(), String> {
         (self.set)(options, value, origin)
+    }
+
+    /// The TOML keys that set the option, `section.key`: [`OptionDef::toml`], then
+    /// [`OptionDef::toml_also`].
+    pub fn toml_keys(&self) -> impl Iterator<Item = &'static str> {
+        self.toml.into_iter().chain(self.toml_also)
     }
 
     /// The choices' names of a [`Kind::Choice`] option.
@@ -389,6 +399,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--width",
         cli: true,
         toml: Some("camera.width"),
+        toml_also: None,
         python: "width",
         scene: false,
         kind: Kind::Whole,
@@ -405,6 +416,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--height",
         cli: true,
         toml: Some("camera.height"),
+        toml_also: None,
         python: "height",
         scene: false,
         kind: Kind::Whole,
@@ -421,6 +433,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--fov",
         cli: true,
         toml: Some("camera.fov"),
+        toml_also: None,
         python: "fov",
         scene: false,
         kind: Kind::Number,
@@ -429,7 +442,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "90; 40 when the camera frames the scene",
         example: "60",
         help: "Vertical field of view in degrees, strictly between 0 and 180 [default: 90; 40 when the camera frames the scene].",
-        details: "The scene file's field of view, if it sets one, wins over both. The narrower field of view of a camera that frames the scene (see --look-from) is a model viewer's: the model is seen with little distortion.",
+        details: "The horizontal one follows from width / height: pixels are square. The scene file's field of view, if it sets one, wins over both. The narrower field of view of a camera that frames the scene (see --look-from) is a model viewer's: the model is seen with little distortion.",
         set: number!(fov_degrees),
     },
     OptionDef {
@@ -437,6 +450,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--look-from",
         cli: true,
         toml: Some("camera.look_from"),
+        toml_also: None,
         python: "look_from",
         scene: false,
         kind: Kind::Vector,
@@ -453,6 +467,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--look-to",
         cli: true,
         toml: Some("camera.look_to"),
+        toml_also: None,
         python: "look_to",
         scene: false,
         kind: Kind::Vector,
@@ -461,7 +476,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "framed",
         example: "0,0.7,0",
         help: "Point the camera looks at [default: framed].",
-        details: "When the camera frames the scene (see --look-from), the point level with the centre of the scene's bounds that centres their projection; the centre itself when only --look-from is given; 0,0,-1 when the scene is empty.",
+        details: "When the camera frames the scene (see --look-from), the point level with the centre of the scene's bounds that centres their projection; the centre itself when only --look-from is given; 0,0,-1 when the scene is empty. It must differ from the camera position.",
         set: vector!(look_to),
     },
     OptionDef {
@@ -469,6 +484,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--up",
         cli: true,
         toml: Some("camera.up"),
+        toml_also: None,
         python: "up",
         scene: false,
         kind: Kind::Vector,
@@ -477,7 +493,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "0,1,0",
         example: "0,1,0",
         help: "World up direction of the camera [default: 0,1,0].",
-        details: "",
+        details: "Any length but zero.",
         set: vector!(up),
     },
     OptionDef {
@@ -485,6 +501,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--camera-to-world",
         cli: false,
         toml: Some("camera.matrix"),
+        toml_also: None,
         python: "camera_to_world",
         scene: false,
         kind: Kind::Matrix,
@@ -493,7 +510,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "none",
         example: "1,0,0,0,0,1,0,0,0,0,1,5,0,0,0,1",
         help: "A camera-to-world matrix, four rows of four numbers (OpenGL's convention: the camera looks down its -Z axis, +Y up), instead of --look-from, --look-to and --up.",
-        details: "",
+        details: "Its upper-left 3x3 must be a rotation (columns of length 1 and perpendicular within 1e-4, no mirror image) and its last row 0, 0, 0, 1; it renders as the look-at camera of the same pose, in every mode, and a lens's focus defaults to 1 unit ahead. A scene file gives it as camera.matrix, not beside look_from, look_to and up.",
         set: |o, v, origin| match v {
             Value::Matrix(m) => {
                 let pose = super::pose_from_matrix(m)?;
@@ -510,6 +527,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--intrinsics",
         cli: false,
         toml: Some("camera.intrinsics"),
+        toml_also: None,
         python: "intrinsics",
         scene: false,
         kind: Kind::Intrinsics,
@@ -518,7 +536,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "none",
         example: "500,500,320,240",
         help: "OpenCV's pinhole intrinsics fx, fy, cx, cy in pixels, instead of --fov.",
-        details: "",
+        details: "Pixel (u, v), the top-left pixel's centre being (0, 0), sees the camera-space direction ((u - cx)/fx, (v - cy)/fy, 1) in OpenCV's axes (x right, y down, z ahead); the focal lengths must be greater than 0.",
         set: |o, v, origin| match v {
             Value::Four([fx, fy, cx, cy]) => {
                 o.projection = sourced(Projection::Intrinsics { fx, fy, cx, cy }, origin);
@@ -532,6 +550,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--depth",
         cli: true,
         toml: Some("render.depth"),
+        toml_also: None,
         python: "depth",
         scene: false,
         kind: Kind::Whole,
@@ -548,6 +567,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--mode",
         cli: true,
         toml: Some("render.mode"),
+        toml_also: None,
         python: "mode",
         scene: false,
         kind: Kind::Choice(MODES),
@@ -564,6 +584,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--spp",
         cli: true,
         toml: Some("render.spp"),
+        toml_also: None,
         python: "spp",
         scene: false,
         kind: Kind::Whole,
@@ -580,6 +601,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--exposure",
         cli: true,
         toml: Some("render.exposure"),
+        toml_also: None,
         python: "exposure",
         scene: false,
         kind: Kind::Number,
@@ -596,6 +618,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--tonemap",
         cli: true,
         toml: Some("render.tonemap"),
+        toml_also: None,
         python: "tonemap",
         scene: false,
         kind: Kind::Choice(TONE_MAPS),
@@ -604,7 +627,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "khronos-neutral",
         example: "agx",
         help: "Path mode's tone map of PNG output, after the exposure [default: khronos-neutral].",
-        details: "standard clamps at 1 (earlier versions' look), khronos-neutral keeps base colours and rolls highlights off to white, agx and aces are the filmic curves of Blender and three.js. Full mode keeps SPEC's tone map and ignores this; EXR output stays linear.",
+        details: "Full mode keeps SPEC's tone map and ignores this; EXR output stays linear.",
         set: named!(tonemap),
     },
     OptionDef {
@@ -612,6 +635,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--aperture-radius",
         cli: true,
         toml: Some("camera.aperture_radius"),
+        toml_also: None,
         python: "aperture_radius",
         scene: false,
         kind: Kind::Number,
@@ -628,6 +652,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--focus-distance",
         cli: true,
         toml: Some("camera.focus_distance"),
+        toml_also: None,
         python: "focus_distance",
         scene: false,
         kind: Kind::Number,
@@ -644,6 +669,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--seed",
         cli: true,
         toml: Some("render.seed"),
+        toml_also: None,
         python: "seed",
         scene: false,
         kind: Kind::Whole,
@@ -660,6 +686,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--no-default-light",
         cli: true,
         toml: Some("render.default_light"),
+        toml_also: None,
         python: "default_light",
         scene: false,
         kind: Kind::SwitchOff,
@@ -682,6 +709,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--env",
         cli: true,
         toml: Some("environment.file"),
+        toml_also: Some("environment.color"),
         python: "env",
         scene: true,
         kind: Kind::FileOrColour,
@@ -690,7 +718,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "the scene's; none",
         example: "0.5,0.5,0.5",
         help: "Path mode's environment, lighting the scene from infinitely far away and seen where camera rays leave it: an equirectangular image (Radiance .hdr, OpenEXR, PNG or JPEG; +Y up, oriented as three.js and Blender show it) or a colour R,G,B. Replaces the scene file's [environment] [default: the scene's; none].",
-        details: "",
+        details: "OpenEXR files compressed with DWAA or DWAB are refused (convert them to ZIP or PIZ); PNG and JPEG are read as sRGB. A scene file gives either environment.file, relative to its folder, or environment.color, a number or [r, g, b], not both.",
         set: |o, v, origin| match v {
             Value::Text(text) => {
                 o.env = sourced(text, origin);
@@ -704,6 +732,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--env-strength",
         cli: true,
         toml: Some("environment.strength"),
+        toml_also: None,
         python: "env_strength",
         scene: true,
         kind: Kind::Number,
@@ -720,6 +749,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--env-rotation",
         cli: true,
         toml: Some("environment.rotation"),
+        toml_also: None,
         python: "env_rotation",
         scene: true,
         kind: Kind::Number,
@@ -736,6 +766,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         flag: "--background",
         cli: true,
         toml: Some("environment.background"),
+        toml_also: None,
         python: "background",
         scene: true,
         kind: Kind::Background,
@@ -787,17 +818,87 @@ pub fn python_stub(class: &str, scene: bool) -> String {
     out
 }
 
+/// The flag with its value as the tables show it (`` `--width PIXELS` ``), or `none`.
+fn flag_cell(def: &OptionDef) -> String {
+    match (def.cli, def.kind) {
+        (false, _) => "none".to_string(),
+        (true, Kind::SwitchOff) => format!("`{}`", def.flag),
+        (true, _) => format!("`{} {}`", def.flag, def.value_name.replace('|', "\\|")),
+    }
+}
+
+/// The first paragraph of the help without its default and full stop.
+fn summary(def: &OptionDef) -> &'static str {
+    def.help
+        .split(" [default:")
+        .next()
+        .unwrap_or(def.help)
+        .trim_end_matches('.')
+}
+
+/// The whole help as one table cell: the summary, each choice with its help, and
+/// the details.
+fn explanation(def: &OptionDef) -> String {
+    let mut text = summary(def).to_string();
+    if let Kind::Choice(choices) = def.kind {
+        let each: Vec<String> = choices.iter().map(|(n, h)| format!("`{n}`: {h}")).collect();
+        text = format!("{text}: {}", each.join("; "));
+    }
+    if !def.details.is_empty() {
+        text = format!("{text}. {}", def.details.trim_end_matches('.'));
+    }
+    text.replace('|', "\\|")
+}
+
+/// The command line's table of the render options (`docs/cli.md`): flag, default
+/// and the whole help, as `raytracer render --help` gives it.
+pub fn cli_table() -> String {
+    let mut out = String::from("| flag | default | meaning |\n|---|---|---|\n");
+    for def in OPTIONS.iter().filter(|d| d.cli) {
+        out.push_str(&format!(
+            "| {} | {} | {} |\n",
+            flag_cell(def),
+            def.default,
+            explanation(def)
+        ));
+    }
+    out
+}
+
+/// A TOML table's keys (`camera`, `render`, `environment`) as `docs/scene-format.md`
+/// lists them: key, the whole help, default, and the flag or Python keyword.
+pub fn toml_table(section: &str) -> String {
+    let mut out = String::from("| key | meaning | default | flag |\n|---|---|---|---|\n");
+    for def in &OPTIONS {
+        let keys: Vec<String> = def
+            .toml_keys()
+            .filter_map(|k| k.strip_prefix(section)?.strip_prefix('.'))
+            .map(|k| format!("`{k}`"))
+            .collect();
+        if keys.is_empty() {
+            continue;
+        }
+        let flag = match def.cli {
+            true => format!("`{}`", def.flag),
+            false => format!("Python's `{}=`", def.python),
+        };
+        out.push_str(&format!(
+            "| {} | {} | {} | {flag} |\n",
+            keys.join(" or "),
+            explanation(def),
+            def.default
+        ));
+    }
+    out
+}
+
 /// The documentation's table of every option (`docs/options.md`).
 pub fn markdown_table() -> String {
     let mut out = String::from(
         "| flag | TOML key | Python keyword | range | default | meaning |\n|---|---|---|---|---|---|\n",
     );
     for def in &OPTIONS {
-        let flag = match (def.cli, def.kind) {
-            (false, _) => "none".to_string(),
-            (true, Kind::SwitchOff) => format!("`{}`", def.flag),
-            (true, _) => format!("`{} {}`", def.flag, def.value_name.replace('|', "\\|")),
-        };
+        let flag = flag_cell(def);
         let range = match def.kind {
             Kind::Choice(choices) => choices
                 .iter()
@@ -806,18 +907,16 @@ pub fn markdown_table() -> String {
                 .join(", "),
             _ => def.range.describe(),
         };
-        let meaning = def
-            .help
-            .split(" [default:")
-            .next()
-            .unwrap_or(def.help)
-            .trim_end_matches('.');
+        let keys: Vec<String> = def.toml_keys().map(|k| format!("`{k}`")).collect();
+        let keys = match keys.is_empty() {
+            true => "none".to_string(),
+            false => keys.join(" or "),
+        };
         out.push_str(&format!(
-            "| {flag} | `{}` | `{}` | {range} | {} | {} |\n",
-            def.toml.unwrap_or("none"),
+            "| {flag} | {keys} | `{}` | {range} | {} | {} |\n",
             def.python,
             def.default,
-            meaning.replace('|', "\\|"),
+            summary(def).replace('|', "\\|"),
         ));
     }
     out

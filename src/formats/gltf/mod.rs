@@ -25,7 +25,7 @@ use gltf::json::Value;
 use super::error::SceneError;
 use super::file::read_regular_file;
 use super::material_check::MaterialProblems;
-use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, read_file};
+use super::{FileAccess, LoadedScene, SceneDescription, TriangleDesc, finite, read_file};
 use crate::material::{Light, LightKind, Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
 use crate::options::{Origin, PartialOptions, Projection, RenderOptions, Sourced};
@@ -96,7 +96,8 @@ pub fn parse_gltf_with(
     let used = |name: &str| root.extensions_used.iter().any(|e| e == name);
     let raw = used(extensions::gpu_instancing::NAME)
         || used(extensions::draco::NAME)
-        || used(extensions::meshopt::NAME);
+        || used(extensions::meshopt::NAME)
+        || used(extensions::meshopt::KHR_NAME);
     let RawJson {
         materials: raw_materials,
         instancing,
@@ -159,6 +160,7 @@ pub fn parse_gltf_with(
         ));
     }
     reader.read_scene().map_err(fail)?;
+    finite::drop_non_finite_triangles(&mut reader.scene, path);
     for message in reader.problems.messages() {
         reader.warn(message);
     }
@@ -216,11 +218,12 @@ struct RawJson {
     meshopt: MeshoptJson,
 }
 
-/// The `EXT_meshopt_compression` objects of a file.
+/// The `EXT_meshopt_compression` and `KHR_meshopt_compression` objects of a file.
 #[derive(Default)]
 struct MeshoptJson {
-    /// The extension's object of each buffer view that has one, by view index.
-    views: Vec<(usize, Value)>,
+    /// The extension's object of each buffer view that has one, by view index, with
+    /// which of the two it is (a view must not have both: KHR's is read).
+    views: Vec<(usize, extensions::meshopt::Variant, Value)>,
     /// The buffers marked `"fallback": true`: never read (they may have no `uri`).
     fallbacks: Vec<usize>,
 }
@@ -266,19 +269,25 @@ fn raw_json(bytes: &[u8]) -> Result<RawJson, gltf::Error> {
             }
         }
     }
-    let name = extensions::meshopt::NAME;
+    use extensions::meshopt::{KHR_NAME, NAME, Variant};
     if let Some(Value::Array(views)) = root.get_mut("bufferViews") {
         for (index, view) in views.iter_mut().enumerate() {
-            if let Some(extension) = take_extension(view, name) {
-                raw.meshopt.views.push((index, extension));
+            let ext = take_extension(view, NAME);
+            if let Some(khr) = take_extension(view, KHR_NAME) {
+                raw.meshopt.views.push((index, Variant::Khr, khr));
+            } else if let Some(ext) = ext {
+                raw.meshopt.views.push((index, Variant::Ext, ext));
             }
         }
     }
     if let Some(Value::Array(buffers)) = root.get_mut("buffers") {
         for (index, buffer) in buffers.iter_mut().enumerate() {
-            let fallback = take_extension(buffer, name)
-                .and_then(|e| e.get("fallback").and_then(Value::as_bool));
-            if fallback == Some(true) {
+            let fallback = [NAME, KHR_NAME].iter().any(|name| {
+                take_extension(buffer, name)
+                    .and_then(|e| e.get("fallback").and_then(Value::as_bool))
+                    == Some(true)
+            });
+            if fallback {
                 raw.meshopt.fallbacks.push(index);
             }
         }
@@ -286,7 +295,7 @@ fn raw_json(bytes: &[u8]) -> Result<RawJson, gltf::Error> {
     Ok(raw)
 }
 
-/// A buffer view to decode: its index and its `EXT_meshopt_compression` object.
+/// A buffer view to decode: its index and its meshopt extension's object.
 struct CompressedView {
     view: usize,
     compressed: extensions::meshopt::Compressed,
@@ -305,12 +314,13 @@ fn compressed_views(
     meshopt: &MeshoptJson,
 ) -> Result<Vec<CompressedView>, String> {
     use gltf::json::validation::USize64;
-    let name = extensions::meshopt::NAME;
     let buffers = root.buffers.len();
     let mut views = Vec::with_capacity(meshopt.views.len());
-    for (index, extension) in &meshopt.views {
+    for (index, variant, extension) in &meshopt.views {
+        let name = variant.name();
         let fail = |message: String| format!("buffer view {index}: {name}: {message}");
-        let compressed = extensions::meshopt::Compressed::parse(extension).map_err(fail)?;
+        let compressed =
+            extensions::meshopt::Compressed::parse(extension, *variant).map_err(fail)?;
         if compressed.buffer >= buffers {
             return Err(fail(format!(
                 "buffer {} does not exist ({buffers} buffers)",
@@ -374,7 +384,7 @@ fn decode_views(
     let own = buffers.len();
     for CompressedView { view, compressed } in views {
         let fail = |message: String| {
-            let name = extensions::meshopt::NAME;
+            let name = compressed.variant().name();
             format!("buffer view {view}: {name}: {message}")
         };
         let source = &buffers[..own][compressed.buffer];
@@ -1174,18 +1184,12 @@ impl Reader<'_> {
                 }
             };
             let count = positions.len();
-            // Placed in the world, every value must be finite: a buffer may hold NaN,
-            // and a huge transform may overflow.
+            // A buffer may hold NaN, and a huge transform may overflow: the triangles
+            // at such positions are dropped once the file is read (`formats::finite`).
             let positions: Vec<Vec3> = positions
                 .iter()
                 .map(|&p| world.transform_point3(p))
                 .collect();
-            if let Some(bad) = positions.iter().position(|p| !p.is_finite()) {
-                self.warn(format!(
-                    "{name}: vertex {bad} has a position that is not finite (in the file or once placed); skipped"
-                ));
-                continue;
-            }
             let normals: Option<Vec<Vec3>> =
                 normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect());
             let normals = match normals {

@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 
 use super::header::{Element, PropertyType, Role, Scalar};
-use super::{Body, MeshReader, integral};
+use super::{Body, MeshReader, integral, unusable_unless};
 use crate::description::TriangleDesc;
 use crate::formats::error::ParseErrorKind;
 use crate::material::MaterialId;
@@ -117,15 +117,10 @@ fn integer(value: Number) -> Result<i64, ParseErrorKind> {
     }
 }
 
-/// A decoded value as a finite float.
+/// A decoded value as a float, which may be non-finite (see `formats::finite`).
 #[inline(always)]
-fn finite_float(value: Number) -> Result<Float, ParseErrorKind> {
-    let v = value.as_float() as Float;
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ParseErrorKind::NonFinite(value.as_float().to_string()))
-    }
+fn any_float(value: Number) -> Float {
+    value.as_float() as Float
 }
 
 impl<const BIG_ENDIAN: bool> Body for BinaryBody<'_, BIG_ENDIAN> {
@@ -141,7 +136,7 @@ impl<const BIG_ENDIAN: bool> Body for BinaryBody<'_, BIG_ENDIAN> {
 
     #[inline]
     fn float(&mut self, ty: Scalar, _name: &str) -> Result<Float, ParseErrorKind> {
-        finite_float(self.number(ty)?)
+        Ok(any_float(self.number(ty)?))
     }
 
     #[inline]
@@ -300,38 +295,46 @@ impl MeshReader {
                 false => Vec::new(),
             };
             let colours = match self.has_colours {
-                true => gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, COLOUR, |c| {
-                    Vec3::from(c).max(Vec3::ZERO)
-                }),
+                // Clamped below 0 once checked (`max` would turn NaN into 0).
+                true => gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, COLOUR, Vec3::from),
                 false => Vec::new(),
             };
+            let mut positions = positions;
             // Serial checks: rayon's short-circuiting `all` pays an atomic per item.
-            let finite = positions.iter().all(|p| p.is_finite())
-                && normals.iter().all(|n| n.is_finite())
+            let finite = normals.iter().all(|n| n.is_finite())
                 && texcoords.iter().all(|t| t.is_finite())
                 && colours.iter().all(|c| c.is_finite());
-            // Otherwise the serial loop below finds and reports the bad value.
-            if finite {
-                self.scene.positions = positions;
-                self.scene.normals = normals;
-                self.scene.texcoords = texcoords;
-                self.scene.colours = colours;
-                return Ok(complete * stride);
+            if !finite {
+                // Rare: a vertex whose other values are not finite is unusable.
+                for (index, position) in positions.iter_mut().enumerate() {
+                    let usable = normals.get(index).is_none_or(|n| n.is_finite())
+                        && texcoords.get(index).is_none_or(|t| t.is_finite())
+                        && colours.get(index).is_none_or(|c| c.is_finite());
+                    *position = unusable_unless(usable, *position);
+                }
             }
+            let mut colours = colours;
+            colours.par_iter_mut().for_each(|c| *c = c.max(Vec3::ZERO));
+            self.scene.positions = positions;
+            self.scene.normals = normals;
+            self.scene.texcoords = texcoords;
+            self.scene.colours = colours;
+            return Ok(complete * stride);
         }
         if !fields.is_empty() {
-            for (index, record) in bytes[..complete * stride].chunks_exact(stride).enumerate() {
+            for record in bytes[..complete * stride].chunks_exact(stride) {
                 let mut values: [Float; 11] = [0.0; 11];
                 for &(slot, offset, ty) in &fields {
-                    values[slot] = finite_float(decode::<BIG_ENDIAN>(&record[offset..], ty))
-                        .map_err(|kind| (index, kind))?;
+                    // A non-finite value is a warning (see `formats::finite`).
+                    values[slot] = decode::<BIG_ENDIAN>(&record[offset..], ty).as_float() as Float;
                     if slot >= COLOUR {
                         values[slot] /= ty.colour_range();
                     }
                 }
+                let usable = values[NORMAL..].iter().all(|v| v.is_finite());
                 self.scene
                     .positions
-                    .push(Vec3::from_slice(&values[..NORMAL]));
+                    .push(unusable_unless(usable, Vec3::from_slice(&values[..NORMAL])));
                 if self.has_normals {
                     self.scene
                         .normals
@@ -533,9 +536,16 @@ mod tests {
             );
             let mut nan = quad_and_triangle(Scalar::F32, Scalar::U8, Scalar::I32, false);
             nan.rows[3][1].1 = f64::NAN;
+            // A warning: the quad at the vertex goes whole, the triangle stays.
+            let read = parse(&nan.binary(big_endian)).unwrap();
+            assert_eq!(read.triangles.len(), 1);
+            assert_eq!(read.triangles[0].positions, [0, 1, 4]);
             assert_eq!(
-                parse(&nan.binary(big_endian)).unwrap_err().to_string(),
-                "t.ply: vertex 3: non-finite value 'NaN'"
+                read.warnings,
+                [
+                    "t.ply: 1 vertex with a non-finite coordinate (NaN or infinite); the 2 \
+                  triangles using it are dropped"
+                ]
             );
             let mut fraction = quad_and_triangle(Scalar::F32, Scalar::U8, Scalar::F32, false);
             fraction.rows[5][1].1 = 0.5;
@@ -594,18 +604,26 @@ mod tests {
             assert_eq!(scene.texcoords, reference.texcoords);
             assert_eq!(scene.triangles, reference.triangles);
         }
-        // Bad data late in the file is reported at its own index.
+        // A position and a normal that are not finite, in the parallel paths: the
+        // three triangles of the strip at each vertex are dropped.
         let late = n - 7;
-        mesh.rows[n + 2 + late][2].1 = (n + 2) as f64;
         mesh.rows[late][1].1 = f64::INFINITY;
+        mesh.rows[late - 20][3].1 = f64::NAN;
         for big_endian in [false, true] {
-            let message = parse(&mesh.binary(big_endian)).unwrap_err().to_string();
+            let read = parse(&mesh.binary(big_endian)).unwrap();
+            assert_eq!(read.triangles.len(), n - 6);
             assert_eq!(
-                message,
-                format!("t.ply: vertex {late}: non-finite value 'inf'")
+                read.warnings,
+                [
+                    "t.ply: 2 vertices with a non-finite coordinate (NaN or infinite); the 6 \
+                  triangles using them are dropped"
+                ]
             );
         }
         mesh.rows[late][1].1 = 0.0;
+        mesh.rows[late - 20][3].1 = 0.0;
+        // Bad data late in the file is reported at its own index.
+        mesh.rows[n + 2 + late][2].1 = (n + 2) as f64;
         for big_endian in [false, true] {
             let message = parse(&mesh.binary(big_endian)).unwrap_err().to_string();
             assert_eq!(

@@ -26,7 +26,7 @@ use std::path::Path;
 
 use super::error::{IndexKind, ParseErrorKind, SceneError};
 use super::polygon::{self, FanPolygon};
-use super::{SceneDescription, TriangleDesc, read_file};
+use super::{SceneDescription, TriangleDesc, finite, read_file};
 use crate::material::{Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
 use ascii::{AsciiBody, PARALLEL_ASCII_ELEMENTS};
@@ -79,6 +79,7 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<SceneDescription, SceneErr
         kind: Box::new(e.kind),
     })?;
     let mut scene = reader.finish();
+    finite::drop_non_finite_triangles(&mut scene, path);
     if let Some((line, keyword, count)) = header.unknown_lines {
         let s = if count == 1 { "" } else { "s" };
         scene.warnings.insert(
@@ -134,6 +135,19 @@ trait Body {
     /// Moves an ascii body to the line that starts at byte `offset`, numbered `line`.
     fn ascii_seek(&mut self, offset: usize, line: usize) {
         debug_assert!(offset == 0 && line == 0, "only ascii bodies seek");
+    }
+}
+
+/// `position`, or a NaN one when the rest of its vertex (normal, texture
+/// coordinates, colour) is not finite: such a vertex cannot be shaded, and
+/// [`finite::drop_non_finite_triangles`] then drops the triangles using it as it
+/// does those at a non-finite position.
+#[inline(always)]
+fn unusable_unless(usable: bool, position: Vec3) -> Vec3 {
+    if usable {
+        position
+    } else {
+        Vec3::splat(Float::NAN)
     }
 }
 
@@ -294,7 +308,10 @@ impl MeshReader {
         }
         body.end()?;
         if element.name == "vertex" {
-            self.scene.positions.push(Vec3::from(position));
+            let usable = (normal.iter().chain(&texcoord).chain(&colour)).all(|v| v.is_finite());
+            self.scene
+                .positions
+                .push(unusable_unless(usable, Vec3::from(position)));
             if self.has_normals {
                 self.scene.normals.push(Vec3::from(normal));
             }

@@ -1,7 +1,9 @@
-//! `EXT_meshopt_compression`: a buffer view's bytes are a meshoptimizer stream in
-//! another buffer (vertex codec for `ATTRIBUTES`, index codec for `TRIANGLES` and
-//! `INDICES`), optionally followed by a filter (`OCTAHEDRAL`, `QUATERNION`,
-//! `EXPONENTIAL`). Each such view is decoded once, before any accessor reads it, into
+//! `EXT_meshopt_compression` and its ratified successor `KHR_meshopt_compression`: a
+//! buffer view's bytes are a meshoptimizer stream in another buffer (vertex codec for
+//! `ATTRIBUTES`, index codec for `TRIANGLES` and `INDICES`), optionally followed by a
+//! filter (`OCTAHEDRAL`, `QUATERNION`, `EXPONENTIAL`; and `COLOR`, KHR only). The
+//! KHR extension has the same objects and adds version 1 of the vertex codec and the
+//! `COLOR` filter, both of which meshoptimizer 1.3 (the crate's) decodes. Each such view is decoded once, before any accessor reads it, into
 //! `count * byteStride` bytes of its own buffer; the view's uncompressed "fallback"
 //! buffer (often without a `uri`, marked `"fallback": true`) is never read.
 //!
@@ -14,6 +16,28 @@ use gltf::json::Value;
 
 /// The extension's name, as in `extensionsUsed`.
 pub(in super::super) const NAME: &str = "EXT_meshopt_compression";
+
+/// The ratified extension's name.
+pub(in super::super) const KHR_NAME: &str = "KHR_meshopt_compression";
+
+/// Which of the two extensions a buffer view uses: what its streams and filters may be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(in super::super) enum Variant {
+    /// `EXT_meshopt_compression`: vertex codec version 0, no `COLOR` filter.
+    Ext,
+    /// `KHR_meshopt_compression`: vertex codec version 0 or 1, the `COLOR` filter.
+    Khr,
+}
+
+impl Variant {
+    /// The extension's name.
+    pub(in super::super) fn name(self) -> &'static str {
+        match self {
+            Variant::Ext => NAME,
+            Variant::Khr => KHR_NAME,
+        }
+    }
+}
 
 /// How a view's data was encoded (the extension's `mode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,6 +60,8 @@ enum Filter {
     Quaternion,
     /// Floats as an 8-bit exponent and a 24-bit mantissa per component.
     Exponential,
+    /// RGBA colours in YCoCg with alpha (KHR only): 4 or 8 bytes per element.
+    Color,
 }
 
 /// A buffer view's `EXT_meshopt_compression` object.
@@ -51,16 +77,23 @@ pub(in super::super) struct Compressed {
     count: usize,
     mode: Mode,
     filter: Filter,
+    variant: Variant,
 }
 
-/// How many bytes a stream of `compressed` bytes can decode to at most: the vertex
-/// codec (version 0, which this extension requires) spends at least two header bits
-/// on each group of 16 bytes of a byte lane (at most 64 bytes out per byte in), the
-/// index codec at least a byte per triangle (12 bytes out) or per index (4 bytes
-/// out); plus the stream's fixed tail. A view claiming more is refused before
+/// How many bytes a stream of `compressed` bytes can decode to at most: version 0
+/// of the vertex codec (EXT's) spends at least two header bits on each group of 16
+/// bytes of a byte lane (at most 64 bytes out per byte in); version 1 (KHR's) can
+/// mark a byte lane of a whole block of up to 256 elements (of at most 8192 bytes)
+/// zero with two bits of its control header, at most 1024 bytes out per byte in; the
+/// index codec spends at least a byte per triangle (12 bytes out) or per index (4
+/// bytes out); plus the stream's fixed tail. A view claiming more is refused before
 /// anything is allocated, so memory is bounded by the file's size.
-fn most_decoded(compressed: usize) -> usize {
-    compressed.saturating_mul(64).saturating_add(256)
+fn most_decoded(compressed: usize, variant: Variant) -> usize {
+    let ratio = match variant {
+        Variant::Ext => 64,
+        Variant::Khr => 1024,
+    };
+    compressed.saturating_mul(ratio).saturating_add(256)
 }
 
 impl Compressed {
@@ -69,7 +102,7 @@ impl Compressed {
     /// # Errors
     /// A missing or mistyped member, an unknown mode or filter, or a stride, count or
     /// filter the mode does not allow.
-    pub(in super::super) fn parse(extension: &Value) -> Result<Self, String> {
+    pub(in super::super) fn parse(extension: &Value, variant: Variant) -> Result<Self, String> {
         let number = |key: &str, default: Option<usize>| -> Result<usize, String> {
             match extension.get(key) {
                 None => default.ok_or_else(|| format!("no '{key}'")),
@@ -97,14 +130,20 @@ impl Compressed {
                 ));
             }
         };
-        let filter = match text("filter", "NONE")?.as_str() {
-            "NONE" => Filter::None,
-            "OCTAHEDRAL" => Filter::Octahedral,
-            "QUATERNION" => Filter::Quaternion,
-            "EXPONENTIAL" => Filter::Exponential,
-            other => {
+        let filter = match (text("filter", "NONE")?.as_str(), variant) {
+            ("NONE", _) => Filter::None,
+            ("OCTAHEDRAL", _) => Filter::Octahedral,
+            ("QUATERNION", _) => Filter::Quaternion,
+            ("EXPONENTIAL", _) => Filter::Exponential,
+            ("COLOR", Variant::Khr) => Filter::Color,
+            ("COLOR", Variant::Ext) => {
                 return Err(format!(
-                    "filter '{other}' is none of NONE, OCTAHEDRAL, QUATERNION and EXPONENTIAL"
+                    "filter COLOR is {KHR_NAME}'s, not {NAME}'s: name the extension {KHR_NAME}"
+                ));
+            }
+            (other, _) => {
+                return Err(format!(
+                    "filter '{other}' is none of NONE, OCTAHEDRAL, QUATERNION, EXPONENTIAL and COLOR"
                 ));
             }
         };
@@ -116,6 +155,7 @@ impl Compressed {
             count: number("count", None)?,
             mode,
             filter,
+            variant,
         };
         compressed.check()?;
         Ok(compressed)
@@ -151,6 +191,7 @@ impl Compressed {
             Filter::Octahedral => stride == 4 || stride == 8,
             Filter::Quaternion => stride == 8,
             Filter::Exponential => true,
+            Filter::Color => stride == 4 || stride == 8,
         };
         if !filter_fits {
             return Err(format!(
@@ -159,13 +200,18 @@ impl Compressed {
             ));
         }
         let size = self.decoded_size()?;
-        if size > most_decoded(self.byte_length) {
+        if size > most_decoded(self.byte_length, self.variant) {
             return Err(format!(
                 "{} elements of {stride} bytes ({size} bytes) cannot come from {} compressed bytes",
                 self.count, self.byte_length
             ));
         }
         Ok(())
+    }
+
+    /// Which extension the view uses.
+    pub(in super::super) fn variant(&self) -> Variant {
+        self.variant
     }
 
     /// `count * byteStride`: the size of the decoded view.
@@ -201,28 +247,40 @@ impl Compressed {
     /// The stream is malformed (cut short, another codec version, bad data).
     pub(in super::super) fn decode(&self, stream: &[u8]) -> Result<Vec<u8>, String> {
         let size = self.decoded_size()?;
-        // Words, so that the filters' 16- and 32-bit accesses are aligned.
-        let mut words = vec![0u32; size.div_ceil(4)];
         let header = stream.first().copied().unwrap_or(0);
-        // Version 0 of each codec, as the extension requires (and the decoded-size
-        // bound assumes).
         let expected = match self.mode {
             Mode::Attributes => 0xa0,
             Mode::Triangles => 0xe0,
             Mode::Indices => 0xd0,
         };
-        let version_ok = match self.mode {
-            Mode::Attributes => header == expected,
-            // Index codec version 1 is what every encoder since 2020 writes, and the
-            // extension allows it.
-            _ => header & 0xf0 == expected && header & 0x0f <= 1,
+        // Index codec version 1 is what every encoder since 2020 writes, and both
+        // extensions allow it (KHR asks for it; version 0 is read all the same).
+        // Vertex codec version 1 is KHR's alone (and the decoded-size bound of EXT
+        // assumes version 0).
+        let newest = match (self.mode, self.variant) {
+            (Mode::Attributes, Variant::Ext) => 0,
+            _ => 1,
         };
-        if !version_ok {
+        if header & 0xf0 != expected || header & 0x0f > newest {
+            let hint = match (self.mode, self.variant, header) {
+                (Mode::Attributes, Variant::Ext, 0xa1) => {
+                    format!(" (vertex codec version 1 is {KHR_NAME}'s)")
+                }
+                _ => String::new(),
+            };
             return Err(format!(
-                "the stream begins with byte 0x{header:02x}, not a {:?} stream of a version this extension allows",
-                self.mode
+                "the stream begins with byte 0x{header:02x}, not a {:?} stream of a version {} allows{hint}",
+                self.mode,
+                self.variant.name()
             ));
         }
+        // Words, so that the filters' 16- and 32-bit accesses are aligned; asked for
+        // fallibly, as the size, though bounded by the stream's, may not fit.
+        let mut words: Vec<u32> = Vec::new();
+        words
+            .try_reserve_exact(size.div_ceil(4))
+            .map_err(|_| format!("{size} decoded bytes do not fit in memory"))?;
+        words.resize(size.div_ceil(4), 0);
         let out = words.as_mut_ptr().cast::<std::ffi::c_void>();
         let (count, stride) = (self.count, self.byte_stride);
         // SAFETY: `out` holds at least `count * stride` bytes; the strides and
@@ -267,6 +325,7 @@ impl Compressed {
                 Filter::Octahedral => meshopt::ffi::meshopt_decodeFilterOct(out, count, stride),
                 Filter::Quaternion => meshopt::ffi::meshopt_decodeFilterQuat(out, count, stride),
                 Filter::Exponential => meshopt::ffi::meshopt_decodeFilterExp(out, count, stride),
+                Filter::Color => meshopt::ffi::meshopt_decodeFilterColor(out, count, stride),
             }
         }
         let mut bytes: Vec<u8> = bytemuck::cast_slice(&words).to_vec();
@@ -321,12 +380,12 @@ mod tests {
             let value = object(&format!(
                 r#"{{"buffer": 0, "byteLength": 100, "count": 4, {rest}}}"#
             ));
-            let error = Compressed::parse(&value).unwrap_err();
+            let error = Compressed::parse(&value, Variant::Ext).unwrap_err();
             assert!(error.contains(message), "{rest}: {error}");
         }
         let fine = r#"{"buffer": 0, "byteLength": 100, "count": 4, "byteStride": 8,
             "mode": "ATTRIBUTES", "filter": "OCTAHEDRAL"}"#;
-        assert!(Compressed::parse(&object(fine)).is_ok());
+        assert!(Compressed::parse(&object(fine), Variant::Ext).is_ok());
     }
 
     #[test]
@@ -335,16 +394,16 @@ mod tests {
             r#"{"buffer": 0, "byteLength": 16, "byteStride": 256, "count": 1000000000000,
                 "mode": "ATTRIBUTES"}"#,
         );
-        let error = Compressed::parse(&value).unwrap_err();
+        let error = Compressed::parse(&value, Variant::Ext).unwrap_err();
         assert!(
             error.contains("cannot come from 16 compressed bytes"),
             "{error}"
         );
     }
 
-    /// `stream` through [`Compressed::decode`] as `count` elements of `stride`.
-    fn decoded(stream: &[u8], count: usize, stride: usize, mode: Mode, filter: Filter) -> Vec<u8> {
-        let compressed = Compressed {
+    /// A view of `stream` as `count` elements of `stride`, of the EXT extension.
+    fn view(stream: &[u8], count: usize, stride: usize, mode: Mode, filter: Filter) -> Compressed {
+        Compressed {
             buffer: 0,
             byte_offset: 0,
             byte_length: stream.len(),
@@ -352,9 +411,68 @@ mod tests {
             count,
             mode,
             filter,
-        };
+            variant: Variant::Ext,
+        }
+    }
+
+    /// `stream` through [`Compressed::decode`] as `count` elements of `stride`.
+    fn decoded(stream: &[u8], count: usize, stride: usize, mode: Mode, filter: Filter) -> Vec<u8> {
+        let compressed = view(stream, count, stride, mode, filter);
         compressed.check().unwrap();
         compressed.decode(stream).unwrap()
+    }
+
+    #[test]
+    fn khr_streams_of_vertex_codec_version_1_with_the_colour_filter_decode_to_the_colours() {
+        let colours: Vec<[f32; 4]> = (0..50)
+            .map(|i| {
+                let t = i as f32 / 49.0;
+                [t, 1.0 - t, (t * 7.0).fract(), 0.5 + 0.5 * t]
+            })
+            .collect();
+        let filtered: Vec<[u8; 4]> = meshopt::encode_filter_color(&colours, 8);
+        let stream = meshopt::encode_vertex_buffer_level(&filtered, 2, Some(1)).unwrap();
+        assert_eq!(stream[0], 0xa1, "vertex codec version 1");
+        let khr = Compressed {
+            variant: Variant::Khr,
+            ..view(&stream, colours.len(), 4, Mode::Attributes, Filter::Color)
+        };
+        khr.check().unwrap();
+        let bytes = khr.decode(&stream).unwrap();
+        // The colours as 8-bit unsigned normalized values, within the filter's
+        // rounding (YCoCg in 8 bits, alpha in 7).
+        for (colour, got) in colours.iter().zip(bytes.chunks(4)) {
+            for (c, &g) in colour.iter().zip(got) {
+                assert!(
+                    (f32::from(g) - c * 255.0).abs() <= 3.0,
+                    "{colour:?} as {got:?}"
+                );
+            }
+        }
+        // Both are KHR's alone: under EXT, errors that say so.
+        let ext = view(&stream, colours.len(), 4, Mode::Attributes, Filter::None);
+        let error = ext.decode(&stream).unwrap_err();
+        assert!(
+            error.contains("version 1 is KHR_meshopt_compression's"),
+            "{error}"
+        );
+        let colour = object(
+            r#"{"buffer": 0, "byteLength": 100, "count": 4, "byteStride": 4,
+                "mode": "ATTRIBUTES", "filter": "COLOR"}"#,
+        );
+        let error = Compressed::parse(&colour, Variant::Ext).unwrap_err();
+        assert!(
+            error.contains("filter COLOR is KHR_meshopt_compression's"),
+            "{error}"
+        );
+        assert!(Compressed::parse(&colour, Variant::Khr).is_ok());
+        // The colour filter takes 4 or 8 bytes.
+        let wide = object(
+            r#"{"buffer": 0, "byteLength": 100, "count": 4, "byteStride": 12,
+                "mode": "ATTRIBUTES", "filter": "COLOR"}"#,
+        );
+        let error = Compressed::parse(&wide, Variant::Khr).unwrap_err();
+        assert!(error.contains("filter Color"), "{error}");
     }
 
     // gltfpack (the glTF fixtures of tests/gltf_compression.rs) writes neither index
@@ -401,15 +519,13 @@ mod tests {
         }
         // A stream of the vertex codec's version 1 is not this extension's.
         let newer = meshopt::encode_vertex_buffer_level(&filtered, 2, Some(1)).unwrap();
-        let compressed = Compressed {
-            buffer: 0,
-            byte_offset: 0,
-            byte_length: newer.len(),
-            byte_stride: 8,
-            count: quaternions.len(),
-            mode: Mode::Attributes,
-            filter: Filter::Quaternion,
-        };
+        let compressed = view(
+            &newer,
+            quaternions.len(),
+            8,
+            Mode::Attributes,
+            Filter::Quaternion,
+        );
         let error = compressed.decode(&newer).unwrap_err();
         assert!(error.contains("begins with byte 0xa1"), "{error}");
     }

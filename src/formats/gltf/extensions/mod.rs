@@ -52,6 +52,7 @@ pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     draco::NAME,
     gpu_instancing::NAME,
     meshopt::NAME,
+    meshopt::KHR_NAME,
     "KHR_mesh_quantization",
     texture_transform::NAME,
 ];

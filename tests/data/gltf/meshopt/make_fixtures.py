@@ -12,7 +12,9 @@
     coordinates through the exponential filter, 12-bit octahedral normals (16-bit
     components);
   - torus-float.glb (`-c -noq`): no quantization, so no filter: plain float
-    attributes through the vertex codec, indices through the index codec.
+    attributes through the vertex codec, indices through the index codec;
+- torus-khr.glb (`-cc -ce khr`): gltfpack's defaults with KHR_meshopt_compression,
+  whose vertex streams are the codec's version 1 (header byte 0xa1).
 
 Run it from anywhere (needs Node.js and npm for gltfpack); it writes beside itself.
 """
@@ -123,9 +125,10 @@ def source():
     (HERE / "torus.glb").write_bytes(glb(doc, binary))
 
 
-def pack(name, *flags):
+def pack(name, *flags, extension="ext"):
     subprocess.run(
-        GLTFPACK + ["-i", str(HERE / "torus.glb"), "-o", str(HERE / name), "-ce", "ext", *flags],
+        GLTFPACK
+        + ["-i", str(HERE / "torus.glb"), "-o", str(HERE / name), "-ce", extension, *flags],
         check=True,
     )
 
@@ -135,3 +138,4 @@ if __name__ == "__main__":
     pack("torus-quantized.glb", "-cc")
     pack("torus-filters.glb", "-cc", "-vpf", "-vtf", "-vn", "12")
     pack("torus-float.glb", "-c", "-noq")
+    pack("torus-khr.glb", "-cc", extension="khr")

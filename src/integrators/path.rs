@@ -36,7 +36,8 @@ use crate::bxdfs::mtl::MtlMixture;
 use crate::camera::Camera;
 use crate::lights::LightSample;
 use crate::lights::environment::{
-    Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, studio,
+    DirectionSample, Environment, EnvironmentDesc, EnvironmentRadiance, Leaving, STUDIO_BACKDROP,
+    studio,
 };
 use crate::material::{LightKind, Material};
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
@@ -254,19 +255,7 @@ impl PathIntegrator {
         };
         let ray = path.ray;
         let Some(hit) = hit else {
-            if let Some(environment) = &self.environment {
-                let (seen, weight) = match self.background {
-                    Some(colour) if path.depth == 0 => (colour, 1.0),
-                    _ if path.previous_delta => (environment.radiance(ray.dir), 1.0),
-                    _ => {
-                        // Radiance and density from one conversion of the direction.
-                        let (seen, pdf) = environment.radiance_and_pdf(ray.dir);
-                        let light_pdf = self.environment_probability * pdf;
-                        (seen, power_heuristic(path.previous_pdf, light_pdf))
-                    }
-                };
-                path.radiance += path.throughput * seen * weight;
-            }
+            self.leave(path, None);
             return done;
         };
         if path.medium != Vec3::ZERO {
@@ -313,10 +302,17 @@ impl PathIntegrator {
         let u_light = sample.next_2d();
         let mut shadow = None;
         if bsdf.has_smooth_lobes()
-            && let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light)
+            && let Some((mut light, deferred)) = self.sample_light(scene, hit.p, u_pick, u_light)
         {
+            if let (Some(sample), Some(environment)) = (&deferred, &self.environment) {
+                // Read after the BSDF's value, if that is not zero.
+                environment.prefetch_radiance(sample);
+            }
             let f = bsdf.eval(light.direction);
             if f != Vec3::ZERO {
+                if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
+                    light.radiance = environment.sampled_radiance(&sample);
+                }
                 // The light point lies `light.distance` along `light.direction` from
                 // the hit point: a little less from the offset origin.
                 let shadow_ray = hit.spawn_unit_ray(light.direction);
@@ -377,9 +373,43 @@ impl PathIntegrator {
         Step { shadow, alive }
     }
 
+    /// What a path that leaves the scene sees: the background or the environment,
+    /// the latter weighed against light sampling; `leaving` is its direction
+    /// converted for the environment already, if it was ([`Environment::leaving`]).
+    #[inline(always)]
+    fn leave(&self, path: &mut PathState, leaving: Option<Leaving>) {
+        let Some(environment) = &self.environment else {
+            return;
+        };
+        let (seen, weight) = match self.background {
+            Some(colour) if path.depth == 0 => (colour, 1.0),
+            _ => {
+                let leaving = leaving.unwrap_or_else(|| environment.leaving(path.ray.dir));
+                if path.previous_delta {
+                    (environment.radiance_leaving(&leaving), 1.0)
+                } else {
+                    // Radiance and density from one conversion of the direction.
+                    let (seen, pdf) = environment.radiance_and_pdf_leaving(&leaving);
+                    let light_pdf = self.environment_probability * pdf;
+                    (seen, power_heuristic(path.previous_pdf, light_pdf))
+                }
+            }
+        };
+        path.radiance += path.throughput * seen * weight;
+    }
+
+    /// Whether a path that leaves the scene looks its direction up in the
+    /// environment (not for a camera ray that sees the background).
+    #[inline(always)]
+    fn sees_environment(&self, path: &PathState) -> bool {
+        self.environment.is_some() && !(self.background.is_some() && path.depth == 0)
+    }
+
     /// A point on a light seen from `from`, the light chosen by power: the
     /// environment (`u_pick` below its probability), an area light, or a point
-    /// light; its density includes the choice.
+    /// light; its density includes the choice. An environment's sample comes with
+    /// its radiance left to look up ([`Environment::sampled_radiance`]: zero in the
+    /// light sample until then), for where the BSDF scatters towards it.
     #[inline(always)]
     fn sample_light(
         &self,
@@ -387,24 +417,25 @@ impl PathIntegrator {
         from: Vec3,
         u_pick: Float,
         u: Vec2,
-    ) -> Option<LightSample> {
+    ) -> Option<(LightSample, Option<DirectionSample>)> {
         let (p_environment, p_area) = (self.environment_probability, self.area_probability);
         if u_pick < p_environment {
-            let (direction, radiance, pdf) = self.environment.as_ref()?.sample(u)?;
-            return Some(LightSample {
-                point: from + direction,
-                direction,
+            let sample = self.environment.as_ref()?.sample_direction(u)?;
+            let light = LightSample {
+                point: from + sample.direction,
+                direction: sample.direction,
                 distance: Float::INFINITY,
-                radiance,
-                pdf: pdf * p_environment,
+                radiance: Vec3::ZERO,
+                pdf: sample.pdf * p_environment,
                 delta: false,
-            });
+            };
+            return Some((light, Some(sample)));
         }
         let u_pick = u_pick - p_environment;
         if u_pick < p_area {
             let mut light = scene.area_lights.sample(from, u_pick / p_area, u)?;
             light.pdf *= p_area;
-            return Some(light);
+            return Some((light, None));
         }
         if self.point_cdf.is_empty() {
             return None;
@@ -433,14 +464,15 @@ impl PathIntegrator {
         } else {
             1.0
         };
-        Some(LightSample {
+        let light = LightSample {
             point: light.position,
             direction: incident.direction,
             distance: incident.distance,
             radiance: light.intensity * (incident.falloff / spread),
             pdf: probability,
             delta: true,
-        })
+        };
+        Some((light, None))
     }
 
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,
@@ -470,6 +502,39 @@ impl PathIntegrator {
             match first_hits.take() {
                 Some(first) => hits = first,
                 None => scene.intersect_batch(&batch_rays, alive, &mut hits),
+            }
+            // Paths that leave the scene: their directions converted and their
+            // texels asked of memory together, then read.
+            let mut leaving = [None; BATCH];
+            if let Some(environment) = &self.environment {
+                for lane in lanes_of(alive) {
+                    if hits[lane].is_none() && self.sees_environment(&paths[lane]) {
+                        leaving[lane] = Some(environment.leaving(paths[lane].ray.dir));
+                    }
+                }
+            }
+            for lane in lanes_of(alive) {
+                if hits[lane].is_none() {
+                    self.leave(&mut paths[lane], leaving[lane]);
+                    alive &= !(1 << lane);
+                }
+            }
+            if let Some(environment) = &self.environment
+                && self.environment_probability > 0.0
+            {
+                // Light sampling will pick the environment for most of these paths
+                // and read a slot of its alias table at random, most often a cache
+                // miss: fetching all of them first overlaps the misses (the samples
+                // are peeked at here, drawn again in `step`).
+                for lane in lanes_of(alive) {
+                    let path = &paths[lane];
+                    if path.depth + 1 < self.max_depth {
+                        let mut sample = path.sample.clone();
+                        if sample.next_1d() < self.environment_probability {
+                            environment.prefetch(sample.next_2d());
+                        }
+                    }
+                }
             }
             let mut shadowed = 0;
             for lane in lanes_of(alive) {

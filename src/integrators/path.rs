@@ -308,7 +308,11 @@ impl PathIntegrator {
                 // Read after the BSDF's value, if that is not zero.
                 environment.prefetch_radiance(sample);
             }
-            let f = bsdf.eval(light.direction);
+            let (f, bsdf_pdf) = if light.delta {
+                (bsdf.eval(light.direction), 0.0)
+            } else {
+                bsdf.eval_and_pdf(light.direction)
+            };
             if f != Vec3::ZERO {
                 if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
                     light.radiance = environment.sampled_radiance(&sample);
@@ -321,7 +325,6 @@ impl PathIntegrator {
                 let weight = if light.delta {
                     1.0
                 } else {
-                    let bsdf_pdf = bsdf.pdf(light.direction);
                     power_heuristic(light.pdf, bsdf_pdf)
                 };
                 path.unoccluded = path.throughput
@@ -701,12 +704,9 @@ mod tests {
     use crate::sampler::PixelSampler;
     use std::path::Path;
 
-    /// Tracing a pixel's paths sixteen at a time gives each path exactly the value
-    /// it gets traced alone: the batched `pixel` equals the mean of `radiance` over
-    /// the same samples, bit for bit, with batches of 16 and a last one of 4 whose
-    /// paths end at different depths.
-    #[test]
-    fn batched_pixels_equal_paths_traced_one_by_one() {
+    /// The path-mode Cornell box and the camera and options of its reference, at
+    /// `width` x `height` pixels, `spp` samples each.
+    fn cornell(width: u32, height: u32, spp: u32) -> (Scene, RenderOptions) {
         let path = Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/tests/data/path/cornell.obj"
@@ -717,28 +717,39 @@ mod tests {
         );
         let options = RenderOptions {
             mode: Mode::Path,
-            width: 12,
-            height: 9,
-            samples_per_pixel: 20,
+            width,
+            height,
+            samples_per_pixel: spp,
             look_from: Vec3::new(0.0, 1.0, 3.4),
             look_to: Vec3::new(0.0, 1.0, 0.0),
             fov_degrees: 40.0,
             depth: 64,
             ..RenderOptions::default()
         };
-        let integrator = PathIntegrator::new(&scene, options.depth, true);
-        let camera = Camera::for_options(&options);
-        let sampler = PixelSampler::new(20, integrator.dimensions());
+        (scene, options)
+    }
+
+    /// Asserts that every pixel `integrator` traces in batches equals the mean of
+    /// its paths traced one by one (`radiance`), bit for bit, and that both count
+    /// the same rays.
+    fn assert_batches_equal_single_paths(
+        scene: &Scene,
+        options: &RenderOptions,
+        integrator: &PathIntegrator,
+    ) {
+        let camera = Camera::for_options(options);
+        let spp = options.samples_per_pixel;
+        let sampler = PixelSampler::new(spp, integrator.dimensions());
         let (mut batched_rays, mut single_rays) = (RayCounts::default(), RayCounts::default());
         for row in 0..options.height {
             for column in 0..options.width {
                 let at = (column, row, options.width);
                 let no_outputs = &mut PixelAovs::none();
                 let batched =
-                    integrator.pixel(&scene, &camera, &sampler, at, &mut batched_rays, no_outputs);
+                    integrator.pixel(scene, &camera, &sampler, at, &mut batched_rays, no_outputs);
                 let single = sampler.average(column, row, options.width, |x, y, sample| {
                     single_rays.primary += 1;
-                    integrator.radiance(&scene, &camera.ray(x, y), sample, &mut single_rays)
+                    integrator.radiance(scene, &camera.ray(x, y), sample, &mut single_rays)
                 });
                 assert_eq!(
                     batched.to_array().map(f32::to_bits),
@@ -749,5 +760,54 @@ mod tests {
         }
         assert_eq!(batched_rays, single_rays);
         assert!(batched_rays.scattered > batched_rays.primary);
+    }
+
+    /// Tracing a pixel's paths sixteen at a time gives each path exactly the value
+    /// it gets traced alone: the batched `pixel` equals the mean of `radiance` over
+    /// the same samples, bit for bit, with batches of 16 and a last one of 4 whose
+    /// paths end at different depths.
+    #[test]
+    fn batched_pixels_equal_paths_traced_one_by_one() {
+        let (scene, options) = cornell(12, 9, 20);
+        let integrator = PathIntegrator::new(&scene, options.depth, true);
+        assert_batches_equal_single_paths(&scene, &options, &integrator);
+    }
+
+    /// The same under an environment map seen through the box's open front and
+    /// sampled beside its light: the batch looks up its leaving paths' radiance and
+    /// prefetches its light samples' alias slots and texels ahead of shading them,
+    /// and must still give each path what it gets alone.
+    #[test]
+    fn batched_pixels_equal_paths_traced_one_by_one_under_an_environment_map() {
+        let (scene, options) = cornell(10, 8, 20);
+        let (width, height) = (32, 16);
+        let texels: Vec<Float> = (0..width * height)
+            .flat_map(|i| {
+                let (x, y) = ((i % width) as Float, (i / width) as Float);
+                [
+                    1.0 + x / 4.0,
+                    0.5 + y,
+                    if x == 5.0 && y == 3.0 { 500.0 } else { 0.3 },
+                ]
+            })
+            .collect();
+        let texture =
+            crate::textures::Texture::from_f32("sky.hdr".into(), width, height, 3, texels).unwrap();
+        let mut integrator = PathIntegrator::new(&scene, options.depth, true);
+        integrator.environment = Some(Environment::new(&EnvironmentDesc {
+            radiance: EnvironmentRadiance::Map(std::sync::Arc::new(texture)),
+            // Dim enough that light sampling picks the box's light a fair share.
+            strength: 0.05,
+            rotation_degrees: 30.0,
+        }));
+        integrator.background = None;
+        let integrator = integrator.weighed(&scene);
+        assert!(
+            integrator.environment_probability > 0.05 && integrator.area_probability > 0.05,
+            "{} {}",
+            integrator.environment_probability,
+            integrator.area_probability
+        );
+        assert_batches_equal_single_paths(&scene, &options, &integrator);
     }
 }

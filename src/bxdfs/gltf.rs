@@ -343,6 +343,13 @@ impl GltfAt<'_> {
         self.eval_pdf(wi).1
     }
 
+    /// `f(wo, wi)` of the non-delta lobes and their density at `wi`, for light
+    /// sampling's MIS: one half vector and one `D` for both.
+    #[inline]
+    pub fn eval_and_pdf(&self, wi: Vec3) -> (Vec3, Float) {
+        self.eval_pdf(wi)
+    }
+
     /// `f(wo, wi)` and the density at `wi`, sharing the half vector and `D` (inlined
     /// into [`GltfAt::eval`] and [`GltfAt::pdf`], each keeps only its half).
     #[inline(always)]

@@ -237,6 +237,20 @@ impl BsdfAt<'_> {
         }
     }
 
+    /// [`BsdfAt::eval`] and, where that is not zero, [`BsdfAt::pdf`] (else 0): a
+    /// glTF material computes both from one half vector, as light sampling's MIS
+    /// needs them.
+    #[inline(always)]
+    pub fn eval_and_pdf(&self, wi: Vec3) -> (Vec3, Float) {
+        match self {
+            BsdfAt::Mtl { .. } => {
+                let f = self.eval(wi);
+                (f, if f != Vec3::ZERO { self.pdf(wi) } else { 0.0 })
+            }
+            BsdfAt::Gltf(g) => gltf_eval_pdf(g, wi),
+        }
+    }
+
     /// The density (solid angle) with which [`BsdfAt::sample`] picks `wi` through its
     /// non-delta lobes.
     #[inline(always)]
@@ -298,6 +312,14 @@ fn gltf_eval(g: &GltfVertex<'_>, wi: Vec3) -> Vec3 {
         return Vec3::ZERO;
     }
     g.at.eval(g.frame.to_local(wi))
+}
+
+#[inline(never)]
+fn gltf_eval_pdf(g: &GltfVertex<'_>, wi: Vec3) -> (Vec3, Float) {
+    if !agrees(wi, g.frame.n, g.ng) {
+        return (Vec3::ZERO, 0.0);
+    }
+    g.at.eval_and_pdf(g.frame.to_local(wi))
 }
 
 #[inline(never)]

@@ -36,7 +36,8 @@ use crate::bxdfs::mtl::MtlMixture;
 use crate::camera::Camera;
 use crate::lights::LightSample;
 use crate::lights::environment::{
-    Environment, EnvironmentDesc, EnvironmentRadiance, STUDIO_BACKDROP, studio,
+    DirectionSample, Environment, EnvironmentDesc, EnvironmentRadiance, Leaving, STUDIO_BACKDROP,
+    studio,
 };
 use crate::material::{LightKind, Material};
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
@@ -254,19 +255,7 @@ impl PathIntegrator {
         };
         let ray = path.ray;
         let Some(hit) = hit else {
-            if let Some(environment) = &self.environment {
-                let (seen, weight) = match self.background {
-                    Some(colour) if path.depth == 0 => (colour, 1.0),
-                    _ if path.previous_delta => (environment.radiance(ray.dir), 1.0),
-                    _ => {
-                        // Radiance and density from one conversion of the direction.
-                        let (seen, pdf) = environment.radiance_and_pdf(ray.dir);
-                        let light_pdf = self.environment_probability * pdf;
-                        (seen, power_heuristic(path.previous_pdf, light_pdf))
-                    }
-                };
-                path.radiance += path.throughput * seen * weight;
-            }
+            self.leave(path, None);
             return done;
         };
         if path.medium != Vec3::ZERO {
@@ -313,10 +302,21 @@ impl PathIntegrator {
         let u_light = sample.next_2d();
         let mut shadow = None;
         if bsdf.has_smooth_lobes()
-            && let Some(light) = self.sample_light(scene, hit.p, u_pick, u_light)
+            && let Some((mut light, deferred)) = self.sample_light(scene, hit.p, u_pick, u_light)
         {
-            let f = bsdf.eval(light.direction);
+            if let (Some(sample), Some(environment)) = (&deferred, &self.environment) {
+                // Read after the BSDF's value, if that is not zero.
+                environment.prefetch_radiance(sample);
+            }
+            let (f, bsdf_pdf) = if light.delta {
+                (bsdf.eval(light.direction), 0.0)
+            } else {
+                bsdf.eval_and_pdf(light.direction)
+            };
             if f != Vec3::ZERO {
+                if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
+                    light.radiance = environment.sampled_radiance(&sample);
+                }
                 // The light point lies `light.distance` along `light.direction` from
                 // the hit point: a little less from the offset origin.
                 let shadow_ray = hit.spawn_unit_ray(light.direction);
@@ -325,7 +325,6 @@ impl PathIntegrator {
                 let weight = if light.delta {
                     1.0
                 } else {
-                    let bsdf_pdf = bsdf.pdf(light.direction);
                     power_heuristic(light.pdf, bsdf_pdf)
                 };
                 path.unoccluded = path.throughput
@@ -377,9 +376,43 @@ impl PathIntegrator {
         Step { shadow, alive }
     }
 
+    /// What a path that leaves the scene sees: the background or the environment,
+    /// the latter weighed against light sampling; `leaving` is its direction
+    /// converted for the environment already, if it was ([`Environment::leaving`]).
+    #[inline(always)]
+    fn leave(&self, path: &mut PathState, leaving: Option<Leaving>) {
+        let Some(environment) = &self.environment else {
+            return;
+        };
+        let (seen, weight) = match self.background {
+            Some(colour) if path.depth == 0 => (colour, 1.0),
+            _ => {
+                let leaving = leaving.unwrap_or_else(|| environment.leaving(path.ray.dir));
+                if path.previous_delta {
+                    (environment.radiance_leaving(&leaving), 1.0)
+                } else {
+                    // Radiance and density from one conversion of the direction.
+                    let (seen, pdf) = environment.radiance_and_pdf_leaving(&leaving);
+                    let light_pdf = self.environment_probability * pdf;
+                    (seen, power_heuristic(path.previous_pdf, light_pdf))
+                }
+            }
+        };
+        path.radiance += path.throughput * seen * weight;
+    }
+
+    /// Whether a path that leaves the scene looks its direction up in the
+    /// environment (not for a camera ray that sees the background).
+    #[inline(always)]
+    fn sees_environment(&self, path: &PathState) -> bool {
+        self.environment.is_some() && !(self.background.is_some() && path.depth == 0)
+    }
+
     /// A point on a light seen from `from`, the light chosen by power: the
     /// environment (`u_pick` below its probability), an area light, or a point
-    /// light; its density includes the choice.
+    /// light; its density includes the choice. An environment's sample comes with
+    /// its radiance left to look up ([`Environment::sampled_radiance`]: zero in the
+    /// light sample until then), for where the BSDF scatters towards it.
     #[inline(always)]
     fn sample_light(
         &self,
@@ -387,24 +420,25 @@ impl PathIntegrator {
         from: Vec3,
         u_pick: Float,
         u: Vec2,
-    ) -> Option<LightSample> {
+    ) -> Option<(LightSample, Option<DirectionSample>)> {
         let (p_environment, p_area) = (self.environment_probability, self.area_probability);
         if u_pick < p_environment {
-            let (direction, radiance, pdf) = self.environment.as_ref()?.sample(u)?;
-            return Some(LightSample {
-                point: from + direction,
-                direction,
+            let sample = self.environment.as_ref()?.sample_direction(u)?;
+            let light = LightSample {
+                point: from + sample.direction,
+                direction: sample.direction,
                 distance: Float::INFINITY,
-                radiance,
-                pdf: pdf * p_environment,
+                radiance: Vec3::ZERO,
+                pdf: sample.pdf * p_environment,
                 delta: false,
-            });
+            };
+            return Some((light, Some(sample)));
         }
         let u_pick = u_pick - p_environment;
         if u_pick < p_area {
             let mut light = scene.area_lights.sample(from, u_pick / p_area, u)?;
             light.pdf *= p_area;
-            return Some(light);
+            return Some((light, None));
         }
         if self.point_cdf.is_empty() {
             return None;
@@ -433,14 +467,15 @@ impl PathIntegrator {
         } else {
             1.0
         };
-        Some(LightSample {
+        let light = LightSample {
             point: light.position,
             direction: incident.direction,
             distance: incident.distance,
             radiance: light.intensity * (incident.falloff / spread),
             pdf: probability,
             delta: true,
-        })
+        };
+        Some((light, None))
     }
 
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,
@@ -470,6 +505,39 @@ impl PathIntegrator {
             match first_hits.take() {
                 Some(first) => hits = first,
                 None => scene.intersect_batch(&batch_rays, alive, &mut hits),
+            }
+            // Paths that leave the scene: their directions converted and their
+            // texels asked of memory together, then read.
+            let mut leaving = [None; BATCH];
+            if let Some(environment) = &self.environment {
+                for lane in lanes_of(alive) {
+                    if hits[lane].is_none() && self.sees_environment(&paths[lane]) {
+                        leaving[lane] = Some(environment.leaving(paths[lane].ray.dir));
+                    }
+                }
+            }
+            for lane in lanes_of(alive) {
+                if hits[lane].is_none() {
+                    self.leave(&mut paths[lane], leaving[lane]);
+                    alive &= !(1 << lane);
+                }
+            }
+            if let Some(environment) = &self.environment
+                && self.environment_probability > 0.0
+            {
+                // Light sampling will pick the environment for most of these paths
+                // and read a slot of its alias table at random, most often a cache
+                // miss: fetching all of them first overlaps the misses (the samples
+                // are peeked at here, drawn again in `step`).
+                for lane in lanes_of(alive) {
+                    let path = &paths[lane];
+                    if path.depth + 1 < self.max_depth {
+                        let mut sample = path.sample.clone();
+                        if sample.next_1d() < self.environment_probability {
+                            environment.prefetch(sample.next_2d());
+                        }
+                    }
+                }
             }
             let mut shadowed = 0;
             for lane in lanes_of(alive) {
@@ -636,12 +704,9 @@ mod tests {
     use crate::sampler::PixelSampler;
     use std::path::Path;
 
-    /// Tracing a pixel's paths sixteen at a time gives each path exactly the value
-    /// it gets traced alone: the batched `pixel` equals the mean of `radiance` over
-    /// the same samples, bit for bit, with batches of 16 and a last one of 4 whose
-    /// paths end at different depths.
-    #[test]
-    fn batched_pixels_equal_paths_traced_one_by_one() {
+    /// The path-mode Cornell box and the camera and options of its reference, at
+    /// `width` x `height` pixels, `spp` samples each.
+    fn cornell(width: u32, height: u32, spp: u32) -> (Scene, RenderOptions) {
         let path = Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/tests/data/path/cornell.obj"
@@ -652,28 +717,39 @@ mod tests {
         );
         let options = RenderOptions {
             mode: Mode::Path,
-            width: 12,
-            height: 9,
-            samples_per_pixel: 20,
+            width,
+            height,
+            samples_per_pixel: spp,
             look_from: Vec3::new(0.0, 1.0, 3.4),
             look_to: Vec3::new(0.0, 1.0, 0.0),
             fov_degrees: 40.0,
             depth: 64,
             ..RenderOptions::default()
         };
-        let integrator = PathIntegrator::new(&scene, options.depth, true);
-        let camera = Camera::for_options(&options);
-        let sampler = PixelSampler::new(20, integrator.dimensions());
+        (scene, options)
+    }
+
+    /// Asserts that every pixel `integrator` traces in batches equals the mean of
+    /// its paths traced one by one (`radiance`), bit for bit, and that both count
+    /// the same rays.
+    fn assert_batches_equal_single_paths(
+        scene: &Scene,
+        options: &RenderOptions,
+        integrator: &PathIntegrator,
+    ) {
+        let camera = Camera::for_options(options);
+        let spp = options.samples_per_pixel;
+        let sampler = PixelSampler::new(spp, integrator.dimensions());
         let (mut batched_rays, mut single_rays) = (RayCounts::default(), RayCounts::default());
         for row in 0..options.height {
             for column in 0..options.width {
                 let at = (column, row, options.width);
                 let no_outputs = &mut PixelAovs::none();
                 let batched =
-                    integrator.pixel(&scene, &camera, &sampler, at, &mut batched_rays, no_outputs);
+                    integrator.pixel(scene, &camera, &sampler, at, &mut batched_rays, no_outputs);
                 let single = sampler.average(column, row, options.width, |x, y, sample| {
                     single_rays.primary += 1;
-                    integrator.radiance(&scene, &camera.ray(x, y), sample, &mut single_rays)
+                    integrator.radiance(scene, &camera.ray(x, y), sample, &mut single_rays)
                 });
                 assert_eq!(
                     batched.to_array().map(f32::to_bits),
@@ -684,5 +760,54 @@ mod tests {
         }
         assert_eq!(batched_rays, single_rays);
         assert!(batched_rays.scattered > batched_rays.primary);
+    }
+
+    /// Tracing a pixel's paths sixteen at a time gives each path exactly the value
+    /// it gets traced alone: the batched `pixel` equals the mean of `radiance` over
+    /// the same samples, bit for bit, with batches of 16 and a last one of 4 whose
+    /// paths end at different depths.
+    #[test]
+    fn batched_pixels_equal_paths_traced_one_by_one() {
+        let (scene, options) = cornell(12, 9, 20);
+        let integrator = PathIntegrator::new(&scene, options.depth, true);
+        assert_batches_equal_single_paths(&scene, &options, &integrator);
+    }
+
+    /// The same under an environment map seen through the box's open front and
+    /// sampled beside its light: the batch looks up its leaving paths' radiance and
+    /// prefetches its light samples' alias slots and texels ahead of shading them,
+    /// and must still give each path what it gets alone.
+    #[test]
+    fn batched_pixels_equal_paths_traced_one_by_one_under_an_environment_map() {
+        let (scene, options) = cornell(10, 8, 20);
+        let (width, height) = (32, 16);
+        let texels: Vec<Float> = (0..width * height)
+            .flat_map(|i| {
+                let (x, y) = ((i % width) as Float, (i / width) as Float);
+                [
+                    1.0 + x / 4.0,
+                    0.5 + y,
+                    if x == 5.0 && y == 3.0 { 500.0 } else { 0.3 },
+                ]
+            })
+            .collect();
+        let texture =
+            crate::textures::Texture::from_f32("sky.hdr".into(), width, height, 3, texels).unwrap();
+        let mut integrator = PathIntegrator::new(&scene, options.depth, true);
+        integrator.environment = Some(Environment::new(&EnvironmentDesc {
+            radiance: EnvironmentRadiance::Map(std::sync::Arc::new(texture)),
+            // Dim enough that light sampling picks the box's light a fair share.
+            strength: 0.05,
+            rotation_degrees: 30.0,
+        }));
+        integrator.background = None;
+        let integrator = integrator.weighed(&scene);
+        assert!(
+            integrator.environment_probability > 0.05 && integrator.area_probability > 0.05,
+            "{} {}",
+            integrator.environment_probability,
+            integrator.area_probability
+        );
+        assert_batches_equal_single_paths(&scene, &options, &integrator);
     }
 }

@@ -7,10 +7,10 @@
 //! tested against all the batch's rays in one 16-lane pass, and a child goes on the
 //! stack when any ray meets it before that ray's closest hit so far; a leaf's
 //! primitives are each tested against every ray of the batch in one pass (the
-//! primitive broadcast, the rays in the lanes). A closest-hit batch visits a node's
-//! children nearest first (by the least entry distance of the rays that meet each)
-//! and passes over a box whose rays all have a nearer hit already, as a single
-//! ray's ordered walk does. Where few rays are left at a node ([`FEW_RAYS`], as
+//! primitive broadcast, the rays in the lanes). In a tree of more than
+//! [`ORDER_FROM_NODES`] nodes a closest-hit batch visits a node's children nearest
+//! first (by the least entry distance of the rays that meet each) and passes over a
+//! box whose rays all have a nearer hit already, as a single ray's ordered walk does. Where few rays are left at a node ([`FEW_RAYS`], as
 //! happens deep in large scenes with scattered rays), each of them walks that
 //! node's subtree by itself, from its closest hit so far, and stays in the batch
 //! for the rest: a batch never costs much more than its rays traced alone.
@@ -44,6 +44,14 @@ pub const BATCH: usize = PACKET_SIZE;
 /// batch walk at all) 1.01x; leaves stay batched (a few rays tested one by one
 /// there cost 0.96x-1.0x, no gain).
 const FEW_RAYS: u32 = 4;
+
+/// A closest-hit batch orders a node's children nearest first only in trees of more
+/// than this many 8-wide nodes: in a small scene (the Cornell box is one node over
+/// five leaves) there is little behind a near hit to skip, and finding each child's
+/// least entry distance and sorting cost the path-mode Cornell box 1.06x the CPU
+/// time of the unordered walk (same-run pairs), while the rough gold dragon (tens of
+/// thousands of nodes) gains from the order.
+const ORDER_FROM_NODES: usize = 16;
 
 /// All-ones in the lanes of the rays of `batch` that hit `shape` with `0 < t <
 /// t_max`, and their `t`, `u`, `v` (zero for spheres): lane by lane the single-ray
@@ -168,6 +176,7 @@ impl Scene {
             t_enter: 0.0,
         });
         let mut stack_len = 1;
+        let ordered = self.wide.nodes.len() > ORDER_FROM_NODES;
         while stack_len > 0 {
             stack_len -= 1;
             // SAFETY: entries below `stack_len` were written before.
@@ -229,7 +238,25 @@ impl Scene {
                 continue;
             }
             let node = &self.wide.nodes[pending.index as usize];
-            push_met_children::<true>(&batch, node, t_best, reached, &mut stack, &mut stack_len);
+            if ordered {
+                push_met_children::<true>(
+                    &batch,
+                    node,
+                    t_best,
+                    reached,
+                    &mut stack,
+                    &mut stack_len,
+                );
+            } else {
+                push_met_children::<false>(
+                    &batch,
+                    node,
+                    t_best,
+                    reached,
+                    &mut stack,
+                    &mut stack_len,
+                );
+            }
         }
         let (t, u, v, id) = (
             t_best.to_array(),

@@ -97,6 +97,16 @@ fn subjects() -> Vec<(&'static str, Box<dyn Lobe>, bool)> {
             true,
         ),
         (
+            "gltf half metal",
+            Box::new(gltf(PbrMaterial {
+                base_color: Vec3::new(0.9, 0.5, 0.3),
+                metallic: 0.5,
+                roughness: 0.45,
+                ..PbrMaterial::default()
+            })),
+            true,
+        ),
+        (
             "gltf rough metal, multiple scattering",
             Box::new(gltf(PbrMaterial {
                 base_color: Vec3::new(1.0, 0.78, 0.34),

@@ -69,6 +69,10 @@ pub struct GltfBsdf {
     sheened: bool,
     /// Whether the GGX reflection lobes are compensated for multiple scattering.
     multiple_scattering: bool,
+    /// Whether the material is the common plain one: a rough metal, dielectric or
+    /// mix of both with no transmission, clearcoat, sheen or compensation, whose
+    /// value and density take the short path ([`GltfAt::plain_eval_pdf`]).
+    plain: bool,
 }
 
 /// The lobes, in the order of [`GltfAt::p`].
@@ -81,7 +85,14 @@ const SHEEN: usize = 4;
 impl GltfBsdf {
     /// The BSDF of `values`.
     pub fn new(values: &PbrValues) -> GltfBsdf {
+        let sheened = values.sheen_color.max_element() > 0.0;
+        let ggx = Ggx::from_roughness(values.roughness);
         GltfBsdf {
+            plain: !(values.transmission > 0.0
+                || values.clearcoat > 0.0
+                || sheened
+                || values.multiple_scattering
+                || ggx.is_delta()),
             base: values.base_color,
             metallic: values.metallic,
             ggx: Ggx::from_roughness(values.roughness),
@@ -95,7 +106,7 @@ impl GltfBsdf {
             coat: Ggx::from_roughness(values.clearcoat_roughness),
             sheen: Sheen::new(values.sheen_color, values.sheen_roughness),
             sheen_roughness: values.sheen_roughness,
-            sheened: values.sheen_color.max_element() > 0.0,
+            sheened,
             multiple_scattering: values.multiple_scattering,
         }
     }
@@ -358,6 +369,9 @@ impl GltfAt<'_> {
         if wo.z <= 0.0 || wi.z == 0.0 {
             return (Vec3::ZERO, 0.0);
         }
+        if g.plain {
+            return self.plain_eval_pdf(wi);
+        }
         let mut pdf = 0.0;
         let mut half = Vec3::Z;
         let base_layer = if wi.z > 0.0 {
@@ -398,6 +412,56 @@ impl GltfAt<'_> {
             }
         }
         (f, pdf)
+    }
+
+    /// [`GltfAt::eval_pdf`] of a plain material ([`GltfBsdf::plain`]): the diffuse
+    /// and specular reflection lobes alone, nothing below the surface.
+    #[inline(always)]
+    fn plain_eval_pdf(&self, wi: Vec3) -> (Vec3, Float) {
+        if wi.z < 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let p = &self.p;
+        let h = (self.wo + wi).normalize();
+        let d = self.bsdf.ggx.d(h);
+        let mut pdf = p[DIFFUSE] * (wi.z * FRAC_1_PI);
+        if p[SPECULAR] > 0.0 {
+            pdf += p[SPECULAR] * self.specular_pdf(d, h);
+        }
+        (self.reflection(wi, h, d), pdf)
+    }
+
+    /// [`GltfAt::sample`]'s specular lobe of a plain material: the direction
+    /// reflected through a visible normal `h` and its weight `F G2 / G1`
+    /// straight from `h` (the density cancels `D`, which is computed only for the
+    /// density itself), `D V` and the mixture's density otherwise as
+    /// [`GltfAt::plain_eval_pdf`] gives them.
+    #[inline(always)]
+    fn plain_specular_sample(&self, u: Vec2) -> Option<LocalSample> {
+        let (g, wo, p) = (self.bsdf, self.wo, &self.p);
+        let h = g.ggx.sample_visible(wo, u);
+        let o = wo.dot(h);
+        let wi = h * (2.0 * o) - wo;
+        if wi.z <= 0.0 || o <= 0.0 {
+            return None;
+        }
+        let d = g.ggx.d(h);
+        let specular_pdf = self.g1_o * d / (4.0 * wo.z);
+        let pdf = p[DIFFUSE] * (wi.z * FRAC_1_PI) + p[SPECULAR] * specular_pdf;
+        if pdf.is_nan() || pdf <= 0.0 {
+            return None;
+        }
+        let weight = if p[DIFFUSE] == 0.0 {
+            // A metal: f cos / pdf = F D V cos / (G1 D / (4 cos_o)) = F V 4 cos_o cos / G1.
+            let w = schlick_weight(o);
+            let fm = g.base + (Vec3::ONE - g.base) * w;
+            let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * w;
+            fd.lerp(fm, g.metallic)
+                * (self.visibility(wi) * 4.0 * wo.z * wi.z / (self.g1_o * p[SPECULAR]))
+        } else {
+            self.reflection(wi, h, d) * (wi.z / pdf)
+        };
+        Some(LocalSample::smooth(wi, weight, pdf))
     }
 
     /// The metal and dielectric reflection under the sheen and the coat towards
@@ -445,6 +509,23 @@ impl GltfAt<'_> {
         let (g, wo, p, front) = (self.bsdf, self.wo, &self.p, self.front);
         if wo.z <= 0.0 {
             return None;
+        }
+        if g.plain {
+            if u_lobe >= p[DIFFUSE] && p[SPECULAR] > 0.0 {
+                return self.plain_specular_sample(u);
+            }
+            if p[DIFFUSE] <= 0.0 {
+                return None;
+            }
+            let wi = cosine_hemisphere(u);
+            if wi.z <= 0.0 {
+                return None;
+            }
+            let (f, pdf) = self.plain_eval_pdf(wi);
+            if pdf.is_nan() || pdf <= 0.0 {
+                return None;
+            }
+            return Some(LocalSample::smooth(wi, f * wi.z / pdf, pdf));
         }
         let mut lobe = 0;
         let mut below = 0.0;

@@ -50,12 +50,6 @@ use std::f32::consts::PI;
 /// Mitsuba's `rr_depth` default.
 const RUSSIAN_ROULETTE_DEPTH: u32 = 5;
 
-/// Paths of one pixel in flight at once ([`PathIntegrator::trace_wave`]): the
-/// more, the fuller and more coherent the batches their rays are regrouped into.
-/// On the rough gold dragon (64 samples a pixel, same-run pairs of CPU time) 16
-/// cost 1.09x and 32 1.10x the time of 64.
-const WAVE: usize = 4 * BATCH;
-
 /// Sample dimensions one bounce draws: light pick, light point (2), lobe, direction
 /// (2), Russian roulette.
 pub const DIMENSIONS_PER_BOUNCE: u32 = 7;
@@ -484,63 +478,48 @@ impl PathIntegrator {
         Some((light, None))
     }
 
-    /// Traces the paths `paths[..count]` to their ends together, as one wavefront:
-    /// each step's rays, then its shadow rays, in batches of [`BATCH`]; the first
-    /// step's hits are `first_hits` when the caller traced them (for the extra
-    /// outputs). The paths still alive are gathered into full batches at every step
-    /// (a batch walk costs nearly as much for a few rays as for sixteen), grouped
-    /// by the octant of their directions, so that a batch's rays meet more of the
-    /// same nodes.
-    fn trace_wave(
+    /// Traces the paths `paths[..count]` to their ends together: each step's rays,
+    /// then its shadow rays, as one batch; the first step's hits are `first_hits`
+    /// when the caller traced them (for the extra outputs).
+    fn trace_batch(
         &self,
         scene: &Scene,
-        paths: &mut [PathState; WAVE],
+        paths: &mut [PathState; BATCH],
         count: usize,
-        mut first_hits: Option<[Option<Hit>; WAVE]>,
+        mut first_hits: Option<[Option<Hit>; BATCH]>,
         rays: &mut RayCounts,
     ) {
-        let mut alive = if count >= WAVE {
-            u64::MAX >> (64 - WAVE)
+        let mut alive = if count >= BATCH {
+            u32::MAX >> (32 - BATCH)
         } else {
-            (1u64 << count) - 1
+            (1u32 << count) - 1
         };
-        let mut hits = [None; WAVE];
-        let mut shadow_rays = [paths[0].ray; WAVE];
-        let mut shadow_t = [0.0; WAVE];
-        let mut order = [0u8; WAVE];
+        let mut batch_rays = [paths[0].ray; BATCH];
+        let mut hits = [None; BATCH];
+        let mut shadow_rays = [paths[0].ray; BATCH];
+        let mut shadow_t = [0.0; BATCH];
         while alive != 0 {
+            for lane in lanes_of(alive) {
+                batch_rays[lane] = paths[lane].ray;
+            }
             match first_hits.take() {
                 Some(first) => hits = first,
-                None => {
-                    let n = Self::by_octant(alive, |i| paths[i].ray.dir, &mut order);
-                    for group in order[..n].chunks(BATCH) {
-                        let mut batch_rays = [paths[group[0] as usize].ray; BATCH];
-                        for (lane, &i) in group.iter().enumerate() {
-                            batch_rays[lane] = paths[i as usize].ray;
-                        }
-                        let mut batch_hits = [None; BATCH];
-                        let active = u32::MAX >> (32 - group.len());
-                        scene.intersect_batch(&batch_rays, active, &mut batch_hits);
-                        for (lane, &i) in group.iter().enumerate() {
-                            hits[i as usize] = batch_hits[lane];
-                        }
-                    }
-                }
+                None => scene.intersect_batch(&batch_rays, alive, &mut hits),
             }
             // Paths that leave the scene: their directions converted and their
             // texels asked of memory together, then read.
-            let mut leaving = [None; WAVE];
+            let mut leaving = [None; BATCH];
             if let Some(environment) = &self.environment {
-                for i in bits_of(alive) {
-                    if hits[i].is_none() && self.sees_environment(&paths[i]) {
-                        leaving[i] = Some(environment.leaving(paths[i].ray.dir));
+                for lane in lanes_of(alive) {
+                    if hits[lane].is_none() && self.sees_environment(&paths[lane]) {
+                        leaving[lane] = Some(environment.leaving(paths[lane].ray.dir));
                     }
                 }
             }
-            for i in bits_of(alive) {
-                if hits[i].is_none() {
-                    self.leave(&mut paths[i], leaving[i]);
-                    alive &= !(1 << i);
+            for lane in lanes_of(alive) {
+                if hits[lane].is_none() {
+                    self.leave(&mut paths[lane], leaving[lane]);
+                    alive &= !(1 << lane);
                 }
             }
             if let Some(environment) = &self.environment
@@ -550,8 +529,8 @@ impl PathIntegrator {
                 // and read a slot of its alias table at random, most often a cache
                 // miss: fetching all of them first overlaps the misses (the samples
                 // are peeked at here, drawn again in `step`).
-                for i in bits_of(alive) {
-                    let path = &paths[i];
+                for lane in lanes_of(alive) {
+                    let path = &paths[lane];
                     if path.depth + 1 < self.max_depth {
                         let mut sample = path.sample.clone();
                         if sample.next_1d() < self.environment_probability {
@@ -560,75 +539,27 @@ impl PathIntegrator {
                     }
                 }
             }
-            let mut shadowed = 0u64;
-            for i in bits_of(alive) {
-                let step = self.step(scene, &mut paths[i], hits[i], rays);
+            let mut shadowed = 0;
+            for lane in lanes_of(alive) {
+                let step = self.step(scene, &mut paths[lane], hits[lane], rays);
                 if let Some((ray, t)) = step.shadow {
-                    shadow_rays[i] = ray;
-                    shadow_t[i] = t;
-                    shadowed |= 1 << i;
+                    shadow_rays[lane] = ray;
+                    shadow_t[lane] = t;
+                    shadowed |= 1 << lane;
                 }
                 if !step.alive {
-                    alive &= !(1 << i);
+                    alive &= !(1 << lane);
                 }
             }
             if shadowed != 0 {
-                let n = Self::by_octant(shadowed, |i| shadow_rays[i].dir, &mut order);
-                for group in order[..n].chunks(BATCH) {
-                    let mut batch_rays = [shadow_rays[group[0] as usize]; BATCH];
-                    let mut batch_t = [0.0; BATCH];
-                    for (lane, &i) in group.iter().enumerate() {
-                        batch_rays[lane] = shadow_rays[i as usize];
-                        batch_t[lane] = shadow_t[i as usize];
-                    }
-                    let active = u32::MAX >> (32 - group.len());
-                    let blocked = scene.occluded_batch(&batch_rays, &batch_t, active);
-                    for lane in lanes_of(active & !blocked) {
-                        let path = &mut paths[group[lane] as usize];
-                        path.radiance += path.unoccluded;
-                    }
+                let blocked = scene.occluded_batch(&shadow_rays, &shadow_t, shadowed);
+                for lane in lanes_of(shadowed & !blocked) {
+                    let path = &mut paths[lane];
+                    path.radiance += path.unoccluded;
                 }
             }
         }
     }
-
-    /// The indices of the set bits of `mask` in `order`, grouped by the octant of
-    /// `direction(i)` (in index order within an octant); their number.
-    #[inline(always)]
-    fn by_octant(mask: u64, direction: impl Fn(usize) -> Vec3, order: &mut [u8; WAVE]) -> usize {
-        let mut octants = [0u8; WAVE];
-        let mut counts = [0usize; 8];
-        for i in bits_of(mask) {
-            let d = direction(i);
-            let octant = u8::from(d.x < 0.0) | u8::from(d.y < 0.0) << 1 | u8::from(d.z < 0.0) << 2;
-            octants[i] = octant;
-            counts[octant as usize] += 1;
-        }
-        let mut starts = [0usize; 8];
-        let mut running = 0;
-        for (start, count) in starts.iter_mut().zip(counts) {
-            *start = running;
-            running += count;
-        }
-        for i in bits_of(mask) {
-            let octant = octants[i] as usize;
-            order[starts[octant]] = i as u8;
-            starts[octant] += 1;
-        }
-        running
-    }
-}
-
-/// The indices of the set bits of `mask`, lowest first.
-#[inline(always)]
-fn bits_of(mut mask: u64) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let i = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            i
-        })
-    })
 }
 
 impl Integrator for PathIntegrator {
@@ -668,8 +599,8 @@ impl Integrator for PathIntegrator {
         saturate_finite(path.radiance)
     }
 
-    /// The pixel's paths, [`WAVE`] at a time ([`PathIntegrator::trace_wave`]), each
-    /// traced as [`Self::radiance`] traces it; with extra outputs, their camera rays' hits are traced for the
+    /// The pixel's paths, [`BATCH`] at a time, each traced as [`Self::radiance`]
+    /// traces it; with extra outputs, their camera rays' hits are traced for the
     /// outputs and the paths alike ([`PixelAovs::intersect`], ray by ray: the
     /// batch's hits are bit for bit the same).
     fn pixel(
@@ -687,8 +618,8 @@ impl Integrator for PathIntegrator {
         let mut sum = Vec3::ZERO;
         let mut first = 0;
         while first < count {
-            let size = (count - first).min(WAVE as u32) as usize;
-            let mut paths: [PathState; WAVE] = std::array::from_fn(|i| {
+            let size = (count - first).min(BATCH as u32) as usize;
+            let mut paths: [PathState; BATCH] = std::array::from_fn(|i| {
                 let sample = first + (i as u32).min(size as u32 - 1);
                 let offset = sampler.offset(pixel_index, sample);
                 let values = sampler.sample(pixel_index, sample);
@@ -697,13 +628,13 @@ impl Integrator for PathIntegrator {
             });
             rays.primary += size as u64;
             let first_hits = aovs.wanted().then(|| {
-                let mut hits = [None; WAVE];
+                let mut hits = [None; BATCH];
                 for (hit, path) in hits.iter_mut().zip(&paths[..size]) {
                     *hit = aovs.intersect(scene, &path.ray);
                 }
                 hits
             });
-            self.trace_wave(scene, &mut paths, size, first_hits, rays);
+            self.trace_batch(scene, &mut paths, size, first_hits, rays);
             for path in &paths[..size] {
                 sum += saturate_finite(path.radiance);
             }
@@ -831,13 +762,13 @@ mod tests {
         assert!(batched_rays.scattered > batched_rays.primary);
     }
 
-    /// Tracing a pixel's paths together gives each path exactly the value it gets
-    /// traced alone: the batched `pixel` equals the mean of `radiance` over the same
-    /// samples, bit for bit, with a wave of 64 paths and a last one of 6, whose
-    /// paths end at different depths and are regrouped into batches at every step.
+    /// Tracing a pixel's paths sixteen at a time gives each path exactly the value
+    /// it gets traced alone: the batched `pixel` equals the mean of `radiance` over
+    /// the same samples, bit for bit, with batches of 16 and a last one of 4 whose
+    /// paths end at different depths.
     #[test]
     fn batched_pixels_equal_paths_traced_one_by_one() {
-        let (scene, options) = cornell(12, 9, 70);
+        let (scene, options) = cornell(12, 9, 20);
         let integrator = PathIntegrator::new(&scene, options.depth, true);
         assert_batches_equal_single_paths(&scene, &options, &integrator);
     }

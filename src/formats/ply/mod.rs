@@ -29,7 +29,6 @@ use super::polygon::{self, FanPolygon};
 use super::{SceneDescription, TriangleDesc, finite, read_file};
 use crate::material::{Material, MaterialId};
 use crate::math::{Float, Vec2, Vec3};
-use crate::memory;
 use ascii::{AsciiBody, PARALLEL_ASCII_ELEMENTS};
 use binary::BinaryBody;
 use header::{Element, Format, Header, PropertyType, Role, Scalar, parse_header, roles};
@@ -212,13 +211,6 @@ impl MeshReader {
                 _ => {}
             }
         }
-        // Written from end to end next: the dragon's took 6,000 small-page faults.
-        let scene = &self.scene;
-        memory::advise_huge_pages(&scene.positions);
-        memory::advise_huge_pages(&scene.normals);
-        memory::advise_huge_pages(&scene.texcoords);
-        memory::advise_huge_pages(&scene.colours);
-        memory::advise_huge_pages(&scene.triangles);
         self
     }
 

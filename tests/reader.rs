@@ -138,7 +138,7 @@ fn malformed_lines_name_file_line_and_problem() {
     let cases = [
         ("v 1 2\n", "scene.obj:1: 'v' needs 3 values, found 2"),
         ("v 1 x 3\n", "scene.obj:1: invalid number 'x'"),
-        ("vn 1 inf 3\n", "scene.obj:1: non-finite value 'inf'"),
+        ("S 1 inf 3 1\n", "scene.obj:1: non-finite value 'inf'"),
         ("vt\n", "scene.obj:1: 'vt' needs 1 value, found 0"),
         (
             &format!("{tri}f 1 9\n"),

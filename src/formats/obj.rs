@@ -896,17 +896,19 @@ impl Chunk {
     ) -> Result<(), ParseErrorKind> {
         match keyword {
             b"v" => {
-                let position = lex::position(&mut tokens)?;
+                let position = lex::any_vec3("v", &mut tokens)?;
                 if let Some(colour) = vertex_colour(tokens) {
                     self.colours.push((self.positions.len() as u32, colour));
                 }
                 self.positions.push(position);
             }
-            b"vn" => self.normals.push(lex::vec3("vn", &mut tokens)?),
+            // Non-finite normals and texture coordinates, like positions, are read
+            // and left out of the triangles using them once the file is read.
+            b"vn" => self.normals.push(lex::any_vec3("vn", &mut tokens)?),
             b"vt" => {
-                let u = lex::floats::<1>("vt", &mut tokens)?[0];
+                let u = lex::numbers::<1>("vt", &mut tokens, lex::any_float)?[0];
                 let v = match tokens.next() {
-                    Some(t) => lex::float(t)?,
+                    Some(t) => lex::any_float(t)?,
                     None => 0.0,
                 };
                 self.texcoords.push(Vec2::new(u, v));

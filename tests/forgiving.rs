@@ -60,7 +60,6 @@ fn lines_points_and_short_faces_are_skipped_with_one_warning_per_kind() {
     assert_eq!(
         warnings,
         [
-            "skipped-elements.obj:11: shapes before any 'usemtl' get the default material",
             "skipped-elements.obj:6: skipped 2 line elements ('l'): lines have no area to render",
             "skipped-elements.obj:8: skipped 1 point element ('p'): points have no area to render",
             "skipped-elements.obj:9: skipped 2 faces of fewer than 3 vertices",

@@ -187,7 +187,7 @@ fn parse_surveyed(
 
     // Pass 2: the events in file order. A problem is only a candidate: a chunk's
     // elements and faces, not parsed yet, may hold an earlier one.
-    let mut resolver = Resolver::new(path, access);
+    let mut resolver = Resolver::new(path, access, &statements);
     let mut materials = Vec::with_capacity(chunks.len());
     for (chunk, statements) in statements.iter().enumerate() {
         match resolver.resolve(statements, total_triangles_to(&bases, &total, chunk)) {
@@ -560,7 +560,7 @@ fn parse_generally(
         .zip(bases)
         .map(|(text, base)| Chunk::parse(text, base))
         .collect();
-    let mut resolver = Resolver::new(path, access);
+    let mut resolver = Resolver::new(path, access, &parsed);
     let mut materials = Vec::with_capacity(parsed.len());
     let mut triangles = 0;
     let mut bases = Vec::with_capacity(parsed.len());
@@ -1071,6 +1071,10 @@ struct Resolver<'a> {
     material_ids: HashMap<String, MaterialId>,
     current_material: Option<MaterialId>,
     fallback_material: Option<MaterialId>,
+    /// Whether the file has any `mtllib` or `usemtl`: only then are shapes before
+    /// the first `usemtl` worth a warning (a file with neither, such as most scans
+    /// and robot meshes, means the default material).
+    names_materials: bool,
     warned_no_usemtl: bool,
     warned_unknown: HashSet<String>,
     /// Canonical paths of the `mtllib` files read so far.
@@ -1083,8 +1087,9 @@ struct Resolver<'a> {
 }
 
 impl<'a> Resolver<'a> {
-    fn new(path: &'a Path, access: &'a FileAccess) -> Resolver<'a> {
+    fn new(path: &'a Path, access: &'a FileAccess, chunks: &[Chunk]) -> Resolver<'a> {
         Resolver {
+            names_materials: chunks.iter().any(|chunk| !chunk.events.is_empty()),
             path,
             access,
             scene: SceneDescription::default(),
@@ -1162,7 +1167,7 @@ impl<'a> Resolver<'a> {
         if slots[0].is_none()
             && let Some(line) = chunk.first_inherited_shape
         {
-            if !self.warned_no_usemtl {
+            if self.names_materials && !self.warned_no_usemtl {
                 self.warned_no_usemtl = true;
                 self.warn(line, "shapes before any 'usemtl' get the default material");
             }

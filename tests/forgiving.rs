@@ -2,7 +2,8 @@
 //! the file and line: OBJ `l` and `p` elements and faces of fewer than 3 vertices are
 //! skipped, an MTL `Ns` below 0 is read as 0, a missing `.mtl` leaves its materials at
 //! the default, an unknown PLY header line is skipped, the triangles at vertices whose
-//! position is NaN or infinite are dropped. (Truly broken input stays an error:
+//! position is NaN or infinite are dropped, and those at NaN or infinite normals or
+//! texture coordinates lose them. (Truly broken input stays an error:
 //! `tests/malformed.rs`.) Scenes: `tests/data/forgiving/`, or written by the test.
 
 use crate::support;

@@ -31,7 +31,7 @@ fn scene_with_a_warning(dir: &Path) -> std::path::PathBuf {
     let path = dir.join("warns.obj");
     fs::write(
         &path,
-        "v -1 -1 -3\nv 1 -1 -3\nv 0 1 -3\nf 1 2 3\nP 0 0 0 1 1 1\n",
+        "v -1 -1 -3\nv 1 -1 -3\nv 0 1 -3\nl 1 2\nf 1 2 3\nP 0 0 0 1 1 1\n",
     )
     .unwrap();
     path

@@ -2,7 +2,8 @@
 //! the file and line: OBJ `l` and `p` elements and faces of fewer than 3 vertices are
 //! skipped, an MTL `Ns` below 0 is read as 0, a missing `.mtl` leaves its materials at
 //! the default, an unknown PLY header line is skipped, the triangles at vertices whose
-//! position is NaN or infinite are dropped. (Truly broken input stays an error:
+//! position is NaN or infinite are dropped, and those at NaN or infinite normals or
+//! texture coordinates lose them. (Truly broken input stays an error:
 //! `tests/malformed.rs`.) Scenes: `tests/data/forgiving/`, or written by the test.
 
 use crate::support;
@@ -60,7 +61,6 @@ fn lines_points_and_short_faces_are_skipped_with_one_warning_per_kind() {
     assert_eq!(
         warnings,
         [
-            "skipped-elements.obj:11: shapes before any 'usemtl' get the default material",
             "skipped-elements.obj:6: skipped 2 line elements ('l'): lines have no area to render",
             "skipped-elements.obj:8: skipped 1 point element ('p'): points have no area to render",
             "skipped-elements.obj:9: skipped 2 faces of fewer than 3 vertices",
@@ -341,4 +341,210 @@ fn gltf_triangles_at_non_finite_positions_are_dropped_with_one_warning() {
                 .to_string()
         )
     );
+}
+
+/// One corner of [`AttributeScene`]: position, normal, texture coordinates.
+type Corner = ([f32; 3], [f32; 3], [f32; 2]);
+
+/// Four textured triangles with tilted normals in front of the camera, unindexed:
+/// triangle 1 has a NaN in one corner's normal and triangle 2 an infinity in one
+/// corner's texture coordinates, where a good scene has no normals (triangle 1) or
+/// no texture coordinates (triangle 2) at all.
+struct AttributeScene {
+    triangles: Vec<[Corner; 3]>,
+}
+
+impl AttributeScene {
+    fn new(bad: bool) -> AttributeScene {
+        let corner =
+            |x: f32, y: f32, n: [f32; 3]| ([x, y, -3.0], n, [x / 3.0 + 0.5, y / 2.0 + 0.5]);
+        let (tilt_a, tilt_b) = ([0.3, 0.2, 1.0], [-0.2, 0.3, 1.0]);
+        let mut triangles = vec![
+            [
+                corner(-1.5, -1.0, tilt_a),
+                corner(0.0, -1.0, tilt_b),
+                corner(0.0, 1.0, tilt_a),
+            ],
+            [
+                corner(-1.5, -1.0, tilt_b),
+                corner(0.0, 1.0, tilt_a),
+                corner(-1.5, 1.0, tilt_b),
+            ],
+            [
+                corner(0.0, -1.0, tilt_a),
+                corner(1.5, -1.0, tilt_b),
+                corner(1.5, 1.0, tilt_b),
+            ],
+            [
+                corner(0.0, -1.0, tilt_b),
+                corner(1.5, 1.0, tilt_a),
+                corner(0.0, 1.0, tilt_b),
+            ],
+        ];
+        if bad {
+            triangles[1][1].1[0] = f32::NAN;
+            triangles[2][2].2[1] = f32::INFINITY;
+        }
+        AttributeScene { triangles }
+    }
+
+    /// Whether triangle `t` has normals, and texture coordinates, in the good scene.
+    fn has(t: usize) -> (bool, bool) {
+        (t != 1, t != 2)
+    }
+
+    /// The scene as OBJ with `tex.mtl`; the good one leaves out the `vn` or `vt`
+    /// index of its faces, as exporters write faces without them.
+    fn obj(&self, bad: bool) -> String {
+        let mut text = String::from("mtllib tex.mtl\nusemtl tex\n");
+        let number = |x: f32| match x {
+            x if x.is_nan() => "nan".to_string(),
+            x if x.is_infinite() => "inf".to_string(),
+            x => x.to_string(),
+        };
+        for (t, triangle) in self.triangles.iter().enumerate() {
+            for (p, n, uv) in triangle {
+                text += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+                text += &format!("vn {} {} {}\n", number(n[0]), n[1], n[2]);
+                text += &format!("vt {} {}\n", uv[0], number(uv[1]));
+            }
+            let (normals, texcoords) = if bad { (true, true) } else { Self::has(t) };
+            let corners: Vec<String> = (1..=3)
+                .map(|k| {
+                    let i = 3 * t + k;
+                    match (texcoords, normals) {
+                        (true, true) => format!("{i}/{i}/{i}"),
+                        (true, false) => format!("{i}/{i}"),
+                        (false, true) => format!("{i}//{i}"),
+                        (false, false) => format!("{i}"),
+                    }
+                })
+                .collect();
+            text += &format!("f {}\n", corners.join(" "));
+        }
+        text
+    }
+
+    /// The scene as glTF with its buffer in `dir/stem.bin` and the texture `tex.png`:
+    /// the bad one as one primitive, the good one with triangles 1 and 2 as primitives
+    /// of their own, without normals or texture coordinates.
+    fn gltf(&self, dir: &Path, stem: &str, bad: bool) -> String {
+        let groups: Vec<(Vec<usize>, (bool, bool))> = match bad {
+            true => vec![(vec![0, 1, 2, 3], (true, true))],
+            false => vec![
+                (vec![0, 3], (true, true)),
+                (vec![1], Self::has(1)),
+                (vec![2], Self::has(2)),
+            ],
+        };
+        let mut bin: Vec<u8> = Vec::new();
+        let (mut views, mut accessors, mut primitives) = (vec![], vec![], vec![]);
+        let mut add = |bin: &mut Vec<u8>, values: Vec<f32>, kind: &str| {
+            let count = values.len() / if kind == "VEC3" { 3 } else { 2 };
+            views.push(format!(
+                r#"{{"buffer": 0, "byteOffset": {}, "byteLength": {}}}"#,
+                bin.len(),
+                4 * values.len()
+            ));
+            bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+            let bounds = if kind == "VEC3" {
+                r#", "min": [-1.5, -1, -3], "max": [1.5, 1, -3]"#
+            } else {
+                ""
+            };
+            accessors.push(format!(
+                r#"{{"bufferView": {}, "componentType": 5126, "count": {count}, "type": "{kind}"{bounds}}}"#,
+                views.len() - 1
+            ));
+            accessors.len() - 1
+        };
+        for (triangles, (normals, texcoords)) in groups {
+            let corners = || triangles.iter().flat_map(|&t| self.triangles[t]);
+            let mut attributes = vec![format!(
+                r#""POSITION": {}"#,
+                add(&mut bin, corners().flat_map(|c| c.0).collect(), "VEC3")
+            )];
+            if normals {
+                let at = add(&mut bin, corners().flat_map(|c| c.1).collect(), "VEC3");
+                attributes.push(format!(r#""NORMAL": {at}"#));
+            }
+            if texcoords {
+                let at = add(&mut bin, corners().flat_map(|c| c.2).collect(), "VEC2");
+                attributes.push(format!(r#""TEXCOORD_0": {at}"#));
+            }
+            primitives.push(format!(
+                r#"{{"attributes": {{{}}}, "material": 0}}"#,
+                attributes.join(", ")
+            ));
+        }
+        std::fs::write(dir.join(format!("{stem}.bin")), &bin).unwrap();
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0}}], "meshes": [{{"primitives": [{}]}}],
+  "materials": [{{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}, "metallicFactor": 0}}}}],
+  "textures": [{{"source": 0}}], "images": [{{"uri": "tex.png"}}],
+  "buffers": [{{"uri": "{stem}.bin", "byteLength": {}}}],
+  "bufferViews": [{}], "accessors": [{}]}}"#,
+            primitives.join(", "),
+            bin.len(),
+            views.join(", "),
+            accessors.join(", ")
+        )
+    }
+}
+
+/// Writes `bad` and `good` (scene files named `non-finite.EXT` and `good.EXT`) into
+/// `dir`, with a 4x4 texture of distinct texels, renders them, and checks that they
+/// render alike, lit and textured, and that the bad one gives the one warning more.
+fn renders_as_without_its_bad_attributes(dir: &Path, ext: &str, bad: &str, good: &str) {
+    let texels: Vec<u8> = (0..48).map(|i| (i * 37 % 200 + 40) as u8).collect();
+    support::write_png(&dir.join("tex.png"), 4, 4, 3, &texels);
+    std::fs::write(
+        dir.join("tex.mtl"),
+        "newmtl tex\nKd 1 1 1\nmap_Kd tex.png\n",
+    )
+    .unwrap();
+    let name = format!("non-finite.{ext}");
+    std::fs::write(dir.join(&name), bad).unwrap();
+    std::fs::write(dir.join(format!("good.{ext}")), good).unwrap();
+    let (warnings, rgb) = render_in(dir, &name);
+    let (good_warnings, good_rgb) = render_in(dir, &format!("good.{ext}"));
+    assert_eq!(support::differences(&rgb, &good_rgb), (0, 0), "{ext}");
+    // Textured: many colours, not one flat grey.
+    let mut colours: Vec<&[u8]> = rgb.chunks(3).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(colours.len() > 8, "{ext}: {} colours", colours.len());
+    let expected = format!(
+        "{name}: 1 normal with a non-finite coordinate (NaN or infinite); the 1 triangle \
+         using it is shaded flat; 1 texture coordinate with a non-finite coordinate (NaN or \
+         infinite); the 1 triangle using it is left without texture coordinates (its \
+         textures read at (0, 0))"
+    );
+    let good_name = format!("good.{ext}");
+    let mut expected_warnings: Vec<String> = good_warnings
+        .iter()
+        .map(|w| w.replace(&good_name, &name))
+        .collect();
+    expected_warnings.push(expected);
+    let mut sorted = warnings.clone();
+    sorted.sort();
+    expected_warnings.sort();
+    assert_eq!(sorted, expected_warnings, "{ext}");
+}
+
+#[test]
+fn obj_non_finite_normals_and_texture_coordinates_leave_their_triangles_with_one_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bad, good) = (AttributeScene::new(true), AttributeScene::new(false));
+    renders_as_without_its_bad_attributes(dir.path(), "obj", &bad.obj(true), &good.obj(false));
+}
+
+#[test]
+fn gltf_non_finite_normals_and_texture_coordinates_leave_their_triangles_with_one_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bad, good) = (AttributeScene::new(true), AttributeScene::new(false));
+    let bad = bad.gltf(dir.path(), "non-finite", true);
+    let good = good.gltf(dir.path(), "good", false);
+    renders_as_without_its_bad_attributes(dir.path(), "gltf", &bad, &good);
 }

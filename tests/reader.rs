@@ -108,12 +108,22 @@ fn whitespace_crlf_tabs_comments_and_ignored_statements() {
 
 #[test]
 fn faces_without_a_known_material_get_the_default_with_one_warning() {
-    let d = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 3\nS 0 0 0 1\n").unwrap();
+    let shapes = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 3\nS 0 0 0 1\n";
+    // A file that names no material at all (most scans and robot meshes): the
+    // default material, as meant, without a warning.
+    let d = parse(shapes).unwrap();
     assert_eq!(d.materials.len(), 1);
+    assert_eq!(d.materials[0].name, "default");
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    // One that names one later: the shapes before it were likely meant to have one.
+    let d = parse(&format!("{shapes}usemtl later\nf 1 2 3\n")).unwrap();
     assert_eq!(d.materials[0].name, "default");
     assert_eq!(
         d.warnings,
-        ["scene.obj:4: shapes before any 'usemtl' get the default material"]
+        [
+            "scene.obj:7: unknown material 'later'; using the default material",
+            "scene.obj:4: shapes before any 'usemtl' get the default material"
+        ]
     );
     let d = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl missing\nf 1 2 3\n").unwrap();
     assert_eq!(
@@ -138,7 +148,7 @@ fn malformed_lines_name_file_line_and_problem() {
     let cases = [
         ("v 1 2\n", "scene.obj:1: 'v' needs 3 values, found 2"),
         ("v 1 x 3\n", "scene.obj:1: invalid number 'x'"),
-        ("vn 1 inf 3\n", "scene.obj:1: non-finite value 'inf'"),
+        ("S 1 inf 3 1\n", "scene.obj:1: non-finite value 'inf'"),
         ("vt\n", "scene.obj:1: 'vt' needs 1 value, found 0"),
         (
             &format!("{tri}f 1 9\n"),

@@ -420,7 +420,7 @@ fn info_counts_bounds_materials_memory_and_warnings() {
     let d = dir.path();
     write(d, "tri.ply", TRIANGLE_PLY);
     let toml = "[camera]\nwidth = 100\nheight = 50\n[[mesh]]\nfile = \"tri.ply\"\nmaterial = \"red\"\n[[mesh]]\nfile = \"flat.obj\"\n[[sphere]]\ncenter = [0, 0, 5]\nradius = 1\nmaterial = \"red\"\n[materials.red]\nKd = [1, 0, 0]\n[materials.unused]\n";
-    write(d, "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n");
+    write(d, "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nl 1 2\n");
     let scene = write(d, "s.toml", toml);
     let output = raytracer(&["info", scene.to_str().unwrap()]);
     assert!(
@@ -453,7 +453,9 @@ fn info_counts_bounds_materials_memory_and_warnings() {
     assert!(text.contains("film 0.1 MiB"), "{text}");
     assert!(
         text.lines().any(|l| l.starts_with("warning: ")
-            && l.ends_with("flat.obj:4: shapes before any 'usemtl' get the default material")),
+            && l.ends_with(
+                "flat.obj:5: skipped 1 line element ('l'): lines have no area to render"
+            )),
         "{text}"
     );
 }

@@ -669,3 +669,49 @@ fn hits_interpolate_texture_coordinates_only_on_materials_with_maps() {
         "{uv}"
     );
 }
+
+#[test]
+fn gif_textures_read_as_the_same_texels_in_png() {
+    // pybullet_data's textured_sphere_smooth.mtl maps `checker_huge.gif`: GIF, which
+    // stb_image (pybullet, Assimp) reads, is read here too, as its first frame.
+    let dir = tempfile::tempdir().unwrap();
+    let rgb: Vec<u8> = (0..4 * 2 * 3).map(|i| (i * 29 % 251) as u8).collect();
+    write_png(&dir.path().join("tex.png"), 4, 2, 3, &rgb);
+    let rgba: Vec<u8> = rgb
+        .chunks(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect();
+    let file = std::fs::File::create(dir.path().join("tex.gif")).unwrap();
+    image::codecs::gif::GifEncoder::new(file)
+        .encode(&rgba, 4, 2, image::ExtendedColorType::Rgba8)
+        .unwrap();
+    let obj = format!(
+        "{}{}",
+        square(0.0, 1.0, 1.0, "png", 0),
+        square(-1.0, 1.0, 1.0, "gif", 4)
+    );
+    let path = write_scene(
+        dir.path(),
+        &obj,
+        "newmtl png\nKd 1 1 1\nmap_Kd tex.png\nnewmtl gif\nKd 1 1 1\nmap_Kd tex.gif\n",
+    );
+    let description = formats::load_obj(&path).unwrap();
+    assert!(
+        description.warnings.is_empty(),
+        "{:?}",
+        description.warnings
+    );
+    let [png, gif] = [0, 1].map(|m| description.materials[m].clone());
+    let mut colours = Vec::new();
+    for k in 0..8 {
+        let uv = Vec2::new(
+            (k % 4) as Float / 4.0 + 0.125,
+            (k / 4) as Float / 2.0 + 0.25,
+        );
+        let colour = png.at(uv).diffuse;
+        assert_eq!(gif.at(uv).diffuse, colour, "{uv}");
+        colours.push(colour);
+    }
+    colours.dedup();
+    assert_eq!(colours.len(), 8, "every texel its own colour: {colours:?}");
+}

@@ -1,12 +1,17 @@
 //! Combining meshes into one description: index offsets, material ids and placement.
 
 use glam::{Affine3A, DMat3, Mat3};
+use rayon::prelude::*;
 
 use super::SceneDescription;
 use super::error::ParseErrorKind;
 use crate::description::InstanceDesc;
 use crate::material::{LightKind, MaterialId};
 use crate::math::{Float, Vec3};
+
+/// Elements per task of the passes over a mesh's arrays in
+/// [`SceneDescription::append`]: small meshes stay on the calling thread.
+const PARALLEL_RUN: usize = 1 << 14;
 
 /// Where a mesh goes in the world: `world_from_object = translate * rotate * scale`,
 /// that is scale first, then rotate about x, then y, then z (right-handed,
@@ -135,17 +140,24 @@ impl SceneDescription {
         let material_of = |id: MaterialId| material.unwrap_or(MaterialId(id.0 + material_offset));
 
         // Work in place on the mesh's arrays and then move them over: a large first
-        // mesh (the usual case) is never copied.
-        for p in &mut mesh.positions {
-            *p = transform.point(*p);
-        }
-        for n in &mut mesh.normals {
-            *n = transform.normal(*n);
-        }
-        for t in &mut mesh.triangles {
-            t.positions = t.positions.map(|i| i + position_offset);
-            t.material = material_of(t.material);
-        }
+        // mesh (the usual case) is never copied. On all threads: one thread took 5 ms
+        // of the dragon's 48 ms load for these passes (the same arithmetic either way,
+        // so the same bits).
+        mesh.positions
+            .par_iter_mut()
+            .with_min_len(PARALLEL_RUN)
+            .for_each(|p| *p = transform.point(*p));
+        mesh.normals
+            .par_iter_mut()
+            .with_min_len(PARALLEL_RUN)
+            .for_each(|n| *n = transform.normal(*n));
+        mesh.triangles
+            .par_iter_mut()
+            .with_min_len(PARALLEL_RUN)
+            .for_each(|t| {
+                t.positions = t.positions.map(|i| i + position_offset);
+                t.material = material_of(t.material);
+            });
         for s in &mut mesh.spheres {
             s.center = transform.point(s.center);
             s.radius *= radius_scale;
@@ -161,11 +173,17 @@ impl SceneDescription {
                 *direction = (transform.linear * *direction).normalize();
             }
         }
-        for t in mesh.triangle_texcoords.iter_mut().flatten() {
-            *t = t.map(|i| i + texcoord_offset);
-        }
-        for n in mesh.triangle_normals.iter_mut().flatten() {
-            *n = n.map(|i| i + normal_offset);
+        for (indices, offset) in [
+            (&mut mesh.triangle_texcoords, texcoord_offset),
+            (&mut mesh.triangle_normals, normal_offset),
+        ] {
+            if offset != 0 {
+                indices
+                    .par_iter_mut()
+                    .with_min_len(PARALLEL_RUN)
+                    .flatten()
+                    .for_each(|t| *t = t.map(|i| i + offset));
+            }
         }
         // Normal and texture coordinate indices stay in step with the triangles: if
         // only one side has them, the other's triangles have none.

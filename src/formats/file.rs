@@ -244,6 +244,9 @@ pub(crate) fn read_regular_file(path: &Path) -> io::Result<Vec<u8>> {
     // Asked for up front, so that a file beyond memory fails here with a message
     // instead of aborting the process halfway through reading it.
     text.try_reserve_exact(size).map_err(|_| too_large(size))?;
+    // Written from end to end by the read: the dragon's 17 MB binary PLY took 4,000
+    // small-page faults.
+    crate::memory::advise_huge_pages(&text);
     file.read_to_end(&mut text)?;
     Ok(text)
 }

@@ -1,7 +1,12 @@
-//! Vertices at non-finite positions (NaN or infinite coordinates), which scanners,
-//! converters and some exporters write and which Assimp, Blender and trimesh read:
-//! they are kept, and the triangles using them dropped, with one warning per file,
-//! so that no NaN reaches the BVH (a box with a NaN corner breaks its slab tests).
+//! Non-finite values (NaN or infinite) in vertex positions, normals and texture
+//! coordinates, which scanners, converters and some exporters write and which Assimp,
+//! Blender and trimesh read (they keep the values as they are): they are kept, and
+//! one warning per file counts them. The triangles with a corner at a non-finite
+//! position are dropped, so that no NaN reaches the BVH (a box with a NaN corner breaks
+//! its slab tests); those with a non-finite normal or texture coordinate lose that
+//! attribute, as a face written without `vn` or `vt` has none, so that no NaN reaches
+//! shading: they are shaded with their geometric normal, and read their textures at
+//! (0, 0).
 
 use std::path::Path;
 
@@ -9,53 +14,147 @@ use rayon::prelude::*;
 
 use crate::description::SceneDescription;
 
-/// How many vertices were not finite and how many triangles they took with them.
+/// What was not finite in a file, and what the triangles lost to it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Dropped {
+    /// Positions not finite.
     pub(crate) vertices: usize,
+    /// Triangles dropped, for a corner at one of those positions.
     pub(crate) triangles: usize,
+    /// Normals not finite.
+    pub(crate) normals: usize,
+    /// Triangles (kept) that lost their normals to them.
+    pub(crate) unsmoothed: usize,
+    /// Texture coordinates not finite.
+    pub(crate) texcoords: usize,
+    /// Triangles (kept) that lost their texture coordinates to them.
+    pub(crate) unmapped: usize,
+}
+
+impl std::ops::AddAssign for Dropped {
+    fn add_assign(&mut self, more: Dropped) {
+        self.vertices += more.vertices;
+        self.triangles += more.triangles;
+        self.normals += more.normals;
+        self.unsmoothed += more.unsmoothed;
+        self.texcoords += more.texcoords;
+        self.unmapped += more.unmapped;
+    }
 }
 
 impl Dropped {
-    /// The one warning of a file, naming it; `None` when nothing was dropped.
+    /// The one warning of a file, naming it; `None` when every value was finite.
     pub(crate) fn warning(self, path: &Path) -> Option<String> {
-        if self.vertices == 0 {
-            return None;
-        }
-        let (vertices, them) = match self.vertices {
-            1 => ("vertex", "it"),
-            _ => ("vertices", "them"),
-        };
-        let dropped = match self.triangles {
-            0 => format!("no triangle uses {them}"),
-            1 => format!("the 1 triangle using {them} is dropped"),
-            n => format!("the {n} triangles using {them} are dropped"),
-        };
-        Some(format!(
-            "{}: {} {vertices} with a non-finite coordinate (NaN or infinite); {dropped}",
-            path.display(),
-            self.vertices,
-        ))
+        let parts: Vec<String> = [
+            (
+                self.vertices,
+                "vertex",
+                "vertices",
+                self.triangles,
+                "dropped",
+            ),
+            (
+                self.normals,
+                "normal",
+                "normals",
+                self.unsmoothed,
+                "shaded flat",
+            ),
+            (
+                self.texcoords,
+                "texture coordinate",
+                "texture coordinates",
+                self.unmapped,
+                "left without texture coordinates (its textures read at (0, 0))",
+            ),
+        ]
+        .into_iter()
+        // A normal or texture coordinate no kept triangle uses changes nothing (a PLY
+        // vertex with a NaN normal is dropped as one at a NaN position).
+        .filter(|&(bad, one, _, lost, _)| bad > 0 && (one == "vertex" || lost > 0))
+        .map(|(bad, one, many, lost, what)| {
+            let (values, them) = match bad {
+                1 => (format!("1 {one}"), "it"),
+                _ => (format!("{bad} {many}"), "them"),
+            };
+            let lost = match lost {
+                0 => format!("no triangle uses {them}"),
+                1 => format!("the 1 triangle using {them} is {what}"),
+                n => format!("the {n} triangles using {them} are {what}"),
+            };
+            format!("{values} with a non-finite coordinate (NaN or infinite); {lost}")
+        })
+        .collect();
+        (!parts.is_empty()).then(|| format!("{}: {}", path.display(), parts.join("; ")))
     }
 }
 
 /// Drops the triangles of `scene` and of its `meshes` that have a corner at a
 /// non-finite position, keeping the arrays in step with them (normal and texture
-/// coordinate indices, the objects' first triangles), and adds one warning naming
-/// `path` if any vertex was not finite. Vertices stay where they are, so indices
-/// into them do not change; no triangle refers to a dropped one.
+/// coordinate indices, the objects' first triangles), takes their normals or texture
+/// coordinates from the triangles with a corner at a non-finite one, and adds one
+/// warning naming `path` if any value was not finite. Vertices, normals and texture
+/// coordinates stay where they are, so indices into them do not change; no triangle
+/// refers to a non-finite one.
 pub(crate) fn drop_non_finite_triangles(scene: &mut SceneDescription, path: &Path) {
     let mut dropped = drop_in(scene);
     for mesh in &mut scene.meshes {
-        let more = drop_in(mesh);
-        dropped.vertices += more.vertices;
-        dropped.triangles += more.triangles;
+        dropped += drop_in(mesh);
     }
     scene.warnings.extend(dropped.warning(path));
 }
 
 /// [`drop_non_finite_triangles`] for one description, without its meshes.
 fn drop_in(scene: &mut SceneDescription) -> Dropped {
+    let (vertices, triangles) = drop_at_positions(scene);
+    let (normals, unsmoothed) = forget(&mut scene.triangle_normals, &scene.normals, |n| {
+        n.is_finite()
+    });
+    let (texcoords, unmapped) = forget(&mut scene.triangle_texcoords, &scene.texcoords, |t| {
+        t.is_finite()
+    });
+    Dropped {
+        vertices,
+        triangles,
+        normals,
+        unsmoothed,
+        texcoords,
+        unmapped,
+    }
+}
+
+/// Sets to `None` the corners' indices in `indices` of the triangles with a corner
+/// at a value of `values` that is not `finite`; the number of such values, and of
+/// such triangles.
+fn forget<T: Sync>(
+    indices: &mut [Option<[u32; 3]>],
+    values: &[T],
+    finite: impl Fn(&T) -> bool + Sync,
+) -> (usize, usize) {
+    // The common case, every value finite, costs this one pass.
+    let bad = values.par_iter().filter(|v| !finite(v)).count();
+    if bad == 0 {
+        return (0, 0);
+    }
+    let lost = indices
+        .par_iter_mut()
+        .map(|corners| {
+            let at_bad = corners.is_some_and(|c| {
+                c.iter()
+                    .any(|&i| values.get(i as usize).is_some_and(|v| !finite(v)))
+            });
+            if at_bad {
+                *corners = None;
+            }
+            usize::from(at_bad)
+        })
+        .sum();
+    (bad, lost)
+}
+
+/// Drops the triangles with a corner at a non-finite position; the number of such
+/// positions, and of the triangles dropped.
+fn drop_at_positions(scene: &mut SceneDescription) -> (usize, usize) {
     // The common case, every vertex finite, costs this one pass.
     let vertices = scene
         .positions
@@ -63,7 +162,7 @@ fn drop_in(scene: &mut SceneDescription) -> Dropped {
         .filter(|p| !p.is_finite())
         .count();
     if vertices == 0 {
-        return Dropped::default();
+        return (0, 0);
     }
     let positions = &scene.positions;
     let keep: Vec<bool> = scene
@@ -92,10 +191,7 @@ fn drop_in(scene: &mut SceneDescription) -> Dropped {
         retain_with(&mut scene.triangle_normals, &keep);
         retain_with(&mut scene.triangle_texcoords, &keep);
     }
-    Dropped {
-        vertices,
-        triangles,
-    }
+    (vertices, triangles)
 }
 
 /// Keeps the items of `items` whose flag in `keep` is set; an empty array (one

@@ -104,22 +104,15 @@ pub(crate) fn any_float(token: &[u8]) -> Result<Float, ParseErrorKind> {
     fast_float2::parse(token).map_err(|_| ParseErrorKind::BadNumber(show(token)))
 }
 
-/// Parses the next three tokens as a vertex position, whose coordinates may be
-/// non-finite (see [`any_float`]).
+/// Parses the next three tokens as a vertex position, normal or texture coordinate,
+/// whose values may be non-finite (see [`any_float`]); `statement` names the line in
+/// errors.
 #[inline]
-pub(crate) fn position<'a>(
+pub(crate) fn any_vec3<'a>(
+    statement: &'static str,
     tokens: &mut impl Iterator<Item = &'a [u8]>,
 ) -> Result<Vec3, ParseErrorKind> {
-    let mut values = [0.0; 3];
-    for (found, slot) in values.iter_mut().enumerate() {
-        let token = tokens.next().ok_or(ParseErrorKind::TooFewValues {
-            statement: "v",
-            expected: 3,
-            found,
-        })?;
-        *slot = any_float(token)?;
-    }
-    Ok(Vec3::from(values))
+    numbers::<3>(statement, tokens, any_float).map(Vec3::from)
 }
 
 /// Parses the next `N` tokens as numbers; `statement` names the line in errors.
@@ -128,6 +121,16 @@ pub(crate) fn floats<'a, const N: usize>(
     statement: &'static str,
     tokens: &mut impl Iterator<Item = &'a [u8]>,
 ) -> Result<[Float; N], ParseErrorKind> {
+    numbers(statement, tokens, float)
+}
+
+/// Parses the next `N` tokens with `parse`; `statement` names the line in errors.
+#[inline]
+pub(crate) fn numbers<'a, const N: usize>(
+    statement: &'static str,
+    tokens: &mut impl Iterator<Item = &'a [u8]>,
+    parse: impl Fn(&[u8]) -> Result<Float, ParseErrorKind>,
+) -> Result<[Float; N], ParseErrorKind> {
     let mut values = [0.0; N];
     for (found, slot) in values.iter_mut().enumerate() {
         let token = tokens.next().ok_or(ParseErrorKind::TooFewValues {
@@ -135,7 +138,7 @@ pub(crate) fn floats<'a, const N: usize>(
             expected: N,
             found,
         })?;
-        *slot = float(token)?;
+        *slot = parse(token)?;
     }
     Ok(values)
 }

@@ -187,7 +187,7 @@ fn parse_surveyed(
 
     // Pass 2: the events in file order. A problem is only a candidate: a chunk's
     // elements and faces, not parsed yet, may hold an earlier one.
-    let mut resolver = Resolver::new(path, access);
+    let mut resolver = Resolver::new(path, access, &statements);
     let mut materials = Vec::with_capacity(chunks.len());
     for (chunk, statements) in statements.iter().enumerate() {
         match resolver.resolve(statements, total_triangles_to(&bases, &total, chunk)) {
@@ -560,7 +560,7 @@ fn parse_generally(
         .zip(bases)
         .map(|(text, base)| Chunk::parse(text, base))
         .collect();
-    let mut resolver = Resolver::new(path, access);
+    let mut resolver = Resolver::new(path, access, &parsed);
     let mut materials = Vec::with_capacity(parsed.len());
     let mut triangles = 0;
     let mut bases = Vec::with_capacity(parsed.len());
@@ -896,17 +896,19 @@ impl Chunk {
     ) -> Result<(), ParseErrorKind> {
         match keyword {
             b"v" => {
-                let position = lex::position(&mut tokens)?;
+                let position = lex::any_vec3("v", &mut tokens)?;
                 if let Some(colour) = vertex_colour(tokens) {
                     self.colours.push((self.positions.len() as u32, colour));
                 }
                 self.positions.push(position);
             }
-            b"vn" => self.normals.push(lex::vec3("vn", &mut tokens)?),
+            // Non-finite normals and texture coordinates, like positions, are read
+            // and left out of the triangles using them once the file is read.
+            b"vn" => self.normals.push(lex::any_vec3("vn", &mut tokens)?),
             b"vt" => {
-                let u = lex::floats::<1>("vt", &mut tokens)?[0];
+                let u = lex::numbers::<1>("vt", &mut tokens, lex::any_float)?[0];
                 let v = match tokens.next() {
-                    Some(t) => lex::float(t)?,
+                    Some(t) => lex::any_float(t)?,
                     None => 0.0,
                 };
                 self.texcoords.push(Vec2::new(u, v));
@@ -1069,6 +1071,10 @@ struct Resolver<'a> {
     material_ids: HashMap<String, MaterialId>,
     current_material: Option<MaterialId>,
     fallback_material: Option<MaterialId>,
+    /// Whether the file has any `mtllib` or `usemtl`: only then are shapes before
+    /// the first `usemtl` worth a warning (a file with neither, such as most scans
+    /// and robot meshes, means the default material).
+    names_materials: bool,
     warned_no_usemtl: bool,
     warned_unknown: HashSet<String>,
     /// Canonical paths of the `mtllib` files read so far.
@@ -1081,8 +1087,9 @@ struct Resolver<'a> {
 }
 
 impl<'a> Resolver<'a> {
-    fn new(path: &'a Path, access: &'a FileAccess) -> Resolver<'a> {
+    fn new(path: &'a Path, access: &'a FileAccess, chunks: &[Chunk]) -> Resolver<'a> {
         Resolver {
+            names_materials: chunks.iter().any(|chunk| !chunk.events.is_empty()),
             path,
             access,
             scene: SceneDescription::default(),
@@ -1160,7 +1167,7 @@ impl<'a> Resolver<'a> {
         if slots[0].is_none()
             && let Some(line) = chunk.first_inherited_shape
         {
-            if !self.warned_no_usemtl {
+            if self.names_materials && !self.warned_no_usemtl {
                 self.warned_no_usemtl = true;
                 self.warn(line, "shapes before any 'usemtl' get the default material");
             }

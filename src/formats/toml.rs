@@ -1496,7 +1496,7 @@ al = [0.1, 0.2, 0.7]
         let folder = Folder::new();
         fs::write(
             folder.0.path().join("plain.obj"),
-            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl unknown\nf 1 2 3\n",
         )
         .unwrap();
         let without = folder.parse("[[mesh]]\nfile = \"plain.obj\"\n").unwrap();

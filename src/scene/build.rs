@@ -178,8 +178,13 @@ impl Scene {
             }
             None => Some(sphere_shape(&spheres[i - triangle_count]).bounds()),
         };
-        let (mut bvh, mut order) =
-            Bvh::build_filtered(triangle_count + spheres.len(), bounds_of, params);
+        // The environment's tables (an image's sampling distribution) are made
+        // beside the tree: neither reads the other, and the tree's build leaves a
+        // core idle at times (its top nodes' serial steps).
+        let (environment, (mut bvh, mut order)) = rayon::join(
+            || environment.as_ref().map(Environment::new),
+            || Bvh::build_filtered(triangle_count + spheres.len(), bounds_of, params),
+        );
         // Copies of one primitive pile up in the BVH's coincident ranges, where every
         // ray would test each copy (200,000 copies of a triangle took minutes to
         // render): drop all but the first of each, and build again without them.
@@ -374,7 +379,6 @@ impl Scene {
                 _ => None,
             },
         };
-        let environment = environment.as_ref().map(Environment::new);
         let radius = (bounds.max - bounds.min).length() * 0.5;
         let scene = Scene {
             unlit,

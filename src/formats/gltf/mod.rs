@@ -1190,26 +1190,11 @@ impl Reader<'_> {
                 .iter()
                 .map(|&p| world.transform_point3(p))
                 .collect();
+            // Normals that are not finite (in the file, or once placed by a singular
+            // transform) and texture coordinates that are not finite are taken from
+            // the triangles using them once the file is read, as positions are.
             let normals: Option<Vec<Vec3>> =
                 normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect());
-            let normals = match normals {
-                Some(n) if n.iter().any(|n| !n.is_finite()) => {
-                    self.warn(format!(
-                        "{name}: normals that are not finite (in the file or once placed); ignored"
-                    ));
-                    None
-                }
-                other => other,
-            };
-            let texcoords = match texcoords {
-                Some(t) if t.iter().any(|t| !t.is_finite()) => {
-                    self.warn(format!(
-                        "{name}: texture coordinates that are not finite; ignored"
-                    ));
-                    None
-                }
-                other => other,
-            };
             let colours = match colours {
                 Some(c) if c.iter().any(|c| !c.is_finite()) => {
                     self.warn(format!(

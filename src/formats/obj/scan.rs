@@ -188,7 +188,7 @@ impl Scanner<'_, '_> {
         match tokens.next() {
             Some(b"f") => return None,
             Some(b"v") => {
-                let position = lex::vec3("v", &mut tokens).ok()?;
+                let position = lex::any_vec3("v", &mut tokens).ok()?;
                 // A `w` is read past; a vertex colour is the general parser's.
                 if tokens.nth(1).is_some() {
                     return None;
@@ -197,14 +197,14 @@ impl Scanner<'_, '_> {
                 written.positions += 1;
             }
             Some(b"vn") => {
-                let normal = lex::vec3("vn", &mut tokens).ok()?;
+                let normal = lex::any_vec3("vn", &mut tokens).ok()?;
                 parts.normals.get_mut(written.normals)?.write(normal);
                 written.normals += 1;
             }
             Some(b"vt") => {
-                let u = lex::floats::<1>("vt", &mut tokens).ok()?[0];
+                let u = lex::any_float(tokens.next()?).ok()?;
                 let v = match tokens.next() {
-                    Some(token) => lex::float(token).ok()?,
+                    Some(token) => lex::any_float(token).ok()?,
                     None => 0.0,
                 };
                 parts

@@ -11,6 +11,7 @@ use crate::description::TriangleDesc;
 use crate::formats::error::ParseErrorKind;
 use crate::material::MaterialId;
 use crate::math::{Float, Vec2, Vec3};
+use crate::memory;
 
 /// A binary body; `BIG_ENDIAN` picks the byte order at compile time.
 pub(super) struct BinaryBody<'a, const BIG_ENDIAN: bool> {
@@ -174,28 +175,62 @@ impl<const BIG_ENDIAN: bool> Body for BinaryBody<'_, BIG_ENDIAN> {
 /// Binary elements with at least this many instances are decoded on all threads.
 const PARALLEL_BINARY_ELEMENTS: usize = 1 << 16;
 
+/// Triangles per task of the check that every face decoded in parallel was valid.
+const VALID_RUN: usize = 1 << 15;
+
 /// Where a fixed-stride vertex record's values go in the slots of
 /// [`MeshReader::read_fixed_stride`]: the position's first, then these.
 const NORMAL: usize = 3;
 const TEXCOORD: usize = 6;
 const COLOUR: usize = 8;
 
-/// One output array of fixed-stride records decoded on all threads: the values of the
-/// `fields` whose slots are `first_slot..first_slot + N`, turned into `T` by `make`.
+/// One output array of fixed-stride records decoded on all threads into `out`
+/// (replacing its contents, in the capacity it has): the values of the `fields`
+/// whose slots are `first_slot..first_slot + N`, turned into `T` by `make`.
 fn gather<const BIG_ENDIAN: bool, const N: usize, T: Send>(
     records: &[u8],
     stride: usize,
     fields: &[(usize, usize, Scalar)],
     first_slot: usize,
     make: impl Fn([Float; N]) -> T + Sync,
-) -> Vec<T> {
+    out: &mut Vec<T>,
+) {
     let fields: Vec<(usize, usize, Scalar)> = fields
         .iter()
         .filter(|&&(slot, _, _)| (first_slot..first_slot + N).contains(&slot))
         .map(|&(slot, offset, ty)| (slot - first_slot, offset, ty))
         .collect();
     // Colour channels are scaled by their type; the others are read as they are.
+    // The records are all there, so the array is filled from end to end next: on
+    // huge pages where they are cheap (the dragon's arrays took 6,000 small-page
+    // faults). Not before this point, where a header's counts are only claims.
+    reserve_on_huge_pages(out, records.len() / stride);
     let colour = first_slot == COLOUR;
+    // The common layout, every value a `float` (positions, normals, texture
+    // coordinates): the offsets in a fixed array, read without a type dispatch or a
+    // loop over `fields` per record.
+    let mut float_offsets = [0; N];
+    let all_floats = !colour
+        && fields.len() == N
+        && fields.iter().all(|&(slot, offset, ty)| {
+            float_offsets[slot] = offset;
+            ty == Scalar::F32
+        });
+    if all_floats && float_offsets.iter().all(|&o| o + 4 <= stride) {
+        records
+            .par_chunks_exact(stride)
+            .map(|record| {
+                make(float_offsets.map(|offset| {
+                    let raw = [0, 1, 2, 3].map(|k| record[offset + k]);
+                    match BIG_ENDIAN {
+                        true => f32::from_be_bytes(raw),
+                        false => f32::from_le_bytes(raw),
+                    }
+                }))
+            })
+            .collect_into_vec(out);
+        return;
+    }
     records
         .par_chunks_exact(stride)
         .map(|record| {
@@ -208,7 +243,15 @@ fn gather<const BIG_ENDIAN: bool, const N: usize, T: Send>(
             }
             make(values)
         })
-        .collect()
+        .collect_into_vec(out);
+}
+
+/// Empties `out` and gives it room for `len` elements, on huge pages where they are
+/// cheap ([`memory::advise_huge_pages`]), for a parallel `collect_into_vec` of `len`.
+fn reserve_on_huge_pages<T>(out: &mut Vec<T>, len: usize) {
+    out.clear();
+    out.reserve_exact(len);
+    memory::advise_huge_pages(out);
 }
 
 /// `to` followed by `from`, moving `from` over whole when `to` is empty.
@@ -285,21 +328,44 @@ impl MeshReader {
         };
         if !fields.is_empty() && complete == element.count && complete >= PARALLEL_BINARY_ELEMENTS {
             let records = &bytes[..complete * stride];
-            let positions = gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, 0, Vec3::from);
-            let normals = match self.has_normals {
-                true => gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, NORMAL, Vec3::from),
-                false => Vec::new(),
-            };
-            let texcoords = match self.has_texcoords {
-                true => gather::<BIG_ENDIAN, 2, _>(records, stride, &fields, TEXCOORD, Vec2::from),
-                false => Vec::new(),
-            };
-            let colours = match self.has_colours {
+            // Into the arrays reserved for the header's counts (`with_capacity`).
+            let scene = &mut self.scene;
+            let mut positions = std::mem::take(&mut scene.positions);
+            let mut normals = std::mem::take(&mut scene.normals);
+            let mut texcoords = std::mem::take(&mut scene.texcoords);
+            let mut colours = std::mem::take(&mut scene.colours);
+            gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, 0, Vec3::from, &mut positions);
+            if self.has_normals {
+                gather::<BIG_ENDIAN, 3, _>(
+                    records,
+                    stride,
+                    &fields,
+                    NORMAL,
+                    Vec3::from,
+                    &mut normals,
+                );
+            }
+            if self.has_texcoords {
+                gather::<BIG_ENDIAN, 2, _>(
+                    records,
+                    stride,
+                    &fields,
+                    TEXCOORD,
+                    Vec2::from,
+                    &mut texcoords,
+                );
+            }
+            if self.has_colours {
                 // Clamped below 0 once checked (`max` would turn NaN into 0).
-                true => gather::<BIG_ENDIAN, 3, _>(records, stride, &fields, COLOUR, Vec3::from),
-                false => Vec::new(),
-            };
-            let mut positions = positions;
+                gather::<BIG_ENDIAN, 3, _>(
+                    records,
+                    stride,
+                    &fields,
+                    COLOUR,
+                    Vec3::from,
+                    &mut colours,
+                );
+            }
             // Serial checks: rayon's short-circuiting `all` pays an atomic per item.
             let finite = normals.iter().all(|n| n.is_finite())
                 && texcoords.iter().all(|t| t.is_finite())
@@ -313,7 +379,6 @@ impl MeshReader {
                     *position = unusable_unless(usable, *position);
                 }
             }
-            let mut colours = colours;
             colours.par_iter_mut().for_each(|c| *c = c.max(Vec3::ZERO));
             self.scene.positions = positions;
             self.scene.normals = normals;
@@ -367,13 +432,25 @@ impl MeshReader {
     ) -> Result<usize, (usize, ParseErrorKind)> {
         let defined = self.vertex_count;
         let (count_size, item_size) = (count.size(), item.size());
-        if faces >= PARALLEL_BINARY_ELEMENTS
-            && let Some(triangles) =
-                self.read_triangle_records::<BIG_ENDIAN>(faces, count, item, bytes)
-        {
-            let read = triangles.len() * (count_size + 3 * item_size);
-            append_triangles(&mut self.scene.triangles, triangles);
-            return Ok(read);
+        if faces >= PARALLEL_BINARY_ELEMENTS {
+            // Into the array reserved for the header's count while it is empty (one
+            // face element, the usual case): no second array of the faces.
+            let mut triangles = match self.scene.triangles.is_empty() {
+                true => std::mem::take(&mut self.scene.triangles),
+                false => Vec::new(),
+            };
+            let all_valid =
+                self.read_triangle_records::<BIG_ENDIAN>(faces, count, item, bytes, &mut triangles);
+            if all_valid {
+                let read = triangles.len() * (count_size + 3 * item_size);
+                append_triangles(&mut self.scene.triangles, triangles);
+                return Ok(read);
+            }
+            if self.scene.triangles.is_empty() {
+                // The serial loop below reads them again, into the same capacity.
+                triangles.clear();
+                self.scene.triangles = triangles;
+            }
         }
         let mut pos = 0;
         for face in 0..faces {
@@ -416,48 +493,66 @@ impl MeshReader {
         Ok(pos)
     }
 
-    /// The faces as triangles decoded on all threads, when every face is a valid
-    /// triangle: then records have one size and can be cut apart without reading
-    /// them in order. `None` otherwise (the serial loop then reads, or reports).
+    /// The faces as triangles decoded on all threads into `out` (replacing its
+    /// contents), when every face is a valid triangle: then records have one size and
+    /// can be cut apart without reading them in order. Returns whether they all were;
+    /// if not, the serial loop reads them again, or reports.
     fn read_triangle_records<const BIG_ENDIAN: bool>(
         &self,
         faces: usize,
         count: Scalar,
         item: Scalar,
         bytes: &[u8],
-    ) -> Option<Vec<TriangleDesc>> {
+        out: &mut Vec<TriangleDesc>,
+    ) -> bool {
         let record = count.size() + 3 * item.size();
-        let records = bytes.get(..faces.checked_mul(record)?)?;
+        let Some(records) = faces.checked_mul(record).and_then(|len| bytes.get(..len)) else {
+            return false;
+        };
         // One loop per index type, so the hot loop has no type dispatch.
         let four = |b: &[u8]| [b[0], b[1], b[2], b[3]];
-        let triangles = match (item, BIG_ENDIAN) {
-            (Scalar::I32, false) => {
-                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
-                    i32::from_le_bytes(four(b)) as i64
-                })
-            }
-            (Scalar::I32, true) => {
-                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
-                    i32::from_be_bytes(four(b)) as i64
-                })
-            }
-            (Scalar::U32, false) => {
-                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
-                    u32::from_le_bytes(four(b)) as i64
-                })
-            }
-            (Scalar::U32, true) => {
-                self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
-                    u32::from_be_bytes(four(b)) as i64
-                })
-            }
-            _ => self.decode_triangles::<BIG_ENDIAN>(records, count, item.size(), |b| {
-                decode_int::<BIG_ENDIAN>(b, item)
-            }),
-        };
-        // Serial: rayon's short-circuiting `all` pays an atomic per item.
-        let valid = triangles.iter().all(|t| !t.positions.contains(&u32::MAX));
-        valid.then_some(triangles)
+        match (item, BIG_ENDIAN) {
+            (Scalar::I32, false) => self.decode_triangles::<BIG_ENDIAN>(
+                records,
+                count,
+                item.size(),
+                |b| i32::from_le_bytes(four(b)) as i64,
+                out,
+            ),
+            (Scalar::I32, true) => self.decode_triangles::<BIG_ENDIAN>(
+                records,
+                count,
+                item.size(),
+                |b| i32::from_be_bytes(four(b)) as i64,
+                out,
+            ),
+            (Scalar::U32, false) => self.decode_triangles::<BIG_ENDIAN>(
+                records,
+                count,
+                item.size(),
+                |b| u32::from_le_bytes(four(b)) as i64,
+                out,
+            ),
+            (Scalar::U32, true) => self.decode_triangles::<BIG_ENDIAN>(
+                records,
+                count,
+                item.size(),
+                |b| u32::from_be_bytes(four(b)) as i64,
+                out,
+            ),
+            _ => self.decode_triangles::<BIG_ENDIAN>(
+                records,
+                count,
+                item.size(),
+                |b| decode_int::<BIG_ENDIAN>(b, item),
+                out,
+            ),
+        }
+        // In runs on all threads: rayon's short-circuiting `all` would pay an atomic
+        // per item.
+        out.par_chunks(VALID_RUN)
+            .map(|run| run.iter().all(|t| !t.positions.contains(&u32::MAX)))
+            .reduce(|| true, |a, b| a && b)
     }
 
     /// Decodes records of a count of type `count` and three indices of `item_size`
@@ -470,9 +565,12 @@ impl MeshReader {
         count: Scalar,
         item_size: usize,
         index: impl Fn(&[u8]) -> i64 + Sync,
-    ) -> Vec<TriangleDesc> {
+        out: &mut Vec<TriangleDesc>,
+    ) {
         let count_size = count.size();
         let defined = self.vertex_count as u64;
+        // As in `gather`: every record is there.
+        reserve_on_huge_pages(out, records.len() / (count_size + 3 * item_size));
         records
             .par_chunks_exact(count_size + 3 * item_size)
             .map(|r| {
@@ -490,7 +588,7 @@ impl MeshReader {
                     material: MaterialId(0),
                 }
             })
-            .collect()
+            .collect_into_vec(out);
     }
 }
 

@@ -215,6 +215,26 @@ fn a_rough_plastic_returns_its_directional_albedo() {
     check("plastic", PLASTIC);
 }
 
+/// An MTL material of `Ns 0` with `Ks 0.8`, as Blender 2.8 to 3.x writes roughness 1
+/// with its default specular: in path mode it is the rough dielectric Blender's
+/// importer reads (base colour `Kd`, specular `min(2 Ks, 1)`), not a uniform lobe of
+/// albedo 0.8 white that washes the colour out.
+#[test]
+fn an_mtl_material_of_shininess_zero_is_blenders_rough_dielectric() {
+    let material = Material {
+        diffuse: Vec3::new(0.8, 0.3, 0.1),
+        specular: Vec3::splat(0.8),
+        shininess: 0.0,
+        ..Material::named("blender roughness 1")
+    };
+    let p = Params {
+        roughness: 1.0,
+        specular: 1.0,
+        ..PLASTIC
+    };
+    check_albedo("Ns 0", &p, material);
+}
+
 #[test]
 fn a_rough_dielectric_without_diffuse_colour_returns_its_directional_albedo() {
     check(

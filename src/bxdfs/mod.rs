@@ -26,6 +26,7 @@ pub mod sheen;
 #[cfg(test)]
 mod conformance;
 
+use crate::material::{Material, SurfaceValues};
 use crate::math::{Float, Vec2, Vec3};
 
 /// An orthonormal shading frame: `n` the shading normal, `t` and `b` tangents.
@@ -142,6 +143,23 @@ pub enum Bsdf {
 }
 
 impl Bsdf {
+    /// The scattering of the MTL `material` (one with no physically based
+    /// statements), at a textured point whose values are `surface` or from its
+    /// constants: SPEC's mixture, or a rough dielectric where `Ns 0` says so
+    /// ([`mtl::reads_as_rough_dielectric`]).
+    pub fn of_mtl(material: &Material, surface: Option<&SurfaceValues>) -> Bsdf {
+        if mtl::reads_as_rough_dielectric(material) {
+            let (kd, ks) = surface.map_or((material.diffuse, material.specular), |s| {
+                (s.diffuse, s.specular)
+            });
+            return Bsdf::Gltf(gltf::GltfBsdf::new(&mtl::rough_dielectric(kd, ks)));
+        }
+        Bsdf::Mtl(match surface {
+            Some(surface) => mtl::MtlMixture::at(material, surface),
+            None => mtl::MtlMixture::new(material).0,
+        })
+    }
+
     /// Whether some lobe is not a delta, so that light sampling can reach it.
     #[inline]
     pub fn has_smooth_lobes(&self) -> bool {

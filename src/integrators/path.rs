@@ -32,7 +32,7 @@ use super::aov::PixelAovs;
 use crate::bvh::lanes_of;
 use crate::bxdfs::Bsdf;
 use crate::bxdfs::gltf::GltfBsdf;
-use crate::bxdfs::mtl::MtlMixture;
+use crate::bxdfs::mtl::{MtlMixture, reads_as_rough_dielectric};
 use crate::camera::Camera;
 use crate::lights::LightSample;
 use crate::lights::environment::{
@@ -82,7 +82,7 @@ impl PathIntegrator {
             .iter()
             .map(|m| match m.pbr_at(crate::math::Vec2::ZERO) {
                 Some(values) => Bsdf::Gltf(GltfBsdf::new(&values)),
-                None => Bsdf::Mtl(MtlMixture::new(m).0),
+                None => Bsdf::of_mtl(m, None),
             })
             .collect();
         let unlit = scene.unlit && default_light;
@@ -287,7 +287,7 @@ impl PathIntegrator {
             Some(surface) => {
                 per_hit = match material.pbr_at_point(hit.uv, hit.colour) {
                     Some(values) => Bsdf::Gltf(GltfBsdf::new(&values)),
-                    None => Bsdf::Mtl(MtlMixture::at(material, surface)),
+                    None => Bsdf::of_mtl(material, Some(surface)),
                 };
                 &per_hit
             }
@@ -649,7 +649,7 @@ impl Integrator for PathIntegrator {
 pub fn material_warnings(materials: &[Material]) -> Vec<String> {
     let scaled: Vec<&str> = materials
         .iter()
-        .filter(|m| m.pbr.is_none() && MtlMixture::new(m).1)
+        .filter(|m| m.pbr.is_none() && !reads_as_rough_dielectric(m) && MtlMixture::new(m).1)
         .map(|m| m.name.as_str())
         .collect();
     let names = |count: usize| {

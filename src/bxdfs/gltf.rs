@@ -35,7 +35,7 @@
 //! the mixture of every non-delta lobe's, so that each sample is weighted against
 //! all the ways it could have been drawn.
 
-use std::f32::consts::FRAC_1_PI;
+use std::f32::consts::{FRAC_1_PI, PI};
 
 use super::fresnel::{schlick_scalar, schlick_weight};
 use super::lambert::cosine_hemisphere;
@@ -145,15 +145,16 @@ impl GltfBsdf {
             sheen_albedo: 0.0,
             compensation: Compensation::NONE,
             visibility_o: 0.0,
-            g1_o: 0.0,
+            pdf_scale: 0.0,
         };
         if wo.z <= 0.0 {
             return at;
         }
         let a2 = self.ggx.alpha * self.ggx.alpha;
         at.visibility_o = (a2 + (1.0 - a2) * wo.z * wo.z).sqrt();
-        // G1 = 1 / (1 + Lambda), and 2 Lambda + 1 = visibility_o / n.wo.
-        at.g1_o = 2.0 * wo.z / (wo.z + at.visibility_o);
+        // G1 = 1 / (1 + Lambda) and 2 Lambda + 1 = visibility_o / n.wo, so
+        // G1 / (4 n.wo) = 1 / (2 (n.wo + visibility_o)).
+        at.pdf_scale = 0.5 / (wo.z + at.visibility_o);
         if self.clearcoat > 0.0 {
             let cos = at.in_coat(wo).z.max(0.0);
             at.coat = self.clearcoat * schlick_scalar(CLEARCOAT_F0, cos);
@@ -245,8 +246,9 @@ pub struct GltfAt<'a> {
     /// The base distribution's `sqrt(a^2 + (1 - a^2) (n.wo)^2)` (`a = alpha`), the
     /// half of [`Ggx::visibility`] that depends on `wo` alone.
     visibility_o: Float,
-    /// The base distribution's masking `G1(wo)`.
-    g1_o: Float,
+    /// The base distribution's masking over four cosines, `G1(wo) / (4 n.wo)`:
+    /// what turns `D(h)` into the density of the reflection through `h`.
+    pdf_scale: Float,
 }
 
 /// Multiple-scattering compensation factors of the GGX reflection lobes at one `wo`
@@ -326,7 +328,8 @@ impl GltfAt<'_> {
         ];
         let total: Float = weights.iter().sum();
         if total > 0.0 && total.is_finite() {
-            weights.map(|w| w / total)
+            let scale = 1.0 / total;
+            weights.map(|w| w * scale)
         } else {
             [0.0; 5]
         }
@@ -423,12 +426,35 @@ impl GltfAt<'_> {
         }
         let p = &self.p;
         let h = (self.wo + wi).normalize();
-        let d = self.bsdf.ggx.d(h);
+        let (d, specular) = self.plain_d_dv(h, wi);
         let mut pdf = p[DIFFUSE] * (wi.z * FRAC_1_PI);
         if p[SPECULAR] > 0.0 {
             pdf += p[SPECULAR] * self.specular_pdf(d, h);
         }
-        (self.reflection(wi, h, d), pdf)
+        (self.reflected(h, specular), pdf)
+    }
+
+    /// `D(h)` and `D(h) V(wo, wi)` of a plain material's (not delta) distribution
+    /// for `wi` above the surface, from one division where [`Ggx::d`] and
+    /// [`GltfAt::visibility`] take one each (divisions are most of a BSDF's cost).
+    #[inline(always)]
+    fn plain_d_dv(&self, h: Vec3, wi: Vec3) -> (Float, Float) {
+        if h.z <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let a2 = self.bsdf.ggx.alpha * self.bsdf.ggx.alpha;
+        let t = h.z * h.z * (a2 - 1.0) + 1.0;
+        // Positive: `wo.z > 0` and `a2 > 0` (not a delta lobe).
+        let denominator = self.visibility_denominator(wi);
+        let product = PI * t * t * denominator;
+        if product.is_nan() || product < Float::MIN_POSITIVE {
+            // Tiny enough to lose bits (or NaN): the two quotients apart.
+            let d = self.bsdf.ggx.d(h);
+            return (d, d * self.visibility(wi));
+        }
+        // D = a2 / (pi t^2), V = 0.5 / denominator.
+        let q = 1.0 / product;
+        (a2 * denominator * q, 0.5 * a2 * q)
     }
 
     /// [`GltfAt::sample`]'s specular lobe of a plain material: the direction
@@ -445,22 +471,27 @@ impl GltfAt<'_> {
         if wi.z <= 0.0 || o <= 0.0 {
             return None;
         }
-        let d = g.ggx.d(h);
-        let specular_pdf = self.g1_o * d / (4.0 * wo.z);
-        let pdf = p[DIFFUSE] * (wi.z * FRAC_1_PI) + p[SPECULAR] * specular_pdf;
-        if pdf.is_nan() || pdf <= 0.0 {
-            return None;
-        }
-        let weight = if p[DIFFUSE] == 0.0 {
-            // A metal: f cos / pdf = F D V cos / (G1 D / (4 cos_o)) = F V 4 cos_o cos / G1.
+        if p[DIFFUSE] == 0.0 {
+            // A metal: f cos / pdf = F D V cos / (p_specular D pdf_scale)
+            // = F cos / (2 p_specular pdf_scale denominator), V = 0.5 / denominator;
+            // `D` only for the density.
+            let pdf = p[SPECULAR] * (self.pdf_scale * g.ggx.d(h));
+            if pdf.is_nan() || pdf <= 0.0 {
+                return None;
+            }
             let w = schlick_weight(o);
             let fm = g.base + (Vec3::ONE - g.base) * w;
             let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * w;
-            fd.lerp(fm, g.metallic)
-                * (self.visibility(wi) * 4.0 * wo.z * wi.z / (self.g1_o * p[SPECULAR]))
-        } else {
-            self.reflection(wi, h, d) * (wi.z / pdf)
-        };
+            let scale = self.visibility_denominator(wi) * self.pdf_scale * p[SPECULAR];
+            let weight = fd.lerp(fm, g.metallic) * (0.5 * wi.z / scale);
+            return Some(LocalSample::smooth(wi, weight, pdf));
+        }
+        let (d, specular) = self.plain_d_dv(h, wi);
+        let pdf = p[DIFFUSE] * (wi.z * FRAC_1_PI) + p[SPECULAR] * (self.pdf_scale * d);
+        if pdf.is_nan() || pdf <= 0.0 {
+            return None;
+        }
+        let weight = self.reflected(h, specular) * (wi.z / pdf);
         Some(LocalSample::smooth(wi, weight, pdf))
     }
 
@@ -469,9 +500,14 @@ impl GltfAt<'_> {
     /// `d` (0 for a delta lobe), their specular lobes scaled by the compensation.
     #[inline(always)]
     fn reflection(&self, wi: Vec3, h: Vec3, d: Float) -> Vec3 {
+        self.reflected(h, d * self.visibility(wi))
+    }
+
+    /// [`GltfAt::reflection`] where `D V` is `specular`.
+    #[inline(always)]
+    fn reflected(&self, h: Vec3, specular: Float) -> Vec3 {
         let g = self.bsdf;
         let w = schlick_weight(self.wo.dot(h));
-        let specular = d * self.visibility(wi);
         let fd = g.f0 + (Vec3::splat(g.f90) - g.f0) * w;
         let diffuse = g.base * ((1.0 - fd.max_element()) * (1.0 - g.transmission) * FRAC_1_PI);
         let dielectric = fd * self.compensation.dielectric * specular + diffuse;
@@ -483,9 +519,7 @@ impl GltfAt<'_> {
     /// `wo` half computed once in [`GltfBsdf::at`].
     #[inline(always)]
     fn visibility(&self, wi: Vec3) -> Float {
-        let a2 = self.bsdf.ggx.alpha * self.bsdf.ggx.alpha;
-        let ci = wi.z.abs();
-        let denominator = ci * self.visibility_o + self.wo.z * (a2 + (1.0 - a2) * ci * ci).sqrt();
+        let denominator = self.visibility_denominator(wi);
         if denominator > 0.0 {
             0.5 / denominator
         } else {
@@ -493,14 +527,22 @@ impl GltfAt<'_> {
         }
     }
 
+    /// `0.5 / V(wo, wi)` of the base's distribution ([`GltfAt::visibility`]).
+    #[inline(always)]
+    fn visibility_denominator(&self, wi: Vec3) -> Float {
+        let a2 = self.bsdf.ggx.alpha * self.bsdf.ggx.alpha;
+        let ci = wi.z.abs();
+        ci * self.visibility_o + self.wo.z * (a2 + (1.0 - a2) * ci * ci).sqrt()
+    }
+
     /// [`reflection_pdf`] of the base's distribution where `D(h)` is `d`:
-    /// `G1(wo) D(h) / (4 n.wo)` for `wo.h > 0`, `G1(wo)` computed once.
+    /// `G1(wo) D(h) / (4 n.wo)` for `wo.h > 0`, `G1(wo) / (4 n.wo)` computed once.
     #[inline(always)]
     fn specular_pdf(&self, d: Float, h: Vec3) -> Float {
         if self.wo.dot(h) <= 0.0 {
             return 0.0;
         }
-        self.g1_o * d / (4.0 * self.wo.z)
+        self.pdf_scale * d
     }
 
     /// A direction, in the local frame: `u_lobe` picks a lobe, `u` a direction in it.
@@ -655,7 +697,7 @@ fn refraction_half_vector(wo: Vec3, wi: Vec3, eta: Float) -> Option<Vec3> {
 
 #[inline]
 fn mean(v: Vec3) -> Float {
-    (v.x + v.y + v.z) / 3.0
+    (v.x + v.y + v.z) * (1.0 / 3.0)
 }
 
 /// The BSDF seen from outside its volume, for the conformance suite.
@@ -670,5 +712,79 @@ impl Lobe for GltfBsdf {
 
     fn sample(&self, wo: Vec3, u_lobe: Float, u: Vec2) -> Option<LocalSample> {
         self.at(wo, true, None).sample(u_lobe, u)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::pbr::PbrMaterial;
+
+    fn plain(metallic: Float, roughness: Float) -> GltfBsdf {
+        let g = GltfBsdf::new(
+            &PbrMaterial {
+                base_color: Vec3::new(1.0, 0.766, 0.336),
+                metallic,
+                roughness,
+                ..PbrMaterial::default()
+            }
+            .constants(),
+        );
+        assert!(g.plain);
+        g
+    }
+
+    /// A direction above the surface from two numbers in [0, 1).
+    fn above(a: Float, b: Float) -> Vec3 {
+        let z = (1.0 - a).max(1e-7);
+        let r = (1.0 - z * z).sqrt();
+        let phi = 2.0 * std::f32::consts::PI * b;
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+
+    /// The plain material's one-division `D` and `D V` equal `Ggx::d` and the
+    /// visibility's two quotients to float rounding, down to the smoothest plain
+    /// roughness and grazing directions (where the product falls back to two
+    /// quotients); and the metal's short sample weight equals `f cos / pdf`.
+    #[test]
+    fn plain_quotients_agree_with_the_general_ones() {
+        let mut checked = 0;
+        for &roughness in &[0.011, 0.05, 0.3, 0.4, 1.0] {
+            for &metallic in &[0.0, 1.0] {
+                let g = plain(metallic, roughness);
+                for i in 0..24 {
+                    for j in 0..24 {
+                        let wo = above(i as Float / 24.0, 0.37);
+                        let wi = above((j as Float + 0.5) / 24.0, j as Float / 7.0);
+                        let at = g.at(wo, true, None);
+                        let h = (wo + wi).normalize();
+                        let (d, dv) = at.plain_d_dv(h, wi);
+                        let (d0, v0) = (g.ggx.d(h), at.visibility(wi));
+                        let close = |a: Float, b: Float| a == b || (a - b).abs() <= 4e-6 * b.abs();
+                        assert!(close(d, d0), "D {d} vs {d0} at {roughness} {wo} {wi}");
+                        assert!(close(dv, d0 * v0), "DV {dv} vs {} {wo} {wi}", d0 * v0);
+                        let u = Vec2::new(i as Float / 24.0, j as Float / 24.0);
+                        // (Not the smooth ones: there `h` normalised again from `wo +
+                        // wi` moves far up `D`'s steep peak.)
+                        if metallic == 1.0
+                            && roughness >= 0.3
+                            && let Some(s) = at.sample(0.5, u)
+                            && s.pdf.is_finite()
+                        {
+                            let (f, pdf) = at.eval_and_pdf(s.wi);
+                            let expected = f * s.wi.z / pdf;
+                            // `h` sampled, against `h` normalised again from `wo + wi`.
+                            let near = |a: Float, b: Float| (a - b).abs() <= 1e-4 * b.abs();
+                            assert!(near(s.pdf, pdf), "pdf {} vs {pdf}", s.pdf);
+                            for c in 0..3 {
+                                assert!(near(s.weight[c], expected[c]), "{s:?} {expected}");
+                            }
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 800, "{checked}");
     }
 }

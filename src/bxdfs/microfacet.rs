@@ -125,7 +125,7 @@ impl Ggx {
         let v = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
         let length2 = v.x * v.x + v.y * v.y;
         let t1 = if length2 > 0.0 {
-            Vec3::new(-v.y, v.x, 0.0) / length2.sqrt()
+            Vec3::new(-v.y, v.x, 0.0) * length2.sqrt().recip()
         } else {
             Vec3::X
         };

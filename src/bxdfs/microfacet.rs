@@ -116,27 +116,22 @@ impl Ggx {
     }
 
     /// A microfacet normal seen from `wo` (`wo.z > 0`), distributed as
-    /// [`Ggx::visible_pdf`] (Heitz 2018, "Sampling the GGX Distribution of Visible
-    /// Normals").
+    /// [`Ggx::visible_pdf`]: Dupuy and Benyoub's (2023) "Sampling Visible GGX
+    /// Normals with Spherical Caps", the same distribution as Heitz's (2018)
+    /// construction with one square root and one division fewer (no tangent frame
+    /// about the view direction).
     #[inline]
     pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
         let a = self.alpha;
         // The view direction in the hemisphere configuration.
         let v = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
-        let length2 = v.x * v.x + v.y * v.y;
-        let t1 = if length2 > 0.0 {
-            Vec3::new(-v.y, v.x, 0.0) * length2.sqrt().recip()
-        } else {
-            Vec3::X
-        };
-        let t2 = v.cross(t1);
-        let r = u.x.sqrt();
+        // A direction uniform on the spherical cap of the unit sphere below the
+        // plane through the origin normal to `v`: `z` in `[-v.z, 1]`.
+        let z = (1.0 - u.x) * (1.0 + v.z) - v.z;
+        let sin_theta = (1.0 - z * z).max(0.0).sqrt();
         let (sin, cos) = sin_cos(2.0 * PI * u.y);
-        let p1 = r * cos;
-        let s = 0.5 * (1.0 + v.z);
-        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin;
-        let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * v;
-        Vec3::new(a * nh.x, a * nh.y, nh.z.max(1e-6)).normalize()
+        let h = Vec3::new(sin_theta * cos + v.x, sin_theta * sin + v.y, z + v.z);
+        Vec3::new(a * h.x, a * h.y, h.z.max(1e-6)).normalize()
     }
 }
 

@@ -287,7 +287,7 @@ impl Environment {
             Radiance::Map(map) => map,
         };
         let (uv, density) = map.sample(u)?;
-        let (d, cos_latitude) = uv_to_direction_and_cos(uv);
+        let (d, cos_latitude) = sampled_direction_and_cos(uv);
         // The density of the texel picked, per solid angle: dw = 2 pi^2 cos(latitude)
         // du dv. It is the density of what was sampled, even for a point so near a
         // texel's edge that `pdf` of the direction, rounded, reads the neighbour.
@@ -740,9 +740,41 @@ fn uv_to_direction_and_cos(uv: Vec2) -> (Vec3, Float) {
     )
 }
 
+/// [`uv_to_direction_and_cos`] for light sampling, the sines and cosines of both
+/// angles from one vector evaluation (the `wide` crate's, as [`crate::math::sin_cos`])
+/// instead of two calls to the C library, which were a tenth of the light
+/// sampling's time; the same to float rounding.
+#[inline(always)]
+fn sampled_direction_and_cos(uv: Vec2) -> (Vec3, Float) {
+    let phi = (uv.x - 0.5) * 2.0 * PI;
+    let latitude = (uv.y - 0.5) * PI;
+    let (sin, cos) = wide::f32x4::from([latitude, phi, 0.0, 0.0]).sin_cos();
+    let ([sin_lat, sin_phi, ..], [cos_lat, cos_phi, ..]) = (sin.to_array(), cos.to_array());
+    (
+        Vec3::new(cos_lat * cos_phi, sin_lat, cos_lat * sin_phi),
+        cos_lat,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Light sampling's directions are the equirectangular map's to float
+    /// rounding, over the whole map, poles and seam included.
+    #[test]
+    fn sampled_directions_are_the_maps() {
+        for i in 0..=256 {
+            for j in 0..=128 {
+                let uv = Vec2::new(i as Float / 256.0, j as Float / 128.0);
+                let (d, cos) = sampled_direction_and_cos(uv);
+                let (d0, cos0) = uv_to_direction_and_cos(uv);
+                assert!((d - d0).abs().max_element() < 1e-6, "{uv}: {d} vs {d0}");
+                assert!((cos - cos0).abs() < 1e-6, "{uv}: {cos} vs {cos0}");
+                assert!(cos >= 0.0 && cos0 >= 0.0 || cos.abs() < 1e-6, "{uv}: {cos}");
+            }
+        }
+    }
 
     fn map(width: u32, height: u32, texel: impl Fn(Vec3) -> Vec3) -> Arc<Texture> {
         let mut texels = Vec::new();

@@ -1,7 +1,8 @@
 //! The GGX (Trowbridge-Reitz) microfacet distribution as glTF's Appendix B defines
 //! it: `D = alpha^2 / (pi ((n.h)^2 (alpha^2 - 1) + 1)^2)` with `alpha = roughness^2`,
 //! the height-correlated Smith masking-shadowing term, and sampling of the normals
-//! visible from `wo` (Heitz 2018), whose density cancels most of `D G`.
+//! visible from `wo` (Heitz's 2018 distribution, drawn on spherical caps as Dupuy and
+//! Benyoub 2023 do), whose density cancels most of `D G`.
 //!
 //! [`GgxReflection`] is the lobe `D V` with `V = G2 / (4 |n.wo| |n.wi|)`, without a
 //! Fresnel factor: glTF's model weighs it by Schlick's Fresnel outside

@@ -366,7 +366,7 @@ pub(crate) fn reduce_min(values: f32x16) -> Float {
 
 /// The largest lane of `values`.
 #[inline(always)]
-pub(crate) fn reduce_max(values: f32x16) -> Float {
+fn reduce_max(values: f32x16) -> Float {
     -reduce_min(-values)
 }
 
@@ -740,8 +740,7 @@ const _: () = assert!(PACKET_SIZE <= 32 && WIDTH <= 32);
 /// (boxes tested ray by ray only at the leaves, as Embree does) measured slower here:
 /// the ranges of reciprocal directions are wide for direction components near zero,
 /// and over half of the children they kept on the dragon were missed by every ray.
-/// Path mode's batches (`scene::batch`) use it too, for the samples of one pixel.
-pub(crate) struct Frustum {
+struct Frustum {
     /// Axes whose reciprocal directions share one sign: the others bound nothing.
     axes: [bool; 3],
     /// Index into [`WideNode::planes`] of the plane every ray enters by, per axis.
@@ -758,7 +757,7 @@ pub(crate) struct Frustum {
 impl Frustum {
     /// Bounds of the rays of `packet` in `rays` (not empty).
     #[inline(always)]
-    pub(crate) fn new(packet: &RayPacket, rays: u32) -> Frustum {
+    fn new(packet: &RayPacket, rays: u32) -> Frustum {
         let lanes = lane_mask(rays);
         let low = |v: f32x16| reduce_min(lanes.bitselect(v, f32x16::splat(Float::INFINITY)));
         let high = |v: f32x16| reduce_max(lanes.bitselect(v, f32x16::splat(Float::NEG_INFINITY)));
@@ -790,13 +789,6 @@ impl Frustum {
         frustum
     }
 
-    /// Whether the bounds reject anything: false when every axis has directions of
-    /// both signs, whose reciprocals' range bounds no distance.
-    #[inline(always)]
-    pub(crate) fn bounds_any(&self) -> bool {
-        self.axes.iter().any(|&bounded| bounded)
-    }
-
     /// Bit `i` set unless the bounds show that every ray misses child `i`'s box or
     /// enters it beyond `reach` (at or beyond, unless `INCLUSIVE`), and a lower bound
     /// of the rays' entry distances into each child.
@@ -811,11 +803,7 @@ impl Frustum {
     /// the entry (largest near distance, at least 0) and exit (smallest far distance,
     /// widened by the slack) follow.
     #[inline(always)]
-    pub(crate) fn hit_children<const INCLUSIVE: bool>(
-        &self,
-        node: &WideNode,
-        reach: Float,
-    ) -> (u32, f32x8) {
+    fn hit_children<const INCLUSIVE: bool>(&self, node: &WideNode, reach: Float) -> (u32, f32x8) {
         let mut t_enter = f32x8::ZERO;
         let mut t_exit = f32x8::splat(Float::INFINITY);
         for axis in 0..3 {

@@ -15,8 +15,8 @@ mod wide;
 
 pub use build::BvhParams;
 pub use node::BvhNode;
-pub(crate) use packet::lane_mask;
 pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of};
+pub(crate) use packet::{lane_mask, reduce_min};
 pub use stream::STREAM_RAYS;
 pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE, WIDTH};
 pub use wide::{RayQuery, WideBvh, WideNode};

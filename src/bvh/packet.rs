@@ -349,7 +349,7 @@ const ALL_ONES: f32x16 = f32x16::from_bits(u32x16::MAX);
 
 /// The smallest lane of `values`.
 #[inline(always)]
-fn reduce_min(values: f32x16) -> Float {
+pub(crate) fn reduce_min(values: f32x16) -> Float {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
     {
         use std::arch::x86_64::{__m512, _mm512_reduce_min_ps};

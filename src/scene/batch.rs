@@ -547,6 +547,41 @@ mod tests {
         assert!(tested > 2_000 && hit * 10 > tested * 8, "{hit} of {tested}");
     }
 
+    /// Traces `rays` (the lanes in `active`) as a closest-hit batch and, up to
+    /// `t_max`, as an any-hit batch, and asserts that each lane's hit distance (and
+    /// its texture coordinates if `compare_uv`) and blocker are the single ray's, bit
+    /// for bit; returns how many lanes were tested, hit something and were blocked.
+    fn batch_against_single_rays(
+        scene: &Scene,
+        rays: &[Ray; BATCH],
+        t_max: &[Float; BATCH],
+        active: u32,
+        compare_uv: bool,
+        round: usize,
+    ) -> (usize, usize, usize) {
+        let mut hits = [None; BATCH];
+        scene.intersect_batch(rays, active, &mut hits);
+        let blocked = scene.occluded_batch(rays, t_max, active);
+        let (mut tested, mut hit, mut blocked_count) = (0, 0, 0);
+        for lane in lanes_of(active) {
+            let single = scene.intersect(&rays[lane]);
+            let bits = |hit: Option<Hit>| {
+                hit.map(|h| (h.t.to_bits(), compare_uv.then(|| h.uv.to_array())))
+            };
+            assert_eq!(bits(hits[lane]), bits(single), "round {round}, lane {lane}");
+            let expected = scene.occluded(&rays[lane], t_max[lane]);
+            assert_eq!(
+                blocked >> lane & 1 != 0,
+                expected,
+                "round {round}, lane {lane}"
+            );
+            tested += 1;
+            hit += usize::from(single.is_some());
+            blocked_count += usize::from(expected);
+        }
+        (tested, hit, blocked_count)
+    }
+
     /// Bundles of rays from one point in directions a little apart, as a pixel's
     /// bounce rays off a rough metal are: they share the top of the tree and part
     /// deep down, so the walk orders children for several rays, skips boxes behind
@@ -582,24 +617,10 @@ mod tests {
             } else {
                 rng.random_range(1..0x10000)
             };
-            let mut hits = [None; BATCH];
-            scene.intersect_batch(&rays, active, &mut hits);
             let t_max: [Float; BATCH] = std::array::from_fn(|_| rng.random_range(0.05..3.0));
-            let blocked = scene.occluded_batch(&rays, &t_max, active);
-            for lane in lanes_of(active) {
-                let single = scene.intersect(&rays[lane]);
-                let bits = |hit: Option<Hit>| hit.map(|h| (h.t.to_bits(), h.uv.to_array()));
-                assert_eq!(bits(hits[lane]), bits(single), "round {round}, lane {lane}");
-                let expected = scene.occluded(&rays[lane], t_max[lane]);
-                assert_eq!(
-                    blocked >> lane & 1 != 0,
-                    expected,
-                    "round {round}, lane {lane}"
-                );
-                tested += 1;
-                hit += usize::from(single.is_some());
-                blocked_count += usize::from(expected);
-            }
+            let counts = batch_against_single_rays(&scene, &rays, &t_max, active, true, round);
+            (tested, hit, blocked_count) =
+                (tested + counts.0, hit + counts.1, blocked_count + counts.2);
         }
         assert!(hit > tested / 4 && hit < tested, "{hit} of {tested}");
         assert!(
@@ -709,26 +730,12 @@ mod tests {
             } else {
                 0xFFFF
             };
-            let mut hits = [None; BATCH];
-            scene.intersect_batch(&rays, active, &mut hits);
             let t_max: [Float; BATCH] = std::array::from_fn(|_| rng.random_range(0.05..2.0));
-            let blocked = scene.occluded_batch(&rays, &t_max, active);
-            for lane in lanes_of(active) {
-                let single = scene.intersect(&rays[lane]);
-                // Distances, bit for bit: at an edge two faces may tie, and which
-                // one wins may depend on the order the leaves were met in.
-                let bits = |hit: Option<Hit>| hit.map(|h| h.t.to_bits());
-                assert_eq!(bits(hits[lane]), bits(single), "round {round}, lane {lane}");
-                let expected = scene.occluded(&rays[lane], t_max[lane]);
-                assert_eq!(
-                    blocked >> lane & 1 != 0,
-                    expected,
-                    "round {round}, lane {lane}"
-                );
-                tested += 1;
-                hit += usize::from(single.is_some());
-                blocked_count += usize::from(expected);
-            }
+            // Distances alone, bit for bit: at an edge two faces may tie, and which
+            // one wins may depend on the order the leaves were met in.
+            let counts = batch_against_single_rays(&scene, &rays, &t_max, active, false, round);
+            (tested, hit, blocked_count) =
+                (tested + counts.0, hit + counts.1, blocked_count + counts.2);
         }
         // Many rays hit and some (not all) shadow rays were blocked.
         assert!(hit > tested / 3 && hit < tested, "{hit} of {tested}");

@@ -10,12 +10,10 @@
 //! primitive broadcast, the rays in the lanes). In a tree of more than
 //! [`ORDER_FROM_NODES`] nodes a closest-hit batch visits a node's children nearest
 //! first (by the least entry distance of the rays that meet each) and passes over a
-//! box whose rays all have a nearer hit already, as a single ray's ordered walk does.
-//! Where few rays are left at a node ([`FEW_RAYS`], as happens deep in large scenes
-//! with scattered rays), each of them walks that node's subtree by itself, from its
-//! closest hit so far, and stays in the batch for the rest: a batch never costs much
-//! more than its rays traced alone. Those few walks are interleaved, a step of each
-//! in turn, so that one's wait on memory overlaps the others' tests.
+//! box whose rays all have a nearer hit already, as a single ray's ordered walk does. Where few rays are left at a node ([`FEW_RAYS`], as
+//! happens deep in large scenes with scattered rays), each of them walks that
+//! node's subtree by itself, from its closest hit so far, and stays in the batch
+//! for the rest: a batch never costs much more than its rays traced alone.
 //!
 //! A node's boxes meet the batch's rays one box at a time, with no first test of
 //! bounds of the whole batch against all eight (full mode's packet walk has one,
@@ -235,8 +233,7 @@ impl Scene {
             if reached.count_ones() <= FEW_RAYS {
                 // A node costs the batch about what it costs one ray: a ray alone
                 // here goes down this subtree by itself, nearest first, from its
-                // closest hit so far, and stays in the batch for the rest; the few
-                // such walks interleaved.
+                // closest hit so far, and stays in the batch for the rest.
                 let (lanes, count) = lane_list(reached);
                 let mut queries = [RayQuery::new(&rays[0]); WALKS_IN_FLIGHT];
                 let mut kernels = [PacketRay::new(&rays[0]); WALKS_IN_FLIGHT];

@@ -18,7 +18,7 @@ pub use node::BvhNode;
 pub use packet::{CLOSEST_CULL_MARGIN, PACKET_SIZE, RayPacket, lanes_of};
 pub(crate) use packet::{lane_mask, reduce_min};
 pub use stream::STREAM_RAYS;
-pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE, WALKS_IN_FLIGHT, WIDTH};
+pub(crate) use wide::{PREFETCH_LINES, STACK_SIZE, WIDTH};
 pub use wide::{RayQuery, WideBvh, WideNode};
 
 use crate::math::Aabb;

@@ -94,9 +94,6 @@ pub struct WideBvh {
     pub nodes: Vec<WideNode>,
 }
 
-/// Most single-ray walks [`WideBvh::walk_each_from`] interleaves.
-pub const WALKS_IN_FLIGHT: usize = 4;
-
 /// Most entries the traversal stack can hold: at most `WIDTH - 1` pending siblings per
 /// level, and the wide tree is no deeper than the binary one it came from.
 pub(crate) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
@@ -311,64 +308,6 @@ impl WideBvh {
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
         self.walk::<false, T, F>(node, ray, t_max, items, leaf)
-    }
-
-    /// [`WideBvh::walk_ordered_from`] (if `ORDERED`, else [`WideBvh::walk_any_from`])
-    /// of each of up to [`WALKS_IN_FLIGHT`] rays from node `node`, one step of each
-    /// walk in turn, so that the processor has one ray's next node or leaf on its way
-    /// from memory while it tests another's: rays walking alone deep in a large tree
-    /// wait on nearly every load. Each walk takes exactly the steps it takes alone.
-    /// `leaf(ray, first_item, item_count, t_max)` is the leaf closure of ray
-    /// `rays[ray]`; returns the mask of the walks it stopped.
-    ///
-    /// # Panics
-    /// If `rays` and `t_max` differ in length or hold more than [`WALKS_IN_FLIGHT`].
-    #[inline(always)]
-    pub fn walk_each_from<const ORDERED: bool, T, F>(
-        &self,
-        node: u32,
-        rays: &[RayQuery],
-        t_max: &mut [Float],
-        items: &[T],
-        mut leaf: F,
-    ) -> u32
-    where
-        F: FnMut(usize, u32, u32, &mut Float) -> bool,
-    {
-        assert!(rays.len() == t_max.len() && rays.len() <= WALKS_IN_FLIGHT);
-        if self.nodes.is_empty() {
-            return 0;
-        }
-        let mut stacks = [const { [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE] };
-            WALKS_IN_FLIGHT];
-        let mut walks: [Walk; WALKS_IN_FLIGHT] =
-            std::array::from_fn(|i| Walk::new(&rays[i.min(rays.len() - 1)], node));
-        let mut going = (1u32 << rays.len()) - 1;
-        let mut stopped = 0;
-        while going != 0 {
-            let mut left = going;
-            while left != 0 {
-                let i = left.trailing_zeros() as usize;
-                left &= left - 1;
-                let mut leaf_of_ray =
-                    |first: u32, count: u32, t_max: &mut Float| leaf(i, first, count, t_max);
-                match self.step::<ORDERED, T, _>(
-                    &mut walks[i],
-                    &mut stacks[i],
-                    &mut t_max[i],
-                    items,
-                    &mut leaf_of_ray,
-                ) {
-                    Step::Going => {}
-                    Step::Stopped => {
-                        stopped |= 1 << i;
-                        going &= !(1 << i);
-                    }
-                    Step::Finished => going &= !(1 << i),
-                }
-            }
-        }
-        stopped
     }
 
     /// As [`WideBvh::walk_ordered`] for any-hit queries, where the first blocker found
@@ -845,86 +784,6 @@ mod tests {
             false
         });
         assert_eq!(seen, [0, 1]);
-    }
-
-    /// Interleaved walks visit, ray by ray, the same leaves in the same order as
-    /// each ray's walk alone, end at the same `t_max`, and stop where it stops.
-    #[test]
-    fn interleaved_walks_take_each_ray_alone_s_steps() {
-        let boxes = random_boxes(3000, 11);
-        let (bvh, _) = Bvh::build(&boxes, &BvhParams::default());
-        let wide = WideBvh::collapse(&bvh, 4, &BvhParams::default());
-        let items = vec![0u8; 3000];
-        let mut rng = rand::rngs::StdRng::seed_from_u64(12);
-        // A leaf lowers `t_max` as a hit would; the walk stops at the fifth leaf of a
-        // ray whose number says so.
-        let shrink =
-            |first: u32, t_max: &mut Float| *t_max = t_max.min(5.0 + (first % 17) as Float);
-        let (mut visits, mut stops_seen) = (0, 0);
-        for round in 0..40 {
-            let count = 1 + round % WALKS_IN_FLIGHT;
-            let rays: Vec<RayQuery> = (0..count)
-                .map(|_| {
-                    let o = Vec3::new(
-                        rng.random_range(-12.0..12.0),
-                        rng.random_range(-12.0..12.0),
-                        -12.0,
-                    );
-                    let d = Vec3::new(
-                        rng.random_range(-0.5..0.5),
-                        rng.random_range(-0.5..0.5),
-                        1.0,
-                    );
-                    RayQuery::new(&crate::math::Ray::new(o, d.normalize()))
-                })
-                .collect();
-            let stops = |ray: usize, seen: usize| (round + ray).is_multiple_of(3) && seen == 5;
-            for ordered in [true, false] {
-                let mut alone = Vec::new();
-                for (i, ray) in rays.iter().enumerate() {
-                    let mut seen = Vec::new();
-                    let mut t_max = 40.0;
-                    let leaf = |first: u32, _: u32, t_max: &mut Float| {
-                        seen.push(first);
-                        shrink(first, t_max);
-                        stops(i, seen.len())
-                    };
-                    let stopped = if ordered {
-                        wide.walk_ordered_from(0, ray, &mut t_max, &items, leaf)
-                    } else {
-                        wide.walk_any_from(0, ray, &mut t_max, &items, leaf)
-                    };
-                    alone.push((seen, t_max, stopped));
-                }
-                let mut seen = vec![Vec::new(); count];
-                let mut t_max = vec![40.0; count];
-                let leaf = |i: usize, first: u32, _: u32, t_max: &mut Float| {
-                    seen[i].push(first);
-                    shrink(first, t_max);
-                    stops(i, seen[i].len())
-                };
-                let stopped = if ordered {
-                    wide.walk_each_from::<true, _, _>(0, &rays, &mut t_max, &items, leaf)
-                } else {
-                    wide.walk_each_from::<false, _, _>(0, &rays, &mut t_max, &items, leaf)
-                };
-                for (i, (seen_alone, t_alone, stopped_alone)) in alone.into_iter().enumerate() {
-                    visits += seen_alone.len();
-                    stops_seen += stopped_alone as usize;
-                    assert_eq!(
-                        seen[i], seen_alone,
-                        "round {round}, ray {i}, ordered {ordered}"
-                    );
-                    assert_eq!(t_max[i], t_alone);
-                    assert_eq!(stopped & (1 << i) != 0, stopped_alone);
-                }
-            }
-        }
-        // The rays do meet leaves, and some walks are stopped.
-        assert!(
-            visits > 200 && stops_seen > 5,
-            "{visits} visits, {stops_seen} stops"
-        );
     }
 
     #[test]

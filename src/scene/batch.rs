@@ -39,8 +39,7 @@ use wide::f32x16;
 
 use super::{Hit, Scene};
 use crate::bvh::{
-    PACKET_SIZE, RayPacket, RayQuery, STACK_SIZE, WALKS_IN_FLIGHT, WideNode, lane_mask, lanes_of,
-    reduce_min,
+    PACKET_SIZE, RayPacket, RayQuery, STACK_SIZE, WideNode, lane_mask, lanes_of, reduce_min,
 };
 use crate::math::{Float, Ray};
 use crate::shapes::{LANES, PacketRay, PrimHit, Shape, sphere_across_rays, triangle_across_rays};
@@ -56,7 +55,6 @@ pub const BATCH: usize = PACKET_SIZE;
 /// batch walk at all) 1.01x; leaves stay batched (a few rays tested one by one
 /// there cost 0.96x-1.0x, no gain).
 const FEW_RAYS: u32 = 4;
-const _: () = assert!(FEW_RAYS as usize <= WALKS_IN_FLIGHT);
 
 /// A closest-hit batch orders a node's children nearest first only in trees of more
 /// than this many 8-wide nodes: in a small scene (the Cornell box is one node over
@@ -151,19 +149,6 @@ struct Pending {
     t_enter: Float,
 }
 
-/// The lanes of `mask` (at most [`WALKS_IN_FLIGHT`]) in a list, and how many.
-#[inline(always)]
-fn lane_list(mask: u32) -> ([usize; WALKS_IN_FLIGHT], usize) {
-    debug_assert!(mask.count_ones() as usize <= WALKS_IN_FLIGHT);
-    let mut lanes = [0; WALKS_IN_FLIGHT];
-    let mut count = 0;
-    for lane in lanes_of(mask) {
-        lanes[count] = lane;
-        count += 1;
-    }
-    (lanes, count)
-}
-
 impl Scene {
     /// The closest hit of each ray `rays[i]` whose bit `i` is set in `active`, into
     /// `hits[i]`; other entries of `hits` are left as they are.
@@ -234,27 +219,21 @@ impl Scene {
                 // A node costs the batch about what it costs one ray: a ray alone
                 // here goes down this subtree by itself, nearest first, from its
                 // closest hit so far, and stays in the batch for the rest.
-                let (lanes, count) = lane_list(reached);
-                let mut queries = [RayQuery::new(&rays[0]); WALKS_IN_FLIGHT];
-                let mut kernels = [PacketRay::new(&rays[0]); WALKS_IN_FLIGHT];
-                let mut t_max = [0.0; WALKS_IN_FLIGHT];
-                let mut closest = [None; WALKS_IN_FLIGHT];
-                for (i, &lane) in lanes[..count].iter().enumerate() {
-                    queries[i] = RayQuery::new(&rays[lane]);
-                    kernels[i] = PacketRay::new(&rays[lane]);
-                    t_max[i] = t_best.as_array()[lane];
-                }
-                self.wide.walk_each_from::<true, _, _>(
-                    pending.index,
-                    &queries[..count],
-                    &mut t_max[..count],
-                    &self.packets,
-                    |i, first, count, t_max| {
-                        self.nearest_in_leaf(&kernels[i], first, count, t_max, &mut closest[i]);
-                        false
-                    },
-                );
-                for (&lane, closest) in lanes[..count].iter().zip(closest) {
+                for lane in lanes_of(reached) {
+                    let mut t_max = t_best.as_array()[lane];
+                    let ray = &rays[lane];
+                    let lanes = PacketRay::new(ray);
+                    let mut closest = None;
+                    self.wide.walk_ordered_from(
+                        pending.index,
+                        &RayQuery::new(ray),
+                        &mut t_max,
+                        &self.packets,
+                        |first, count, t_max| {
+                            self.nearest_in_leaf(&lanes, first, count, t_max, &mut closest);
+                            false
+                        },
+                    );
                     if let Some((packet, packet_lane, hit)) = closest {
                         t_best.as_mut_array()[lane] = hit.t;
                         u_best.as_mut_array()[lane] = hit.u;
@@ -363,26 +342,18 @@ impl Scene {
             if open.count_ones() <= FEW_RAYS {
                 // As in `intersect_batch`: a ray alone here goes down this subtree
                 // by itself.
-                let (lanes, count) = lane_list(open);
-                let mut queries = [RayQuery::new(&rays[0]); WALKS_IN_FLIGHT];
-                let mut kernels = [PacketRay::new(&rays[0]); WALKS_IN_FLIGHT];
-                let mut reach = [0.0; WALKS_IN_FLIGHT];
-                for (i, &lane) in lanes[..count].iter().enumerate() {
-                    queries[i] = RayQuery::new(&rays[lane]);
-                    kernels[i] = PacketRay::new(&rays[lane]);
-                    reach[i] = t_max[lane];
-                }
-                let found = self.wide.walk_each_from::<false, _, _>(
-                    pending.index,
-                    &queries[..count],
-                    &mut reach[..count],
-                    &self.packets,
-                    |i, first, count, reach| {
-                        self.blocker_in_leaf(&kernels[i], first, count, *reach)
-                    },
-                );
-                for (i, &lane) in lanes[..count].iter().enumerate() {
-                    if found & (1 << i) != 0 {
+                for lane in lanes_of(open) {
+                    let ray = &rays[lane];
+                    let lanes = PacketRay::new(ray);
+                    let mut reach = t_max[lane];
+                    let found = self.wide.walk_any_from(
+                        pending.index,
+                        &RayQuery::new(ray),
+                        &mut reach,
+                        &self.packets,
+                        |first, count, reach| self.blocker_in_leaf(&lanes, first, count, *reach),
+                    );
+                    if found {
                         blocked |= 1 << lane;
                     }
                 }

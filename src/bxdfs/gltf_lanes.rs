@@ -164,6 +164,38 @@ pub fn mask(bits: u32) -> F {
     }))
 }
 
+/// Sixteen vectors gathered lane by lane, as three arrays written a float at a
+/// time (arrays of `Vec3`s read back as `f32x16`s stalled on store forwarding, a
+/// tenth of the plain shading's time).
+#[derive(Clone, Copy, Debug)]
+pub struct V3Gather([[Float; LANES]; 3]);
+
+impl V3Gather {
+    /// `v` in every lane.
+    #[inline(always)]
+    pub fn splat(v: Vec3) -> V3Gather {
+        V3Gather([[v.x; LANES], [v.y; LANES], [v.z; LANES]])
+    }
+
+    /// Sets lane `lane` to `v`.
+    #[inline(always)]
+    pub fn set(&mut self, lane: usize, v: Vec3) {
+        self.0[0][lane] = v.x;
+        self.0[1][lane] = v.y;
+        self.0[2][lane] = v.z;
+    }
+
+    /// The sixteen vectors.
+    #[inline(always)]
+    pub fn load(&self) -> V3 {
+        V3 {
+            x: F::from(self.0[0]),
+            y: F::from(self.0[1]),
+            z: F::from(self.0[2]),
+        }
+    }
+}
+
 /// [`super::fresnel::schlick_weight`].
 #[inline(always)]
 fn schlick_weight(cos: F) -> F {
@@ -249,11 +281,11 @@ impl Frames {
 /// vertices they are seen at.
 #[derive(Clone, Debug)]
 pub struct PlainGather {
-    wo: [Vec3; LANES],
-    ns: [Vec3; LANES],
-    ng: [Vec3; LANES],
-    base: [Vec3; LANES],
-    f0: [Vec3; LANES],
+    wo: V3Gather,
+    ns: V3Gather,
+    ng: V3Gather,
+    base: V3Gather,
+    f0: V3Gather,
     metallic: [Float; LANES],
     alpha: [Float; LANES],
     f90: [Float; LANES],
@@ -264,11 +296,11 @@ impl Default for PlainGather {
     /// something harmless).
     fn default() -> PlainGather {
         PlainGather {
-            wo: [Vec3::Z; LANES],
-            ns: [Vec3::Z; LANES],
-            ng: [Vec3::Z; LANES],
-            base: [Vec3::ONE; LANES],
-            f0: [Vec3::splat(0.04); LANES],
+            wo: V3Gather::splat(Vec3::Z),
+            ns: V3Gather::splat(Vec3::Z),
+            ng: V3Gather::splat(Vec3::Z),
+            base: V3Gather::splat(Vec3::ONE),
+            f0: V3Gather::splat(Vec3::splat(0.04)),
             metallic: [0.0; LANES],
             alpha: [0.25; LANES],
             f90: [1.0; LANES],
@@ -286,11 +318,11 @@ impl PlainGather {
         let Some(p) = bsdf.plain_parameters() else {
             return false;
         };
-        self.wo[lane] = wo;
-        self.ns[lane] = ns;
-        self.ng[lane] = ng;
-        self.base[lane] = p.base;
-        self.f0[lane] = p.f0;
+        self.wo.set(lane, wo);
+        self.ns.set(lane, ns);
+        self.ng.set(lane, ng);
+        self.base.set(lane, p.base);
+        self.f0.set(lane, p.f0);
         self.metallic[lane] = p.metallic;
         self.alpha[lane] = p.alpha;
         self.f90[lane] = p.f90;
@@ -301,11 +333,10 @@ impl PlainGather {
     /// decides ([`GltfBsdf::at`]).
     #[inline(always)]
     pub fn at(&self) -> PlainVertices {
-        let ns = V3::from_vecs(&self.ns);
-        let frames = Frames::from_normal(ns);
-        let wo = frames.to_local(V3::from_vecs(&self.wo));
-        let base = V3::from_vecs(&self.base);
-        let f0 = V3::from_vecs(&self.f0);
+        let frames = Frames::from_normal(self.ns.load());
+        let wo = frames.to_local(self.wo.load());
+        let base = self.base.load();
+        let f0 = self.f0.load();
         let (metallic, alpha, f90) = (
             F::from(self.metallic),
             F::from(self.alpha),
@@ -328,7 +359,7 @@ impl PlainGather {
         let scale = F::ONE / total;
         PlainVertices {
             frames,
-            ng: V3::from_vecs(&self.ng),
+            ng: self.ng.load(),
             wo,
             base,
             f0,

@@ -32,7 +32,7 @@ use super::aov::PixelAovs;
 use crate::bvh::lanes_of;
 use crate::bxdfs::Bsdf;
 use crate::bxdfs::gltf::GltfBsdf;
-use crate::bxdfs::gltf_lanes::{self, LANES, PlainGather, V3};
+use crate::bxdfs::gltf_lanes::{self, LANES, PlainGather, V3, V3Gather};
 use crate::bxdfs::mtl::{MtlMixture, reads_as_rough_dielectric};
 use crate::camera::Camera;
 use crate::lights::LightSample;
@@ -534,11 +534,11 @@ impl PathIntegrator {
         if plain == 0 {
             return (0, 0, 0);
         }
-        let mut throughput = [Vec3::ZERO; LANES];
+        let mut throughput = V3Gather::splat(Vec3::ZERO);
         let mut eta = [1.0; LANES];
         let mut roulette = [0.0; LANES];
         let mut lights = [None; LANES];
-        let mut light_direction = [Vec3::Z; LANES];
+        let mut light_direction = V3Gather::splat(Vec3::Z);
         let mut light_pdf = [1.0; LANES];
         let (mut lit, mut delta) = (0u32, 0u32);
         let mut u_lobe = [0.0; LANES];
@@ -556,7 +556,7 @@ impl PathIntegrator {
             // Drawn before the path may end, where `step` would not draw it: the
             // ended path's stream is not read again.
             u_survive[lane] = sample.next_1d();
-            throughput[lane] = path.throughput;
+            throughput.set(lane, path.throughput);
             eta[lane] = path.eta;
             if path.depth + 1 >= RUSSIAN_ROULETTE_DEPTH {
                 roulette[lane] = Float::from_bits(u32::MAX);
@@ -567,7 +567,7 @@ impl PathIntegrator {
                 if let (Some(sample), Some(environment)) = (&deferred, &self.environment) {
                     environment.prefetch_radiance(sample);
                 }
-                light_direction[lane] = light.direction;
+                light_direction.set(lane, light.direction);
                 light_pdf[lane] = light.pdf;
                 lit |= 1 << lane;
                 delta |= u32::from(light.delta) << lane;
@@ -577,9 +577,9 @@ impl PathIntegrator {
 
         // Next-event estimation: `step`'s, sixteen lanes at a time.
         let vertices = gather.at();
-        let direction = V3::from_vecs(&light_direction);
+        let direction = light_direction.load();
         let (f, bsdf_pdf) = vertices.eval_and_pdf(direction);
-        let throughput = V3::from_vecs(&throughput);
+        let throughput = throughput.load();
         let light_pdf = f32x16::from(light_pdf);
         let weight =
             gltf_lanes::mask(delta).select(f32x16::ONE, power_heuristic_lanes(light_pdf, bsdf_pdf));

@@ -993,9 +993,12 @@ mod tests {
     }
 
     /// The Cornell box with its walls and blocks plain glTF materials (metals,
-    /// dielectrics and a blend, of several roughnesses), its light as it is.
+    /// dielectrics and a blend, of several roughnesses), its area light as it is
+    /// and a point light beside it (light sampling picks either).
     fn plain_cornell(width: u32, height: u32, spp: u32) -> (Scene, RenderOptions) {
         let (mut scene, options) = cornell(width, height, spp);
+        let point = Vec3::new(0.3, 1.5, 0.4);
+        (scene.lights).push(crate::material::Light::point(point, Vec3::splat(0.4)));
         for (i, m) in scene.materials.iter_mut().enumerate() {
             if m.emission == Vec3::ZERO {
                 m.pbr = Some(Box::new(crate::material::pbr::PbrMaterial {
@@ -1019,8 +1022,11 @@ mod tests {
         let integrator = PathIntegrator::new(&scene, options.depth, true);
         assert!(integrator.plain.iter().filter(|&&p| p).count() >= 3);
         assert!(integrator.plain.contains(&false));
+        let point_share = |i: &PathIntegrator| 1.0 - i.area_probability - i.environment_probability;
+        assert!(point_share(&integrator) > 0.1 && integrator.area_probability > 0.1);
         assert_batches_equal_single_paths(&scene, &options, &integrator);
         let integrator = under_a_sky(integrator, &scene);
+        assert!(point_share(&integrator) > 0.05);
         assert_batches_equal_single_paths(&scene, &options, &integrator);
     }
 }

@@ -75,6 +75,17 @@ pub struct GltfBsdf {
     plain: bool,
 }
 
+/// A plain [`GltfBsdf`]'s parameters ([`GltfBsdf::plain_parameters`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PlainParameters {
+    pub base: Vec3,
+    pub f0: Vec3,
+    pub metallic: Float,
+    /// The GGX distribution's `alpha`.
+    pub alpha: Float,
+    pub f90: Float,
+}
+
 /// The lobes, in the order of [`GltfAt::p`].
 const DIFFUSE: usize = 0;
 const SPECULAR: usize = 1;
@@ -109,6 +120,26 @@ impl GltfBsdf {
             sheened,
             multiple_scattering: values.multiple_scattering,
         }
+    }
+
+    /// Whether the material is plain: a rough metal, dielectric or mix of both with
+    /// no transmission, clearcoat, sheen or compensation, which path mode shades
+    /// sixteen vertices at a time ([`super::gltf_lanes`]).
+    #[inline]
+    pub fn is_plain(&self) -> bool {
+        self.plain
+    }
+
+    /// What a plain material's lobes read, if it is plain ([`GltfBsdf::is_plain`]).
+    #[inline]
+    pub(super) fn plain_parameters(&self) -> Option<PlainParameters> {
+        self.plain.then_some(PlainParameters {
+            base: self.base,
+            f0: self.f0,
+            metallic: self.metallic,
+            alpha: self.ggx.alpha,
+            f90: self.f90,
+        })
     }
 
     /// Whether some lobe is not a delta.

@@ -17,6 +17,7 @@
 
 pub mod fresnel;
 pub mod gltf;
+pub mod gltf_lanes;
 pub mod lambert;
 pub mod microfacet;
 pub mod mtl;

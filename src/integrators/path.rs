@@ -32,6 +32,7 @@ use super::aov::PixelAovs;
 use crate::bvh::lanes_of;
 use crate::bxdfs::Bsdf;
 use crate::bxdfs::gltf::GltfBsdf;
+use crate::bxdfs::gltf_lanes::{self, LANES, PlainGather, V3, V3Gather};
 use crate::bxdfs::mtl::{MtlMixture, reads_as_rough_dielectric};
 use crate::camera::Camera;
 use crate::lights::LightSample;
@@ -45,6 +46,10 @@ use crate::sampler::{PixelSample, PixelSampler};
 use crate::scene::{BATCH, Hit, Scene};
 use crate::stats::RayCounts;
 use std::f32::consts::PI;
+use wide::f32x16;
+
+// The batch's lanes are the plain BSDF's.
+const _: () = assert!(BATCH == LANES);
 
 /// Depth (in scattering events) from which Russian roulette may end a path, as
 /// Mitsuba's `rr_depth` default.
@@ -58,6 +63,10 @@ pub const DIMENSIONS_PER_BOUNCE: u32 = 7;
 #[derive(Clone, Debug)]
 pub struct PathIntegrator {
     scattering: Vec<Bsdf>,
+    /// Per material, whether its hits are shaded sixteen at a time
+    /// ([`PathIntegrator::step_plain`]): a plain glTF material
+    /// ([`GltfBsdf::is_plain`]) without maps or emission.
+    plain: Vec<bool>,
     /// Most path segments.
     max_depth: u32,
     /// What rays that leave the scene see: the scene's environment, or white when the
@@ -77,12 +86,19 @@ impl PathIntegrator {
     /// A path tracer for `scene` following at most `max_depth` segments; an unlit
     /// scene sits in the studio if `default_light` says so, else in the dark.
     pub fn new(scene: &Scene, max_depth: u32, default_light: bool) -> PathIntegrator {
-        let scattering = scene
+        let scattering: Vec<Bsdf> = scene
             .materials
             .iter()
             .map(|m| match m.pbr_at(crate::math::Vec2::ZERO) {
                 Some(values) => Bsdf::Gltf(GltfBsdf::new(&values)),
                 None => Bsdf::of_mtl(m, None),
+            })
+            .collect();
+        let plain = (scene.materials.iter().zip(&scattering))
+            .map(|(m, bsdf)| {
+                m.maps.is_none()
+                    && m.emission == Vec3::ZERO
+                    && matches!(bsdf, Bsdf::Gltf(g) if g.is_plain())
             })
             .collect();
         let unlit = scene.unlit && default_light;
@@ -94,6 +110,7 @@ impl PathIntegrator {
         };
         PathIntegrator {
             scattering,
+            plain,
             max_depth,
             environment_probability: 0.0,
             area_probability: 0.0,
@@ -478,6 +495,143 @@ impl PathIntegrator {
         Some((light, None))
     }
 
+    /// [`PathIntegrator::step`] of the lanes of `alive` whose hit is plain (an
+    /// untextured, unlit plain glTF material, the path outside any volume and not
+    /// at its last segment), sixteen lanes per instruction: the BSDF's value and
+    /// density towards the light and its sample in [`gltf_lanes`], the MIS weight,
+    /// the light's contribution and Russian roulette here; light sampling, the rays
+    /// and the sample stream lane by lane, drawing what `step` draws in its order.
+    /// Returns the lanes it stepped, those of them with a shadow ray (set in
+    /// `shadow`) and those whose path ended.
+    #[inline(never)]
+    fn step_plain(
+        &self,
+        scene: &Scene,
+        paths: &mut [PathState; BATCH],
+        hits: &[Option<Hit>; BATCH],
+        alive: u32,
+        (shadow_rays, shadow_t): (&mut [Ray; BATCH], &mut [Float; BATCH]),
+        rays: &mut RayCounts,
+    ) -> (u32, u32, u32) {
+        let mut gather = PlainGather::default();
+        let mut plain = 0;
+        for lane in lanes_of(alive) {
+            let path = &paths[lane];
+            let Some(hit) = &hits[lane] else { continue };
+            let material = hit.material.0 as usize;
+            if path.medium != Vec3::ZERO
+                || path.depth + 1 >= self.max_depth
+                || !self.plain[material]
+            {
+                continue;
+            }
+            if let Bsdf::Gltf(g) = &self.scattering[material]
+                && gather.set(lane, g, -path.ray.dir, hit.ns, hit.n)
+            {
+                plain |= 1 << lane;
+            }
+        }
+        if plain == 0 {
+            return (0, 0, 0);
+        }
+        let mut throughput = V3Gather::splat(Vec3::ZERO);
+        let mut eta = [1.0; LANES];
+        let mut roulette = [0.0; LANES];
+        let mut lights = [None; LANES];
+        let mut light_direction = V3Gather::splat(Vec3::Z);
+        let mut light_pdf = [1.0; LANES];
+        let (mut lit, mut delta) = (0u32, 0u32);
+        let mut u_lobe = [0.0; LANES];
+        let mut u_direction = [[0.0; LANES]; 2];
+        let mut u_survive = [0.0; LANES];
+        for lane in lanes_of(plain) {
+            let path = &mut paths[lane];
+            let Some(hit) = &hits[lane] else { continue };
+            let sample = &mut path.sample;
+            let u_pick = sample.next_1d();
+            let u_light = sample.next_2d();
+            u_lobe[lane] = sample.next_1d();
+            let u = sample.next_2d();
+            (u_direction[0][lane], u_direction[1][lane]) = (u.x, u.y);
+            // Drawn before the path may end, where `step` would not draw it: the
+            // ended path's stream is not read again.
+            u_survive[lane] = sample.next_1d();
+            throughput.set(lane, path.throughput);
+            eta[lane] = path.eta;
+            if path.depth + 1 >= RUSSIAN_ROULETTE_DEPTH {
+                roulette[lane] = Float::from_bits(u32::MAX);
+            }
+            // (Sampled whatever the BSDF: it has smooth lobes but where it
+            // scatters nothing, which the lanes' mask below leaves out.)
+            if let Some((light, deferred)) = self.sample_light(scene, hit.p, u_pick, u_light) {
+                if let (Some(sample), Some(environment)) = (&deferred, &self.environment) {
+                    environment.prefetch_radiance(sample);
+                }
+                light_direction.set(lane, light.direction);
+                light_pdf[lane] = light.pdf;
+                lit |= 1 << lane;
+                delta |= u32::from(light.delta) << lane;
+                lights[lane] = Some((light, deferred));
+            }
+        }
+
+        // Next-event estimation: `step`'s, sixteen lanes at a time.
+        let vertices = gather.at();
+        let direction = light_direction.load();
+        let (f, bsdf_pdf) = vertices.eval_and_pdf(direction);
+        let throughput = throughput.load();
+        let light_pdf = f32x16::from(light_pdf);
+        let weight =
+            gltf_lanes::mask(delta).select(f32x16::ONE, power_heuristic_lanes(light_pdf, bsdf_pdf));
+        let unoccluded = throughput.times(f);
+        let scale = direction.dot(vertices.shading_normals()).abs() * weight / light_pdf;
+        let lit = lit & (vertices.has_smooth_lobes() & f.nonzero()).to_bitmask();
+        let mut shadowed = 0;
+        for lane in lanes_of(lit) {
+            let (Some((mut light, deferred)), Some(hit)) = (lights[lane], &hits[lane]) else {
+                continue;
+            };
+            if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
+                light.radiance = environment.sampled_radiance(&sample);
+            }
+            let shadow_ray = hit.spawn_unit_ray(light.direction);
+            let distance = light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
+            rays.shadow += 1;
+            paths[lane].unoccluded =
+                unoccluded.lane(lane) * light.radiance * scale.as_array()[lane];
+            shadow_rays[lane] = shadow_ray;
+            shadow_t[lane] = distance * (1.0 - 1e-3);
+            shadowed |= 1 << lane;
+        }
+
+        // Scattering and Russian roulette.
+        let sampled = vertices.sample(f32x16::from(u_lobe), u_direction.map(f32x16::from));
+        let throughput = throughput.times(sampled.weight);
+        let largest = throughput.max_element();
+        // Zero (nothing more to carry) or NaN.
+        let carries = largest.simd_gt(f32x16::ZERO);
+        let eta = f32x16::from(eta);
+        let keep = (largest * eta * eta).min(f32x16::splat(0.95));
+        let roulette = f32x16::from(roulette) & carries;
+        let survives = f32x16::from(u_survive).simd_lt(keep);
+        let throughput = V3::select(roulette & survives, throughput.over(keep), throughput);
+        let goes_on = sampled.valid & carries & (!roulette | survives);
+        let (valid, goes_on) = (sampled.valid.to_bitmask(), goes_on.to_bitmask());
+        for lane in lanes_of(plain & valid) {
+            let (path, Some(hit)) = (&mut paths[lane], &hits[lane]) else {
+                continue;
+            };
+            path.throughput = throughput.lane(lane);
+            path.previous_delta = false;
+            path.previous_pdf = sampled.pdf.as_array()[lane];
+            path.previous_point = hit.p;
+            path.ray = hit.spawn_unit_ray(sampled.wi.lane(lane));
+            rays.scattered += 1;
+            path.depth += 1;
+        }
+        (plain, shadowed, plain & !goes_on)
+    }
+
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,
     /// then its shadow rays, as one batch; the first step's hits are `first_hits`
     /// when the caller traced them (for the extra outputs).
@@ -539,8 +693,18 @@ impl PathIntegrator {
                     }
                 }
             }
-            let mut shadowed = 0;
-            for lane in lanes_of(alive) {
+            let (plain, shadowed_plain, ended) = self.step_plain(
+                scene,
+                paths,
+                &hits,
+                alive,
+                (&mut shadow_rays, &mut shadow_t),
+                rays,
+            );
+            let mut shadowed = shadowed_plain;
+            let scalar = alive & !plain;
+            alive &= !ended;
+            for lane in lanes_of(scalar) {
                 let step = self.step(scene, &mut paths[lane], hits[lane], rays);
                 if let Some((ray, t)) = step.shadow {
                     shadow_rays[lane] = ray;
@@ -690,6 +854,15 @@ fn power_heuristic(pdf: Float, other: Float) -> Float {
     }
 }
 
+/// [`power_heuristic`] of sixteen lanes.
+#[inline(always)]
+fn power_heuristic_lanes(pdf: f32x16, other: f32x16) -> f32x16 {
+    let (a, b) = (pdf * pdf, other * other);
+    let sum = a + b;
+    let fallback = pdf.is_inf().select(f32x16::ONE, f32x16::ZERO);
+    (sum.simd_gt(f32x16::ZERO) & sum.is_finite()).select(a / sum, fallback)
+}
+
 #[inline]
 fn mean(v: Vec3) -> Float {
     (v.x + v.y + v.z) / 3.0
@@ -773,13 +946,9 @@ mod tests {
         assert_batches_equal_single_paths(&scene, &options, &integrator);
     }
 
-    /// The same under an environment map seen through the box's open front and
-    /// sampled beside its light: the batch looks up its leaving paths' radiance and
-    /// prefetches its light samples' alias slots and texels ahead of shading them,
-    /// and must still give each path what it gets alone.
-    #[test]
-    fn batched_pixels_equal_paths_traced_one_by_one_under_an_environment_map() {
-        let (scene, options) = cornell(10, 8, 20);
+    /// `integrator` lit by an environment map as well (seen through the box's open
+    /// front), which light sampling picks a fair share of the time.
+    fn under_a_sky(integrator: PathIntegrator, scene: &Scene) -> PathIntegrator {
         let (width, height) = (32, 16);
         let texels: Vec<Float> = (0..width * height)
             .flat_map(|i| {
@@ -793,7 +962,7 @@ mod tests {
             .collect();
         let texture =
             crate::textures::Texture::from_f32("sky.hdr".into(), width, height, 3, texels).unwrap();
-        let mut integrator = PathIntegrator::new(&scene, options.depth, true);
+        let mut integrator = integrator;
         integrator.environment = Some(Environment::new(&EnvironmentDesc {
             radiance: EnvironmentRadiance::Map(std::sync::Arc::new(texture)),
             // Dim enough that light sampling picks the box's light a fair share.
@@ -801,13 +970,63 @@ mod tests {
             rotation_degrees: 30.0,
         }));
         integrator.background = None;
-        let integrator = integrator.weighed(&scene);
+        let integrator = integrator.weighed(scene);
         assert!(
             integrator.environment_probability > 0.05 && integrator.area_probability > 0.05,
             "{} {}",
             integrator.environment_probability,
             integrator.area_probability
         );
+        integrator
+    }
+
+    /// The same under an environment map seen through the box's open front and
+    /// sampled beside its light: the batch looks up its leaving paths' radiance and
+    /// prefetches its light samples' alias slots and texels ahead of shading them,
+    /// and must still give each path what it gets alone.
+    #[test]
+    fn batched_pixels_equal_paths_traced_one_by_one_under_an_environment_map() {
+        let (scene, options) = cornell(10, 8, 20);
+        let integrator = PathIntegrator::new(&scene, options.depth, true);
+        let integrator = under_a_sky(integrator, &scene);
+        assert_batches_equal_single_paths(&scene, &options, &integrator);
+    }
+
+    /// The Cornell box with its walls and blocks plain glTF materials (metals,
+    /// dielectrics and a blend, of several roughnesses), its area light as it is
+    /// and a point light beside it (light sampling picks either).
+    fn plain_cornell(width: u32, height: u32, spp: u32) -> (Scene, RenderOptions) {
+        let (mut scene, options) = cornell(width, height, spp);
+        let point = Vec3::new(0.3, 1.5, 0.4);
+        (scene.lights).push(crate::material::Light::point(point, Vec3::splat(0.4)));
+        for (i, m) in scene.materials.iter_mut().enumerate() {
+            if m.emission == Vec3::ZERO {
+                m.pbr = Some(Box::new(crate::material::pbr::PbrMaterial {
+                    base_color: m.diffuse,
+                    metallic: [0.0, 1.0, 0.3][i % 3],
+                    roughness: [0.5, 0.3, 0.8][i % 3],
+                    ..Default::default()
+                }));
+            }
+        }
+        (scene, options)
+    }
+
+    /// Plain hits shaded sixteen at a time (`step_plain`, lanes of mixed
+    /// materials beside lanes that `step` shades: the light, the last segment)
+    /// give each path the radiance it gets traced alone by the scalar `step`, bit
+    /// for bit, with Russian roulette, and under an environment map as well.
+    #[test]
+    fn plain_lanes_equal_paths_traced_one_by_one() {
+        let (scene, options) = plain_cornell(10, 8, 20);
+        let integrator = PathIntegrator::new(&scene, options.depth, true);
+        assert!(integrator.plain.iter().filter(|&&p| p).count() >= 3);
+        assert!(integrator.plain.contains(&false));
+        let point_share = |i: &PathIntegrator| 1.0 - i.area_probability - i.environment_probability;
+        assert!(point_share(&integrator) > 0.1 && integrator.area_probability > 0.1);
+        assert_batches_equal_single_paths(&scene, &options, &integrator);
+        let integrator = under_a_sky(integrator, &scene);
+        assert!(point_share(&integrator) > 0.05);
         assert_batches_equal_single_paths(&scene, &options, &integrator);
     }
 }

@@ -511,12 +511,12 @@ impl WideBvh {
                         if live & (1 << ray) == 0 {
                             continue;
                         }
-                        let done = self.walk_lane::<CLOSEST, F, P>(
+                        let done = self.walk_lane::<CLOSEST, F>(
                             packet,
                             ray,
                             (current.child.index, 0.0),
                             t_max,
-                            (&mut leaf, &prefetch_leaf),
+                            &mut leaf,
                             lane_stack,
                         );
                         finished |= done;
@@ -629,18 +629,17 @@ impl WideBvh {
     /// entry is the greatest on the way). Returns the ray's bit if the leaf callback
     /// finished it.
     #[inline(always)]
-    fn walk_lane<const CLOSEST: bool, F, P>(
+    fn walk_lane<const CLOSEST: bool, F>(
         &self,
         packet: &RayPacket,
         lane: usize,
         (root, path_enter): (u32, Float),
         t_max: &mut f32x16,
-        (leaf, prefetch_leaf): (&mut F, &P),
+        leaf: &mut F,
         stack: &mut [MaybeUninit<LaneEntry>],
     ) -> u32
     where
         F: FnMut(u32, u32, u32, &mut f32x16, &f32x16) -> u32,
-        P: Fn(u32, u32),
     {
         let bit = 1u32 << lane;
         let ray = WideRay::from_parts(
@@ -648,7 +647,9 @@ impl WideBvh {
             packet.inv_dir.map(|d| d.as_array()[lane]),
         );
         let mut reach = t_max.as_array()[lane];
-        let done = self.walk_one::<CLOSEST, true>(
+        // No prefetching: asking for the leaves and nodes of a packet's lone rays
+        // measured no faster (0.998x on the field's camera packets).
+        let done = self.walk_one::<CLOSEST, false>(
             &ray,
             (root, path_enter),
             &mut reach,
@@ -658,7 +659,7 @@ impl WideBvh {
                 *reach = t_max.as_array()[lane];
                 done
             },
-            prefetch_leaf,
+            &|_, _| {},
             stack,
         );
         if done { bit } else { 0 }

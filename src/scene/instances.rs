@@ -5,9 +5,11 @@
 //! it is moved into the mesh's space and traced by the mesh's own single-ray walk.
 //! The packet, stream and batch queries walk the top level with a packet
 //! ([`Scene::closest_found_packet`], [`Instances::blockers_packet`]) and each copy
-//! it reaches with the packet moved into the mesh's space, with the answers of the
-//! single-ray queries bit for bit (scenes with cutouts go ray by ray). A scene
-//! without instances has no top level and runs the one-level walks it always did.
+//! it reaches with the packet moved into the mesh's space (for closest hits, a copy
+//! that only one or two of the packet's rays enter by each of them alone:
+//! [`ALONE`]), with the answers of the single-ray queries bit for bit (scenes with
+//! cutouts go ray by ray). A scene without instances has no top level and runs the
+//! one-level walks it always did.
 //!
 //! A ray `o + t d` in the world is `o' + t d'` in the mesh's space with
 //! `o' = M^-1 o` and `d' = M^-1 d` (not normalized), so distances are the world's

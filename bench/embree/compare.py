@@ -81,10 +81,12 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--instances", help="(N, 4, 4) float32 .npy of the instances SCENE places")
     parser.add_argument("--mesh", help="the PLY mesh those instances place")
+    parser.add_argument("--ours", help="our binary (default: target/release/raytracer; "
+                        "give $CARGO_TARGET_DIR/release/raytracer for another target dir)")
     args = parser.parse_args()
     if bool(args.instances) != bool(args.mesh):
         parser.error("--instances and --mesh go together")
-    ours_bin = ROOT / "target/release/raytracer"
+    ours_bin = Path(args.ours) if args.ours else ROOT / "target/release/raytracer"
     if not ours_bin.exists():
         sys.exit("compare.py: error: build target/release/raytracer first (cargo build --release)")
     embree_bin = ROOT / "bench/work/embree_bench"

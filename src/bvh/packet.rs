@@ -32,7 +32,8 @@ use std::mem::MaybeUninit;
 use wide::{f32x8, f32x16, u32x16};
 
 use super::wide::{
-    ChildRef, MIN_DIR_COMPONENT, PREFETCH_LINES, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH, WideRay,
+    ChildRef, MIN_DIR_COMPONENT, PREFETCH_LINES, RayQuery, SLAB_EXIT_SLACK, STACK_SIZE, WIDTH,
+    WideRay,
 };
 use super::{WideBvh, WideNode};
 use crate::math::{Float, Ray};
@@ -645,6 +646,81 @@ impl WideBvh {
             packet.origin.map(|o| o.as_array()[lane]),
             packet.inv_dir.map(|d| d.as_array()[lane]),
         );
+        let mut reach = t_max.as_array()[lane];
+        // No prefetching: asking for the leaves and nodes of a packet's lone rays
+        // measured no faster (0.998x on the field's camera packets).
+        let done = self.walk_one::<CLOSEST, false>(
+            &ray,
+            (root, path_enter),
+            &mut reach,
+            |first, count, path, reach| {
+                t_max.as_mut_array()[lane] = *reach;
+                let done = leaf(first, count, bit, t_max, &f32x16::splat(path)) != 0;
+                *reach = t_max.as_array()[lane];
+                done
+            },
+            &|_, _| {},
+            stack,
+        );
+        if done { bit } else { 0 }
+    }
+
+    /// The closest-hit walk of one ray with the rules of [`WideBvh::walk_packet_closest`]
+    /// rather than [`WideBvh::walk_ordered`]'s: boxes entered up to `t_max *
+    /// `[`CLOSEST_CULL_MARGIN`], and `leaf(first_item, item_count, path_enter, t_max)`
+    /// told the ray's greatest entry distance on its way (at least `path_enter`, the
+    /// entry into whatever box led here), so that the caller can tell, as the packet
+    /// walk's leaf tests do, a hit whose fate in the ray's own walk depends on the
+    /// order of its leaves. For a ray of a packet that enters an instance's mesh alone,
+    /// where sixteen lanes, a packet moved into the mesh's space and its bounds would
+    /// be work for one ray. `prefetch_leaf(first_item, item_count)` asks for a leaf's
+    /// items as soon as the leaf's parent is tested; nodes put on the stack are asked
+    /// for too.
+    #[inline(always)]
+    pub fn walk_closest_noting_entries<F, P>(
+        &self,
+        ray: &RayQuery,
+        path_enter: Float,
+        t_max: &mut Float,
+        mut leaf: F,
+        prefetch_leaf: P,
+    ) where
+        F: FnMut(u32, u32, Float, &mut Float),
+        P: Fn(u32, u32),
+    {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [const { MaybeUninit::<LaneEntry>::uninit() }; STACK_SIZE];
+        self.walk_one::<true, true>(
+            &WideRay::new(ray),
+            (0, path_enter),
+            t_max,
+            |first, count, path, t_max| {
+                leaf(first, count, path, t_max);
+                false
+            },
+            &prefetch_leaf,
+            &mut stack,
+        );
+    }
+
+    /// The walk of [`WideBvh::walk_lane`] and [`WideBvh::walk_closest_noting_entries`]:
+    /// one ray from node `root`, nearest first if `CLOSEST` (entering boxes up to its
+    /// `t_max` times [`CLOSEST_CULL_MARGIN`]), any-hit otherwise (up to `t_max`, not
+    /// included); `leaf(first_item, item_count, path, t_max)` returns `true` to stop.
+    /// With `PREFETCH`, the items of leaves met and the nodes pushed are asked for.
+    /// Returns whether the leaf callback stopped the walk.
+    #[inline(always)]
+    fn walk_one<const CLOSEST: bool, const PREFETCH: bool>(
+        &self,
+        ray: &WideRay,
+        (root, path_enter): (u32, Float),
+        t_max: &mut Float,
+        mut leaf: impl FnMut(u32, u32, Float, &mut Float) -> bool,
+        prefetch_leaf: &impl Fn(u32, u32),
+        stack: &mut [MaybeUninit<LaneEntry>],
+    ) -> bool {
         let margin = if CLOSEST { CLOSEST_CULL_MARGIN } else { 1.0 };
         let mut stack_len = 0usize;
         let mut current = (
@@ -657,13 +733,12 @@ impl WideBvh {
         loop {
             let (child, path) = current;
             if child.item_count > 0 {
-                let path = f32x16::splat(path);
-                if leaf(child.index, child.item_count, bit, t_max, &path) != 0 {
-                    return bit;
+                if leaf(child.index, child.item_count, path, t_max) {
+                    return true;
                 }
             } else {
                 let node = &self.nodes[child.index as usize];
-                let reach = t_max.as_array()[lane] * margin;
+                let reach = *t_max * margin;
                 let (mut hits, t_enter) = ray.hit_children::<CLOSEST>(node, reach);
                 let t_enter = t_enter.as_array();
                 let run_start = stack_len;
@@ -675,6 +750,16 @@ impl WideBvh {
                         index: node.child[slot],
                         item_count: node.item_count[slot],
                     };
+                    if PREFETCH {
+                        if entry.item_count > 0 {
+                            prefetch_leaf(entry.index, entry.item_count);
+                        } else {
+                            prefetch_lines(
+                                self.nodes.as_ptr().wrapping_add(entry.index as usize),
+                                PREFETCH_LINES,
+                            );
+                        }
+                    }
                     stack[stack_len].write((entry, t_enter[slot], path.max(t_enter[slot])));
                     stack_len += 1;
                 }
@@ -696,12 +781,12 @@ impl WideBvh {
             }
             loop {
                 if stack_len == 0 {
-                    return 0;
+                    return false;
                 }
                 stack_len -= 1;
                 // SAFETY: every entry below `stack_len` was written before.
                 let (next, t_enter, path) = unsafe { stack[stack_len].assume_init() };
-                if !CLOSEST || t_enter <= t_max.as_array()[lane] * margin {
+                if !CLOSEST || t_enter <= *t_max * margin {
                     current = (next, path);
                     break;
                 }

@@ -5,9 +5,11 @@
 //! it is moved into the mesh's space and traced by the mesh's own single-ray walk.
 //! The packet, stream and batch queries walk the top level with a packet
 //! ([`Scene::closest_found_packet`], [`Instances::blockers_packet`]) and each copy
-//! it reaches with the packet moved into the mesh's space, with the answers of the
-//! single-ray queries bit for bit (scenes with cutouts go ray by ray). A scene
-//! without instances has no top level and runs the one-level walks it always did.
+//! it reaches with the packet moved into the mesh's space (for closest hits, a copy
+//! that only one or two of the packet's rays enter by each of them alone:
+//! [`ALONE`]), with the answers of the single-ray queries bit for bit (scenes with
+//! cutouts go ray by ray). A scene without instances has no top level and runs the
+//! one-level walks it always did.
 //!
 //! A ray `o + t d` in the world is `o' + t d'` in the mesh's space with
 //! `o' = M^-1 o` and `d' = M^-1 d` (not normalized), so distances are the world's
@@ -100,6 +102,10 @@ pub(super) enum Found {
     Flat(u32, usize, PrimHit),
     Copy(u32, u32, usize, PrimHit),
 }
+
+/// Up to how many of a packet's rays entering a copy go through it one by one
+/// ([`Scene::nearest_alone`]) rather than as the packet moved into the mesh's space.
+const ALONE: u32 = 2;
 
 /// The top level's parameters: one instance per leaf (a leaf's instances are each a
 /// whole walk of a mesh's BVH, so the SAH prices each on its own).
@@ -473,6 +479,24 @@ impl Scene {
                 for index in first..first + count {
                     let placed = &instances.placed[index as usize];
                     let mesh = &instances.meshes[placed.mesh as usize];
+                    if reached.count_ones() <= ALONE {
+                        // Each ray through the copy on its own, moved as the packet
+                        // would move it, with the packet walk's tie rules.
+                        for ray in lanes_of(reached) {
+                            let local = placed.ray_in_object(&rays[ray]);
+                            let limit = &mut t_max.as_mut_array()[ray];
+                            let mut nearest = None;
+                            let path = path.as_array()[ray];
+                            let order_matters =
+                                mesh.nearest_alone(&local, path, limit, &mut nearest);
+                            ties |= u32::from(order_matters) << ray;
+                            if nearest.is_some() {
+                                copies[ray] = nearest;
+                                which[ray] = index;
+                            }
+                        }
+                        continue;
+                    }
                     let local = placed.packet_in_object(&packet);
                     let before = *t_max;
                     ties |= mesh.nearest_packet(
@@ -509,6 +533,36 @@ impl Scene {
                 Some(Found::Flat(packet, lane, hit))
             }
         })
+    }
+
+    /// The closest hit of `ray` (in this level's space) nearer than `t_max`, which it
+    /// lowers, into `nearest` (left alone if none): the walk of a copy that one ray
+    /// of a packet enters alone ([`WideBvh::walk_closest_noting_entries`], the
+    /// packet walk's rules for one ray). Returns whether the ray's answer could
+    /// depend on the order of the walk (a hit at exactly `t_max`, or one nearer than
+    /// a box entry on its way, `path` the entry into the copy's world box): such a
+    /// ray is traced again alone.
+    #[inline(always)]
+    fn nearest_alone(
+        &self,
+        ray: &Ray,
+        path: Float,
+        t_max: &mut Float,
+        nearest: &mut Option<(u32, usize, PrimHit)>,
+    ) -> bool {
+        let lanes = PacketRay::new(ray);
+        let mut order_matters = false;
+        self.wide.walk_closest_noting_entries(
+            &RayQuery::new(ray),
+            path,
+            t_max,
+            |first, count, entry, t_max| {
+                order_matters |=
+                    self.nearest_in_leaf_noting_order(&lanes, first, count, entry, t_max, nearest);
+            },
+            |first, count| self.prefetch_packets(first, count),
+        );
+        order_matters
     }
 
     /// [`Scene::intersect_object`] in a scene with instances: a copy's object is its
@@ -819,14 +873,10 @@ mod tests {
         }
     }
 
-    /// Copies of one flat grid in one plane (shifted by quarter cells, turned a
-    /// quarter turn, mirrored: placements whose inverses are exact), so that rays
-    /// straight down meet several copies at exactly the same distance, on different
-    /// triangles and sides: each packet and array query still gives each ray the
-    /// copy its single-ray walk finds first.
-    #[test]
-    fn packets_keep_single_rays_answers_where_copies_tie() {
-        let n = 12u32;
+    /// A flat grid of `n x n` unit cells in the plane `y = 0` (two triangles a
+    /// cell), from the origin along +x and +z: rays straight down meet its shared
+    /// edges and vertices, where triangles tie.
+    fn flat_grid(n: u32) -> SceneDescription {
         let mut mesh = SceneDescription::default();
         for j in 0..=n {
             for i in 0..=n {
@@ -845,20 +895,31 @@ mod tests {
                 }
             }
         }
+        mesh
+    }
+
+    /// Placements of a `size x size` flat grid whose copies overlap it exactly in
+    /// its plane, with inverses that are exact: itself, shifted by a quarter cell,
+    /// turned a quarter turn about y back over the same square, and mirrored in x
+    /// (whose front is the grid's back); each moved by `offset`.
+    fn overlapping_placements(size: Float, offset: Vec3) -> [Affine3A; 4] {
+        let shift = Affine3A::from_translation(offset);
+        [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(0.25, 0.0, 0.5)),
+            Affine3A::from_cols(Vec3A::Z, Vec3A::Y, -Vec3A::X, Vec3A::new(0.0, 0.0, size)),
+            Affine3A::from_cols(-Vec3A::X, Vec3A::Y, Vec3A::Z, Vec3A::new(size, 0.0, 0.0)),
+        ]
+        .map(|m| shift * m)
+    }
+
+    /// A scene placing `flat_grid(n)` by each of `placements`.
+    fn grid_scene(n: u32, placements: impl IntoIterator<Item = Affine3A>) -> Scene {
         let mut d = SceneDescription {
             materials: vec![crate::material::Material::named("grey")],
             ..SceneDescription::default()
         };
-        d.meshes.push(mesh);
-        let size = n as Float;
-        let placements = [
-            Affine3A::IDENTITY,
-            Affine3A::from_translation(Vec3::new(0.25, 0.0, 0.5)),
-            // A quarter turn about y, back over the same square.
-            Affine3A::from_cols(Vec3A::Z, Vec3A::Y, -Vec3A::X, Vec3A::new(0.0, 0.0, size)),
-            // Mirrored in x: its front is the grid's back.
-            Affine3A::from_cols(-Vec3A::X, Vec3A::Y, Vec3A::Z, Vec3A::new(size, 0.0, 0.0)),
-        ];
+        d.meshes.push(flat_grid(n));
         for world_from_object in placements {
             d.instances.push(InstanceDesc {
                 mesh: 0,
@@ -868,22 +929,20 @@ mod tests {
         }
         let scene = Scene::build(d, &BvhParams::default());
         assert!(!scene.ray_by_ray);
-        // Packets of sixteen neighbouring rays straight down through vertices,
-        // edges and faces, from several heights.
-        let rays: Vec<Ray> = (0..64 * 16)
-            .map(|k| {
-                let (x, z) = ((k % 47) as Float * 0.25, (k / 16 % 45) as Float * 0.25);
-                Ray::new(Vec3::new(x, 1.0 + (k / 16 % 3) as Float, z), -Vec3::Y)
-            })
-            .collect();
+        scene
+    }
+
+    /// The packet queries' answers for packets of `rays` (16 at a time) against the
+    /// single-ray queries', bit for bit; returns how many rays hit.
+    fn check_packets_against_single_rays(scene: &Scene, rays: &[Ray]) -> usize {
         let mut found = vec![None; rays.len()];
-        scene.intersect_primitives(&rays, &mut found);
+        scene.intersect_primitives(rays, &mut found);
         let mut hit_count = 0;
         for (chunk, found) in rays.chunks(16).zip(found.chunks(16)) {
             let mut hits = [None; 16];
-            scene.intersect_packet(chunk, &mut hits);
+            scene.intersect_packet(chunk, &mut hits[..chunk.len()]);
             let mut ids = [0; 16];
-            scene.intersect_primitive_packet(chunk, &mut ids);
+            scene.intersect_primitive_packet(chunk, &mut ids[..chunk.len()]);
             for (k, ray) in chunk.iter().enumerate() {
                 let single = scene.intersect(ray);
                 assert_eq!(format!("{:?}", hits[k]), format!("{single:?}"), "ray {k}");
@@ -893,7 +952,67 @@ mod tests {
                 hit_count += usize::from(single.is_some());
             }
         }
+        hit_count
+    }
+
+    /// Copies of one flat grid in one plane (shifted by quarter cells, turned a
+    /// quarter turn, mirrored: placements whose inverses are exact), so that rays
+    /// straight down meet several copies at exactly the same distance, on different
+    /// triangles and sides: each packet and array query still gives each ray the
+    /// copy its single-ray walk finds first.
+    #[test]
+    fn packets_keep_single_rays_answers_where_copies_tie() {
+        let n = 12u32;
+        let scene = grid_scene(n, overlapping_placements(n as Float, Vec3::ZERO));
+        // Packets of sixteen neighbouring rays straight down through vertices,
+        // edges and faces, from several heights.
+        let rays: Vec<Ray> = (0..64 * 16)
+            .map(|k| {
+                let (x, z) = ((k % 47) as Float * 0.25, (k / 16 % 45) as Float * 0.25);
+                Ray::new(Vec3::new(x, 1.0 + (k / 16 % 3) as Float, z), -Vec3::Y)
+            })
+            .collect();
+        let hit_count = check_packets_against_single_rays(&scene, &rays);
         assert!(hit_count > rays.len() * 9 / 10, "{hit_count} hits");
+    }
+
+    /// Copies that one or two of a packet's rays enter alone (sixteen groups of the
+    /// overlapping copies of a small grid, far apart, each group reached by one ray
+    /// of a packet, or by two) are walked ray by ray with the packet walk's tie
+    /// rules: rays through the grids' shared edges and vertices, where copies and
+    /// triangles tie, get their single-ray answers bit for bit.
+    #[test]
+    fn rays_entering_a_copy_alone_keep_single_rays_answers() {
+        let n = 2u32;
+        let group = |g: u32| Vec3::new(10.0 * (g % 4) as Float, 0.0, 10.0 * (g / 4) as Float);
+        let scene = grid_scene(
+            n,
+            (0..16).flat_map(|g| overlapping_placements(n as Float, group(g))),
+        );
+        // Points of a grid cell: a vertex, edge middles, a diagonal point, a face.
+        let spots = [
+            (1.0, 1.0),
+            (0.5, 1.0),
+            (1.0, 0.5),
+            (0.5, 0.5),
+            (0.25, 1.5),
+            (1.75, 0.25),
+        ];
+        let mut rays = Vec::new();
+        for (round, &(x, z)) in spots.iter().enumerate() {
+            for alone in [true, false] {
+                for k in 0..16u32 {
+                    // One ray per group, or two (rays k and k + 8 share a group).
+                    let g = if alone { k } else { k % 8 };
+                    let (dx, dz) = if alone || k < 8 { (x, z) } else { (z, x) };
+                    let height = 1.0 + ((round as u32 + k) % 3) as Float;
+                    let origin = group(g) + Vec3::new(dx, height, dz);
+                    rays.push(Ray::new(origin, -Vec3::Y));
+                }
+            }
+        }
+        let hit_count = check_packets_against_single_rays(&scene, &rays);
+        assert_eq!(hit_count, rays.len());
     }
 
     /// A packet moved into an instance's space holds, lane by lane, the rays

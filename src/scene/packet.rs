@@ -23,9 +23,9 @@ use crate::bvh::{PACKET_SIZE, RayPacket, lane_mask, lanes_of};
 use crate::math::{Float, Ray};
 use crate::shapes::{LANES, PacketRay, PrimHit, Shape, TrianglePacket, triangle_across_rays};
 
-/// Up to how many rays reaching a leaf are tested ray by ray, four triangles at once
-/// (the single-ray kernel), rather than sixteen rays at once per triangle: with few
-/// rays, most of the sixteen lanes would be idle.
+/// Up to how many rays reaching a leaf are tested ray by ray, as single rays test
+/// a leaf (its two packets' eight triangles at once), rather than sixteen rays at
+/// once per triangle: with few rays, most of the sixteen lanes would be idle.
 const FEW_RAYS: u32 = 3;
 
 /// The closest hit of one ray as the packet and lane of its primitive.
@@ -34,7 +34,7 @@ pub(super) type LaneHit = Option<(u32, usize, PrimHit)>;
 impl Scene {
     /// Asks the cache for the triangle packets `first..first + count` of a leaf.
     #[inline(always)]
-    fn prefetch_packets(&self, first: u32, count: u32) {
+    pub(super) fn prefetch_packets(&self, first: u32, count: u32) {
         for packet in &self.packets[first as usize..(first + count) as usize] {
             crate::memory::prefetch_lines(packet, crate::bvh::PREFETCH_LINES);
         }
@@ -234,23 +234,35 @@ impl Scene {
                 Some(outer) => path_here.fast_max(outer),
                 None => *path_here,
             };
+            if reached.count_ones() <= FEW_RAYS {
+                // The whole leaf ray by ray, as a single ray's walk tests it (its
+                // two packets in one eight-lane test), noting what the order of the
+                // walk could change.
+                let path = path.as_array();
+                for ray in lanes_of(reached) {
+                    let lanes = PacketRay::new(&ray_of(ray));
+                    let limit = &mut t_max.as_mut_array()[ray];
+                    let mut nearest = None;
+                    let order_matters = self.nearest_in_leaf_noting_order(
+                        &lanes,
+                        first,
+                        count,
+                        path[ray],
+                        limit,
+                        &mut nearest,
+                    );
+                    ties |= u32::from(order_matters) << ray;
+                    if nearest.is_some() {
+                        best[ray] = nearest;
+                    }
+                }
+                return;
+            }
             for packet_index in first..first + count {
                 let prims = &self.packets[packet_index as usize];
                 if prims.holds_spheres() {
                     ties |=
                         nearest_spheres(prims, packet_index, ray_of, reached, t_max, path, best);
-                    continue;
-                }
-                if reached.count_ones() <= FEW_RAYS {
-                    ties |= nearest_triangles_ray_by_ray(
-                        prims,
-                        packet_index,
-                        ray_of,
-                        reached,
-                        t_max,
-                        path,
-                        best,
-                    );
                     continue;
                 }
                 for lane in 0..LANES {
@@ -342,39 +354,6 @@ fn offer(
     } else {
         u32::from(hit.t == limits[ray]) << ray
     }
-}
-
-/// The triangle packet `prims` (index `packet_index`) for the rays of `reached`, one
-/// ray at a time with the four-lane kernel, lanes in order as the sixteen-ray path
-/// takes them: lowers `t_max` and records closer hits in `best`; returns the rays
-/// whose answer depends on the visiting order (a hit at exactly their `t_max`, or one
-/// before `path`, their greatest box entry).
-#[inline(always)]
-fn nearest_triangles_ray_by_ray(
-    prims: &TrianglePacket,
-    packet_index: u32,
-    ray_of: impl Fn(usize) -> Ray,
-    reached: u32,
-    t_max: &mut f32x16,
-    path: &f32x16,
-    best: &mut [LaneHit; PACKET_SIZE],
-) -> u32 {
-    let mut ties = 0;
-    let path = path.as_array();
-    let limits = t_max.as_mut_array();
-    for ray in lanes_of(reached) {
-        // `next_up`: also report hits at exactly `t_max`, ties.
-        let (hits, t, u, v) = prims.hits(&PacketRay::new(&ray_of(ray)), limits[ray].next_up());
-        for lane in lanes_of(hits) {
-            let hit = PrimHit {
-                t: t[lane],
-                u: u[lane],
-                v: v[lane],
-            };
-            ties |= offer(ray, (packet_index, lane, hit), limits, path, best);
-        }
-    }
-    ties
 }
 
 /// The rays of `open` that a sphere of `prims` blocks before their `t_max`.

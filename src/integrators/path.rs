@@ -334,10 +334,6 @@ impl PathIntegrator {
                 if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
                     light.radiance = environment.sampled_radiance(&sample);
                 }
-                // The light point lies `light.distance` along `light.direction` from
-                // the hit point: a little less from the offset origin.
-                let shadow_ray = hit.spawn_unit_ray(light.direction);
-                let distance = light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
                 rays.shadow += 1;
                 let weight = if light.delta {
                     1.0
@@ -348,8 +344,7 @@ impl PathIntegrator {
                     * f
                     * light.radiance
                     * (light.direction.dot(hit.ns).abs() * weight / light.pdf);
-                // The light's own surface must not block the ray to it.
-                shadow = Some((shadow_ray, distance * (1.0 - 1e-3)));
+                shadow = Some(shadow_ray_towards(&hit, &light));
             }
         }
 
@@ -594,13 +589,10 @@ impl PathIntegrator {
             if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
                 light.radiance = environment.sampled_radiance(&sample);
             }
-            let shadow_ray = hit.spawn_unit_ray(light.direction);
-            let distance = light.distance - (shadow_ray.origin - hit.p).dot(light.direction);
             rays.shadow += 1;
             paths[lane].unoccluded =
                 unoccluded.lane(lane) * light.radiance * scale.as_array()[lane];
-            shadow_rays[lane] = shadow_ray;
-            shadow_t[lane] = distance * (1.0 - 1e-3);
+            (shadow_rays[lane], shadow_t[lane]) = shadow_ray_towards(hit, &light);
             shadowed |= 1 << lane;
         }
 
@@ -852,6 +844,17 @@ fn power_heuristic(pdf: Float, other: Float) -> Float {
     } else {
         0.0
     }
+}
+
+/// The shadow ray from `hit` towards the light point of `light`, and the distance it
+/// must clear: the point lies `light.distance` along `light.direction` from the hit
+/// point, a little less from the offset origin, and the light's own surface must not
+/// block the ray to it.
+#[inline(always)]
+fn shadow_ray_towards(hit: &Hit, light: &LightSample) -> (Ray, Float) {
+    let ray = hit.spawn_unit_ray(light.direction);
+    let distance = light.distance - (ray.origin - hit.p).dot(light.direction);
+    (ray, distance * (1.0 - 1e-3))
 }
 
 /// [`power_heuristic`] of sixteen lanes.

@@ -178,10 +178,19 @@ fn materials_map_base_colour_metal_roughness_emission_and_the_alpha_mask() {
         assert_eq!((cutout.factor, cutout.cutoff), (0.3, 0.5));
         assert!(!cutout.blend);
         assert!(!cutout.keeps(Vec2::new(0.5, 0.5), 0, 0));
-        // Metal: no diffuse, the base colour as specular colour; roughness 0.5 is
-        // alpha 0.25, Ns = 2 / alpha^2 - 2 = 30.
-        assert_eq!(metal.diffuse, Vec3::ZERO);
-        assert!(close(metal.specular, Vec3::new(0.9, 0.6, 0.3)));
+        // Metal: roughness 0.5 is alpha 0.25, Ns = 2 / alpha^2 - 2 = 30; the base
+        // colour is split between the highlight (1 - alpha) and the diffuse (alpha).
+        let base = Vec3::new(0.9, 0.6, 0.3);
+        assert!(
+            close(metal.diffuse, base * 0.25),
+            "{name}: {}",
+            metal.diffuse
+        );
+        assert!(
+            close(metal.specular, base * 0.75),
+            "{name}: {}",
+            metal.specular
+        );
         assert!((metal.shininess - 30.0).abs() < 1e-3);
     }
 }

@@ -5,7 +5,7 @@
 
 use crate::support;
 
-use support::write_png;
+use support::{render, write_png};
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -661,4 +661,50 @@ Kd = 0.5
             ),
         ]
     );
+}
+
+#[test]
+fn full_mode_shows_a_fully_rough_metal_as_a_diffuser_not_a_black_mirror() {
+    // glTF's defaults (metallic 1, roughness 1) make such a metal: it scatters as
+    // broadly as a rough plastic of its colour, so full mode's default rig must light
+    // it as it lights that plastic, with no black rim around a highlight.
+    let fixture = Fixture::new();
+    let scene = |name: &str, metallic: u32| {
+        let path = fixture.0.path().join(format!("{name}.toml"));
+        let toml = format!(
+            "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n\
+             [materials.m]\nbase_color = 0.8\nmetallic = {metallic}\nroughness = 1\n"
+        );
+        std::fs::write(&path, toml).unwrap();
+        path
+    };
+    let (metal, plastic) = (scene("metal", 1), scene("plastic", 0));
+    let size = ["--width", "40", "--height", "40"];
+    let out = |name: &str| fixture.0.path().join(format!("{name}.png"));
+    let normals = render(
+        &metal,
+        &out("normal"),
+        &[&size[..], &["--mode", "normal"]].concat(),
+    );
+    let metal = render(&metal, &out("metal"), &size);
+    let plastic = render(&plastic, &out("plastic"), &size);
+    let hit = |x: usize, y: usize| normals[(y * 40 + x) * 3..][..3].iter().any(|&c| c > 0);
+    let brightness =
+        |image: &[u8], i: usize| image[i * 3..][..3].iter().map(|&c| c as u32).sum::<u32>();
+    let mut inner = 0;
+    for y in 1..39 {
+        for x in 1..39 {
+            // Inside the disc, away from its anti-aliased rim.
+            if !(hit(x, y) && hit(x - 1, y) && hit(x + 1, y) && hit(x, y - 1) && hit(x, y + 1)) {
+                continue;
+            }
+            inner += 1;
+            let (m, p) = (
+                brightness(&metal, y * 40 + x),
+                brightness(&plastic, y * 40 + x),
+            );
+            assert!(10 * m >= 8 * p, "pixel ({x}, {y}): metal {m}, plastic {p}");
+        }
+    }
+    assert!(inner > 400, "the sphere covers {inner} inner pixels");
 }

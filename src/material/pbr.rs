@@ -239,16 +239,17 @@ impl PbrValues {
     }
 
     /// The Phong material full mode shows for these values (documented in
-    /// `docs/scene-format.md`): `Kd` is the base colour the dielectric part diffuses
-    /// (`base * (1 - metallic) * (1 - transmission)`), `Ks` the reflectance at normal
-    /// incidence (the dielectric's `f0`, turning into the base colour as the
-    /// material turns metal, so that a metal keeps its colour in its highlights), and
-    /// `Ns` the exponent whose highlight is as wide as a GGX lobe of
-    /// `alpha = roughness^2` (Walter et al. 2007: `Ns = 2 / alpha^2 - 2`), at least
-    /// 1: below it (roughness above 0.84) SPEC's `max(0, cos)^Ns` adds `Ks` nearly
-    /// flat wherever a light reaches, and a rough metal, all `Ks`, would show no
-    /// shape (the default light rig drops such a highlight altogether: the metal
-    /// came out black). The ambient and emission are left as they are.
+    /// `docs/scene-format.md`). With `alpha = roughness^2`: `Ks` is the reflectance
+    /// at normal incidence (the dielectric's `f0`, turning into the base colour as
+    /// the material turns metal, so that a metal keeps its colour in its
+    /// highlights), less the part `alpha` of the metal's, which goes to `Kd` beside
+    /// what the dielectric base diffuses (`base * (1 - metallic) * (1 - transmission)`);
+    /// `Ns` is the exponent whose highlight is as wide as a GGX lobe of that `alpha`
+    /// (Walter et al. 2007: `Ns = 2 / alpha^2 - 2`), at least 1. A rough metal
+    /// scatters broadly, as a diffuser does; in `Ks` alone, with a lobe of exponent 1
+    /// around the mirror direction, it came out as a black mirror with a grey
+    /// highlight wherever the light was not behind the eye. The ambient and emission
+    /// are left as they are.
     pub fn phong(&self, values: &mut SurfaceValues) {
         let alpha_squared = self.roughness.powi(4);
         values.shininess = if alpha_squared > 0.0 {
@@ -256,8 +257,11 @@ impl PbrValues {
         } else {
             MAX_SHININESS
         };
-        values.diffuse = self.base_color * ((1.0 - self.metallic) * (1.0 - self.transmission));
-        values.specular = self.dielectric_f0().lerp(self.base_color, self.metallic);
+        let alpha = self.roughness * self.roughness;
+        let metal = self.base_color * self.metallic;
+        values.diffuse =
+            self.base_color * ((1.0 - self.metallic) * (1.0 - self.transmission)) + metal * alpha;
+        values.specular = self.dielectric_f0() * (1.0 - self.metallic) + metal * (1.0 - alpha);
     }
 }
 
@@ -310,16 +314,20 @@ mod tests {
         };
         let mut values = blank();
         gold.constants().phong(&mut values);
-        assert_eq!(values.diffuse, Vec3::ZERO);
-        assert_eq!(values.specular, gold.base_color);
+        // alpha = 0.09 of the metal diffuses, the rest stays in the highlight: both
+        // in the base colour, which they add up to.
+        let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 1e-6;
+        assert!(close(values.specular, gold.base_color * 0.91), "{values:?}");
+        assert!(close(values.diffuse, gold.base_color * 0.09), "{values:?}");
         assert!(values.shininess > 200.0);
     }
 
     #[test]
-    fn the_roughest_metal_keeps_a_cosine_highlight() {
-        // Roughness 1 gives Walter's exponent 0: flat `Ks` in SPEC's formula, which
-        // the default rig drops (a black model). The approximation stops at 1.
+    fn the_roughest_metal_diffuses_its_colour() {
+        // Roughness 1 scatters broadly: all of the metal goes to `Kd`, none to a
+        // highlight around the mirror direction (which showed a black mirror).
         let rough = PbrMaterial {
+            base_color: Vec3::new(0.9, 0.6, 0.2),
             metallic: 1.0,
             roughness: 1.0,
             ..PbrMaterial::default()
@@ -327,7 +335,8 @@ mod tests {
         let mut values = blank();
         rough.constants().phong(&mut values);
         assert_eq!(values.shininess, 1.0);
-        assert_eq!(values.specular, Vec3::ONE);
+        assert_eq!(values.specular, Vec3::ZERO);
+        assert_eq!(values.diffuse, rough.base_color);
         // Smoother surfaces keep Walter's exponent: roughness 0.5 gives 2/0.0625 - 2.
         let half = PbrMaterial {
             roughness: 0.5,
@@ -338,6 +347,12 @@ mod tests {
             (values.shininess - 30.0).abs() < 1e-3,
             "{}",
             values.shininess
+        );
+        assert!(
+            (values.diffuse - half.base_color * 0.25)
+                .abs()
+                .max_element()
+                < 1e-6
         );
     }
 }

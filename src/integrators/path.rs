@@ -1156,6 +1156,51 @@ mod tests {
         assert_batches_equal_single_paths(&scene, &options, &integrator);
     }
 
+    /// Sixteen rays' origins at once (`spawn_offsets`, `spawn_origins`) are
+    /// `Hit::spawn_unit_ray`'s, lane by lane and bit for bit, for points near and
+    /// far from the origin and directions on both sides of the surface.
+    #[test]
+    fn sixteen_spawned_origins_are_each_hits() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as Float / (1u64 << 24) as Float - 0.5
+        };
+        for batch in 0..100 {
+            let hits: [Hit; BATCH] = std::array::from_fn(|lane| {
+                let scale = [0.01, 0.9, 3.0, 250.0][(batch + lane) % 4];
+                let n = Vec3::new(next(), next(), next()).normalize();
+                Hit {
+                    t: 1.0,
+                    p: Vec3::new(next(), next(), next()) * scale,
+                    n,
+                    ns: n,
+                    uv: Vec2::ZERO,
+                    coat_ns: Vec3::ZERO,
+                    colour: Vec3::ONE,
+                    material: crate::material::MaterialId(0),
+                    front: true,
+                }
+            });
+            let dirs: [Vec3; BATCH] =
+                std::array::from_fn(|_| Vec3::new(next(), next(), next()).normalize());
+            let p = V3::from_vecs(&hits.map(|h| h.p));
+            let n = V3::from_vecs(&hits.map(|h| h.n));
+            let origins = spawn_origins(p, n, spawn_offsets(p), V3::from_vecs(&dirs));
+            for (lane, hit) in hits.iter().enumerate() {
+                let expected = hit.spawn_unit_ray(dirs[lane]).origin;
+                assert_eq!(
+                    origins.lane(lane).to_array().map(Float::to_bits),
+                    expected.to_array().map(Float::to_bits),
+                    "lane {lane}: {hit:?} towards {}",
+                    dirs[lane]
+                );
+            }
+        }
+    }
+
     /// The Cornell box with its walls and blocks plain glTF materials (metals,
     /// dielectrics and a blend, of several roughnesses), its area light as it is
     /// and a point light beside it (light sampling picks either).

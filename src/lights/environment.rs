@@ -236,9 +236,23 @@ impl Environment {
     /// [`Environment::radiance`] of a leaving path's direction.
     #[inline]
     pub fn radiance_leaving(&self, leaving: &Leaving) -> Vec3 {
+        self.radiance_at(leaving.uv)
+    }
+
+    /// The radiance at map coordinates `uv` (of a constant environment, anywhere).
+    #[inline(always)]
+    fn radiance_at(&self, uv: Vec2) -> Vec3 {
         match &self.radiance {
             Radiance::Constant(c) => *c * self.strength,
-            Radiance::Map(map) => self.texel_radiance(map.bilinear(leaving.uv)),
+            Radiance::Map(map) => self.texel_radiance(map.bilinear(uv)),
+        }
+    }
+
+    /// Starts fetching the texels [`Environment::radiance_at`] reads at `uv`.
+    #[inline(always)]
+    fn prefetch_at(&self, uv: Vec2) {
+        if let Radiance::Map(map) = &self.radiance {
+            map.prefetch_texels(uv);
         }
     }
 
@@ -352,18 +366,13 @@ impl Environment {
     /// [`Environment::sample_map`] drew ([`Environment::sampled_radiance`]).
     #[inline]
     pub fn map_sample_radiance(&self, sample: &MapSample) -> Vec3 {
-        match &self.radiance {
-            Radiance::Constant(c) => *c * self.strength,
-            Radiance::Map(map) => self.texel_radiance(map.bilinear(sample.uv)),
-        }
+        self.radiance_at(sample.uv)
     }
 
     /// Starts fetching the texels [`Environment::map_sample_radiance`] reads.
     #[inline]
     pub fn prefetch_map_sample(&self, sample: &MapSample) {
-        if let Radiance::Map(map) = &self.radiance {
-            map.prefetch_texels(sample.uv);
-        }
+        self.prefetch_at(sample.uv);
     }
 
     /// Starts fetching what [`Environment::sample_direction`] reads from memory for
@@ -381,19 +390,14 @@ impl Environment {
     /// `sample`, to be read after other work.
     #[inline]
     pub fn prefetch_radiance(&self, sample: &DirectionSample) {
-        if let Radiance::Map(map) = &self.radiance {
-            map.prefetch_texels(sample.uv);
-        }
+        self.prefetch_at(sample.uv);
     }
 
     /// The radiance arriving along a direction [`Environment::sample_direction`]
     /// drew.
     #[inline]
     pub fn sampled_radiance(&self, sample: &DirectionSample) -> Vec3 {
-        match &self.radiance {
-            Radiance::Constant(c) => *c * self.strength,
-            Radiance::Map(map) => self.texel_radiance(map.bilinear(sample.uv)),
-        }
+        self.radiance_at(sample.uv)
     }
 
     /// The density in solid angle with which [`Environment::sample`] picks `d`.
@@ -957,6 +961,17 @@ mod tests {
         assert!(away >= 0.1 * toward, "{away}");
     }
 
+    /// Uniform numbers in `[0, 1)` from Marsaglia's xorshift generator seeded with
+    /// `state`.
+    fn xorshift(mut state: u64) -> impl FnMut() -> Float {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as Float / (1u64 << 24) as Float
+        }
+    }
+
     /// Sixteen map points turned into directions at once (`directions_of`) give
     /// what `sample_direction` gives each, lane by lane and bit for bit (a lane
     /// mixed up or computed otherwise fails), over a turned map, poles included.
@@ -967,13 +982,7 @@ mod tests {
             strength: 1.0,
             rotation_degrees: 37.0,
         });
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         for batch in 0..200 {
             let u: [Vec2; 16] = std::array::from_fn(|lane| match (batch, lane) {
                 (0, 0) => Vec2::ZERO,
@@ -1030,13 +1039,7 @@ mod tests {
         // The estimate of the irradiance on an upward plane: its mean over many
         // samples must equal a quadrature, and sampled directions must carry their
         // own pdf.
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
         // The sun as the rotated environment shows it.
         let seen_sun = env.map_to_world(sun);
         let n = 200_000;
@@ -1123,13 +1126,7 @@ mod tests {
         }
         let total: f64 = expected.iter().sum();
         assert!((total - 1.0).abs() < 1e-3, "the pdf integrates to {total}");
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         let n = 200_000;
         let mut counts = vec![0u32; texels];
         for _ in 0..n {

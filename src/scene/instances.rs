@@ -7,9 +7,11 @@
 //! ([`Scene::closest_found_packet`], [`Instances::blockers_packet`]) and each copy
 //! it reaches with the packet moved into the mesh's space (for closest hits, a copy
 //! that only one or two of the packet's rays enter by each of them alone:
-//! [`ALONE`]), with the answers of the single-ray queries bit for bit (scenes with
-//! cutouts go ray by ray). A scene without instances has no top level and runs the
-//! one-level walks it always did.
+//! [`ALONE`]); arrays of incoherent rays walk it as a stream, each copy a ray
+//! reaches by that ray alone ([`Scene::intersect_primitives_instanced_streamed`],
+//! [`Scene::occluded_instanced_streamed`]). All give the answers of the single-ray
+//! queries bit for bit (scenes with cutouts go ray by ray). A scene without
+//! instances has no top level and runs the one-level walks it always did.
 //!
 //! A ray `o + t d` in the world is `o' + t d'` in the mesh's space with
 //! `o' = M^-1 o` and `d' = M^-1 d` (not normalized), so distances are the world's

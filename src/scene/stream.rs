@@ -6,8 +6,9 @@
 //! few lights), its rays are sorted into packets of up to sixteen nearly parallel
 //! rays and traced as the renderer traces its 4x4 tiles ([`Scene::occluded_packet`],
 //! the closest-hit packet walk). Other chunks go down the tree together, 64 rays at
-//! a time ([`WideBvh::walk_stream_closest`], [`WideBvh::walk_stream_any`]), short
-//! runs ray by ray. Every way gives the answers of [`Scene::intersect_primitive`]
+//! a time ([`WideBvh::walk_stream_closest`], [`WideBvh::walk_stream_any`]; in a
+//! scene with instances, the top level so and each copy ray by ray), short runs ray
+//! by ray. Every way gives the answers of [`Scene::intersect_primitive`]
 //! and [`Scene::occluded`], bit for bit.
 //!
 //! [`WideBvh::walk_stream_closest`]: crate::bvh::WideBvh::walk_stream_closest

@@ -261,8 +261,9 @@ impl RayPacket {
     }
 }
 
-/// A pending child of a packet walk: what it is, which rays go there, the least
-/// entry distance among them, and where its box is (slot `slot` of node `parent`), so
+/// A pending child of a packet walk: what it is, which rays go there, a distance
+/// no greater than any of their entries into its box (the packet frustum's entry,
+/// by which a closest-hit walk orders and culls), and where its box is (slot `slot` of node `parent`), so
 /// that a closest-hit walk can test a leaf's box again, with the rays' `t_max` of
 /// the time it gets there, rather than keep sixteen entry distances per entry.
 #[derive(Clone, Copy, Debug)]
@@ -537,13 +538,21 @@ impl WideBvh {
                     }
                     let reach_max =
                         reduce_max(ray_lanes.bitselect(reach, f32x16::splat(Float::NEG_INFINITY)));
-                    let mut used = frustum.hit_children::<CLOSEST>(node, reach_max).0;
+                    // The frustum's entry into each box, no greater than any of the
+                    // packet's rays' (its bounds hold them all), orders and culls the
+                    // children: a closest-hit walk may visit a ray's leaves in any
+                    // order and culls only boxes beyond every ray's reach, and the
+                    // least of sixteen exact entries per child cost camera packets
+                    // 3-5% (the 10,000-dragon field and the one dragon).
+                    let (mut used, frustum_enter) =
+                        frustum.hit_children::<CLOSEST>(node, reach_max);
+                    let frustum_enter = frustum_enter.to_array();
                     let run_start = stack_len;
                     while used != 0 {
                         let slot = used.trailing_zeros() as usize;
                         used &= used - 1;
                         let slot_planes = [0, 1, 2, 3, 4, 5].map(|p| planes[p][slot]);
-                        let (hit, t_enter) = packet.hit_child::<CLOSEST>(&slot_planes, reach);
+                        let (hit, _) = packet.hit_child::<CLOSEST>(&slot_planes, reach);
                         let hit = hit & ray_lanes;
                         let hits = hit.to_bitmask();
                         // Written whether or not a ray hits, and kept only if one does:
@@ -555,11 +564,7 @@ impl WideBvh {
                                 item_count: node.item_count[slot],
                             },
                             rays: hits,
-                            t_enter: if CLOSEST {
-                                reduce_min(hit.bitselect(t_enter, f32x16::splat(Float::INFINITY)))
-                            } else {
-                                0.0
-                            },
+                            t_enter: if CLOSEST { frustum_enter[slot] } else { 0.0 },
                             parent: current.child.index,
                             slot: slot as u32,
                         });

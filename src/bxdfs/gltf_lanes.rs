@@ -71,8 +71,9 @@ impl V3 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
+    /// Per channel sum.
     #[inline(always)]
-    fn add(self, o: V3) -> V3 {
+    pub fn plus(self, o: V3) -> V3 {
         V3 {
             x: self.x + o.x,
             y: self.y + o.y,
@@ -80,8 +81,9 @@ impl V3 {
         }
     }
 
+    /// Per channel difference.
     #[inline(always)]
-    fn sub(self, o: V3) -> V3 {
+    pub fn minus(self, o: V3) -> V3 {
         V3 {
             x: self.x - o.x,
             y: self.y - o.y,
@@ -152,7 +154,7 @@ impl V3 {
     /// glam's `lerp`: `self (1 - s) + rhs s`.
     #[inline(always)]
     fn lerp(self, rhs: V3, s: F) -> V3 {
-        self.scale(F::ONE - s).add(rhs.scale(s))
+        self.scale(F::ONE - s).plus(rhs.scale(s))
     }
 }
 
@@ -207,7 +209,7 @@ fn schlick_weight(cos: F) -> F {
 /// `f0 + (f90 - f0) w`, [`GltfAt`](super::gltf::GltfAt)'s dielectric Fresnel.
 #[inline(always)]
 fn fresnel(f0: V3, f90: F, w: F) -> V3 {
-    f0.add(
+    f0.plus(
         V3 {
             x: f90 - f0.x,
             y: f90 - f0.y,
@@ -220,7 +222,7 @@ fn fresnel(f0: V3, f90: F, w: F) -> V3 {
 /// `base + (1 - base) w`, the metal's Fresnel.
 #[inline(always)]
 fn metal_fresnel(base: V3, w: F) -> V3 {
-    base.add(V3::splat(Vec3::ONE).sub(base).scale(w))
+    base.plus(V3::splat(Vec3::ONE).minus(base).scale(w))
 }
 
 /// The `mean` of [`super::gltf`].
@@ -272,8 +274,8 @@ impl Frames {
     fn to_world(self, v: V3) -> V3 {
         self.t
             .scale(v.x)
-            .add(self.b.scale(v.y))
-            .add(self.n.scale(v.z))
+            .plus(self.b.scale(v.y))
+            .plus(self.n.scale(v.z))
     }
 }
 
@@ -419,6 +421,12 @@ impl PlainVertices {
         self.frames.n
     }
 
+    /// The unit geometric normals, in the world.
+    #[inline(always)]
+    pub fn geometric_normals(&self) -> V3 {
+        self.ng
+    }
+
     /// [`super::BsdfAt::has_smooth_lobes`], as a lane mask.
     #[inline(always)]
     pub fn has_smooth_lobes(&self) -> F {
@@ -441,7 +449,7 @@ impl PlainVertices {
     /// `GltfAt::plain_eval_pdf` for local `wi` with `wi.z > 0`.
     #[inline(always)]
     fn local_eval_pdf(&self, wi: V3) -> (V3, F) {
-        let h = self.wo.add(wi).normalize();
+        let h = self.wo.plus(wi).normalize();
         let (d, specular) = self.d_dv(h, wi);
         let pdf_diffuse = self.p_diffuse * (wi.z * F::splat(FRAC_1_PI));
         let specular_pdf = self
@@ -496,7 +504,7 @@ impl PlainVertices {
         let diffuse = self
             .base
             .scale((F::ONE - fd.max_element()) * F::splat(FRAC_1_PI));
-        let dielectric = fd.scale(specular).add(diffuse);
+        let dielectric = fd.scale(specular).plus(diffuse);
         let metal = metal_fresnel(self.base, w).scale(specular);
         dielectric.lerp(metal, self.metallic)
     }
@@ -526,7 +534,7 @@ impl PlainVertices {
         }
         .normalize();
         let o = wo.dot(h);
-        let reflected = h.scale(o + o).sub(wo);
+        let reflected = h.scale(o + o).minus(wo);
         let specular_ok = reflected.z.simd_gt(F::ZERO) & o.simd_gt(F::ZERO);
         let metal = self.p_diffuse.simd_eq(F::ZERO);
         // A metal's: `D` for the density alone.

@@ -43,7 +43,7 @@ use crate::lights::environment::{
 use crate::material::{LightKind, Material};
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
-use crate::scene::{BATCH, Hit, Scene};
+use crate::scene::{BATCH, Hit, SPAWN_OFFSET, Scene};
 use crate::stats::RayCounts;
 use std::f32::consts::PI;
 use wide::f32x16;
@@ -204,6 +204,20 @@ impl PathIntegrator {
         }
         self
     }
+}
+
+/// The light that light sampling takes ([`PathIntegrator::pick_light`]).
+#[derive(Clone, Copy, Debug)]
+enum LightPick {
+    /// The environment.
+    Environment,
+    /// An area light, picked among them by the value.
+    Area(Float),
+    /// The scene's point light `index` (or spot or directional light), with the
+    /// probability of picking it.
+    Point { index: usize, probability: Float },
+    /// None: the scene has no light to sample.
+    Nothing,
 }
 
 /// One path in flight: where it goes next and what it has gathered.
@@ -433,27 +447,22 @@ impl PathIntegrator {
         u_pick: Float,
         u: Vec2,
     ) -> Option<(LightSample, Option<DirectionSample>)> {
+        self.sample_picked(scene, from, self.pick_light(u_pick), u)
+    }
+
+    /// Which light light sampling takes by `u_pick`, by power.
+    #[inline(always)]
+    fn pick_light(&self, u_pick: Float) -> LightPick {
         let (p_environment, p_area) = (self.environment_probability, self.area_probability);
         if u_pick < p_environment {
-            let sample = self.environment.as_ref()?.sample_direction(u)?;
-            let light = LightSample {
-                point: from + sample.direction,
-                direction: sample.direction,
-                distance: Float::INFINITY,
-                radiance: Vec3::ZERO,
-                pdf: sample.pdf * p_environment,
-                delta: false,
-            };
-            return Some((light, Some(sample)));
+            return LightPick::Environment;
         }
         let u_pick = u_pick - p_environment;
         if u_pick < p_area {
-            let mut light = scene.area_lights.sample(from, u_pick / p_area, u)?;
-            light.pdf *= p_area;
-            return Some((light, None));
+            return LightPick::Area(u_pick / p_area);
         }
         if self.point_cdf.is_empty() {
-            return None;
+            return LightPick::Nothing;
         }
         let p_points = 1.0 - p_environment - p_area;
         let u_point = ((u_pick - p_area) / p_points).clamp(0.0, 1.0);
@@ -466,38 +475,76 @@ impl PathIntegrator {
         } else {
             self.point_cdf[index - 1]
         };
-        let probability = p_points * (self.point_cdf[index] - below);
-        let light = &scene.lights[index];
-        let incident = light.incident(from)?;
-        if probability <= 0.0 {
-            return None;
+        LightPick::Point {
+            index,
+            probability: p_points * (self.point_cdf[index] - below),
         }
-        // A point or spot gives `I / d^2` times its falloff, a directional light its
-        // illuminance `E` from infinitely far away.
-        let spread = if incident.distance.is_finite() {
-            incident.distance * incident.distance
-        } else {
-            1.0
-        };
-        let light = LightSample {
-            point: light.position,
-            direction: incident.direction,
-            distance: incident.distance,
-            radiance: light.intensity * (incident.falloff / spread),
-            pdf: probability,
-            delta: true,
-        };
-        Some((light, None))
+    }
+
+    /// [`PathIntegrator::sample_light`] of the light `pick` names.
+    #[inline(always)]
+    fn sample_picked(
+        &self,
+        scene: &Scene,
+        from: Vec3,
+        pick: LightPick,
+        u: Vec2,
+    ) -> Option<(LightSample, Option<DirectionSample>)> {
+        match pick {
+            LightPick::Environment => {
+                let sample = self.environment.as_ref()?.sample_direction(u)?;
+                let light = LightSample {
+                    point: from + sample.direction,
+                    direction: sample.direction,
+                    distance: Float::INFINITY,
+                    radiance: Vec3::ZERO,
+                    pdf: sample.pdf * self.environment_probability,
+                    delta: false,
+                };
+                Some((light, Some(sample)))
+            }
+            LightPick::Area(u_area) => {
+                let mut light = scene.area_lights.sample(from, u_area, u)?;
+                light.pdf *= self.area_probability;
+                Some((light, None))
+            }
+            LightPick::Point { index, probability } => {
+                let light = &scene.lights[index];
+                let incident = light.incident(from)?;
+                if probability <= 0.0 {
+                    return None;
+                }
+                // A point or spot gives `I / d^2` times its falloff, a directional
+                // light its illuminance `E` from infinitely far away.
+                let spread = if incident.distance.is_finite() {
+                    incident.distance * incident.distance
+                } else {
+                    1.0
+                };
+                let light = LightSample {
+                    point: light.position,
+                    direction: incident.direction,
+                    distance: incident.distance,
+                    radiance: light.intensity * (incident.falloff / spread),
+                    pdf: probability,
+                    delta: true,
+                };
+                Some((light, None))
+            }
+            LightPick::Nothing => None,
+        }
     }
 
     /// [`PathIntegrator::step`] of the lanes of `alive` whose hit is plain (an
     /// untextured, unlit plain glTF material, the path outside any volume and not
     /// at its last segment), sixteen lanes per instruction: the BSDF's value and
     /// density towards the light and its sample in [`gltf_lanes`], the MIS weight,
-    /// the light's contribution and Russian roulette here; light sampling, the rays
-    /// and the sample stream lane by lane, drawing what `step` draws in its order.
-    /// Returns the lanes it stepped, those of them with a shadow ray (set in
-    /// `shadow`) and those whose path ended.
+    /// the light's contribution, Russian roulette, the rays' origins and the
+    /// samples of plain point lights and of an environment map (after their picks
+    /// and alias lookups lane by lane) here; other light samples and the sample
+    /// stream lane by lane, drawing what `step` draws in its order. Returns the
+    /// lanes it stepped, those of them with a shadow ray (set in `shadow`) and
+    /// those whose path ended.
     #[inline(never)]
     fn step_plain(
         &self,
@@ -509,6 +556,7 @@ impl PathIntegrator {
         rays: &mut RayCounts,
     ) -> (u32, u32, u32) {
         let mut gather = PlainGather::default();
+        let mut points = V3Gather::splat(Vec3::ZERO);
         let mut plain = 0;
         for lane in lanes_of(alive) {
             let path = &paths[lane];
@@ -523,6 +571,7 @@ impl PathIntegrator {
             if let Bsdf::Gltf(g) = &self.scattering[material]
                 && gather.set(lane, g, -path.ray.dir, hit.ns, hit.n)
             {
+                points.set(lane, hit.p);
                 plain |= 1 << lane;
             }
         }
@@ -532,13 +581,25 @@ impl PathIntegrator {
         let mut throughput = V3Gather::splat(Vec3::ZERO);
         let mut eta = [1.0; LANES];
         let mut roulette = [0.0; LANES];
-        let mut lights = [None; LANES];
-        let mut light_direction = V3Gather::splat(Vec3::Z);
-        let mut light_pdf = [1.0; LANES];
-        let (mut lit, mut delta) = (0u32, 0u32);
         let mut u_lobe = [0.0; LANES];
         let mut u_direction = [[0.0; LANES]; 2];
         let mut u_survive = [0.0; LANES];
+        // Light samples, by kind: a plain point light's (position, intensity and
+        // probability gathered) and an environment map's (its map point) are
+        // finished below sixteen at a time, any other (`others`) here.
+        let (mut point_lanes, mut map_lanes) = (0u32, 0u32);
+        let mut point_position = V3Gather::splat(Vec3::ZERO);
+        let mut point_intensity = V3Gather::splat(Vec3::ZERO);
+        let mut point_probability = [0.0; LANES];
+        let mut map_samples = [None; LANES];
+        let mut map_uv = [[0.5; LANES]; 2];
+        let mut map_density = [0.0; LANES];
+        let mut others = [None; LANES];
+        let mut other_direction = V3Gather::splat(Vec3::Z);
+        let mut other_pdf = [1.0; LANES];
+        let mut other_distance = [0.0; LANES];
+        let (mut other_lanes, mut other_delta) = (0u32, 0u32);
+        let map = (self.environment.as_ref()).filter(|environment| !environment.is_constant());
         for lane in lanes_of(plain) {
             let path = &mut paths[lane];
             let Some(hit) = &hits[lane] else { continue };
@@ -558,42 +619,113 @@ impl PathIntegrator {
             }
             // (Sampled whatever the BSDF: it has smooth lobes but where it
             // scatters nothing, which the lanes' mask below leaves out.)
-            if let Some((light, deferred)) = self.sample_light(scene, hit.p, u_pick, u_light) {
-                if let (Some(sample), Some(environment)) = (&deferred, &self.environment) {
-                    environment.prefetch_radiance(sample);
+            match (self.pick_light(u_pick), map) {
+                (LightPick::Point { index, probability }, _)
+                    if scene.lights[index].is_plain_point() =>
+                {
+                    let light = &scene.lights[index];
+                    point_position.set(lane, light.position);
+                    point_intensity.set(lane, light.intensity);
+                    point_probability[lane] = probability;
+                    point_lanes |= 1 << lane;
                 }
-                light_direction.set(lane, light.direction);
-                light_pdf[lane] = light.pdf;
-                lit |= 1 << lane;
-                delta |= u32::from(light.delta) << lane;
-                lights[lane] = Some((light, deferred));
+                (LightPick::Environment, Some(environment)) => {
+                    if let Some(sample) = environment.sample_map(u_light) {
+                        // Read after the BSDF's value, if that is not zero.
+                        environment.prefetch_map_sample(&sample);
+                        (map_uv[0][lane], map_uv[1][lane]) = (sample.uv.x, sample.uv.y);
+                        map_density[lane] = sample.density;
+                        map_samples[lane] = Some(sample);
+                        map_lanes |= 1 << lane;
+                    }
+                }
+                (pick, _) => {
+                    if let Some((light, deferred)) = self.sample_picked(scene, hit.p, pick, u_light)
+                    {
+                        if let (Some(sample), Some(environment)) = (&deferred, &self.environment) {
+                            environment.prefetch_radiance(sample);
+                        }
+                        other_direction.set(lane, light.direction);
+                        other_pdf[lane] = light.pdf;
+                        other_distance[lane] = light.distance;
+                        other_lanes |= 1 << lane;
+                        other_delta |= u32::from(light.delta) << lane;
+                        others[lane] = Some((light, deferred));
+                    }
+                }
             }
         }
 
+        // The light samples' directions, densities and distances: `Light::incident`
+        // and `sample_picked` of plain point lights, `Environment::sample_direction`
+        // of map points.
+        let p = points.load();
+        let to_light = point_position.load().minus(p);
+        let point_distance = to_light.dot(to_light).sqrt();
+        let point_probability = f32x16::from(point_probability);
+        let is_normal = point_distance.simd_ge(f32x16::splat(Float::MIN_POSITIVE))
+            & point_distance.simd_lt(f32x16::splat(Float::INFINITY));
+        let point =
+            gltf_lanes::mask(point_lanes) & is_normal & point_probability.simd_gt(f32x16::ZERO);
+        let mut direction =
+            V3::select(point, to_light.over(point_distance), other_direction.load());
+        let mut light_pdf = point.select(point_probability, f32x16::from(other_pdf));
+        let mut distance = point.select(point_distance, f32x16::from(other_distance));
+        let mut on_map = f32x16::ZERO;
+        if let (Some(environment), true) = (map, map_lanes != 0) {
+            let (d, pdf) = environment.directions_of(map_uv.map(f32x16::from), map_density.into());
+            on_map = gltf_lanes::mask(map_lanes) & pdf.simd_gt(f32x16::ZERO) & pdf.is_finite();
+            let d = V3 {
+                x: d[0],
+                y: d[1],
+                z: d[2],
+            };
+            direction = V3::select(on_map, d, direction);
+            let pdf = pdf * f32x16::splat(self.environment_probability);
+            light_pdf = on_map.select(pdf, light_pdf);
+            distance = on_map.select(f32x16::splat(Float::INFINITY), distance);
+        }
+        let delta = gltf_lanes::mask(other_delta) | point;
+        let lit = other_lanes | point.to_bitmask() | on_map.to_bitmask();
+
         // Next-event estimation: `step`'s, sixteen lanes at a time.
         let vertices = gather.at();
-        let direction = light_direction.load();
         let (f, bsdf_pdf) = vertices.eval_and_pdf(direction);
         let throughput = throughput.load();
-        let light_pdf = f32x16::from(light_pdf);
-        let weight =
-            gltf_lanes::mask(delta).select(f32x16::ONE, power_heuristic_lanes(light_pdf, bsdf_pdf));
-        let unoccluded = throughput.times(f);
+        let weight = delta.select(f32x16::ONE, power_heuristic_lanes(light_pdf, bsdf_pdf));
         let scale = direction.dot(vertices.shading_normals()).abs() * weight / light_pdf;
         let lit = lit & (vertices.has_smooth_lobes() & f.nonzero()).to_bitmask();
-        let mut shadowed = 0;
-        for lane in lanes_of(lit) {
-            let (Some((mut light, deferred)), Some(hit)) = (lights[lane], &hits[lane]) else {
-                continue;
+        // The light arriving: a point light's `I / d^2`, the others' looked up.
+        let mut radiance = V3Gather::splat(Vec3::ZERO);
+        for lane in lanes_of(lit & !point.to_bitmask()) {
+            let looked_up = match (&others[lane], &map_samples[lane], &self.environment) {
+                (Some((light, None)), _, _) => light.radiance,
+                (Some((_, Some(sample))), _, Some(environment)) => {
+                    environment.sampled_radiance(sample)
+                }
+                (None, Some(sample), Some(environment)) => environment.map_sample_radiance(sample),
+                _ => Vec3::ZERO,
             };
-            if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
-                light.radiance = environment.sampled_radiance(&sample);
-            }
+            radiance.set(lane, looked_up);
+        }
+        let point_radiance = point_intensity
+            .load()
+            .scale(f32x16::ONE / (point_distance * point_distance));
+        let radiance = V3::select(point, point_radiance, radiance.load());
+        let unoccluded = throughput.times(f).times(radiance).scale(scale);
+        // `shadow_ray_towards`.
+        let n = vertices.geometric_normals();
+        let offset = spawn_offsets(p);
+        let origin = spawn_origins(p, n, offset, direction);
+        let clear = (distance - origin.minus(p).dot(direction)) * f32x16::splat(1.0 - 1e-3);
+        for lane in lanes_of(lit) {
             rays.shadow += 1;
-            paths[lane].unoccluded =
-                unoccluded.lane(lane) * light.radiance * scale.as_array()[lane];
-            (shadow_rays[lane], shadow_t[lane]) = shadow_ray_towards(hit, &light);
-            shadowed |= 1 << lane;
+            paths[lane].unoccluded = unoccluded.lane(lane);
+            shadow_rays[lane] = Ray {
+                origin: origin.lane(lane),
+                dir: direction.lane(lane),
+            };
+            shadow_t[lane] = clear.as_array()[lane];
         }
 
         // Scattering and Russian roulette.
@@ -609,19 +741,22 @@ impl PathIntegrator {
         let throughput = V3::select(roulette & survives, throughput.over(keep), throughput);
         let goes_on = sampled.valid & carries & (!roulette | survives);
         let (valid, goes_on) = (sampled.valid.to_bitmask(), goes_on.to_bitmask());
+        // `Hit::spawn_unit_ray`.
+        let origin = spawn_origins(p, n, offset, sampled.wi);
         for lane in lanes_of(plain & valid) {
-            let (path, Some(hit)) = (&mut paths[lane], &hits[lane]) else {
-                continue;
-            };
+            let path = &mut paths[lane];
             path.throughput = throughput.lane(lane);
             path.previous_delta = false;
             path.previous_pdf = sampled.pdf.as_array()[lane];
-            path.previous_point = hit.p;
-            path.ray = hit.spawn_unit_ray(sampled.wi.lane(lane));
+            path.previous_point = p.lane(lane);
+            path.ray = Ray {
+                origin: origin.lane(lane),
+                dir: sampled.wi.lane(lane),
+            };
             rays.scattered += 1;
             path.depth += 1;
         }
-        (plain, shadowed, plain & !goes_on)
+        (plain, lit, plain & !goes_on)
     }
 
     /// Traces the paths `paths[..count]` to their ends together: each step's rays,
@@ -857,6 +992,32 @@ fn shadow_ray_towards(hit: &Hit, light: &LightSample) -> (Ray, Float) {
     (ray, distance * (1.0 - 1e-3))
 }
 
+/// How far [`Hit::spawn_ray`] moves the origins of rays leaving the sixteen hit
+/// points `p` off their surfaces: `SPAWN_OFFSET` times the largest coordinate's
+/// magnitude, at least 1.
+#[inline(always)]
+fn spawn_offsets(p: V3) -> f32x16 {
+    let largest = V3 {
+        x: p.x.abs(),
+        y: p.y.abs(),
+        z: p.z.abs(),
+    }
+    .max_element();
+    f32x16::splat(SPAWN_OFFSET) * largest.max(f32x16::ONE)
+}
+
+/// `Hit::offset_origin` of sixteen lanes: the origins of rays leaving the points `p`
+/// of geometric normals `n` along `dir`, `offset` ([`spawn_offsets`]) off the
+/// surface on the side `dir` leaves towards.
+#[inline(always)]
+fn spawn_origins(p: V3, n: V3, offset: f32x16, dir: V3) -> V3 {
+    let side = dir
+        .dot(n)
+        .simd_ge(f32x16::ZERO)
+        .select(f32x16::ONE, -f32x16::ONE);
+    p.plus(n.scale(side * offset))
+}
+
 /// [`power_heuristic`] of sixteen lanes.
 #[inline(always)]
 fn power_heuristic_lanes(pdf: f32x16, other: f32x16) -> f32x16 {
@@ -993,6 +1154,51 @@ mod tests {
         let integrator = PathIntegrator::new(&scene, options.depth, true);
         let integrator = under_a_sky(integrator, &scene);
         assert_batches_equal_single_paths(&scene, &options, &integrator);
+    }
+
+    /// Sixteen rays' origins at once (`spawn_offsets`, `spawn_origins`) are
+    /// `Hit::spawn_unit_ray`'s, lane by lane and bit for bit, for points near and
+    /// far from the origin and directions on both sides of the surface.
+    #[test]
+    fn sixteen_spawned_origins_are_each_hits() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as Float / (1u64 << 24) as Float - 0.5
+        };
+        for batch in 0..100 {
+            let hits: [Hit; BATCH] = std::array::from_fn(|lane| {
+                let scale = [0.01, 0.9, 3.0, 250.0][(batch + lane) % 4];
+                let n = Vec3::new(next(), next(), next()).normalize();
+                Hit {
+                    t: 1.0,
+                    p: Vec3::new(next(), next(), next()) * scale,
+                    n,
+                    ns: n,
+                    uv: Vec2::ZERO,
+                    coat_ns: Vec3::ZERO,
+                    colour: Vec3::ONE,
+                    material: crate::material::MaterialId(0),
+                    front: true,
+                }
+            });
+            let dirs: [Vec3; BATCH] =
+                std::array::from_fn(|_| Vec3::new(next(), next(), next()).normalize());
+            let p = V3::from_vecs(&hits.map(|h| h.p));
+            let n = V3::from_vecs(&hits.map(|h| h.n));
+            let origins = spawn_origins(p, n, spawn_offsets(p), V3::from_vecs(&dirs));
+            for (lane, hit) in hits.iter().enumerate() {
+                let expected = hit.spawn_unit_ray(dirs[lane]).origin;
+                assert_eq!(
+                    origins.lane(lane).to_array().map(Float::to_bits),
+                    expected.to_array().map(Float::to_bits),
+                    "lane {lane}: {hit:?} towards {}",
+                    dirs[lane]
+                );
+            }
+        }
     }
 
     /// The Cornell box with its walls and blocks plain glTF materials (metals,

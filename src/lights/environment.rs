@@ -15,6 +15,7 @@ use std::f32::consts::{FRAC_1_PI, PI};
 use std::sync::Arc;
 
 use glam::Vec4;
+use wide::f32x16;
 
 use crate::math::{Float, Vec2, Vec3};
 use crate::textures::{Encoding, Texture};
@@ -121,6 +122,16 @@ pub struct DirectionSample {
     uv: Vec2,
 }
 
+/// A point of an environment map drawn by light sampling
+/// ([`Environment::sample_map`]), not yet turned into a direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapSample {
+    /// Map coordinates.
+    pub uv: Vec2,
+    /// The density in `(u, v)` of the texel picked.
+    pub density: Float,
+}
+
 /// A direction leaving the scene towards the environment, with its map coordinates
 /// ([`Environment::leaving`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -225,9 +236,23 @@ impl Environment {
     /// [`Environment::radiance`] of a leaving path's direction.
     #[inline]
     pub fn radiance_leaving(&self, leaving: &Leaving) -> Vec3 {
+        self.radiance_at(leaving.uv)
+    }
+
+    /// The radiance at map coordinates `uv` (of a constant environment, anywhere).
+    #[inline(always)]
+    fn radiance_at(&self, uv: Vec2) -> Vec3 {
         match &self.radiance {
             Radiance::Constant(c) => *c * self.strength,
-            Radiance::Map(map) => self.texel_radiance(map.bilinear(leaving.uv)),
+            Radiance::Map(map) => self.texel_radiance(map.bilinear(uv)),
+        }
+    }
+
+    /// Starts fetching the texels [`Environment::radiance_at`] reads at `uv`.
+    #[inline(always)]
+    fn prefetch_at(&self, uv: Vec2) {
+        if let Radiance::Map(map) = &self.radiance {
+            map.prefetch_texels(uv);
         }
     }
 
@@ -302,6 +327,54 @@ impl Environment {
         })
     }
 
+    /// The first half of [`Environment::sample_direction`] for an image: the point of
+    /// the map that `u` picks and its texel's density in `(u, v)`, for a batch of
+    /// paths to turn into directions sixteen at a time
+    /// ([`Environment::directions_of`]); `None` for a black image, and for a
+    /// constant environment (which [`Environment::sample_direction`] samples alone).
+    #[inline]
+    pub fn sample_map(&self, u: Vec2) -> Option<MapSample> {
+        match &self.radiance {
+            Radiance::Constant(_) => None,
+            Radiance::Map(map) => map.sample(u).map(|(uv, density)| MapSample { uv, density }),
+        }
+    }
+
+    /// [`Environment::sample_direction`]'s second half for sixteen map points at once
+    /// (`u` and `v` and their texels' densities, lane by lane): the world directions'
+    /// `x`, `y` and `z`, and their densities in solid angle, lane for lane what
+    /// `sample_direction` gives, bit for bit (the sines and cosines from the `wide`
+    /// crate's same polynomial, sixteen lanes wide rather than two of four). A lane
+    /// whose density is not positive and finite has no sample.
+    #[inline(always)]
+    pub fn directions_of(&self, uv: [f32x16; 2], density: f32x16) -> ([f32x16; 3], f32x16) {
+        let phi = (uv[0] - f32x16::splat(0.5)) * f32x16::splat(2.0) * f32x16::splat(PI);
+        let latitude = (uv[1] - f32x16::splat(0.5)) * f32x16::splat(PI);
+        let (sin_lat, cos_lat) = latitude.sin_cos();
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        let pdf = density / (f32x16::splat(2.0 * PI * PI) * cos_lat);
+        let (x, y, z) = (cos_lat * cos_phi, sin_lat, cos_lat * sin_phi);
+        // `map_to_world`.
+        let (sin, cos) = (
+            f32x16::splat(self.rotation.0),
+            f32x16::splat(self.rotation.1),
+        );
+        ([x * cos + z * sin, y, -x * sin + z * cos], pdf)
+    }
+
+    /// The radiance arriving along the direction of a map point that
+    /// [`Environment::sample_map`] drew ([`Environment::sampled_radiance`]).
+    #[inline]
+    pub fn map_sample_radiance(&self, sample: &MapSample) -> Vec3 {
+        self.radiance_at(sample.uv)
+    }
+
+    /// Starts fetching the texels [`Environment::map_sample_radiance`] reads.
+    #[inline]
+    pub fn prefetch_map_sample(&self, sample: &MapSample) {
+        self.prefetch_at(sample.uv);
+    }
+
     /// Starts fetching what [`Environment::sample_direction`] reads from memory for
     /// `u` (for a large map, a slot of its alias table at random), without drawing
     /// anything: a path tracer asks for its batch's paths before shading them one by
@@ -317,19 +390,14 @@ impl Environment {
     /// `sample`, to be read after other work.
     #[inline]
     pub fn prefetch_radiance(&self, sample: &DirectionSample) {
-        if let Radiance::Map(map) = &self.radiance {
-            map.prefetch_texels(sample.uv);
-        }
+        self.prefetch_at(sample.uv);
     }
 
     /// The radiance arriving along a direction [`Environment::sample_direction`]
     /// drew.
     #[inline]
     pub fn sampled_radiance(&self, sample: &DirectionSample) -> Vec3 {
-        match &self.radiance {
-            Radiance::Constant(c) => *c * self.strength,
-            Radiance::Map(map) => self.texel_radiance(map.bilinear(sample.uv)),
-        }
+        self.radiance_at(sample.uv)
     }
 
     /// The density in solid angle with which [`Environment::sample`] picks `d`.
@@ -893,6 +961,65 @@ mod tests {
         assert!(away >= 0.1 * toward, "{away}");
     }
 
+    /// Uniform numbers in `[0, 1)` from Marsaglia's xorshift generator seeded with
+    /// `state`.
+    fn xorshift(mut state: u64) -> impl FnMut() -> Float {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as Float / (1u64 << 24) as Float
+        }
+    }
+
+    /// Sixteen map points turned into directions at once (`directions_of`) give
+    /// what `sample_direction` gives each, lane by lane and bit for bit (a lane
+    /// mixed up or computed otherwise fails), over a turned map, poles included.
+    #[test]
+    fn sixteen_directions_at_once_are_sample_directions() {
+        let environment = Environment::new(&EnvironmentDesc {
+            radiance: EnvironmentRadiance::Map(map(64, 32, |d| Vec3::new(1.0 + d.y, 0.5, 2.0))),
+            strength: 1.0,
+            rotation_degrees: 37.0,
+        });
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
+        for batch in 0..200 {
+            let u: [Vec2; 16] = std::array::from_fn(|lane| match (batch, lane) {
+                (0, 0) => Vec2::ZERO,
+                (0, 1) => Vec2::splat(1.0 - Float::EPSILON / 2.0),
+                _ => Vec2::new(next(), next()),
+            });
+            let samples = u.map(|u| environment.sample_map(u).unwrap());
+            let (d, pdf) = environment.directions_of(
+                [
+                    f32x16::from(samples.map(|s| s.uv.x)),
+                    f32x16::from(samples.map(|s| s.uv.y)),
+                ],
+                f32x16::from(samples.map(|s| s.density)),
+            );
+            for (lane, &u) in u.iter().enumerate() {
+                let expected = environment.sample_direction(u);
+                let pdf = pdf.as_array()[lane];
+                let got = Vec3::new(
+                    d[0].as_array()[lane],
+                    d[1].as_array()[lane],
+                    d[2].as_array()[lane],
+                );
+                match expected {
+                    Some(e) => {
+                        assert_eq!(
+                            got.to_array().map(Float::to_bits),
+                            e.direction.to_array().map(Float::to_bits),
+                            "lane {lane}: {u}"
+                        );
+                        assert_eq!(pdf.to_bits(), e.pdf.to_bits(), "lane {lane}: {u}");
+                    }
+                    None => assert!(!(pdf > 0.0 && pdf.is_finite()), "lane {lane}: {u}: {pdf}"),
+                }
+            }
+        }
+    }
+
     #[test]
     fn sampling_follows_the_pdf_and_favours_the_sun() {
         // A dim sky with a bright 2-degree-ish sun.
@@ -912,13 +1039,7 @@ mod tests {
         // The estimate of the irradiance on an upward plane: its mean over many
         // samples must equal a quadrature, and sampled directions must carry their
         // own pdf.
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
         // The sun as the rotated environment shows it.
         let seen_sun = env.map_to_world(sun);
         let n = 200_000;
@@ -1005,13 +1126,7 @@ mod tests {
         }
         let total: f64 = expected.iter().sum();
         assert!((total - 1.0).abs() < 1e-3, "the pdf integrates to {total}");
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         let n = 200_000;
         let mut counts = vec![0u32; texels];
         for _ in 0..n {

@@ -7,9 +7,11 @@
 //! ([`Scene::closest_found_packet`], [`Instances::blockers_packet`]) and each copy
 //! it reaches with the packet moved into the mesh's space (for closest hits, a copy
 //! that only one or two of the packet's rays enter by each of them alone:
-//! [`ALONE`]), with the answers of the single-ray queries bit for bit (scenes with
-//! cutouts go ray by ray). A scene without instances has no top level and runs the
-//! one-level walks it always did.
+//! [`ALONE`]); arrays of incoherent rays walk it as a stream, each copy a ray
+//! reaches by that ray alone ([`Scene::intersect_primitives_instanced_streamed`],
+//! [`Scene::occluded_instanced_streamed`]). All give the answers of the single-ray
+//! queries bit for bit (scenes with cutouts go ray by ray). A scene without
+//! instances has no top level and runs the one-level walks it always did.
 //!
 //! A ray `o + t d` in the world is `o' + t d'` in the mesh's space with
 //! `o' = M^-1 o` and `d' = M^-1 d` (not normalized), so distances are the world's
@@ -22,7 +24,7 @@ use glam::{Affine3A, Mat3A};
 use wide::f32x16;
 
 use super::*;
-use crate::bvh::{PACKET_SIZE, RayPacket, WIDTH, WideNode, lanes_of};
+use crate::bvh::{PACKET_SIZE, RayPacket, STREAM_RAYS, WIDTH, WideNode, lanes_of};
 use crate::description::InstanceDesc;
 
 /// The instances of a two-level scene and the meshes they place.
@@ -565,6 +567,107 @@ impl Scene {
         order_matters
     }
 
+    /// [`Scene::intersect_primitive`] of each of `rays` (at most [`STREAM_RAYS`])
+    /// into `hits`, bit for bit: each ray's flat level first, then the top level
+    /// walked by the rays together ([`WideBvh::walk_stream_closest`]: each node's
+    /// memory and test once for all the rays that reach it, as Embree's stream
+    /// calls walk), each copy a ray reaches by that ray alone with the packet walk's
+    /// tie rules ([`Scene::nearest_alone`], the copy's box entry counted on its
+    /// way). A ray whose answer could depend on the order of the walk is traced
+    /// again alone.
+    pub(super) fn intersect_primitives_instanced_streamed(
+        &self,
+        instances: &Instances,
+        rays: &[Ray],
+        hits: &mut [Option<(u32, PrimHit)>],
+    ) {
+        debug_assert!(rays.len() <= STREAM_RAYS && rays.len() == hits.len());
+        let mut flat = [None; STREAM_RAYS];
+        let mut t_max = [Float::INFINITY; STREAM_RAYS];
+        let mut queries = [RayQuery::new(&rays[0]); STREAM_RAYS];
+        for (i, ray) in rays.iter().enumerate() {
+            flat[i] = self.closest_lane(ray);
+            t_max[i] = flat[i].map_or(Float::INFINITY, |(_, _, hit)| hit.t);
+            queries[i] = RayQuery::new(ray);
+        }
+        let count = rays.len();
+        let mut copies = [None; STREAM_RAYS];
+        // The instance of each ray's nearest copy hit, if any.
+        let mut which = [u32::MAX; STREAM_RAYS];
+        let mut order_matters = 0u64;
+        instances.top.walk_stream_closest(
+            &queries[..count],
+            &mut t_max[..count],
+            &instances.placed,
+            |ray, first, count, entry, limit| {
+                for index in first..first + count {
+                    let placed = &instances.placed[index as usize];
+                    let mesh = &instances.meshes[placed.mesh as usize];
+                    let local = placed.ray_in_object(&rays[ray]);
+                    let mut nearest = None;
+                    if mesh.nearest_alone(&local, entry, limit, &mut nearest) {
+                        order_matters |= 1 << ray;
+                    }
+                    if nearest.is_some() {
+                        copies[ray] = nearest;
+                        which[ray] = index;
+                    }
+                }
+            },
+        );
+        for (ray, hit) in hits.iter_mut().enumerate() {
+            *hit = if order_matters >> ray & 1 != 0 {
+                self.intersect_primitive_instanced(instances, &rays[ray])
+            } else if let Some((packet, lane, found)) = copies[ray] {
+                self.found_prim(instances, Found::Copy(which[ray], packet, lane, found))
+            } else {
+                self.named(flat[ray])
+            };
+        }
+    }
+
+    /// [`Scene::occluded`] of each of `rays` (at most [`STREAM_RAYS`]) within its
+    /// reach `t_max[i]`, into `blocked`: each ray's flat level first, then the top
+    /// level walked by the rays it leaves open together
+    /// ([`WideBvh::walk_stream_any`]), each copy a ray reaches by that ray alone.
+    /// Any-hit answers do not depend on the order of the walk.
+    pub(super) fn occluded_instanced_streamed(
+        &self,
+        instances: &Instances,
+        rays: &[Ray],
+        t_max: &[Float],
+        blocked: &mut [bool],
+    ) {
+        debug_assert!(rays.len() <= STREAM_RAYS && rays.len() == blocked.len());
+        let mut reach = [Float::NEG_INFINITY; STREAM_RAYS];
+        let mut queries = [RayQuery::new(&rays[0]); STREAM_RAYS];
+        for (i, ray) in rays.iter().enumerate() {
+            blocked[i] = self.occluded_level(ray, t_max[i]);
+            // A ray the flat level blocks enters no box (every entry is at least 0).
+            if !blocked[i] {
+                reach[i] = t_max[i];
+            }
+            queries[i] = RayQuery::new(ray);
+        }
+        let count = rays.len();
+        let copies = instances.top.walk_stream_any(
+            &queries[..count],
+            &reach[..count],
+            &instances.placed,
+            |ray, first, count, t_max| {
+                instances.placed[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|placed| {
+                        let mesh = &instances.meshes[placed.mesh as usize];
+                        mesh.occluded_level(&placed.ray_in_object(&rays[ray]), t_max)
+                    })
+            },
+        );
+        for (ray, blocked) in blocked.iter_mut().enumerate() {
+            *blocked |= copies >> ray & 1 != 0;
+        }
+    }
+
     /// [`Scene::intersect_object`] in a scene with instances: a copy's object is its
     /// instance's (see [`Scene::object_names`]).
     #[inline(never)]
@@ -1013,6 +1116,69 @@ mod tests {
         }
         let hit_count = check_packets_against_single_rays(&scene, &rays);
         assert_eq!(hit_count, rays.len());
+    }
+
+    /// Arrays of incoherent rays walk the top level as a stream, each copy a ray
+    /// reaches by that ray alone: rays in every direction, and among them rays
+    /// straight down through the shared edges and vertices of overlapping copies
+    /// (which tie, on different triangles and sides), get their single-ray answers
+    /// bit for bit, closest hits and blockers alike.
+    #[test]
+    fn incoherent_arrays_through_the_top_level_keep_single_rays_answers() {
+        let n = 4u32;
+        let group = |g: u32| Vec3::new(6.0 * (g % 4) as Float, 0.0, 6.0 * (g / 4) as Float);
+        let scene = grid_scene(
+            n,
+            (0..16).flat_map(|g| overlapping_placements(n as Float, group(g))),
+        );
+        let instances = scene.instances.as_ref().unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(48);
+        let quarter = |rng: &mut rand::rngs::StdRng| rng.random_range(0..=4 * n) as Float * 0.25;
+        let rays: Vec<Ray> = (0..STREAM_RAYS * 24)
+            .map(|k| {
+                let height = rng.random_range(1..4) as Float;
+                let origin = group(rng.random_range(0..16))
+                    + Vec3::new(quarter(&mut rng), height, quarter(&mut rng));
+                if k % 3 == 0 {
+                    return Ray::new(origin, -Vec3::Y);
+                }
+                let target = Vec3::new(
+                    rng.random_range(-2.0..26.0),
+                    rng.random_range(-1.0..0.5),
+                    rng.random_range(-2.0..26.0),
+                );
+                Ray::new(origin, target - origin)
+            })
+            .collect();
+        let reach: Vec<Float> = rays.iter().map(|_| rng.random_range(0.5..4.0)).collect();
+        let (mut hit_count, mut blocked_count) = (0, 0);
+        for (rays, reach) in rays.chunks(STREAM_RAYS).zip(reach.chunks(STREAM_RAYS)) {
+            let mut found = [None; STREAM_RAYS];
+            scene.intersect_primitives_instanced_streamed(instances, rays, &mut found);
+            let mut blocked = [false; STREAM_RAYS];
+            scene.occluded_instanced_streamed(instances, rays, reach, &mut blocked);
+            for (k, ray) in rays.iter().enumerate() {
+                let single = scene.intersect_primitive(ray);
+                assert_eq!(found[k], single, "ray {k}: {ray:?}");
+                assert_eq!(blocked[k], scene.occluded(ray, reach[k]), "ray {k}");
+                hit_count += usize::from(single.is_some());
+                blocked_count += usize::from(blocked[k]);
+            }
+        }
+        assert!(hit_count > rays.len() / 2, "{hit_count} hits");
+        assert!(
+            blocked_count > rays.len() / 10 && blocked_count < hit_count,
+            "{blocked_count} blocked"
+        );
+        // The array queries take this walk for such arrays, with the same answers.
+        let mut found = vec![None; rays.len()];
+        scene.intersect_primitives(&rays, &mut found);
+        let mut blocked = vec![false; rays.len()];
+        scene.occluded_rays(&rays, &reach, &mut blocked);
+        for (k, ray) in rays.iter().enumerate() {
+            assert_eq!(found[k], scene.intersect_primitive(ray));
+            assert_eq!(blocked[k], scene.occluded(ray, reach[k]));
+        }
     }
 
     /// A packet moved into an instance's space holds, lane by lane, the rays

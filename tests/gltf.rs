@@ -710,3 +710,43 @@ fn gpu_instancing_with_mismatched_or_non_finite_attributes_is_an_error_naming_th
         "{error}"
     );
 }
+
+#[test]
+fn a_scene_without_nodes_is_an_empty_scene_not_an_error() {
+    // glTF 2.0 makes a scene's `nodes` optional (assimp's
+    // `TestNoRootNode/SceneWithoutNodes.gltf` is such a file).
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty.gltf");
+    std::fs::write(
+        &empty,
+        r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{}]}"#,
+    )
+    .unwrap();
+    let loaded = formats::load(&empty).unwrap_or_else(|e| panic!("{e}"));
+    assert!(loaded.description.triangles.is_empty());
+    // Beside a scene that has nodes, in a GLB: the binary chunk and the rest of the
+    // file are read as ever.
+    let (mut json, bin) =
+        crate::gltf_compression::split_glb(&std::fs::read(fixture("scene.glb")).unwrap());
+    let scene = json["scenes"][json["scene"].as_u64().unwrap_or(0) as usize].clone();
+    json["scenes"] = gltf::json::Value::Array(vec![
+        gltf::json::deserialize::from_str(r#"{"name": "no nodes"}"#).unwrap(),
+        scene,
+    ]);
+    json["scene"] = 1.into();
+    let two = dir.path().join("two.glb");
+    std::fs::write(&two, crate::gltf_compression::join_glb(&json, &bin)).unwrap();
+    let expected = formats::load(&fixture("scene.glb")).unwrap().description;
+    let read = formats::load(&two)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .description;
+    assert_eq!(read.triangles.len(), expected.triangles.len());
+    assert!(!read.triangles.is_empty());
+    assert_eq!(read.positions, expected.positions);
+    // A file the leniency does not mend keeps its own error.
+    let error = error_of(
+        "scenes.gltf",
+        br#"{"asset": {"version": "2.0"}, "scenes": 3}"#,
+    );
+    assert!(error.contains("not a valid glTF file"), "{error}");
+}

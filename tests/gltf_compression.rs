@@ -315,14 +315,14 @@ fn meshopt_files_render_as_the_uncompressed_source() {
 }
 
 /// A `.glb`'s JSON and binary chunk.
-fn split_glb(bytes: &[u8]) -> (Value, Vec<u8>) {
+pub(crate) fn split_glb(bytes: &[u8]) -> (Value, Vec<u8>) {
     let glb = gltf::binary::Glb::from_slice(bytes).unwrap();
     let json = gltf::json::deserialize::from_slice(&glb.json).unwrap();
     (json, glb.bin.unwrap().into_owned())
 }
 
 /// A `.glb` of `json` and `bin`.
-fn join_glb(json: &Value, bin: &[u8]) -> Vec<u8> {
+pub(crate) fn join_glb(json: &Value, bin: &[u8]) -> Vec<u8> {
     let mut text = gltf::json::serialize::to_vec(json).unwrap();
     text.resize(text.len().next_multiple_of(4), b' ');
     let mut bin = bin.to_vec();

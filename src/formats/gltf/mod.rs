@@ -75,16 +75,15 @@ pub fn parse_gltf_with(
         message,
     };
     let invalid = |e: gltf::Error| fail(format!("not a valid glTF file: {e}"));
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| match version_one(bytes) {
-            true => fail(
-                "a glTF 1.0 file: this renderer reads glTF 2.0; convert it first, for \
+    let gltf::Gltf { document, blob } = read_gltf(bytes).map_err(|e| match version_one(bytes) {
+        true => fail(
+            "a glTF 1.0 file: this renderer reads glTF 2.0; convert it first, for \
                      example with `npx gltf-pipeline -i FILE -o FILE.gltf` (gltf-pipeline \
                      upgrades 1.0 files)"
-                    .into(),
-            ),
-            false => invalid(e),
-        })?;
+                .into(),
+        ),
+        false => invalid(e),
+    })?;
     // The crate's validation indexes the POSITION accessor before checking that it
     // exists: check first.
     check_attribute_indices(document.as_json()).map_err(fail)?;
@@ -233,6 +232,40 @@ fn take_extension(object: &mut Value, name: &str) -> Option<Value> {
     (object.get_mut("extensions"))
         .and_then(|e| e.get_mut(name))
         .map(Value::take)
+}
+
+/// The `gltf` crate's document and binary chunk of a `.gltf` or `.glb`, unvalidated.
+/// glTF 2.0 lets a scene leave out `nodes` (an empty scene: assimp's test models have
+/// one), which the crate requires: a file it refuses is read again with such scenes
+/// given no nodes, and its first error stands when that does not help.
+fn read_gltf(bytes: &[u8]) -> Result<gltf::Gltf, gltf::Error> {
+    gltf::Gltf::from_slice_without_validation(bytes).or_else(|error| {
+        let (json, blob) = if bytes.starts_with(b"glTF") {
+            let glb = gltf::binary::Glb::from_slice(bytes)?;
+            (glb.json, glb.bin.map(std::borrow::Cow::into_owned))
+        } else {
+            (std::borrow::Cow::Borrowed(bytes), None)
+        };
+        let Ok(mut root) = gltf::json::deserialize::from_slice::<Value>(&json) else {
+            return Err(error);
+        };
+        let mut added = false;
+        if let Some(Value::Array(scenes)) = root.get_mut("scenes") {
+            for scene in scenes.iter_mut().filter_map(Value::as_object_mut) {
+                if !scene.contains_key("nodes") {
+                    scene.insert("nodes".into(), Value::Array(Vec::new()));
+                    added = true;
+                }
+            }
+        }
+        match gltf::json::deserialize::from_value(root) {
+            Ok(root) if added => Ok(gltf::Gltf {
+                document: Document::from_json_without_validation(root),
+                blob,
+            }),
+            _ => Err(error),
+        }
+    })
 }
 
 /// Reads [`RawJson`] from the bytes of a `.gltf` or `.glb`.

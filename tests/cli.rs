@@ -631,3 +631,26 @@ fn bench_reports_incoherent_rays_and_packets_and_dumps_the_rays() {
     assert!(vertices > 0 && triangles > 0);
     assert_eq!(primary, 32 * 24);
 }
+
+#[test]
+fn a_reader_that_stops_early_is_no_error() {
+    // `raytracer info FILE | head -3`, `raytracer man | head`: the reader has gone
+    // (here before the command writes, so its write fails for certain).
+    let scene = support::cornell_box();
+    for args in [
+        &["info", scene.to_str().unwrap()][..],
+        &["man"],
+        &["completions", "bash"],
+    ] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_raytracer"))
+            .args(args)
+            .stdout(writer)
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{args:?}: {}", stderr(&output));
+        assert!(stderr(&output).is_empty(), "{args:?}: {}", stderr(&output));
+    }
+}

@@ -177,6 +177,5 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             render.cpu * 1e3
         ),
     ];
-    println!("{{{}}}", fields.join(", "));
-    Ok(())
+    super::write_stdout(format!("{{{}}}\n", fields.join(", ")).as_bytes())
 }

@@ -1,11 +1,10 @@
 //! Shell completions and the man page, generated from the same clap definitions as
 //! `--help`, so that they cannot say other than the program does.
 
-use std::io::Write;
-
 use clap::CommandFactory;
 
 use super::args::Cli;
+use super::write_stdout;
 
 /// `raytracer completions SHELL`: the completion script for `shell` on stdout.
 pub fn completions(shell: clap_complete::Shell) -> anyhow::Result<()> {
@@ -64,12 +63,4 @@ fn about(command: &clap::Command) -> String {
         .map(|a| a.to_string())
         .unwrap_or_default();
     format!("\\&{}", about.replace('\\', "\\e"))
-}
-
-/// Writes `bytes` to stdout; a closed pipe (`raytracer man | head`) is no error.
-fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
-    match std::io::stdout().lock().write_all(bytes) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        result => Ok(result?),
-    }
 }

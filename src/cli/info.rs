@@ -11,6 +11,5 @@ use raytracer::scene::SceneSummary;
 pub fn run(path: &Path) -> anyhow::Result<()> {
     let loaded = formats::load(path)?;
     let summary = SceneSummary::new(&loaded.description, &loaded.options.resolve()?);
-    print!("{summary}");
-    Ok(())
+    super::write_stdout(summary.to_string().as_bytes())
 }

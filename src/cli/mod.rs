@@ -96,3 +96,13 @@ fn environment_flags(view: &ViewArgs, description: &mut SceneDescription) -> any
         .apply(description, EnvironmentNames::flags())
         .map_err(anyhow::Error::msg)
 }
+
+/// Writes `bytes` to stdout; a closed pipe (`raytracer info FILE | head`,
+/// `raytracer man | head`) is no error, as for any command whose reader stopped early.
+fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
+    use std::io::Write;
+    match std::io::stdout().lock().write_all(bytes) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        result => Ok(result?),
+    }
+}

@@ -214,6 +214,18 @@ pub fn saturate_finite(v: Vec3) -> Vec3 {
     Vec3::select(v.is_nan_mask(), Vec3::ZERO, clamped)
 }
 
+/// Uniform numbers in `[0, 1)` from Marsaglia's xorshift generator seeded with
+/// `state` (not zero): a deterministic stream for the library's tests.
+#[cfg(test)]
+pub(crate) fn xorshift(mut state: u64) -> impl FnMut() -> Float {
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as Float / (1u64 << 24) as Float
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -332,13 +332,8 @@ mod tests {
 
     /// A deterministic stream of numbers in [0, 1).
     fn uniforms(n: usize) -> impl Iterator<Item = Float> {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        (0..n).map(move |_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        })
+        let mut next = crate::math::xorshift(0x2545_F491_4F6C_DD1D);
+        (0..n).map(move |_| next())
     }
 
     #[test]

@@ -1161,13 +1161,8 @@ mod tests {
     /// far from the origin and directions on both sides of the surface.
     #[test]
     fn sixteen_spawned_origins_are_each_hits() {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float - 0.5
-        };
+        let mut uniform = crate::math::xorshift(0x2545_F491_4F6C_DD1D);
+        let mut next = move || uniform() - 0.5;
         for batch in 0..100 {
             let hits: [Hit; BATCH] = std::array::from_fn(|lane| {
                 let scale = [0.01, 0.9, 3.0, 250.0][(batch + lane) % 4];

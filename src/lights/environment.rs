@@ -830,6 +830,7 @@ fn sampled_direction_and_cos(uv: Vec2) -> (Vec3, Float) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::xorshift;
 
     /// The coordinates of directions all over the sphere are the C library's
     /// angles' to float rounding.
@@ -959,17 +960,6 @@ mod tests {
         assert!(left / right >= 2.0, "{left} / {right}");
         // The shadowed side is lit, not black: a tenth of the key side at least.
         assert!(away >= 0.1 * toward, "{away}");
-    }
-
-    /// Uniform numbers in `[0, 1)` from Marsaglia's xorshift generator seeded with
-    /// `state`.
-    fn xorshift(mut state: u64) -> impl FnMut() -> Float {
-        move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as Float / (1u64 << 24) as Float
-        }
     }
 
     /// Sixteen map points turned into directions at once (`directions_of`) give

@@ -11,8 +11,8 @@ use crate::options::{Mode, RenderOptions};
 /// The default light rig of an unlit scene in full mode
 /// ([`SceneDescription::add_default_light`]): a key light above and to the left of
 /// the camera and a fill light at the camera, as a modeller's viewport lights a model,
-/// with intensities (`key`, `fill`) and the ambient light `ambient` that every `Ka`
-/// is multiplied by.
+/// with intensities (`key`, `fill`) and the ambient light `ambient` that every
+/// material reflects by `Ka * Kd`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightRig {
     /// Intensity of the key light, above and to the left of the camera.
@@ -20,8 +20,9 @@ pub struct LightRig {
     /// Intensity of the fill light, at the camera (it reaches every point the camera
     /// sees, so nothing visible is left black).
     pub fill: Float,
-    /// The ambient light: `Ka` becomes `Ka * ambient`, as MTL's illumination models
-    /// multiply `Ka` by the ambient light `Ia` (SPEC.md's formula has `Ia = 1`).
+    /// The ambient light: `Ka` becomes `Ka * Kd * ambient`. MTL's illumination models
+    /// multiply `Ka` by the ambient light `Ia` (SPEC.md's formula has `Ia = 1`); a
+    /// model viewer reflects its ambient light by the diffuse colour.
     pub ambient: Float,
 }
 
@@ -254,10 +255,18 @@ impl SceneDescription {
     /// emits (`Ke`) enough to light it
     /// ([`crate::lights::environment::emitters_light_the_scene`], by their area times
     /// their mean `Ke`: a few LEDs on a model do not), emission through a texture map
-    /// not counting (a screen or LEDs painted on a model are decoration).
+    /// not counting (a screen or LEDs painted on a model are decoration). A scene all
+    /// of whose surfaces emit is unlit too: its emitters have nothing else to light
+    /// (exporters write `Ke 0.1` into every material of some models).
     pub fn is_unlit(&self) -> bool {
+        self.unlit_reason().is_some()
+    }
+
+    /// Why the scene is unlit ([`SceneDescription::is_unlit`]), as the default light's
+    /// warning says it; `None` for a lit scene.
+    fn unlit_reason(&self) -> Option<&'static str> {
         if !self.lights.is_empty() {
-            return false;
+            return None;
         }
         // Emission through a texture (glTF's emissive maps: screens, LEDs, labels
         // painted on a model) is decoration: it glows but is not what lights the
@@ -273,20 +282,26 @@ impl SceneDescription {
                 }
             })
             .collect();
+        const NO_LIGHTS: &str = "the scene has no lights ('P' or 'Ke')";
         if !emission.iter().any(|&e| e > 0.0) {
-            return true;
+            return Some(NO_LIGHTS);
         }
         let of = |id: MaterialId| emission.get(id.0 as usize).copied().unwrap_or(0.0);
         let mut power = 0.0f64;
+        // Whether some surface does not emit: something the emitters could light.
+        let mut receiver = false;
         for t in &self.triangles {
             let e = of(t.material);
+            receiver |= e == 0.0;
             if e > 0.0 {
                 let [a, b, c] = t.positions.map(|i| self.positions[i as usize]);
                 power += f64::from(e * 0.5 * (b - a).cross(c - a).length());
             }
         }
         for s in &self.spheres {
-            power += f64::from(of(s.material) * 4.0 * std::f32::consts::PI * s.radius * s.radius);
+            let e = of(s.material);
+            receiver |= e == 0.0;
+            power += f64::from(e * 4.0 * std::f32::consts::PI * s.radius * s.radius);
         }
         // Each copy of an emitting mesh, by the area it has where it is placed.
         for instance in &self.instances {
@@ -295,6 +310,7 @@ impl SceneDescription {
             };
             for t in &mesh.triangles {
                 let e = of(t.material);
+                receiver |= e == 0.0;
                 if e > 0.0 {
                     let [a, b, c] = t.positions.map(|i| {
                         instance
@@ -305,9 +321,17 @@ impl SceneDescription {
                 }
             }
         }
+        if power == 0.0 {
+            // Emitting materials that no shape uses.
+            return Some(NO_LIGHTS);
+        }
+        if !receiver {
+            return Some("every surface of the scene emits ('Ke'), lighting nothing else");
+        }
         let bounds = self.bounds();
         let radius = (bounds.max - bounds.min).length() * 0.5;
-        !crate::lights::environment::emitters_light_the_scene(power as Float, radius)
+        let lit = crate::lights::environment::emitters_light_the_scene(power as Float, radius);
+        (!lit).then_some("the scene's emitters ('Ke') are too small to light it")
     }
 
     /// Lights a scene that has no light and no emitter ([`SceneDescription::is_unlit`])
@@ -316,8 +340,9 @@ impl SceneDescription {
     ///
     /// In full mode, unless `options.default_light` is off, it adds
     /// [`LightRig::DEFAULT`] around the camera of `options` and multiplies every `Ka` by
-    /// the rig's ambient light: exported models carry `Ka 1 1 1` (Blender, Wings 3D),
-    /// which added in full would wash every colour out. A material whose `Ns` is below
+    /// `Kd` and the rig's ambient light: exported models carry `Ka 1 1 1` (Blender,
+    /// Wings 3D) whatever their colour, which added in full would wash every colour
+    /// out, and as a grey would make a black model as grey as the backdrop. A material whose `Ns` is below
     /// 1 (no highlight) loses its `Ks`, which SPEC's formula would add flat. Path mode lights an unlit scene
     /// with a studio environment instead ([`crate::integrators::path`]), under the same switch.
     /// Depth and normal modes need no light.
@@ -334,7 +359,10 @@ impl SceneDescription {
         options: &RenderOptions,
         off_by: Option<&crate::options::Origin>,
     ) {
-        if !self.is_unlit() || (options.mode == Mode::Path && self.environment.is_some()) {
+        let Some(reason) = self.unlit_reason() else {
+            return;
+        };
+        if options.mode == Mode::Path && self.environment.is_some() {
             return;
         }
         let off = match off_by {
@@ -354,8 +382,7 @@ impl SceneDescription {
             }
             (Mode::Path, false) => format!("path mode renders it black{off}"),
         };
-        self.warnings
-            .push(format!("the scene has no lights ('P' or 'Ke'): {message}"));
+        self.warnings.push(format!("{reason}: {message}"));
         if options.mode != Mode::Full || !options.default_light {
             return;
         }
@@ -380,7 +407,11 @@ impl SceneDescription {
         ));
         self.lights.push(Light::point(eye, Vec3::splat(rig.fill)));
         for material in &mut self.materials {
-            material.ambient *= rig.ambient;
+            // The surroundings' light is reflected by the diffuse colour, as a model
+            // viewer (which reads no `Ka`) shows it; `Ka` scales it. Exporters write
+            // `Ka 1 1 1` whatever the colour (Blender): a grey ambient added to a
+            // black plastic made it as grey as the backdrop.
+            material.ambient *= material.diffuse * rig.ambient;
             // An exponent below 1 defines no highlight: SPEC's formula would add `Ks`
             // flat wherever the light reaches (`max(0, x)^0 = 1`), washing the model
             // out, where the exporting tool shows a matte surface (Blender reads

@@ -256,9 +256,12 @@ fn a_camera_from_flags_or_file_is_not_framed_and_a_lone_position_aims_at_the_cen
     assert_eq!(options, RenderOptions::default());
 }
 
-fn write_scene(dir: &Path) {
-    // An exported model: Blender's `Ka 1 1 1`, a red diffuse colour, no lights. It
-    // sits off-centre and behind the default camera, so only framing shows it.
+/// An exported model's material: Blender's `Ka 1 1 1`, a red diffuse colour.
+const RED: &str = "newmtl red\nNs 225\nKa 1 1 1\nKd 0.8 0.1 0.1\nKs 0.5 0.5 0.5\nKe 0 0 0\nNi 1.45\nd 1\nillum 2\n";
+
+/// A box with the material `red` of `mtl`, and no lights. It sits off-centre and
+/// behind the default camera, so only framing shows it.
+fn write_scene(dir: &Path, mtl: &str) {
     std::fs::write(
         dir.join("model.obj"),
         format!(
@@ -267,17 +270,18 @@ fn write_scene(dir: &Path) {
         ),
     )
     .unwrap();
-    std::fs::write(
-        dir.join("model.mtl"),
-        "newmtl red\nNs 225\nKa 1 1 1\nKd 0.8 0.1 0.1\nKs 0.5 0.5 0.5\nKe 0 0 0\nNi 1.45\nd 1\nillum 2\n",
-    )
-    .unwrap();
+    std::fs::write(dir.join("model.mtl"), mtl).unwrap();
 }
 
 /// `raytracer render model.obj -o out.png` with `args`: the warnings and the image.
 fn render_model(args: &[&str]) -> (String, Vec<u8>) {
+    render_model_in(RED, args)
+}
+
+/// [`render_model`] with the box's material `red` as `mtl` says.
+fn render_model_in(mtl: &str, args: &[&str]) -> (String, Vec<u8>) {
     let dir = tempfile::tempdir().unwrap();
-    write_scene(dir.path());
+    write_scene(dir.path(), mtl);
     let out = dir.path().join("out.png");
     let output = Command::cargo_bin("raytracer")
         .unwrap()
@@ -342,6 +346,126 @@ fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
     assert!(levels.len() > 3, "{levels:?}");
 }
 
+/// The image's pixels other than the default backdrop's grey, and how many of those
+/// there were.
+fn model_pixels(rgb: &[u8]) -> (Vec<[u8; 3]>, usize) {
+    let grey = raytracer::postprocess::default_backdrop();
+    let backdrop = rgb.chunks(3).filter(|p| *p == grey).count();
+    let model = rgb.chunks(3).filter(|p| *p != grey);
+    (model.map(|p| [p[0], p[1], p[2]]).collect(), backdrop)
+}
+
+#[test]
+fn a_black_plastic_under_the_rig_stands_out_from_the_grey_backdrop() {
+    // robosuite's Baxter pedestal as Blender exported it: near-black diffuse, a
+    // tight highlight, and `Ka 1 1 1`. With the rig's grey ambient light added as
+    // `Ka * 0.1`, the body showed as grey as the backdrop (the highlights set
+    // SPEC's white point); a model viewer shows it black. A sphere, so that the
+    // highlights are in view.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("black.toml"),
+        "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"black\"\n\n\
+         [materials.black]\nKa = 1\nKd = 0.013\nKs = 0.5\nNs = 225\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out.png");
+    let output = Command::cargo_bin("raytracer")
+        .unwrap()
+        .current_dir(dir.path())
+        .args([
+            "render",
+            "black.toml",
+            "--width",
+            "80",
+            "--height",
+            "60",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", support::stderr(&output));
+    let (model, backdrop) = model_pixels(&support::read_png(&out).2);
+    assert!(
+        backdrop > 1000 && model.len() > 500,
+        "{backdrop} {}",
+        model.len()
+    );
+    let grey = raytracer::postprocess::default_backdrop()[0];
+    let mut levels: Vec<u8> = model.iter().map(|p| p[0]).collect();
+    levels.sort_unstable();
+    let median = levels[levels.len() / 2];
+    assert!(
+        u32::from(median) * 2 < u32::from(grey),
+        "the model's median {median} against the backdrop's {grey}"
+    );
+    // The highlights still show.
+    assert!(levels[levels.len() - 1] > 200, "{levels:?}");
+}
+
+#[test]
+fn a_scene_whose_every_surface_emits_gets_the_default_light() {
+    // Some exporters write `Ke 0.1` into every material (robosuite's gripper
+    // plates): the model glows, but its emitters light nothing else, and it
+    // rendered as a flat white (full) or dim grey (path) shape on black.
+    let glowing =
+        "newmtl red\nNs 10\nKa 1 1 1\nKd 0.8 0.1 0.1\nKs 0.1 0.1 0.1\nKe 0.1 0.1 0.1\nillum 2\n";
+    let reason = "warning: every surface of the scene emits ('Ke'), lighting nothing else";
+    let (stderr, rgb) = render_model_in(glowing, &[]);
+    assert_eq!(
+        stderr,
+        format!(
+            "{reason}: lit by a default light rig at the camera (--no-default-light turns it off)\n"
+        )
+    );
+    let (model, backdrop) = model_pixels(&rgb);
+    assert!(backdrop > 1000, "{backdrop} backdrop pixels");
+    // Lit and shaded by the rig: red, and the faces in view differ.
+    assert!(model.iter().all(|p| p[0] > p[1]), "{model:?}");
+    let mut levels: Vec<u8> = model.iter().map(|p| p[0]).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    assert!(levels.len() > 3, "{levels:?}");
+    let (stderr, rgb) = render_model_in(glowing, &["--mode", "path", "--spp", "4"]);
+    assert!(
+        stderr.starts_with(&format!(
+            "{reason}: path mode lights it with a studio environment"
+        )),
+        "{stderr}"
+    );
+    assert!(model_pixels(&rgb).1 > 1000);
+    // A scene with a surface that does not emit is lit by its emitters as before.
+    let lit = "newmtl red\nKd 0.8 0.1 0.1\nKe 0.1 0.1 0.1\n";
+    let dir = tempfile::tempdir().unwrap();
+    write_scene(dir.path(), lit);
+    let floor = "v 1 0 2\nv 7 0 2\nv 7 0 8\nv 1 0 8\nusemtl grey\nf -4 -3 -2 -1\n";
+    let model = std::fs::read_to_string(dir.path().join("model.obj")).unwrap();
+    std::fs::write(dir.path().join("model.obj"), model + floor).unwrap();
+    std::fs::write(
+        dir.path().join("model.mtl"),
+        format!("{lit}newmtl grey\nKd 0.5 0.5 0.5\n"),
+    )
+    .unwrap();
+    let output = Command::cargo_bin("raytracer")
+        .unwrap()
+        .current_dir(dir.path())
+        .args([
+            "render",
+            "model.obj",
+            "-o",
+            "out.png",
+            "--width",
+            "40",
+            "--height",
+            "30",
+        ])
+        .output()
+        .unwrap();
+    assert!(output.status.success());
+    assert_eq!(String::from_utf8(output.stderr).unwrap(), "");
+}
+
 #[test]
 fn no_default_light_renders_the_unlit_scene_as_it_is() {
     let (stderr, rgb) = render_model(&["--no-default-light"]);
@@ -391,7 +515,7 @@ fn render_warns_when_the_image_is_nearly_black_and_only_then() {
     assert_eq!(stderr.matches("nearly black").count(), 1, "{stderr}");
     // Also for OpenEXR output (what its PNG would show).
     let dir = tempfile::tempdir().unwrap();
-    write_scene(dir.path());
+    write_scene(dir.path(), RED);
     let output = Command::cargo_bin("raytracer")
         .unwrap()
         .current_dir(dir.path())
@@ -465,18 +589,20 @@ fn a_scene_with_lights_keeps_the_spec_formula_exactly() {
     assert_eq!(after.lights, [light]);
     assert_eq!(after.materials, std::slice::from_ref(&material));
     assert!(after.warnings.is_empty());
-    // An emitter lights the scene too (path mode's area light).
+    // An emitter lights the scene too (path mode's area light): a triangle that
+    // emits beside one that does not.
     let emitting = Material {
         emission: Vec3::ONE,
-        ..material
+        ..material.clone()
     };
     let loaded = LoadedScene {
         description: raytracer::formats::parse_obj(
-            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n",
             Path::new("t.obj"),
         )
         .map(|mut d| {
-            d.materials = vec![emitting];
+            d.materials = vec![emitting, material];
+            d.triangles[1].material = raytracer::material::MaterialId(1);
             d
         })
         .unwrap(),
@@ -495,7 +621,7 @@ fn a_scene_with_lights_keeps_the_spec_formula_exactly() {
 #[test]
 fn a_scene_file_can_turn_the_default_light_off() {
     let dir = tempfile::tempdir().unwrap();
-    write_scene(dir.path());
+    write_scene(dir.path(), RED);
     let toml = dir.path().join("scene.toml");
     std::fs::write(
         &toml,

@@ -25,7 +25,18 @@ pub struct PostProcessing {
     pub exposure: Float,
     /// Path mode's tone map ([`RenderOptions::tonemap`]); other modes ignore it.
     pub tonemap: ToneMap,
+    /// Full mode: the least white point `C` of SPEC's tone curve, whose `C` is the
+    /// image's largest channel. 0 for SPEC's images; [`RIG_WHITE_POINT`] for a scene
+    /// lit by the default light rig.
+    pub least_white_point: Float,
 }
+
+/// The least white point of full mode's tone curve for a scene that the default light
+/// rig lights ([`PostProcessing::least_white_point`]). SPEC's curve with `C = 1` is the
+/// identity below 1: a dark model is shown as dark as it is. With `C` the image's
+/// largest value, as SPEC's scenes with their own lights take it, a model of `Kd 0.05`
+/// showed its brightest face white (path mode shows it dark grey).
+pub const RIG_WHITE_POINT: Float = 1.0;
 
 impl From<Mode> for PostProcessing {
     /// `mode` with no exposure change and the default tone map.
@@ -34,6 +45,7 @@ impl From<Mode> for PostProcessing {
             mode,
             exposure: 0.0,
             tonemap: ToneMap::default(),
+            least_white_point: 0.0,
         }
     }
 }
@@ -44,6 +56,7 @@ impl From<&RenderOptions> for PostProcessing {
             mode: options.mode,
             exposure: options.exposure,
             tonemap: options.tonemap,
+            least_white_point: 0.0,
         }
     }
 }
@@ -139,7 +152,7 @@ impl Film {
             },
             Mode::Normal => Encoding::Normal,
             Mode::Full => Encoding::Full {
-                brightest: self.max_channel(|_| true),
+                brightest: self.max_channel(|_| true).max(post.least_white_point),
             },
             Mode::Path => Encoding::Exposed {
                 scale: post.exposure.exp2(),
@@ -490,6 +503,7 @@ mod tests {
                 mode: Mode::Path,
                 exposure: stops,
                 tonemap: ToneMap::Standard,
+                least_white_point: 0.0,
             })
             .rgb
         };
@@ -521,6 +535,7 @@ mod tests {
                 mode,
                 exposure: 0.0,
                 tonemap,
+                least_white_point: 0.0,
             })
             .rgb
         };

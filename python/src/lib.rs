@@ -491,6 +491,7 @@ fn post_processing_as_flags(
         mode,
         exposure,
         tonemap,
+        least_white_point: 0.0,
     })
 }
 

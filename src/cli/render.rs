@@ -4,7 +4,8 @@ use std::time::Duration;
 
 use raytracer::integrators::path::material_warnings;
 use raytracer::postprocess::{
-    Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD, alpha_bytes, default_backdrop,
+    Image, NEARLY_BLACK_FRACTION, NEARLY_BLACK_THRESHOLD, PostProcessing, RIG_WHITE_POINT,
+    alpha_bytes, default_backdrop,
 };
 use raytracer::stats::{Mark, RayCounts, Usage, peak_memory_bytes};
 use raytracer::{
@@ -143,9 +144,13 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let (processed, encoded) = match format {
         ImageFormat::Png => {
             // PNG keeps colour and alpha apart: the colour of what was hit.
+            let post = PostProcessing {
+                least_white_point: if rig { RIG_WHITE_POINT } else { 0.0 },
+                ..PostProcessing::from(options)
+            };
             let mut image = match &alpha {
-                Some(alpha) => film.unpremultiplied(alpha).to_image(options),
-                None => film.to_image(options),
+                Some(alpha) => film.unpremultiplied(alpha).to_image(post),
+                None => film.to_image(post),
             };
             if let Some(coverage) = &backdrop {
                 image.over_backdrop(coverage, default_backdrop());

@@ -4,7 +4,7 @@
  *   RT_PATHRAYS_DUMP=rays.bin raytracer render SCENE -j 1 -o x.png   (a local build
  *       with the dump hook of bench/pathrays/README.md)
  *   bench/pathrays/embree_pathrays rays.bin [--repeat N] [--threads T] [--high] [--robust]
- *       [--buckets]
+ *       [--buckets] [--shuffle]
  *
  * Builds the file's triangles (RTC_BUILD_QUALITY_MEDIUM unless --high), then traces
  * each group of batches (closest hit or any hit; camera rays and the first step's
@@ -13,7 +13,8 @@
  * LLVM kernels call Embree) and as single rays (rtcIntersect1 / rtcOccluded1), on T
  * OpenMP threads. Prints, per group and mode, the median CPU seconds and Mrays per
  * CPU-second, and one JSON line. With --buckets, each group apart by its batches'
- * active lanes (1-4, 5-8, 9-12, 13-16).
+ * active lanes (1-4, 5-8, 9-12, 13-16); with --shuffle, each group's batches in a
+ * fixed random order instead of the order path mode traced them.
  *
  * The file, little-endian: "RTPATH01", u32 vertex count, f32 x y z each, u32
  * triangle count, u32 a b c each, then batches to the end: u8 kind (0 closest,
@@ -21,6 +22,10 @@
  * 16 x (f32 ox oy oz dx dy dz tmax).
  *
  * Build: cc -O3 -march=native -fopenmp embree_pathrays.c -lembree3 -o embree_pathrays
+ * Against Mitsuba's own Embree (3.13.4, in its Python package as libembree3.so,
+ * its API in namespace `mitsuba`), M being that package's folder:
+ *   c++ -x c++ -O3 -march=native -fopenmp -I$M/include embree_pathrays.c -x none $M/libembree3.so \
+ *       -Wl,-rpath,$M -o embree_pathrays_mitsuba
  */
 #include <embree3/rtcore.h>
 #include <omp.h>
@@ -29,6 +34,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+/* Mitsuba's own Embree (its libembree3.so, built in namespace `mitsuba`) when built
+ * as C++ against its headers; nothing with Debian's. */
+RTC_NAMESPACE_USE
 
 typedef struct {
     float o[3], d[3], tmax;
@@ -127,7 +136,7 @@ static long trace(const Batch *const *batches, long n, int packets) {
 
 int main(int argc, char **argv) {
     const char *path = NULL;
-    int repeat = 3, threads = 2, high = 0, robust = 0, buckets = 0;
+    int repeat = 3, threads = 2, high = 0, robust = 0, buckets = 0, shuffle = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--repeat") && i + 1 < argc)
             repeat = atoi(argv[++i]);
@@ -139,6 +148,8 @@ int main(int argc, char **argv) {
             robust = 1;
         else if (!strcmp(argv[i], "--buckets"))
             buckets = 1;
+        else if (!strcmp(argv[i], "--shuffle"))
+            shuffle = 1;
         else if (argv[i][0] != '-' && !path)
             path = argv[i];
         else
@@ -152,17 +163,17 @@ int main(int argc, char **argv) {
     uint32_t nv, nt;
     if (fread(magic, 1, 8, in) != 8 || memcmp(magic, "RTPATH01", 8)) die("not a path rays file");
     if (fread(&nv, 4, 1, in) != 1 || nv > (1u << 28)) die("bad vertex count");
-    float *vertices = aligned_alloc(64, ((size_t)nv * 12 + 16 + 63) / 64 * 64);
+    float *vertices = (float *)aligned_alloc(64, ((size_t)nv * 12 + 16 + 63) / 64 * 64);
     if (!vertices || fread(vertices, 12, nv, in) != nv) die("truncated vertices");
     if (fread(&nt, 4, 1, in) != 1 || nt > (1u << 28)) die("bad triangle count");
-    uint32_t *triangles = aligned_alloc(64, ((size_t)nt * 12 + 63) / 64 * 64);
+    uint32_t *triangles = (uint32_t *)aligned_alloc(64, ((size_t)nt * 12 + 63) / 64 * 64);
     if (!triangles || fread(triangles, 12, nt, in) != nt) die("truncated triangles");
     size_t capacity = 1 << 16, count = 0;
-    Batch *all = malloc(capacity * sizeof(Batch));
+    Batch *all = (Batch *)malloc(capacity * sizeof(Batch));
     for (;;) {
         if (count == capacity) {
             capacity *= 2;
-            all = realloc(all, capacity * sizeof(Batch));
+            all = (Batch *)realloc(all, capacity * sizeof(Batch));
         }
         if (!all) die("out of memory");
         size_t got = fread(&all[count], sizeof(Batch), 1, in);
@@ -189,7 +200,7 @@ int main(int argc, char **argv) {
 
     const char *kinds[2] = {"closest", "any"};
     const char *steps[3] = {"camera/first", "bounce 1", "bounce 2+"};
-    const Batch **set = malloc(count * sizeof *set);
+    const Batch **set = (const Batch **)malloc(count * sizeof *set);
     char json[16384];
     int len = snprintf(json, sizeof json, "{\"batches\": %zu", count);
     for (int kind = 0; kind < 2; kind++) {
@@ -205,6 +216,18 @@ int main(int argc, char **argv) {
                 }
             }
             if (!n) continue;
+            if (shuffle) { /* Fisher-Yates with a fixed xorshift, as the replay's */
+                uint64_t state = 0x9E3779B97F4A7C15ull;
+                for (long i = n - 1; i > 0; i--) {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    long j = (long)(state % (uint64_t)(i + 1));
+                    const Batch *t = set[i];
+                    set[i] = set[j];
+                    set[j] = t;
+                }
+            }
             for (int packets = 1; packets >= 0; packets--) {
                 double cpus[100];
                 long found = 0;

@@ -5,6 +5,7 @@
     cargo build --release
     pip install mitsuba numpy        # llvm_ad_rgb needs Debian's libllvm19
     python3 bench/pbr_vs_mitsuba.py [--repeat 5] [--light env]
+    python3 bench/pbr_vs_mitsuba.py --write-scenes /tmp/s45   # only the scenes, for farm-bench
 
 The scene is bench/dragon_pbr.toml: the benchmark dragon as rough gold (glTF metal,
 roughness 0.4) on a rough plastic floor (glTF dielectric, roughness 0.5), two point
@@ -112,10 +113,18 @@ def main():
     parser.add_argument("--light", choices=["points", "env"], default="points",
                         help="the scene's two point lights, or the bundled environment map alone")
     parser.add_argument("--binary", default=os.path.join(ROOT, "target", "release", "raytracer"))
+    parser.add_argument("--write-scenes", metavar="DIR",
+                        help="only write our two scenes, DIR/points.toml and DIR/env.toml, and stop")
     args = parser.parse_args()
     variant = os.environ.get("MITSUBA_VARIANT", "llvm_ad_rgb")
     mi.set_variant(variant)
     ply = plain_ply()
+    if args.write_scenes:
+        os.makedirs(args.write_scenes, exist_ok=True)
+        for lighting, name in [("points", "points.toml"), ("env", "env.toml")]:
+            os.replace(same_files_scene(ply, args.write_scenes, lighting),
+                       os.path.join(args.write_scenes, name))
+        return
     ours, theirs = [], []
     with tempfile.TemporaryDirectory() as folder:
         ours_cmd = [args.binary, "render", same_files_scene(ply, folder, args.light), "-q"]

@@ -106,22 +106,6 @@ pub(super) struct ChildRef {
 }
 
 impl WideBvh {
-    /// The `(first, count)` item range of the tree's one leaf, if it is a root
-    /// holding a single leaf and nothing else (a floor of two triangles, say): a
-    /// walk of such a tree tests the leaf's box and then its items, so a caller may
-    /// test the items alone instead, with the same answers (the box holds them, and
-    /// the slab test never culls a box that a ray grazes).
-    pub fn lone_leaf(&self) -> Option<(u32, u32)> {
-        let [root] = self.nodes.as_slice() else {
-            return None;
-        };
-        let leaves = root.leaf_slots();
-        (leaves.count_ones() == 1).then(|| {
-            let slot = leaves.trailing_zeros() as usize;
-            (root.child[slot], root.item_count[slot])
-        })
-    }
-
     /// The `(first, count)` item range of every leaf, in node and slot order: the
     /// order [`WideBvh::assign_leaf_items`] expects.
     pub fn leaf_items(&self) -> Vec<(u32, u32)> {
@@ -800,18 +784,6 @@ mod tests {
             false
         });
         assert_eq!(seen, [0, 1]);
-    }
-
-    /// Only a tree of one node holding one leaf is a lone leaf.
-    #[test]
-    fn a_lone_leaf_is_a_root_holding_one_leaf_alone() {
-        for (count, leaf) in [(1, Some((0, 1))), (3, Some((0, 3))), (9, None), (200, None)] {
-            let boxes = random_boxes(count, 11);
-            let (bvh, _) = Bvh::build(&boxes, &BvhParams::default());
-            let wide = WideBvh::collapse(&bvh, 8, &BvhParams::default());
-            assert_eq!(wide.lone_leaf(), leaf, "{count} boxes");
-        }
-        assert_eq!(WideBvh::default().lone_leaf(), None);
     }
 
     #[test]

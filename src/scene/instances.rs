@@ -46,10 +46,6 @@ pub(super) struct Instances {
     first_source: Vec<usize>,
     /// Primitives of the flat level and of every mesh once.
     prim_count: usize,
-    /// The flat level's packets `(first, count)` when its BVH is one leaf under the
-    /// root and it has no cutouts (the field's floor): single rays test them
-    /// without a walk of the flat level ([`Scene::flat_closest`]).
-    flat_leaf: Option<(u32, u32)>,
 }
 
 /// One instance, ready for rays.
@@ -244,7 +240,6 @@ impl Instances {
             first_prim,
             first_source,
             prim_count,
-            flat_leaf: flat.wide.lone_leaf().filter(|_| !flat.has_cutouts),
         }
     }
 
@@ -407,45 +402,13 @@ impl Scene {
     /// distance loses).
     #[inline]
     pub(super) fn closest_found(&self, instances: &Instances, ray: &Ray) -> Option<Found> {
-        let flat = self.flat_closest(instances, ray);
+        let flat = self.closest_lane(ray);
         let mut t_max = flat.map_or(Float::INFINITY, |(_, _, hit)| hit.t);
         if let Some((index, packet, lane, hit)) = instances.closest(ray, &mut t_max) {
             return Some(Found::Copy(index, packet, lane, hit));
         }
         let (packet, lane, hit) = flat?;
         Some(Found::Flat(packet, lane, hit))
-    }
-
-    /// [`Scene::closest_lane`] of the flat level of a scene with instances: a flat
-    /// level that is one leaf (the field's floor) is tested without a walk, the same
-    /// answer without the walk's set-up (the ray's reciprocals, its eight-lane
-    /// copies, a stack) and its root's box test, which every ray paid before the
-    /// copies. The same answer: with no limit yet, the walk skips the leaf only where
-    /// the ray misses its box, and so every triangle in it.
-    #[inline(always)]
-    fn flat_closest(&self, instances: &Instances, ray: &Ray) -> Option<(u32, usize, PrimHit)> {
-        let Some((first, count)) = instances.flat_leaf else {
-            return self.closest_lane(ray);
-        };
-        let mut closest = None;
-        let mut t_max = Float::INFINITY;
-        self.nearest_in_leaf(&PacketRay::new(ray), first, count, &mut t_max, &mut closest);
-        closest
-    }
-
-    /// [`Scene::occluded_level`] of the flat level of a scene with instances: a
-    /// flat level of one leaf tested without a walk as in [`Scene::flat_closest`],
-    /// for rays without a limit. Within a limit, the walk's box test skips a leaf
-    /// whose box entry rounds to the limit or beyond even where a triangle's hit
-    /// comes just before it, so such rays keep the walk's answer by taking it.
-    #[inline(always)]
-    fn flat_occluded(&self, instances: &Instances, ray: &Ray, t_max: Float) -> bool {
-        match instances.flat_leaf {
-            Some((first, count)) if t_max == Float::INFINITY => {
-                self.blocker_in_leaf(&PacketRay::new(ray), first, count, t_max)
-            }
-            _ => self.occluded_level(ray, t_max),
-        }
     }
 
     /// The [`Hit`] of `ray` at `found`.
@@ -743,7 +706,7 @@ impl Scene {
         ray: &Ray,
         t_max: Float,
     ) -> bool {
-        self.flat_occluded(instances, ray, t_max) || instances.occluded(ray, t_max)
+        self.occluded_level(ray, t_max) || instances.occluded(ray, t_max)
     }
 
     /// [`Scene::source_index`] of a copy's primitive: its mesh's first triangle's
@@ -910,71 +873,6 @@ mod tests {
             let flags = crate::memory::smaps_field(inside, "VmFlags:");
             assert!(flags.contains(" hg"), "{flags}");
         }
-    }
-
-    /// A flat level that is one leaf (the floor of [`scenes`]) is tested without a
-    /// walk of its BVH: the same closest hits and blockers as the walk, ray by ray,
-    /// among rays through the floor's shared diagonal, its corners and edges, rays
-    /// in its plane, from below and from far away, and limits at exactly the hit.
-    #[test]
-    fn a_flat_level_of_one_leaf_answers_as_its_walk() {
-        let (scene, _) = scenes();
-        let instances = scene.instances.as_ref().unwrap();
-        let Some((first, count)) = instances.flat_leaf else {
-            panic!("the floor is not taken as one leaf");
-        };
-        assert_eq!((first, count), (0, 1));
-        let mut rng = rand::rngs::StdRng::seed_from_u64(49);
-        let mut targets = vec![Vec3::new(0.0, -0.3, 0.0), Vec3::new(6.0, -0.3, 6.0)];
-        for _ in 0..300 {
-            let t = rng.random_range(-7.0..7.0);
-            let s = rng.random_range(-6.0..6.0);
-            targets.extend([
-                Vec3::new(t, -0.3, t),
-                Vec3::new(6.0, -0.3, s),
-                Vec3::new(s, -0.3, -6.0),
-                Vec3::new(t, rng.random_range(-1.0..1.0), s),
-            ]);
-        }
-        let mut rays = Vec::new();
-        for (i, &target) in targets.iter().enumerate() {
-            let origin = match i % 4 {
-                0 => Vec3::new(
-                    rng.random_range(-8.0..8.0),
-                    3.0,
-                    rng.random_range(-8.0..8.0),
-                ),
-                1 => Vec3::new(rng.random_range(-8.0..8.0), -2.0, 1.0),
-                2 => Vec3::new(-9.0, -0.3, rng.random_range(-8.0..8.0)),
-                _ => Vec3::new(40.0, 1e3, -25.0),
-            };
-            rays.push(Ray::new(origin, target - origin));
-        }
-        let mut hits = 0;
-        for ray in &rays {
-            let walked = scene.closest_lane(ray);
-            assert_eq!(scene.flat_closest(instances, ray), walked, "{ray:?}");
-            let t = walked.map_or(5.0, |(_, _, hit)| hit.t);
-            hits += usize::from(walked.is_some());
-            for t_max in [t, t.next_up(), 0.5 * t, Float::INFINITY] {
-                assert_eq!(
-                    scene.flat_occluded(instances, ray, t_max),
-                    scene.occluded_level(ray, t_max),
-                    "{ray:?} {t_max}"
-                );
-            }
-        }
-        assert!(hits > 500, "{hits} hits");
-        // A flat level of more than one leaf is walked.
-        let mut d = generated_description(8, false, 5);
-        d.meshes.push(generated_description(2, false, 1));
-        d.instances.push(InstanceDesc {
-            mesh: 0,
-            world_from_object: Affine3A::IDENTITY,
-            winding_kept: false,
-        });
-        let wider = Scene::build(d, &BvhParams::default());
-        assert!(wider.instances.as_ref().unwrap().flat_leaf.is_none());
     }
 
     #[test]

@@ -40,6 +40,10 @@
  *
  * Build: cc -O3 -march=native -fopenmp embree_bench.c -lembree3 -o embree_bench
  * (bench/embree/build.sh).
+ *
+ * `--only primary|shadow|incoherent|occlusion` traces that kind's single rays once
+ * and prints their count and hits, for a build of Embree with its statistics
+ * counters (bench/embree/count.sh), which prints them as the process ends.
  */
 #include <embree3/rtcore.h>
 #include <math.h>
@@ -366,7 +370,7 @@ static void print_rate(const char *name, uint32_t n, double wall, double cpu) {
 }
 
 int main(int argc, char **argv) {
-    const char *path = NULL, *mesh_path = NULL, *instances_path = NULL;
+    const char *path = NULL, *mesh_path = NULL, *instances_path = NULL, *only = NULL;
     int repeat = 5, threads = 2;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--repeat") && i + 1 < argc)
@@ -377,6 +381,8 @@ int main(int argc, char **argv) {
             instances_path = argv[++i];
         else if (!strcmp(argv[i], "--threads") && i + 1 < argc)
             threads = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--only") && i + 1 < argc)
+            only = argv[++i];
         else if (argv[i][0] != '-' && !path)
             path = argv[i];
         else
@@ -452,6 +458,31 @@ int main(int argc, char **argv) {
     }
     double build = median(builds, repeat), build_cpu = median(build_cpus, repeat);
 
+    if (only) {
+        long found = -1;
+        uint32_t n = 0;
+        if (!strcmp(only, "primary")) {
+            n = n_primary;
+            found = closest_single(primary, n);
+        } else if (!strcmp(only, "shadow")) {
+            n = n_shadow;
+            found = occluded_single(shadow, n);
+        } else if (!strcmp(only, "incoherent")) {
+            n = n_incoherent;
+            found = closest_single(incoherent, n);
+        } else if (!strcmp(only, "occlusion")) {
+            n = n_incoherent;
+            found = occluded_single(incoherent, n);
+        } else {
+            die("--only takes primary, shadow, incoherent or occlusion");
+        }
+        printf("{\"only\": \"%s\", \"rays\": %u, \"hits_or_blocked\": %ld}\n", only, n, found);
+        fflush(stdout);
+        rtcReleaseScene(scene);
+        if (mesh_scene) rtcReleaseScene(mesh_scene);
+        rtcReleaseDevice(device);
+        return 0;
+    }
     long primary_hits, primary_packet_hits, occluded, packet_occluded, incoherent_hits,
         occlusion_blocked;
     double w, c;

@@ -1,8 +1,9 @@
 //! A first image without flags: with no camera from flags or scene file, the camera
 //! frames the whole scene; a scene with no light and no emitter gets the default
 //! lighting (a light rig at the camera in full mode, a studio environment in path mode) with one
-//! warning, which `--no-default-light` turns off; under the rig, `Ka` is a fraction of
-//! the rig's ambient light, so that an exported model (`Ka 1 1 1`) is not washed out.
+//! warning, which `--no-default-light` turns off; under the rig, `Ka` reflects the
+//! rig's ambient light by `Kd`, so that an exported model (`Ka 1 1 1`) is not washed
+//! out, and SPEC's tone curve shows a dark model dark (its white point at least 1).
 
 use crate::support;
 

@@ -342,10 +342,11 @@ impl SceneDescription {
     /// [`LightRig::DEFAULT`] around the camera of `options` and multiplies every `Ka` by
     /// `Kd` and the rig's ambient light: exported models carry `Ka 1 1 1` (Blender,
     /// Wings 3D) whatever their colour, which added in full would wash every colour
-    /// out, and as a grey would make a black model as grey as the backdrop. A material whose `Ns` is below
-    /// 1 (no highlight) loses its `Ks`, which SPEC's formula would add flat. Path mode lights an unlit scene
-    /// with a studio environment instead ([`crate::integrators::path`]), under the same switch.
-    /// Depth and normal modes need no light.
+    /// out, and as a grey would make a black model as grey as the backdrop. A material
+    /// whose `Ns` is below 1 (no highlight) loses its `Ks`, which SPEC's formula would
+    /// add flat. Path mode lights an unlit scene with a studio environment instead
+    /// ([`crate::integrators::path`]), under the same switch. Depth and normal modes
+    /// need no light.
     pub fn add_default_light(&mut self, options: &RenderOptions) {
         self.add_default_light_off_by(options, None);
     }

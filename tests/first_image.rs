@@ -159,6 +159,17 @@ fn the_bundled_gltf_box_is_framed_and_fills_the_frame() {
     assert_framed_like_a_model_viewer(&options, bounds.min, bounds.max);
 }
 
+/// `raytracer render ARGS` run in `dir`.
+fn render_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::cargo_bin("raytracer")
+        .unwrap()
+        .current_dir(dir)
+        .arg("render")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 /// Renders `scene` (written as `name` in a temporary folder) in normal mode at
 /// 160x120 with no camera, and returns the fractions of the columns and rows that
 /// show the model, checking that it does not touch the image's border (is not cut).
@@ -166,14 +177,13 @@ fn covered_by_the_model(name: &str, scene: &str) -> (f32, f32) {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join(name), scene).unwrap();
     let out = dir.path().join("out.png");
-    let output = Command::cargo_bin("raytracer")
-        .unwrap()
-        .current_dir(dir.path())
-        .args(["render", name, "--mode", "normal", "-o"])
-        .arg(&out)
-        .args(["--width", "160", "--height", "120"])
-        .output()
-        .unwrap();
+    let out_arg = out.to_str().unwrap();
+    let output = render_in(
+        dir.path(),
+        &[
+            name, "--mode", "normal", "-o", out_arg, "--width", "160", "--height", "120",
+        ],
+    );
     assert!(output.status.success(), "{output:?}");
     let (w, h, rgb) = support::read_png(&out);
     // Normal mode shows misses black, and no normal is black.
@@ -284,15 +294,15 @@ fn render_model_in(mtl: &str, args: &[&str]) -> (String, Vec<u8>) {
     let dir = tempfile::tempdir().unwrap();
     write_scene(dir.path(), mtl);
     let out = dir.path().join("out.png");
-    let output = Command::cargo_bin("raytracer")
-        .unwrap()
-        .current_dir(dir.path())
-        .args(["render", "model.obj", "-o"])
-        .arg(&out)
-        .args(["--width", "80", "--height", "60"])
-        .args(args)
-        .output()
-        .unwrap();
+    let size = [
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "80",
+        "--height",
+        "60",
+    ];
+    let output = render_in(dir.path(), &[&["model.obj"], &size[..], args].concat());
     let stderr = String::from_utf8(output.stderr).unwrap();
     assert!(output.status.success(), "{stderr}");
     (stderr, support::read_png(&out).2)
@@ -371,21 +381,19 @@ fn a_black_plastic_under_the_rig_stands_out_from_the_grey_backdrop() {
     )
     .unwrap();
     let out = dir.path().join("out.png");
-    let output = Command::cargo_bin("raytracer")
-        .unwrap()
-        .current_dir(dir.path())
-        .args([
-            "render",
+    let out_arg = out.to_str().unwrap();
+    let output = render_in(
+        dir.path(),
+        &[
             "black.toml",
             "--width",
             "80",
             "--height",
             "60",
             "-o",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+            out_arg,
+        ],
+    );
     assert!(output.status.success(), "{}", support::stderr(&output));
     let (model, backdrop) = model_pixels(&support::read_png(&out).2);
     assert!(
@@ -466,11 +474,9 @@ fn a_scene_whose_every_surface_emits_gets_the_default_light() {
         format!("{lit}newmtl grey\nKd 0.5 0.5 0.5\n"),
     )
     .unwrap();
-    let output = Command::cargo_bin("raytracer")
-        .unwrap()
-        .current_dir(dir.path())
-        .args([
-            "render",
+    let output = render_in(
+        dir.path(),
+        &[
             "model.obj",
             "-o",
             "out.png",
@@ -478,9 +484,8 @@ fn a_scene_whose_every_surface_emits_gets_the_default_light() {
             "40",
             "--height",
             "30",
-        ])
-        .output()
-        .unwrap();
+        ],
+    );
     assert!(output.status.success());
     assert_eq!(String::from_utf8(output.stderr).unwrap(), "");
 }
@@ -535,22 +540,12 @@ fn render_warns_when_the_image_is_nearly_black_and_only_then() {
     // Also for OpenEXR output (what its PNG would show).
     let dir = tempfile::tempdir().unwrap();
     write_scene(dir.path(), RED);
-    let output = Command::cargo_bin("raytracer")
-        .unwrap()
-        .current_dir(dir.path())
-        .args([
-            "render",
-            "model.obj",
-            "-o",
-            "out.exr",
-            "--width",
-            "16",
-            "--height",
-            "12",
-        ])
-        .args(["--mode", "path", "--spp", "1", "--no-default-light"])
-        .output()
-        .unwrap();
+    let small = ["model.obj", "--width", "16", "--height", "12"];
+    let path = ["--mode", "path", "--spp", "1", "--no-default-light"];
+    let output = render_in(
+        dir.path(),
+        &[&small[..], &["-o", "out.exr"], &path].concat(),
+    );
     assert!(String::from_utf8_lossy(&output.stderr).ends_with(BLACK));
     // Full mode with only ambient black: `Ka 0` and no default light.
     std::fs::write(
@@ -558,22 +553,10 @@ fn render_warns_when_the_image_is_nearly_black_and_only_then() {
         "newmtl red\nKa 0 0 0\nKd 0.8 0.1 0.1\n",
     )
     .unwrap();
-    let output = Command::cargo_bin("raytracer")
-        .unwrap()
-        .current_dir(dir.path())
-        .args([
-            "render",
-            "model.obj",
-            "-o",
-            "out.png",
-            "--width",
-            "16",
-            "--height",
-            "12",
-        ])
-        .arg("--no-default-light")
-        .output()
-        .unwrap();
+    let output = render_in(
+        dir.path(),
+        &[&small[..], &["-o", "out.png", "--no-default-light"]].concat(),
+    );
     let stderr = String::from_utf8(output.stderr).unwrap();
     assert!(
         stderr.ends_with("warning: the image is nearly black (100.0% of its pixels below 8/255): try --mode path (lit by --env, or by the studio environment when the scene has no lights), or lights in the scene\n"),

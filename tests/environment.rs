@@ -320,3 +320,61 @@ fn the_environment_lit_sphere_matches_mitsuba() {
         "{ours_total} vs {theirs_total}"
     );
 }
+
+/// The standard deviation and mean of `values`.
+fn spread(values: &[Float]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+    let variance = values
+        .iter()
+        .map(|&v| (f64::from(v) - mean).powi(2))
+        .sum::<f64>()
+        / (n - 1.0);
+    (variance.sqrt(), mean)
+}
+
+#[test]
+fn a_pixels_samples_share_out_a_small_sun_evenly() {
+    // A matte sphere seen where a 5-degree sun in a dim sky lights it from 40
+    // degrees: a pixel's 64 samples (stratified, and the sun found by inverting
+    // the map's distribution) estimate its radiance with under half the spread of
+    // 64 independent samples (one-sample pixels), about the same mean.
+    let sun = Vec3::new(0.0, 40.0f32.to_radians().sin(), 40.0f32.to_radians().cos());
+    let map = map_of(256, 128, |d| {
+        Vec3::splat(if d.dot(sun) > 5.0f32.to_radians().cos() {
+            100.0
+        } else {
+            0.3
+        })
+    });
+    let scene = lambertian_sphere(0.8, environment(map, 0.0));
+    let integrator = PathIntegrator::new(&scene, 2, true);
+    let ray = Ray::new(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z);
+    let mut rays = RayCounts::default();
+    let mut estimate = |sampler: &PixelSampler, sample_of: &dyn Fn(u32) -> (u64, u32)| {
+        (0..64)
+            .map(|i| {
+                let (pixel, sample) = sample_of(i);
+                let mut values = sampler.sample(pixel, sample);
+                integrator.radiance(&scene, &ray, &mut values, &mut rays).x
+            })
+            .sum::<Float>()
+            / 64.0
+    };
+    let stratified = PixelSampler::new(64, integrator.dimensions());
+    let independent = PixelSampler::new(1, integrator.dimensions());
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for pixel in 0..300u64 {
+        a.push(estimate(&stratified, &|s| (pixel, s)));
+        b.push(estimate(&independent, &|s| (pixel * 64 + u64::from(s), 0)));
+    }
+    let ((a_spread, a_mean), (b_spread, b_mean)) = (spread(&a), spread(&b));
+    assert!(
+        (a_mean - b_mean).abs() < 0.02 * b_mean,
+        "means {a_mean} and {b_mean}"
+    );
+    assert!(
+        a_spread < 0.5 * b_spread,
+        "spread {a_spread} stratified, {b_spread} independent (mean {b_mean})"
+    );
+}

@@ -62,19 +62,32 @@ enum Radiance {
 
 /// An equirectangular image in the form its lookups and sampling want: linear `f32`
 /// texels read with no decoding or format branches (the generic texture path decoded
-/// sRGB and matched the channel count at every lookup), and Walker's alias tables for
-/// the rows and for the texels within each row, which pick a texel with one read
-/// each, where the marginal and conditional cumulative distributions took two binary
-/// searches (a fifth of an environment-lit render).
+/// sRGB and matched the channel count at every lookup), and the cumulative
+/// distributions of the rows and of the texels within each row, inverted through
+/// guide tables.
 ///
-/// Two tables rather than one over all texels: a single table's slot is uniform over
-/// the whole image, so every pick missed the caches (measured: half the time of
+/// Inversion rather than Walker's alias tables (the sampler before): it maps `[0,
+/// 1)^2` onto the image in order, row by `v` and texel by `u`, so that a pixel's
+/// stratified light samples ([`crate::sampler`]) land on a small bright light in
+/// the proportion its share of the density says; an alias table scatters
+/// neighbouring values over unrelated texels, and the light was hit in a random
+/// number of them (a white sphere in the studio at 64 samples: 0.36x the noise of
+/// independent samples and the alias tables). A guide table keeps the inversion to
+/// about one read a level, as the alias table was: slot `k` of `n` names the first
+/// item whose range reaches `k / n` with the bounds of its range and the next
+/// item's, and a bright texel covers its slots alone (two binary searches, before the
+/// alias tables, were a fifth of an environment-lit render; with a slot naming one
+/// item and not the next, the scans past it were 8% of one).
+///
+/// Two levels rather than one table over all texels: a single table's slot is uniform
+/// over the whole image, so every pick missed the caches (measured: half the time of
 /// sampling was that one load); picked by rows, the tables and texels read are those
 /// of the bright rows, which stay cached.
 ///
-/// Memory: 24 bytes a texel (16 for RGB and density, 8 for the row's alias slot),
-/// against the 4 of the cumulative distribution before; the texture limits bound the
-/// texels, and lookups no longer need the decoded texture once this is made.
+/// Memory: 36 bytes a texel (16 for RGB and density, 20 for the row's distribution
+/// and its guide slot), against the 4 of the first cumulative distribution; the texture
+/// limits bound the texels, and lookups no longer need the decoded texture once this
+/// is made.
 #[derive(Debug)]
 struct EnvironmentMap {
     width: u32,
@@ -84,32 +97,133 @@ struct EnvironmentMap {
     /// which [`Environment::sample`] picks the texel's points, so that the pdf of a
     /// direction reads the same cache line as its radiance.
     texels: Vec<[Float; 4]>,
-    /// Walker's alias table over the rows, by their weight; empty for a black image,
-    /// which is never sampled.
-    rows: Vec<AliasSlot>,
-    /// For each row, Walker's alias table over its texels (`width` slots a row, in
-    /// the order of `texels`; aliases are columns), with the densities of the slot's
-    /// two texels: a sample reads one slot at random among `width * height`, most
-    /// often a cache miss, and finds there all it needs (reading the density from
-    /// `texels` cost a second miss: the sampling was 15% of an environment-lit
-    /// render's profile, nearly all of it waiting on those two loads).
-    columns: Vec<ColumnSlot>,
+    /// The rows' distribution, top to bottom; empty for a black image, which is
+    /// never sampled.
+    rows: Inversion,
+    /// Each row's distribution over its texels, `width` entries a row in the order
+    /// of `texels`: a sample reads one guide slot at random among `width * height`,
+    /// most often a cache miss, and mostly finds there all it needs, the texel's
+    /// density too, from its share (reading the density from `texels` cost a second
+    /// miss).
+    columns: Inversion,
 }
 
-/// A slot of a row's alias table and the densities of its own texel and its alias.
+/// Piecewise-constant distributions over items, sampled by inverting their
+/// cumulative distribution with a guide table: one or, concatenated, several of `n`
+/// items each (the rows of an image).
+#[derive(Debug, Default)]
+struct Inversion {
+    /// The cumulative distribution at the end of each item: non-decreasing, the last
+    /// item's exactly 1.
+    ends: Vec<f32>,
+    /// Slot `k` of `n`: the first item whose end exceeds `k / n`.
+    guide: Vec<GuideSlot>,
+}
+
+/// A slot of a guide table: the first item whose range of the cumulative
+/// distribution reaches into the slot's share of `[0, 1)`, and the bounds of that
+/// item's range and of the next one's: `[bounds[0], bounds[1])` and `[bounds[1],
+/// bounds[2])`. A slot most often meets one or two items, and then finds all it
+/// needs here, with one read.
 #[derive(Clone, Copy, Debug)]
 #[repr(align(16))]
-struct ColumnSlot {
-    slot: AliasSlot,
-    density: [Float; 2],
+struct GuideSlot {
+    first: u32,
+    bounds: [f32; 3],
 }
 
-/// One slot of an alias table: the slot's texel below `threshold`, else `alias`.
-#[derive(Clone, Copy, Debug)]
-struct AliasSlot {
-    threshold: f32,
-    alias: u32,
+impl Inversion {
+    /// Appends the distribution of `weights` (uniform if they are all 0).
+    fn push(&mut self, weights: &[f64]) {
+        let n = weights.len();
+        let start = self.ends.len();
+        let total: f64 = weights.iter().sum();
+        let mut sum = 0.0f64;
+        for (i, w) in weights.iter().enumerate() {
+            sum += w;
+            let end = if total > 0.0 {
+                sum / total
+            } else {
+                (i + 1) as f64 / n as f64
+            };
+            self.ends.push(end as f32);
+        }
+        let ends = &mut self.ends[start..];
+        ends[n - 1] = 1.0;
+        let mut first = 0;
+        for k in 0..n {
+            let slot_start = k as f32 / n as f32;
+            while first < n - 1 && ends[first] <= slot_start {
+                first += 1;
+            }
+            let low = if first == 0 { 0.0 } else { ends[first - 1] };
+            self.guide.push(GuideSlot {
+                first: first as u32,
+                bounds: [low, ends[first], ends[(first + 1).min(n - 1)]],
+            });
+        }
+    }
+
+    /// The width of item `i` of the distribution at `offset`: its share as drawn.
+    fn width(&self, offset: usize, i: usize) -> f32 {
+        let low = if i == 0 {
+            0.0
+        } else {
+            self.ends[offset + i - 1]
+        };
+        self.ends[offset + i] - low
+    }
+
+    /// The item of the distribution at `offset` (its first item's index, `n` items)
+    /// that `u` in `[0, 1)` picks, `u`'s place within the item's range in `[0, 1)`,
+    /// and the item's width (its probability).
+    #[inline(always)]
+    fn pick(&self, offset: usize, n: usize, u: f32) -> (usize, f32, f32) {
+        let k = ((u * n as f32) as usize).min(n - 1);
+        let GuideSlot {
+            first,
+            bounds: [b0, b1, b2],
+        } = self.guide[offset + k];
+        let first = first as usize;
+        let (i, low, high) = if u >= b0 && u < b1 {
+            (first, b0, b1)
+        } else if u >= b1 && u < b2 {
+            (first + 1, b1, b2)
+        } else {
+            let ends = &self.ends[offset..offset + n];
+            // Rounding of `u * n` may put `u` a little below the slot's start.
+            let mut i = first;
+            while i > 0 && u < ends[i - 1] {
+                i -= 1;
+            }
+            while i < n - 1 && u >= ends[i] {
+                i += 1;
+            }
+            (i, if i == 0 { 0.0 } else { ends[i - 1] }, ends[i])
+        };
+        let width = high - low;
+        let within = ((u - low) / width).clamp(0.0, ONE_BELOW_ONE);
+        (i, within, width)
+    }
+
+    /// Asks for the guide slot [`Inversion::pick`] reads first.
+    #[inline(always)]
+    fn prefetch(&self, offset: usize, n: usize, u: f32) {
+        let k = ((u * n as f32) as usize).min(n - 1);
+        prefetch(&self.guide[offset + k]);
+    }
 }
+
+/// The density in `(u, v)` of a texel of an image `width` texels wide whose share of
+/// its row is `texel_width` and whose row's share of the image, times its height,
+/// is `row_scale`: the same value the map stores with the texel.
+#[inline(always)]
+fn texel_density(texel_width: f32, width: usize, row_scale: f64) -> Float {
+    (f64::from(texel_width) * width as f64 * row_scale) as Float
+}
+
+/// The largest `f32` below 1.
+const ONE_BELOW_ONE: Float = 1.0 - Float::EPSILON / 2.0;
 
 /// A direction drawn towards the environment ([`Environment::sample_direction`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -146,11 +260,6 @@ pub struct Leaving {
 fn luminance(c: Vec3) -> Float {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
-
-/// Cells of a texel along its height when a sample places a point in it: a point is
-/// drawn uniformly among these rows of the texel and continuously along them, from
-/// what is left of the 48 random bits after the texel is picked.
-const TEXEL_ROWS: f64 = 2048.0;
 
 impl Environment {
     /// The environment `desc` describes, with its sampling tables.
@@ -465,23 +574,20 @@ impl EnvironmentMap {
         drop(luminances);
         let row_weights: Vec<f64> = weights.chunks(w).map(|row| row.iter().sum()).collect();
         let total: f64 = row_weights.iter().sum();
-        let (mut rows, mut columns) = (Vec::new(), Vec::new());
+        let (mut rows, mut columns) = (Inversion::default(), Inversion::default());
         if total > 0.0 && total.is_finite() {
-            // Density in (u, v): the texel's share of the weight over its share of
-            // the square, 1 / (w h).
-            let scale = (w * h) as f64 / total;
-            for (texel, weight) in texels.iter_mut().zip(&weights) {
-                texel[3] = (weight * scale) as Float;
-            }
-            rows = alias_table(&row_weights);
-            columns.reserve_exact(w * h);
-            for (row, row_texels) in weights.chunks(w).zip(texels.chunks(w)) {
-                columns.extend(alias_table(row).into_iter().enumerate().map(|(x, slot)| {
-                    ColumnSlot {
-                        slot,
-                        density: [row_texels[x][3], row_texels[slot.alias as usize][3]],
-                    }
-                }));
+            // A texel's density in (u, v) is its share of the distribution, as
+            // drawn (the `f32` distributions' steps), over its share of the square,
+            // 1 / (w h): a row's share times the texel's share of its row.
+            rows.push(&row_weights);
+            columns.ends.reserve_exact(w * h);
+            columns.guide.reserve_exact(w * h);
+            for (y, row) in weights.chunks(w).enumerate() {
+                let row_scale = f64::from(rows.width(0, y)) * h as f64;
+                columns.push(row);
+                for (x, texel) in texels[y * w..(y + 1) * w].iter_mut().enumerate() {
+                    texel[3] = texel_density(columns.width(y * w, x), w, row_scale);
+                }
             }
         }
         // The mean over the sphere of luminance: the sum of luminance times solid
@@ -535,7 +641,7 @@ impl EnvironmentMap {
     /// texel's density in `(u, v)` over `dw / (du dv)`.
     #[inline]
     fn pdf(&self, uv: Vec2, d: Vec3) -> Float {
-        if self.rows.is_empty() {
+        if self.rows.ends.is_empty() {
             return 0.0;
         }
         let (width, height) = (self.width as usize, self.height as usize);
@@ -551,45 +657,20 @@ impl EnvironmentMap {
         density / (2.0 * PI * PI * sin_polar)
     }
 
-    /// A point of the map by `u` and its texel's density in `(u, v)`.
-    ///
-    /// The two 24-bit uniform values make one 48-bit value (the sampler's dimensions
-    /// are independent: no stratification is lost): the row's alias table picks a
-    /// row with it, the row's table a texel with what is left of it, and the rest (at
-    /// least 17 bits for the largest maps the texture limits allow) places the point
-    /// in the texel.
+    /// A point of the map by `u` and its texel's density in `(u, v)`: `u.y` picks
+    /// the row and the point's height in it, `u.x` the texel in the row and the
+    /// point's place along it, each by inversion, so that stratified values give
+    /// stratified points.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<(Vec2, Float)> {
-        if self.rows.is_empty() {
+        if self.rows.ends.is_empty() {
             return None;
         }
-        let width = self.width as usize;
-        let t = f64::from(u.x) + f64::from(u.y) * (1.0 / 16_777_216.0);
-        let (y, rest) = pick(&self.rows, t);
-        let row = &self.columns[y * width..(y + 1) * width];
-        let (n, scaled) = (row.len(), rest * width as f64);
-        let slot = (scaled as usize).min(n - 1);
-        let within = scaled - slot as f64;
-        let ColumnSlot {
-            slot: AliasSlot { threshold, alias },
-            density,
-        } = row[slot];
-        // As `pick`, with the density of the texel picked from the same slot.
-        let threshold = f64::from(threshold);
-        let (x, rest, density) = if within < threshold {
-            (slot, within / threshold, density[0])
-        } else {
-            (
-                alias as usize,
-                (within - threshold) / (1.0 - threshold),
-                density[1],
-            )
-        };
-        // A row of the texel, then a point along it.
-        let cells = rest * TEXEL_ROWS;
-        let cell = cells.floor();
-        let fx = (cells - cell).min(1.0 - f64::EPSILON) as Float;
-        let fy = ((cell + 0.5) / TEXEL_ROWS) as Float;
+        let (width, height) = (self.width as usize, self.height as usize);
+        let (y, fy, row_width) = self.rows.pick(0, height, u.y);
+        let (x, fx, texel_width) = self.columns.pick(y * width, width, u.x);
+        let row_scale = f64::from(row_width) * height as f64;
+        let density = texel_density(texel_width, width, row_scale);
         let uv = Vec2::new(
             (x as Float + fx) / self.width as Float,
             1.0 - (y as Float + fy) / self.height as Float,
@@ -615,19 +696,17 @@ impl EnvironmentMap {
         }
     }
 
-    /// Asks the processor to fetch the alias slot that [`EnvironmentMap::sample`]
-    /// reads for `u`, so that several paths' misses overlap rather than follow one
-    /// another.
+    /// Asks the processor to fetch the guide slot of the row's distribution that
+    /// [`EnvironmentMap::sample`] reads for `u`, so that several paths' misses
+    /// overlap rather than follow one another.
     #[inline]
     fn prefetch(&self, u: Vec2) {
-        if self.rows.is_empty() {
+        if self.rows.ends.is_empty() {
             return;
         }
-        let width = self.width as usize;
-        let t = f64::from(u.x) + f64::from(u.y) * (1.0 / 16_777_216.0);
-        let (y, rest) = pick(&self.rows, t);
-        let slot = ((rest * width as f64) as usize).min(width - 1);
-        prefetch(&self.columns[y * width + slot]);
+        let (width, height) = (self.width as usize, self.height as usize);
+        let (y, _, _) = self.rows.pick(0, height, u.y);
+        self.columns.prefetch(y * width, width, u.x);
     }
 }
 
@@ -646,71 +725,10 @@ fn prefetch<T>(value: &T) {
     let _ = value;
 }
 
-/// The item of `table` that the uniform `t` in `[0, 1)` picks, and a uniform value
-/// in `[0, 1)` made of what is left of `t`.
-#[inline(always)]
-fn pick(table: &[AliasSlot], t: f64) -> (usize, f64) {
-    let n = table.len();
-    let scaled = t * n as f64;
-    let slot = (scaled as usize).min(n - 1);
-    let within = scaled - slot as f64;
-    let AliasSlot { threshold, alias } = table[slot];
-    let threshold = f64::from(threshold);
-    if within < threshold {
-        (slot, within / threshold)
-    } else {
-        (alias as usize, (within - threshold) / (1.0 - threshold))
-    }
-}
-
 /// `sin` of the polar angle of the centre of row `y` of `h` (row 0 at the top).
 fn row_sin_polar(y: usize, h: usize) -> f64 {
     let v = 1.0 - (y as Float + 0.5) / h as Float;
     f64::from((PI * v).sin())
-}
-
-/// Walker's alias table for `weights`, built by Vose's method: each slot holds its
-/// own item's share up to `threshold` and one item whose share exceeds a slot's for
-/// the rest, so that picking a slot uniformly and then one of its two items picks
-/// item `i` with probability `weights[i]` over their sum; uniform if they are all 0.
-fn alias_table(weights: &[f64]) -> Vec<AliasSlot> {
-    let n = weights.len();
-    let total: f64 = weights.iter().sum();
-    if total <= 0.0 {
-        // A black row: never picked, but its table must pick some texel.
-        return (0..n as u32)
-            .map(|i| AliasSlot {
-                threshold: 1.0,
-                alias: i,
-            })
-            .collect();
-    }
-    // Each weight in units of a slot's share.
-    let mut share: Vec<f64> = weights.iter().map(|w| w * n as f64 / total).collect();
-    let mut table: Vec<AliasSlot> = (0..n)
-        .map(|i| AliasSlot {
-            threshold: 1.0,
-            alias: i as u32,
-        })
-        .collect();
-    let (mut small, mut large): (Vec<u32>, Vec<u32>) =
-        (0..n as u32).partition(|&i| share[i as usize] < 1.0);
-    while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
-        small.pop();
-        table[s as usize] = AliasSlot {
-            threshold: share[s as usize] as f32,
-            alias: l,
-        };
-        // The large item gives up what fills slot s.
-        share[l as usize] = (share[l as usize] + share[s as usize]) - 1.0;
-        if share[l as usize] < 1.0 {
-            large.pop();
-            small.push(l);
-        }
-    }
-    // What is left is a whole slot each but for rounding: it keeps its own slot
-    // (a threshold of 1, as made above).
-    table
 }
 
 /// What camera rays that leave an unlit scene see in path mode: a neutral mid grey,
@@ -1068,6 +1086,69 @@ mod tests {
         );
         // Most of the light is the sun's: so are most samples.
         assert!(toward_sun > n / 2, "{toward_sun} of {n}");
+    }
+
+    #[test]
+    fn stratified_values_land_on_a_small_light_in_proportion() {
+        // A 3-degree sun in a dim sky: a grid of 16 x 16 values, one in each cell of
+        // [0, 1)^2, must put as many points on the sun as its share of the density
+        // says, give or take the cells the sun's edge crosses (a sampler that
+        // scatters neighbouring values over unrelated texels, as an alias table
+        // does, gives a binomial count instead). Sampling keeps order too: a greater
+        // `u.y` never picks a higher row, nor a greater `u.x` an earlier texel in it.
+        let sun = Vec3::new(0.3, 0.6, -0.5).normalize();
+        let texture = map(512, 256, |d| {
+            Vec3::splat(if d.dot(sun) > 3.0f32.to_radians().cos() {
+                200.0
+            } else {
+                0.2
+            })
+        });
+        let env = Environment::new(&EnvironmentDesc {
+            radiance: EnvironmentRadiance::Map(texture),
+            strength: 1.0,
+            rotation_degrees: 0.0,
+        });
+        let on_sun = |d: Vec3| d.dot(sun) > 4.5f32.to_radians().cos();
+        let (mut hits, mut share) = (0, 0.0f64);
+        let n = 32;
+        let mut last: Option<Vec2> = None;
+        for i in 0..n * n {
+            let u = Vec2::new(
+                ((i % n) as Float + 0.5) / n as Float,
+                ((i / n) as Float + 0.5) / n as Float,
+            );
+            let sample = env.sample_map(u).unwrap();
+            if let Some(previous) = last {
+                if i % n == 0 {
+                    assert!(sample.uv.y <= previous.y, "{u}: {sample:?}");
+                } else {
+                    assert!(sample.uv.x >= previous.x, "{u}: {sample:?}");
+                }
+            }
+            last = Some(sample.uv);
+            let (d, _, _) = env.sample(u).unwrap();
+            hits += usize::from(on_sun(d));
+        }
+        // The sun's share of the density, by a fine quadrature of `pdf`.
+        let m = 2048;
+        for i in 0..m * m / 2 {
+            let uv = Vec2::new(
+                ((i % m) as Float + 0.5) / m as Float,
+                ((i / m) as Float + 0.5) / (m / 2) as Float,
+            );
+            let d = uv_to_direction(uv);
+            if on_sun(d) {
+                let cos_latitude = ((uv.y - 0.5) * PI).cos();
+                share += f64::from(env.pdf(d) * cos_latitude * 2.0 * PI * PI) / (m * m / 2) as f64;
+            }
+        }
+        let expected = share * (n * n) as f64;
+        assert!(
+            (hits as f64 - expected).abs() <= 3.0,
+            "{hits} of {} points on the sun, {expected:.1} expected",
+            n * n
+        );
     }
 
     #[test]

@@ -39,7 +39,9 @@ def decide_ours(name, file):
         return "leaf"
     if file.endswith("/src/bvh/wide.rs"):
         return "setup" if short(name) in ("new", "from_parts") else "node"
-    if "/wt-walkcost/src/" in file or "/src/" in file and "/work/" in file:
+    if file.endswith("/src/memory.rs"):
+        return None  # prefetch_lines: its caller's
+    if "/src/" in file and "/.cargo/" not in file and "/rustc/" not in file:
         return "setup"
     return None
 
@@ -63,6 +65,8 @@ def main():
     ap.add_argument("objects", nargs="+")
     ap.add_argument("--rays", type=int, required=True)
     ap.add_argument("--scheme", choices=PARTS, required=True)
+    ap.add_argument("--by-function", action="store_true",
+                    help="also each part by the function of its deciding frame")
     args = ap.parse_args()
     events = None
     costs = collections.defaultdict(lambda: None)  # (object, address) -> list
@@ -94,6 +98,7 @@ def main():
     for (ob, addr) in costs:
         by_object[ob].append(addr)
     totals = collections.defaultdict(lambda: [0] * len(events))
+    by_function = collections.defaultdict(lambda: [0] * len(events))
     for ob, addrs in by_object.items():
         match = next((p for p in args.objects if ob.endswith(p) or p.endswith(ob)), None)
         if match is None:
@@ -120,10 +125,16 @@ def main():
                 name = None
         for a in addrs:
             part = "other"
-            for name, file in frames.get(a, []):
+            chain = frames.get(a, [])
+            for depth, (name, file) in enumerate(chain):
                 decided = PARTS[args.scheme](name, file)
                 if decided:
                     part = decided
+                    inner = next((short(n) for n, f in chain[:depth + 1]
+                                  if PARTS[args.scheme](n, f) is not None or "/bvh/" in f), short(name))
+                    t = by_function[(part, inner)]
+                    for i, v in enumerate(costs[(ob, a)]):
+                        t[i] += v
                     break
             t = totals[part]
             for i, v in enumerate(costs[(ob, a)]):
@@ -136,6 +147,10 @@ def main():
             grand = [g + v for g, v in zip(grand, t)]
             print(f"{part:6} " + " ".join(f"{v / args.rays:9.2f}" for v in t))
     print("total  " + " ".join(f"{v / args.rays:9.2f}" for v in grand))
+    if args.by_function:
+        for (part, name), t in sorted(by_function.items(), key=lambda kv: (kv[0][0], -kv[1][0])):
+            if t[0] >= args.rays:
+                print(f"  {part:6} {name[:40]:40} " + " ".join(f"{v / args.rays:9.2f}" for v in t))
 
 
 main()

@@ -255,8 +255,11 @@ int main(int argc, char **argv) {
     }
     fclose(in);
     omp_set_num_threads(threads);
-    char config[64];
-    snprintf(config, sizeof config, "threads=%d", threads);
+    /* EMBREE_PATHRAYS_CONFIG: more of rtcNewDevice's configuration, e.g. verbose=1 (which
+     * prints the ISA Embree picked: under valgrind, AVX2). */
+    const char *more = getenv("EMBREE_PATHRAYS_CONFIG");
+    char config[256];
+    snprintf(config, sizeof config, "threads=%d%s%s", threads, more ? "," : "", more ? more : "");
     RTCDevice device = rtcNewDevice(config);
     if (!device) die("rtcNewDevice failed");
     scene = rtcNewScene(device);

@@ -4,7 +4,7 @@
  *   RT_PATHRAYS_DUMP=rays.bin raytracer render SCENE -j 1 -o x.png   (a local build
  *       with the dump hook of bench/pathrays/README.md)
  *   bench/pathrays/embree_pathrays rays.bin [--repeat N] [--threads T] [--high] [--robust]
- *       [--buckets] [--shuffle]
+ *       [--buckets] [--shuffle] [--only KIND:GROUP [--first N]]
  *
  * Builds the file's triangles (RTC_BUILD_QUALITY_MEDIUM unless --high), then traces
  * each group of batches (closest hit or any hit; camera rays and the first step's
@@ -15,6 +15,14 @@
  * CPU-second, and one JSON line. With --buckets, each group apart by its batches'
  * active lanes (1-4, 5-8, 9-12, 13-16); with --shuffle, each group's batches in a
  * fixed random order instead of the order path mode traced them.
+ *
+ * With --only KIND:GROUP (KIND 0 closest, 1 any; GROUP 0 camera rays and their
+ * shadow rays, 1 first bounce, 2 bounces 2-7), only that group's single rays, its
+ * first N active rays in file order (--first N), one after another on the calling
+ * thread in trace_single_rays (not inlined: `valgrind --tool=callgrind
+ * --toggle-collect=trace_single_rays` counts the tracing alone), --repeat times;
+ * prints rays, hits and Mrays per CPU-second. Against a build of Embree with
+ * EMBREE_STAT_COUNTERS (bench/embree/count.sh) its counters are then this group's.
  *
  * The file, little-endian: "RTPATH01", u32 vertex count, f32 x y z each, u32
  * triangle count, u32 a b c each, then batches to the end: u8 kind (0 closest,
@@ -134,9 +142,67 @@ static long trace(const Batch *const *batches, long n, int packets) {
     return found;
 }
 
+/* One ray after another, as the replay's single rays (RT_PATHRAYS_ONLY). */
+__attribute__((noinline)) static long trace_single_rays(const Ray *rays, long n, int kind) {
+    long found = 0;
+    struct RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    for (long i = 0; i < n; i++) {
+        const Ray *r = &rays[i];
+        struct RTCRayHit rh;
+        rh.ray.org_x = r->o[0];
+        rh.ray.org_y = r->o[1];
+        rh.ray.org_z = r->o[2];
+        rh.ray.dir_x = r->d[0];
+        rh.ray.dir_y = r->d[1];
+        rh.ray.dir_z = r->d[2];
+        rh.ray.tnear = 0.0f;
+        rh.ray.tfar = r->tmax;
+        rh.ray.time = 0.0f;
+        rh.ray.mask = 0xFFFFFFFF;
+        rh.ray.id = 0;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        if (kind == 0) {
+            rtcIntersect1(scene, &context, &rh);
+            found += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+        } else {
+            rtcOccluded1(scene, &context, &rh.ray);
+            found += rh.ray.tfar < 0.0f;
+        }
+    }
+    return found;
+}
+
+/* --only: the first `first` active rays of one group, traced singly on this thread. */
+static void only_group(const Batch *all, size_t count, int kind, int group, long first, int repeat) {
+    Ray *rays = (Ray *)malloc((first > 0 ? (size_t)first : count * 16) * sizeof(Ray));
+    long n = 0;
+    if (!rays) die("out of memory");
+    for (size_t i = 0; i < count && (first <= 0 || n < first); i++) {
+        int step = all[i].step < 2 ? all[i].step : 2;
+        if (all[i].kind != kind || step != group) continue;
+        for (int l = 0; l < 16 && (first <= 0 || n < first); l++)
+            if (all[i].active >> l & 1) rays[n++] = all[i].rays[l];
+    }
+    double cpus[100];
+    long found = 0;
+    for (int run = 0; run < repeat; run++) {
+        double c0 = cpu_now();
+        found = trace_single_rays(rays, n, kind);
+        cpus[run] = cpu_now() - c0;
+    }
+    qsort(cpus, repeat, sizeof(double), compare);
+    printf("{\"kind\": %d, \"group\": %d, \"rays\": %ld, \"found\": %ld, \"single_mrays\": %.4f}\n", kind,
+           group, n, found, n / cpus[repeat / 2] * 1e-6);
+    free(rays);
+}
+
 int main(int argc, char **argv) {
     const char *path = NULL;
     int repeat = 3, threads = 2, high = 0, robust = 0, buckets = 0, shuffle = 0;
+    int only_kind = -1, only_group_ = -1;
+    long first = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--repeat") && i + 1 < argc)
             repeat = atoi(argv[++i]);
@@ -150,6 +216,12 @@ int main(int argc, char **argv) {
             buckets = 1;
         else if (!strcmp(argv[i], "--shuffle"))
             shuffle = 1;
+        else if (!strcmp(argv[i], "--only") && i + 1 < argc) {
+            if (sscanf(argv[++i], "%d:%d", &only_kind, &only_group_) != 2 || only_kind < 0 || only_kind > 1 ||
+                only_group_ < 0 || only_group_ > 2)
+                die("--only takes KIND:GROUP, KIND 0 or 1, GROUP 0 to 2");
+        } else if (!strcmp(argv[i], "--first") && i + 1 < argc)
+            first = atol(argv[++i]);
         else if (argv[i][0] != '-' && !path)
             path = argv[i];
         else
@@ -183,8 +255,11 @@ int main(int argc, char **argv) {
     }
     fclose(in);
     omp_set_num_threads(threads);
-    char config[64];
-    snprintf(config, sizeof config, "threads=%d", threads);
+    /* EMBREE_PATHRAYS_CONFIG: more of rtcNewDevice's configuration, e.g. verbose=1 (which
+     * prints the ISA Embree picked: under valgrind, AVX2). */
+    const char *more = getenv("EMBREE_PATHRAYS_CONFIG");
+    char config[256];
+    snprintf(config, sizeof config, "threads=%d%s%s", threads, more ? "," : "", more ? more : "");
     RTCDevice device = rtcNewDevice(config);
     if (!device) die("rtcNewDevice failed");
     scene = rtcNewScene(device);
@@ -197,6 +272,10 @@ int main(int argc, char **argv) {
     rtcAttachGeometry(scene, mesh);
     rtcReleaseGeometry(mesh);
     rtcCommitScene(scene);
+    if (only_kind >= 0) {
+        only_group(all, count, only_kind, only_group_, first, repeat);
+        return 0;
+    }
 
     const char *kinds[2] = {"closest", "any"};
     const char *steps[3] = {"camera/first", "bounce 1", "bounce 2+"};

@@ -282,7 +282,7 @@ impl SceneDescription {
                 }
             })
             .collect();
-        const NO_LIGHTS: &str = "the scene has no lights ('P' or 'Ke')";
+        const NO_LIGHTS: &str = "the scene has no lights (no light sources, no emitting surfaces)";
         if !emission.iter().any(|&e| e > 0.0) {
             return Some(NO_LIGHTS);
         }

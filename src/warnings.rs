@@ -90,7 +90,7 @@ mod tests {
     #[test]
     fn warnings_of_different_kinds_stay_apart() {
         let warnings = [
-            "the scene has no lights ('P' or 'Ke'): path mode renders it black",
+            "the scene has no lights (no light sources, no emitting surfaces): path mode renders it black",
             "the scene's camera is odd",
             "b.mtl:2: 'Ns' below 0 read as 0 (4 lines)",
             "b.mtl:9: unknown option '-q' of 'map_Kd' ignored",

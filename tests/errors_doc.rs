@@ -136,6 +136,6 @@ fn the_default_light_off_by_a_scene_file_is_named() {
     let output = run(dir.path(), &args);
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{stderr}");
-    let warning = "warning: the scene has no lights ('P' or 'Ke'): path mode renders it black (the default light is off: scene.toml:4: render.default_light)";
+    let warning = "warning: the scene has no lights (no light sources, no emitting surfaces): path mode renders it black (the default light is off: scene.toml:4: render.default_light)";
     assert!(stderr.lines().any(|l| l == warning), "{stderr}");
 }

@@ -322,7 +322,7 @@ fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
     let (stderr, rgb) = render_model(&[]);
     assert_eq!(
         stderr,
-        "warning: the scene has no lights ('P' or 'Ke'): lit by a default light rig at the camera (--no-default-light turns it off)\n"
+        "warning: the scene has no lights (no light sources, no emitting surfaces): lit by a default light rig at the camera (--no-default-light turns it off)\n"
     );
     // The model's pixels: where camera rays missed, the grey backdrop shows (one
     // sample per pixel: each pixel is the model's or the backdrop's).
@@ -495,7 +495,7 @@ fn no_default_light_renders_the_unlit_scene_as_it_is() {
     let (stderr, rgb) = render_model(&["--no-default-light"]);
     assert_eq!(
         stderr,
-        "warning: the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka) (the default light is off: --no-default-light)\n"
+        "warning: the scene has no lights (no light sources, no emitting surfaces): full mode shows only its ambient colour (Ka) (the default light is off: --no-default-light)\n"
     );
     // SPEC's formula: Ka alone, white, flat.
     assert_eq!(brightest(&rgb), [255, 255, 255]);
@@ -514,7 +514,7 @@ fn path_mode_lights_an_unlit_scene_with_a_white_sky_unless_told_not_to() {
     assert_eq!(
         stderr,
         format!(
-            "warning: the scene has no lights ('P' or 'Ke'): path mode lights it with a studio environment (--no-default-light turns it off)\n{SCALED}"
+            "warning: the scene has no lights (no light sources, no emitting surfaces): path mode lights it with a studio environment (--no-default-light turns it off)\n{SCALED}"
         )
     );
     assert!(rgb.iter().any(|&c| c > 0));
@@ -522,7 +522,7 @@ fn path_mode_lights_an_unlit_scene_with_a_white_sky_unless_told_not_to() {
     assert_eq!(
         stderr,
         format!(
-            "warning: the scene has no lights ('P' or 'Ke'): path mode renders it black (the default light is off: --no-default-light)\n{SCALED}{BLACK}"
+            "warning: the scene has no lights (no light sources, no emitting surfaces): path mode renders it black (the default light is off: --no-default-light)\n{SCALED}{BLACK}"
         )
     );
     assert!(rgb.iter().all(|&c| c == 0));
@@ -638,7 +638,7 @@ fn a_scene_file_can_turn_the_default_light_off() {
     assert_eq!(
         description.warnings,
         [format!(
-            "the scene has no lights ('P' or 'Ke'): full mode shows only its ambient colour (Ka) (the default light is off: {}:2: render.default_light)",
+            "the scene has no lights (no light sources, no emitting surfaces): full mode shows only its ambient colour (Ka) (the default light is off: {}:2: render.default_light)",
             toml.display()
         )]
     );

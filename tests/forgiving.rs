@@ -111,7 +111,7 @@ fn an_unknown_ply_header_line_is_skipped() {
         warnings,
         [
             "created-by.ply:3: skipped 1 header line of unknown keyword ('Created')",
-            "the scene has no lights ('P' or 'Ke'): lit by a default light rig at the camera (--no-default-light turns it off)"
+            "the scene has no lights (no light sources, no emitting surfaces): lit by a default light rig at the camera (--no-default-light turns it off)"
         ]
     );
     assert!(centre(&rgb)[0] > 50);

@@ -18,7 +18,7 @@ fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-const RIG: &str = "the scene has no lights ('P' or 'Ke'): lit by a default light rig at the camera (--no-default-light turns it off)";
+const RIG: &str = "the scene has no lights (no light sources, no emitting surfaces): lit by a default light rig at the camera (--no-default-light turns it off)";
 
 /// `raytracer render FILE -o OUT` plus `args`, run in the file's folder: the exit
 /// status, stderr's lines and the image (if one was written).

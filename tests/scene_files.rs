@@ -442,7 +442,7 @@ fn info_counts_bounds_materials_memory_and_warnings() {
         // Two unused materials: one line, with a count.
         "warning: material 'unused' is not used (and 1 more like it)",
         "warning: 1 degenerate (zero-area) triangle will be skipped",
-        "warning: no lights ('P' or 'Ke'): render adds a default light rig at the camera (a studio environment in path mode) unless --no-default-light",
+        "warning: no lights (no light sources, no emitting surfaces): render adds a default light rig at the camera (a studio environment in path mode) unless --no-default-light",
     ];
     for line in expected_lines {
         assert!(

@@ -89,7 +89,8 @@ struct PbrStatements {
     roughness_map: bool,
     metallic_map: bool,
     sheen_map: bool,
-    /// Whether `Ks`, `Ns` and `Ni` were given.
+    /// Whether `Kd`, `Ks`, `Ns` and `Ni` were given.
+    diffuse: bool,
     specular: bool,
     shininess: bool,
     ior: bool,
@@ -171,6 +172,14 @@ pub fn parse_mtl_with(
             line,
             format!("'Ns' below 0 read as 0 ({count} line{plural})"),
         ));
+    }
+    // A `map_Kd` with no `Kd` is the surface's colour as it is, as three.js's
+    // MTLLoader and Blender's importer show it (Blender 4 writes no `Kd` for a base
+    // colour taken from a texture), not the texture times the default black.
+    for map in &maps {
+        if map.kind == MapKind::Diffuse && !statements[map.material].diffuse {
+            materials[map.material].diffuse = Vec3::ONE;
+        }
     }
     let mut library = MaterialLibrary {
         materials,
@@ -487,7 +496,10 @@ fn parse_line(
     }
     match keyword {
         b"Ka" => material.ambient = colour("Ka", &mut tokens)?,
-        b"Kd" => material.diffuse = colour("Kd", &mut tokens)?,
+        b"Kd" => {
+            material.diffuse = colour("Kd", &mut tokens)?;
+            pbr.diffuse = true;
+        }
         b"Ks" => {
             material.specular = colour("Ks", &mut tokens)?;
             pbr.specular = true;
@@ -708,6 +720,23 @@ mod tests {
 
     fn parse(text: &str) -> Result<Vec<Material>, SceneError> {
         parse_mtl(text.as_bytes(), Path::new("test.mtl")).map(|library| library.materials)
+    }
+
+    #[test]
+    fn a_diffuse_map_without_kd_is_the_colour_as_it_is() {
+        // Blender 4's exporter writes `map_Kd` and no `Kd` for a base colour taken
+        // from a texture: the texture times 1, not times the default black. A `Kd`
+        // given, black too, stays.
+        let m = parse(
+            "newmtl a\nKa 1 1 1\nmap_Kd box.png\nnewmtl b\nKd 0.5 0.5 0.5\nmap_Kd box.png\n\
+             newmtl c\nKd 0 0 0\nmap_Kd box.png\nnewmtl d\n",
+        )
+        .unwrap();
+        let diffuse: Vec<Vec3> = m.iter().map(|m| m.diffuse).collect();
+        assert_eq!(
+            diffuse,
+            [Vec3::ONE, Vec3::splat(0.5), Vec3::ZERO, Vec3::ZERO]
+        );
     }
 
     #[test]

@@ -154,7 +154,7 @@ impl SceneSummary {
         }
         if scene.is_unlit() {
             warnings.push(
-                "no lights ('P' or 'Ke'): render adds a default light rig at the camera (a studio environment in path mode) unless --no-default-light"
+                "no lights (no light sources, no emitting surfaces): render adds a default light rig at the camera (a studio environment in path mode) unless --no-default-light"
                     .into(),
             );
         } else if scene.lights.is_empty() {

@@ -77,7 +77,7 @@ def same_files_scene(ply, folder, lighting):
     return path
 
 
-def scene_dict(ply, seed, lighting):
+def scene_dict(ply, seed, lighting, sampler="independent"):
     floor = os.path.join(HERE, "floor.obj")
     scene = {
         "type": "scene",
@@ -85,7 +85,7 @@ def scene_dict(ply, seed, lighting):
         "sensor": {
             "type": "perspective", "fov": FOV, "fov_axis": "y",
             "to_world": mi.ScalarTransform4f().look_at(origin=LOOK_FROM, target=LOOK_TO, up=[0, 1, 0]),
-            "sampler": {"type": "independent", "sample_count": SPP, "seed": seed},
+            "sampler": {"type": sampler, "sample_count": SPP, "seed": seed},
             "film": {"type": "hdrfilm", "width": WIDTH, "height": HEIGHT, "rfilter": {"type": "box"}},
         },
         "dragon": {"type": "ply", "filename": ply, "face_normals": True,
@@ -113,6 +113,10 @@ def main():
     parser.add_argument("--light", choices=["points", "env"], default="points",
                         help="the scene's two point lights, or the bundled environment map alone")
     parser.add_argument("--binary", default=os.path.join(ROOT, "target", "release", "raytracer"))
+    parser.add_argument("--sampler", choices=["independent", "multijitter", "ldsampler"],
+                        default="independent",
+                        help="Mitsuba's sampler (ours stratifies a pixel's samples: "
+                        "multijitter is the like-for-like one)")
     parser.add_argument("--write-scenes", metavar="DIR",
                         help="only write our two scenes, DIR/points.toml and DIR/env.toml, and stop")
     args = parser.parse_args()
@@ -129,13 +133,13 @@ def main():
     with tempfile.TemporaryDirectory() as folder:
         ours_cmd = [args.binary, "render", same_files_scene(ply, folder, args.light), "-q"]
         out = os.path.join(folder, "ours.png")
-        mi.Bitmap(mi.render(mi.load_dict(scene_dict(ply, 0, args.light)), spp=SPP))
+        mi.Bitmap(mi.render(mi.load_dict(scene_dict(ply, 0, args.light, args.sampler)), spp=SPP))
         for i in range(args.repeat):
             start = time.perf_counter()
             subprocess.run(ours_cmd + ["-o", out], check=True)
             ours.append(time.perf_counter() - start)
             start = time.perf_counter()
-            image = mi.render(mi.load_dict(scene_dict(ply, i + 1, args.light)), spp=SPP)
+            image = mi.render(mi.load_dict(scene_dict(ply, i + 1, args.light, args.sampler)), spp=SPP)
             mi.Bitmap(image)  # Dr.Jit is lazy: make sure the render is done
             theirs.append(time.perf_counter() - start)
         # The last images of each, to look at side by side.

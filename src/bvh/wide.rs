@@ -596,10 +596,9 @@ impl RayQuery {
 #[derive(Clone, Copy)]
 pub(super) struct WideRay {
     origin: [f32x8; 3],
-    inv_dir: [f32x8; 3],
-    /// Index into [`WideNode::planes`] of the near plane of each axis (the far plane
-    /// is the other one of the pair).
-    near_plane: [usize; 3],
+    /// `-1 / dir` per axis: negative where the ray meets the min plane
+    /// (`planes[2 * axis]`) first, positive where it meets the max plane first.
+    neg_inv_dir: [f32x8; 3],
 }
 
 impl WideRay {
@@ -616,8 +615,7 @@ impl WideRay {
     pub(super) fn from_parts(origin: [Float; 3], inv_dir: [Float; 3]) -> WideRay {
         WideRay {
             origin: [0, 1, 2].map(|a| f32x8::splat(origin[a])),
-            inv_dir: [0, 1, 2].map(|a| f32x8::splat(inv_dir[a])),
-            near_plane: [0, 1, 2].map(|a| 2 * a + usize::from(inv_dir[a] < 0.0)),
+            neg_inv_dir: [0, 1, 2].map(|a| f32x8::splat(-inv_dir[a])),
         }
     }
 
@@ -634,15 +632,18 @@ impl WideRay {
         let mut t_enter = f32x8::ZERO;
         let mut t_exit = f32x8::splat(Float::INFINITY);
         for axis in 0..3 {
-            let near = self.near_plane[axis];
-            let far = near ^ 1;
-            // `(plane - origin) * inv_dir` rather than one fused `plane * inv_dir -
-            // origin * inv_dir`: the fused form is no faster here (measured) and loses
-            // precision to cancellation when the origin is far from the world origin.
-            let t_near = (node.planes[near] - self.origin[axis]) * self.inv_dir[axis];
-            let t_far = (node.planes[far] - self.origin[axis]) * self.inv_dir[axis];
-            t_enter = t_enter.fast_max(t_near);
-            t_exit = t_exit.fast_min(t_far);
+            // `(origin - plane) * -inv_dir`: the same rounding as `(plane - origin) *
+            // inv_dir`, negation being exact (only a zero's sign can differ, which no
+            // comparison sees), and the plane can be the operand read from memory.
+            // Not one fused `plane * inv_dir - origin * inv_dir`: that is no faster
+            // here (measured) and loses precision to cancellation when the origin is
+            // far from the world origin. Both planes at fixed offsets, the near one
+            // picked by the sign of the direction: no plane index to keep or reload.
+            let neg_inv_dir = self.neg_inv_dir[axis];
+            let t_min = (self.origin[axis] - node.planes[2 * axis]) * neg_inv_dir;
+            let t_max = (self.origin[axis] - node.planes[2 * axis + 1]) * neg_inv_dir;
+            t_enter = t_enter.fast_max(select_by_sign(neg_inv_dir, t_min, t_max));
+            t_exit = t_exit.fast_min(select_by_sign(neg_inv_dir, t_max, t_min));
         }
         let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
         let reach = f32x8::splat(reach);
@@ -652,6 +653,25 @@ impl WideRay {
             t_enter.simd_lt(reach)
         };
         ((t_enter.simd_le(t_exit) & within).to_bitmask(), t_enter)
+    }
+}
+
+/// Per lane, `if_negative` where `sign`'s sign bit is set, else `otherwise`; `sign`
+/// is never zero or NaN here. One `vblendvps` on AVX, which reads only the sign bit,
+/// so no mask needs to be computed or kept per ray.
+#[inline(always)]
+fn select_by_sign(sign: f32x8, if_negative: f32x8, otherwise: f32x8) -> f32x8 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    {
+        use std::arch::x86_64::{__m256, _mm256_blendv_ps};
+        let [sign, if_negative, otherwise]: [__m256; 3] =
+            [sign, if_negative, otherwise].map(bytemuck::cast);
+        // SAFETY: the `avx` target feature is enabled at compile time.
+        bytemuck::cast(unsafe { _mm256_blendv_ps(otherwise, if_negative, sign) })
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+    {
+        sign.simd_lt(f32x8::ZERO).select(if_negative, otherwise)
     }
 }
 
@@ -803,6 +823,84 @@ mod tests {
                 "{dir:?}"
             );
         }
+    }
+
+    /// The slab test's entry distances and hits are those of `(plane - origin) *
+    /// inv_dir` with each axis's near plane chosen by the sign of the direction, for
+    /// directions of either sign on every axis (and axis-parallel ones), origins inside,
+    /// outside and on the boxes' planes, and degenerate (flat) boxes.
+    #[test]
+    fn slab_test_matches_the_scalar_near_and_far_planes() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let mut node = WideNode::EMPTY;
+        for slot in 0..WIDTH - 1 {
+            let min = Vec3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            );
+            let size = if slot == 0 {
+                Vec3::new(1.0, 0.0, 0.5)
+            } else {
+                Vec3::new(
+                    rng.random_range(0.0..2.0),
+                    rng.random_range(0.0..2.0),
+                    rng.random_range(0.0..2.0),
+                )
+            };
+            node.set_child_bounds(
+                slot,
+                Aabb {
+                    min,
+                    max: min + size,
+                },
+            );
+        }
+        let corner = node.child_bounds(0).min;
+        let mut checked = [0u32; 2];
+        for i in 0..4000 {
+            let origin = if i % 4 == 0 {
+                corner
+            } else {
+                Vec3::new(
+                    rng.random_range(-4.0..4.0),
+                    rng.random_range(-4.0..4.0),
+                    rng.random_range(-4.0..4.0),
+                )
+            };
+            let mut dir = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if i % 5 == 1 {
+                dir[i % 3] = 0.0;
+            }
+            let query = RayQuery::new(&Ray::new(origin, dir.normalize()));
+            let reach = rng.random_range(0.0..6.0);
+            let (hits, t_enter) = WideRay::new(&query).hit_children::<false>(&node, reach);
+            for slot in 0..WIDTH {
+                let bounds = node.child_bounds(slot);
+                let (mut enter, mut exit) = (0.0 as Float, Float::INFINITY);
+                for axis in 0..3 {
+                    let inv = query.inv_dir[axis];
+                    let (near, far) = if inv < 0.0 {
+                        (bounds.max[axis], bounds.min[axis])
+                    } else {
+                        (bounds.min[axis], bounds.max[axis])
+                    };
+                    enter = enter.max((near - origin[axis]) * inv);
+                    exit = exit.min((far - origin[axis]) * inv);
+                }
+                let hit = enter <= exit * SLAB_EXIT_SLACK && enter < reach;
+                assert_eq!(hits >> slot & 1 == 1, hit, "ray {i}, slot {slot}");
+                if hit {
+                    assert_eq!(t_enter.as_array()[slot], enter, "ray {i}, slot {slot}");
+                }
+                checked[usize::from(hit)] += 1;
+            }
+        }
+        assert!(checked[0] > 1000 && checked[1] > 1000, "{checked:?}");
     }
 }
 

@@ -12,6 +12,9 @@ pub use glam::{Vec2, Vec3};
 /// The one floating-point type of the renderer.
 pub type Float = f32;
 
+/// The largest [`Float`] below 1: where a value in `[0, 1)` must stay below 1.
+pub const ONE_BELOW_ONE: Float = 1.0 - Float::EPSILON / 2.0;
+
 /// A half-line `origin + t * dir`, `t >= 0`, with a unit direction.
 ///
 /// Laid out as six `f32` (origin, then direction), so that packets of rays can be

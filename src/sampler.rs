@@ -28,7 +28,7 @@
 //! of its position, so an image is identical from run to run and for any number of
 //! threads, and a tile rendered alone equals the same pixels of the whole image.
 
-use crate::math::{Float, Vec2, Vec3};
+use crate::math::{Float, ONE_BELOW_ONE, Vec2, Vec3};
 
 /// Largest number of samples per pixel accepted.
 pub const MAX_SAMPLES_PER_PIXEL: u32 = 65_536;
@@ -422,9 +422,6 @@ fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
 fn unit_u32(x: u32) -> Float {
     unit(u64::from(x >> 8))
 }
-
-/// The largest `f32` below 1.
-const ONE_BELOW_ONE: Float = 1.0 - Float::EPSILON / 2.0;
 
 /// The low 24 bits of `bits` as a number in `[0, 1)`: exactly what an `f32` in
 /// `[0, 1)` can hold.

@@ -17,7 +17,7 @@ use std::sync::Arc;
 use glam::Vec4;
 use wide::f32x16;
 
-use crate::math::{Float, Vec2, Vec3};
+use crate::math::{Float, ONE_BELOW_ONE, Vec2, Vec3};
 use crate::textures::{Encoding, Texture};
 
 /// What the environment shows, as a scene description gives it.
@@ -156,22 +156,18 @@ impl Inversion {
             while first < n - 1 && ends[first] <= slot_start {
                 first += 1;
             }
-            let low = if first == 0 { 0.0 } else { ends[first - 1] };
+            let (low, high) = item_range(ends, first);
             self.guide.push(GuideSlot {
                 first: first as u32,
-                bounds: [low, ends[first], ends[(first + 1).min(n - 1)]],
+                bounds: [low, high, ends[(first + 1).min(n - 1)]],
             });
         }
     }
 
     /// The width of item `i` of the distribution at `offset`: its share as drawn.
     fn width(&self, offset: usize, i: usize) -> f32 {
-        let low = if i == 0 {
-            0.0
-        } else {
-            self.ends[offset + i - 1]
-        };
-        self.ends[offset + i] - low
+        let (low, high) = item_range(&self.ends[offset..], i);
+        high - low
     }
 
     /// The item of the distribution at `offset` (its first item's index, `n` items)
@@ -199,7 +195,8 @@ impl Inversion {
             while i < n - 1 && u >= ends[i] {
                 i += 1;
             }
-            (i, if i == 0 { 0.0 } else { ends[i - 1] }, ends[i])
+            let (low, high) = item_range(ends, i);
+            (i, low, high)
         };
         let width = high - low;
         let within = ((u - low) / width).clamp(0.0, ONE_BELOW_ONE);
@@ -222,8 +219,12 @@ fn texel_density(texel_width: f32, width: usize, row_scale: f64) -> Float {
     (f64::from(texel_width) * width as f64 * row_scale) as Float
 }
 
-/// The largest `f32` below 1.
-const ONE_BELOW_ONE: Float = 1.0 - Float::EPSILON / 2.0;
+/// Item `i`'s range `[low, high)` of the cumulative distribution whose item ends
+/// are `ends`.
+#[inline(always)]
+fn item_range(ends: &[f32], i: usize) -> (f32, f32) {
+    (if i == 0 { 0.0 } else { ends[i - 1] }, ends[i])
+}
 
 /// A direction drawn towards the environment ([`Environment::sample_direction`]).
 #[derive(Clone, Copy, Debug, PartialEq)]

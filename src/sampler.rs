@@ -122,8 +122,8 @@ impl PixelSampler {
         let pixel = mix64(pixel_index ^ DIMENSION_SEED);
         PixelSample {
             pixel: mix64(pixel.wrapping_add(self.seed_offset) ^ DIMENSION_SEED),
-            index: sample,
-            index_bits: self.count.next_power_of_two().trailing_zeros(),
+            reversed_index: sample.reverse_bits(),
+            index_digits: (self.count.next_power_of_two() - 1).reverse_bits(),
             stream: mix64(
                 pixel
                     .wrapping_add(sample as u64)
@@ -215,11 +215,13 @@ pub struct PixelSample {
     /// A hash of the pixel index and the sampler's seed, that every draw of every
     /// sample of the pixel starts from.
     pixel: u64,
-    /// The sample's index in its pixel.
-    index: u32,
-    /// Bits of the sample indices: `ceil(log2(n))` for `n` samples per pixel, 0 for
-    /// one sample (independent values, from `stream`).
-    index_bits: u32,
+    /// The sample's index in its pixel, bit-reversed: the binary fraction
+    /// whose digits the scrambles permute, so that no draw reverses bits.
+    reversed_index: u32,
+    /// The digits a bit-reversed sample index can have: the top `ceil(log2(n))`
+    /// bits for `n` samples per pixel, none for one sample (independent values,
+    /// from `stream`).
+    index_digits: u32,
     /// A hash of the pixel and sample indices: the independent values' generator
     /// seed, and the lens position's.
     stream: u64,
@@ -268,12 +270,14 @@ impl PixelSample {
         h ^ (h >> 31)
     }
 
-    /// The sample's index in a shuffle of the pixel's indices by `seed`: a
-    /// permutation of `0..2^index_bits`.
+    /// The radical inverse (van der Corput value, as a 32-bit fraction) of the
+    /// sample's index in a shuffle of the pixel's indices by `seed`, the shuffle
+    /// being Burley's nested uniform scramble: `reverse(shuffled index)`, where the
+    /// shuffled index is `reverse(lk(reverse(index)))` cut to the index's digits.
+    /// Computed on the reversed index directly, so the two reversals cancel.
     #[inline]
-    fn shuffled_index(&self, seed: u32) -> u32 {
-        let mask = (1u32 << self.index_bits) - 1;
-        nested_uniform_scramble(self.index, seed) & mask
+    fn shuffled_radical_inverse(&self, seed: u32) -> u32 {
+        laine_karras_permutation(self.reversed_index, seed) & self.index_digits
     }
 
     /// Dimension `dimension`'s independent value: a 24-bit field of output
@@ -299,7 +303,7 @@ impl PixelSample {
     /// a pixel, or beyond [`STRATIFIED_DIMENSIONS`].
     #[inline]
     fn is_independent(&self, dimension: u32) -> bool {
-        self.index_bits == 0 || dimension >= STRATIFIED_DIMENSIONS
+        self.index_digits == 0 || dimension >= STRATIFIED_DIMENSIONS
     }
 
     /// The next dimension: a uniform value in `[0, 1)`.
@@ -310,9 +314,8 @@ impl PixelSample {
             return self.independent(dimension);
         }
         let hash = self.draw_hash(dimension);
-        let index = self.shuffled_index(hash as u32);
         // The radical inverse, digitally shifted.
-        unit_u32(index.reverse_bits() ^ (hash >> 32) as u32)
+        unit_u32(self.shuffled_radical_inverse(hash as u32) ^ (hash >> 32) as u32)
     }
 
     /// The next two dimensions: a uniform point in `[0, 1)^2`.
@@ -334,7 +337,7 @@ impl PixelSample {
     #[inline]
     pub fn lens(&self) -> Vec2 {
         let h = mix64(mix64(self.stream) ^ LENS_SEED);
-        if self.index_bits == 0 {
+        if self.index_digits == 0 {
             return Vec2::new(unit(h >> 40), unit(h >> 8));
         }
         sobol_2d(self, mix64(self.pixel ^ LENS_SEED))
@@ -346,26 +349,29 @@ impl PixelSample {
 /// fractions) by its high half and a second mix of it.
 #[inline]
 fn sobol_2d(sample: &PixelSample, hash: u64) -> Vec2 {
-    let index = sample.shuffled_index(hash as u32);
+    let radical_inverse = sample.shuffled_radical_inverse(hash as u32);
     let shift_y = ((hash ^ (hash >> 29)).wrapping_mul(0xBF58_476D_1CE4_E5B9) >> 32) as u32;
-    let x = index.reverse_bits() ^ (hash >> 32) as u32;
-    let y = sobol_second_dimension(index) ^ shift_y;
+    let x = radical_inverse ^ (hash >> 32) as u32;
+    let y = sobol_second_dimension(radical_inverse) ^ shift_y;
     Vec2::new(unit_u32(x), unit_u32(y))
 }
 
-/// Point `index` (below `2^16`, as sample indices are) of the second dimension of
-/// Sobol's sequence, as 32 bits of a fraction: the XOR of the direction numbers of
-/// the index's set bits, a table lookup a byte (a loop over the bits mispredicted
-/// its exit).
+/// Point `index` of the second dimension of Sobol's sequence, as 32 bits of a
+/// fraction, from `radical_inverse`, the index's bits reversed (the index being
+/// below `2^16`, as sample indices are: the low half is 0): the XOR of the direction
+/// numbers of the index's set bits, a table lookup a byte (a loop over the bits
+/// mispredicted its exit).
 #[inline]
-fn sobol_second_dimension(index: u32) -> u32 {
-    debug_assert!(index < 1 << 16);
-    SOBOL_SECOND[0][(index & 0xFF) as usize] ^ SOBOL_SECOND[1][((index >> 8) & 0xFF) as usize]
+fn sobol_second_dimension(radical_inverse: u32) -> u32 {
+    debug_assert!(radical_inverse & 0xFFFF == 0);
+    SOBOL_SECOND[0][(radical_inverse >> 24) as usize]
+        ^ SOBOL_SECOND[1][((radical_inverse >> 16) & 0xFF) as usize]
 }
 
-/// For each byte of an index, low then high, and each value of it, the XOR of the
-/// direction numbers of Sobol's second dimension for its set bits: `v_1 = 1/2`,
-/// `v_{k+1} = v_k ^ (v_k / 2)` as 32-bit fractions.
+/// For the top and then the next byte of an index's radical inverse (the index's
+/// low byte reversed, then its high byte reversed) and each value of it, the XOR of
+/// the direction numbers of Sobol's second dimension for the index's set bits:
+/// `v_1 = 1/2`, `v_{k+1} = v_k ^ (v_k / 2)` as 32-bit fractions.
 static SOBOL_SECOND: [[u32; 256]; 2] = {
     let mut directions = [0u32; 16];
     let mut direction = 1u32 << 31;
@@ -383,8 +389,10 @@ static SOBOL_SECOND: [[u32; 256]; 2] = {
             let mut xor = 0;
             let mut bit = 0;
             while bit < 8 {
+                // Bit `bit` of this byte of the radical inverse is the index's bit
+                // `7 - bit` of its byte.
                 if value & (1 << bit) != 0 {
-                    xor ^= directions[8 * byte + bit];
+                    xor ^= directions[8 * byte + 7 - bit];
                 }
                 bit += 1;
             }
@@ -399,7 +407,9 @@ static SOBOL_SECOND: [[u32; 256]; 2] = {
 /// Laine and Karras's hash-based permutation, with Burley's constants: each output
 /// bit depends on the input's bits at and below it alone, so that on bit-reversed
 /// values it is an Owen scramble (each digit flipped by a hash of the digits before
-/// it), and on indices a permutation of every aligned power-of-two block.
+/// it), and on indices a permutation of every aligned power-of-two block. Burley's
+/// nested uniform scramble of a fraction `x` is
+/// `laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()`.
 #[inline]
 fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
     x = x.wrapping_add(seed);
@@ -408,13 +418,6 @@ fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
     x ^= x.wrapping_mul(0xc7af_e638);
     x ^= x.wrapping_mul(0x8d22_f6e6);
     x
-}
-
-/// The Owen scramble of the binary fraction `x` (32 bits): its digits, most
-/// significant first, each flipped by a hash of `seed` and the digits before it.
-#[inline]
-fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
-    laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
 }
 
 /// The top 24 bits of the binary fraction `x` as a number in `[0, 1)`.

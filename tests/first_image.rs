@@ -664,3 +664,120 @@ fn a_z_up_scene_is_framed_from_its_front_minus_y_and_above() {
     let (x, y) = fill(&options, &corners(min, max));
     assert!(x.max(y) >= 0.6, "{x} x {y}");
 }
+
+/// A mirror sphere of `base_color` 1, `metallic` 1, `roughness` 0 at the origin (and,
+/// with `light`, the point light of the TOML line), seen from (0, 0, 4) in full
+/// mode: the linear film, the lights the render had, and per pixel the unit
+/// direction of its camera ray by SPEC's camera (focal length 1, pixel centres, row
+/// 0 at the top), derived here from the options alone.
+fn chrome_sphere(light: &str) -> (Vec<Vec3>, Vec<Light>, Vec<Option<Vec3>>) {
+    use raytracer::{BvhParams, Scene, render};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("chrome.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"chrome\"\n\n\
+             [materials.chrome]\nbase_color = 1\nmetallic = 1\nroughness = 0\n\n{light}"
+        ),
+    )
+    .unwrap();
+    let options = RenderOptions {
+        width: 48,
+        height: 48,
+        fov_degrees: 36.0,
+        look_from: Vec3::new(0.0, 0.0, 4.0),
+        look_to: Vec3::ZERO,
+        ..RenderOptions::default()
+    };
+    let mut description = raytracer::formats::load(&path).unwrap().description;
+    description.add_default_light(&options);
+    let lights = description.lights.clone();
+    let scene = Scene::build(description, &BvhParams::default());
+    let film = render(&scene, &options);
+    let half = (options.fov_degrees.to_radians() * 0.5).tan();
+    let rays = (0..options.height)
+        .flat_map(|row| (0..options.width).map(move |column| (column, row)))
+        .map(|(column, row)| {
+            let x = (2.0 * (column as f32 + 0.5) / options.width as f32 - 1.0) * half;
+            let y = (1.0 - 2.0 * (row as f32 + 0.5) / options.height as f32) * half;
+            Some(Vec3::new(x, y, -1.0).normalize())
+        })
+        .collect();
+    (film.pixels, lights, rays)
+}
+
+/// Where a camera ray from (0, 0, 4) along `dir` meets the unit sphere at the origin
+/// well inside its outline: the point (its normal).
+fn on_unit_sphere(dir: Vec3) -> Option<Vec3> {
+    let eye = Vec3::new(0.0, 0.0, 4.0);
+    let b = eye.dot(dir);
+    let disc = b * b - (eye.length_squared() - 1.0);
+    let p = eye + (-b - disc.max(0.0).sqrt()) * dir;
+    (disc > 0.0 && -dir.dot(p) > 0.2).then_some(p)
+}
+
+#[test]
+fn a_chrome_sphere_under_the_rig_mirrors_the_studio() {
+    // A polished metal showed black in full mode but for the rig's two highlights:
+    // the rig has no surroundings for it to mirror (a model viewer lights it with an
+    // environment). Under the rig, physically based surfaces reflect path mode's
+    // studio; a white mirror (f0 = 1) shows it as it is in the mirror direction,
+    // clamped at full mode's white, 1.
+    use raytracer::lights::environment::studio_radiance;
+    let (pixels, lights, rays) = chrome_sphere("");
+    assert_eq!(lights.len(), 2, "the rig's key and fill lights");
+    let mut checked = 0;
+    for (pixel, dir) in pixels.iter().zip(&rays) {
+        let Some(p) = dir.and_then(on_unit_sphere) else {
+            continue;
+        };
+        let dir = dir.unwrap();
+        let mirrored = dir - 2.0 * dir.dot(p) * p;
+        // Away from the rig's highlights (Ns 10000: nothing beyond 3 degrees).
+        let near_highlight = lights
+            .iter()
+            .any(|light| mirrored.dot((light.position - p).normalize()) > 3f32.to_radians().cos());
+        if near_highlight {
+            continue;
+        }
+        let expected = studio_radiance(mirrored, 0.0).min(1.0);
+        assert!(
+            (*pixel - Vec3::splat(expected)).abs().max_element() < 2e-3,
+            "at {p}: {pixel} against the studio's {expected}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 400, "{checked} pixels checked");
+    // Not a flat grey: the soft key light shows, and the dim dome around it.
+    let on_sphere: Vec<f32> = (pixels.iter().zip(&rays))
+        .filter(|(_, dir)| dir.and_then(on_unit_sphere).is_some())
+        .map(|(pixel, _)| pixel.x)
+        .collect();
+    let brightest = on_sphere.iter().copied().fold(0.0, f32::max);
+    let darkest = on_sphere.iter().copied().fold(1.0, f32::min);
+    assert!(brightest > 0.9 && darkest < 0.3, "{darkest}..{brightest}");
+}
+
+#[test]
+fn a_chrome_sphere_in_a_scene_with_lights_mirrors_only_the_scene() {
+    // A scene with a light of its own keeps SPEC's shading (as the reference scenes
+    // do): nothing around the sphere to mirror, so it is black but for the light's
+    // highlight.
+    let (pixels, lights, rays) = chrome_sphere("[[light]]\nposition = [3, 3, 3]\nintensity = 1\n");
+    assert_eq!(lights.len(), 1);
+    let mut checked = 0;
+    for (pixel, dir) in pixels.iter().zip(&rays) {
+        let Some(p) = dir.and_then(on_unit_sphere) else {
+            continue;
+        };
+        let dir = dir.unwrap();
+        let mirrored = dir - 2.0 * dir.dot(p) * p;
+        if mirrored.dot((lights[0].position - p).normalize()) > 3f32.to_radians().cos() {
+            continue;
+        }
+        assert!(pixel.max_element() < 1e-4, "at {p}: {pixel}");
+        checked += 1;
+    }
+    assert!(checked > 400, "{checked} pixels checked");
+}

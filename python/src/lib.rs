@@ -665,14 +665,17 @@ impl Loaded {
     }
 
     /// A copy of the scene with the default rig's changes to its materials (the
-    /// ambient light, no highlight below `Ns` 1), and not unlit: what
+    /// ambient light, no highlight below `Ns` 1) and its studio reflections, and not
+    /// unlit: what
     /// [`Scene::build`] makes of the description with the rig added, whose BVH does
     /// not depend on the lights or on those material values. The caller sets the
     /// lights for its camera.
     fn lit_copy(&self, options: &RenderOptions) -> Scene {
         let mut scene = self.scene.clone();
         let materials = std::mem::take(&mut scene.materials);
-        scene.materials = rig(materials, options).materials;
+        let lit = rig(materials, options);
+        scene.materials = lit.materials;
+        scene.studio_reflections = lit.studio_reflections;
         scene.unlit = false;
         scene
     }

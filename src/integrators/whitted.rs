@@ -6,6 +6,9 @@ use wide::f32x16;
 use super::phong_lanes::HitLanes;
 use super::{Band, Integrator, TileContext, TraceClock, trace_band_by_pixel};
 use crate::bvh::PACKET_SIZE;
+use crate::bxdfs::microfacet::split_sum;
+use crate::lights::environment::studio_radiance;
+use crate::material::pbr::PbrValues;
 use crate::material::{Colours, Light};
 use crate::math::{Float, Ray, Vec3, reflect, refract, saturate_finite, try_unit};
 use crate::sampler::PixelSample;
@@ -185,6 +188,13 @@ fn shade(
         ),
     };
 
+    if scene.studio_reflections
+        && !inside
+        && let Some(values) = material.pbr_at_point(hit.uv, hit.colour)
+    {
+        value += studio_reflection(scene, ray, hit, &values, depth, rays);
+    }
+
     if depth > 1 {
         if !inside && reflect_weight != 0.0 {
             let reflected = hit.spawn_ray(reflect(ray.dir, hit.ns));
@@ -205,6 +215,61 @@ fn shade(
         }
     }
     saturate_finite(value)
+}
+
+/// What a physically based surface at `hit`, with its `values` there, reflects of the
+/// studio under full mode's default rig, which has no surroundings of its own: a
+/// metal would otherwise show black but for the rig's two highlights. Its
+/// [`studio_reflectance`] times the studio in the mirror direction
+/// ([`studio_radiance`]), blurred by a lobe of `2 alpha` radians (about the width
+/// of a GGX lobe of `alpha = roughness^2` after reflection). Smooth surfaces
+/// (roughness below 0.5) also mirror the scene: the traced reflection, weighed
+/// `1 - 2 roughness` against the studio, where the mirror ray hits something (with
+/// `depth` left, as SPEC's reflection). The studio is clamped at 1, full mode's white
+/// under the rig: a chrome's reflection of the key light would otherwise set the
+/// image's white point and dim every other surface.
+#[inline(never)]
+fn studio_reflection(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    values: &PbrValues,
+    depth: u32,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let reflectance = studio_reflectance(values, hit.ns.dot(-ray.dir));
+    if reflectance == Vec3::ZERO {
+        return Vec3::ZERO;
+    }
+    let dir = reflect(ray.dir, hit.ns);
+    let alpha = values.roughness * values.roughness;
+    let mut seen = Vec3::splat(studio_radiance(dir, 2.0 * alpha).min(1.0));
+    let sharpness = 1.0 - 2.0 * values.roughness;
+    if sharpness > 0.0 && depth > 1 {
+        let reflected = hit.spawn_ray(dir);
+        rays.reflected += 1;
+        let mirrored = scene.intersect(&reflected);
+        if mirrored.is_some() {
+            let traced = trace_from(scene, &reflected, mirrored, depth - 1, false, rays);
+            seen = sharpness * traced + (1.0 - sharpness) * seen;
+        }
+    }
+    reflectance * seen
+}
+
+/// How much of its surroundings a physically based surface with `values` reflects
+/// about its mirror direction, seen at cosine `cos_view` to the normal: the
+/// directional albedo of its GGX lobe, `f0 a + f90 b` ([`split_sum`], image-based
+/// lighting's split sum, as a model viewer computes it), `f0` being
+/// [`PbrValues::phong`]'s (the dielectric's turning into the base colour as the
+/// material turns metal) and `f90` the dielectric's `specular` turning into 1.
+fn studio_reflectance(values: &PbrValues, cos_view: Float) -> Vec3 {
+    let (a, b) = split_sum(cos_view, values.roughness * values.roughness);
+    let f0 = values
+        .dielectric_f0()
+        .lerp(values.base_color, values.metallic);
+    let f90 = values.specular + (1.0 - values.specular) * values.metallic;
+    f0 * a + Vec3::splat(f90 * b)
 }
 
 /// `Ka + Ke + al0 * direct light`, with the colours `surface` (one copy per kind of

@@ -745,6 +745,35 @@ pub const STUDIO_KEY_RATIO: Float = 6.0;
 /// (0.8) Lambertian surface there has radiance `0.8 * 4.5 / pi`, about 1.15.
 pub const STUDIO_KEY_IRRADIANCE: Float = 4.5;
 
+/// The radiance of [`studio`] in the unit direction `d`, seen through a lobe about
+/// `spread` radians wide (0: as the map holds it): each soft light widened to the
+/// angular radius `sqrt(radius^2 + spread^2)` and dimmed by the ratio of the two
+/// discs' solid angles, so that it keeps its power, as a blur by the lobe would. The
+/// dome varies slowly and is left as it is. Full mode reflects it on physically
+/// based surfaces under the default rig (`integrators::whitted`), `spread` growing
+/// with their roughness.
+pub fn studio_radiance(d: Vec3, spread: Float) -> Float {
+    let spread_degrees = spread.max(0.0).to_degrees();
+    let soft_box = |centre: Vec3, radius_degrees: Float| {
+        let (radius, dimming) = if spread_degrees > 0.0 {
+            let widened = radius_degrees.hypot(spread_degrees);
+            (widened, (radius_degrees / widened).powi(2))
+        } else {
+            (radius_degrees, 1.0)
+        };
+        let inner = radius.to_radians().cos();
+        let outer = (radius * 1.4).to_radians().cos();
+        let t = ((d.dot(centre.normalize()) - outer) / (inner - outer)).clamp(0.0, 1.0);
+        t * t * (3.0 - 2.0 * t) * dimming
+    };
+    let t = ((d.y + 0.3) / 0.9).clamp(0.0, 1.0);
+    let dome = 0.12 + 0.25 * t * t * (3.0 - 2.0 * t);
+    let light = 5.0 * soft_box(STUDIO_KEY, 22.0)
+        + 0.9 * soft_box(Vec3::new(0.75, 0.3, 0.45), 16.0)
+        + 0.4 * soft_box(Vec3::Y, 25.0);
+    dome + light
+}
+
 /// Path mode's default light for a scene that has none: a procedural studio, +Y up,
 /// facing a camera on +Z (the default framing): a dim dome brighter above than below,
 /// a large soft key light above and to the left of the camera, a smaller fill to the
@@ -760,24 +789,12 @@ pub const STUDIO_KEY_IRRADIANCE: Float = 4.5;
 /// gave 4.9, 1.6 and 6.0).
 pub fn studio() -> EnvironmentDesc {
     let (width, height) = (256u32, 128u32);
-    let soft_box = |d: Vec3, centre: Vec3, radius_degrees: Float| {
-        let inner = radius_degrees.to_radians().cos();
-        let outer = (radius_degrees * 1.4).to_radians().cos();
-        let t = ((d.dot(centre.normalize()) - outer) / (inner - outer)).clamp(0.0, 1.0);
-        t * t * (3.0 - 2.0 * t)
-    };
     let mut texels = Vec::with_capacity((width * height * 3) as usize);
     for row in 0..height {
         let v = 1.0 - (row as Float + 0.5) / height as Float;
         for column in 0..width {
             let u = (column as Float + 0.5) / width as Float;
-            let d = uv_to_direction(Vec2::new(u, v));
-            let t = ((d.y + 0.3) / 0.9).clamp(0.0, 1.0);
-            let dome = 0.12 + 0.25 * t * t * (3.0 - 2.0 * t);
-            let light = 5.0 * soft_box(d, STUDIO_KEY, 22.0)
-                + 0.9 * soft_box(d, Vec3::new(0.75, 0.3, 0.45), 16.0)
-                + 0.4 * soft_box(d, Vec3::Y, 25.0);
-            let c = dome + light;
+            let c = studio_radiance(uv_to_direction(Vec2::new(u, v)), 0.0);
             texels.extend([c, c, c]);
         }
     }
@@ -936,6 +953,40 @@ mod tests {
             rotation_degrees: 0.0,
         });
         assert!((turned.radiance(-Vec3::Z) - still.radiance(Vec3::X)).length() < 1e-5);
+    }
+
+    /// A widened studio keeps its power: the integral of its radiance over the
+    /// sphere (midpoint quadrature) moves by under 3% for lobes up to 20 degrees, as
+    /// a blur's would not move at all, while its peak falls.
+    #[test]
+    fn a_widened_studio_keeps_its_power() {
+        let power = |spread: Float| {
+            let (rows, columns) = (720, 1440);
+            let mut sum = 0.0f64;
+            for row in 0..rows {
+                let theta = PI * (row as Float + 0.5) / rows as Float;
+                for column in 0..columns {
+                    let phi = 2.0 * PI * (column as Float + 0.5) / columns as Float;
+                    let d = Vec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.cos(),
+                        theta.sin() * phi.sin(),
+                    );
+                    sum += f64::from(studio_radiance(d, spread) * theta.sin());
+                }
+            }
+            sum * f64::from(PI / rows as Float * 2.0 * PI / columns as Float)
+        };
+        let sharp = power(0.0);
+        for spread in [0.1, 0.2, 0.35] {
+            let widened = power(spread);
+            assert!(
+                (widened / sharp - 1.0).abs() < 0.03,
+                "{spread}: {widened} against {sharp}"
+            );
+        }
+        let key = STUDIO_KEY.normalize();
+        assert!(studio_radiance(key, 0.35) < 0.6 * studio_radiance(key, 0.0));
     }
 
     #[test]

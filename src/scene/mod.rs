@@ -197,6 +197,9 @@ pub struct Scene {
     /// What camera rays that leave the scene see in path mode, if not the
     /// environment.
     pub background: Option<Vec3>,
+    /// Whether full mode's physically based surfaces reflect the studio
+    /// ([`SceneDescription::studio_reflections`](crate::SceneDescription::studio_reflections)).
+    pub studio_reflections: bool,
     /// Half the diagonal of the scene's bounds: how far the environment's light
     /// reaches across the scene, for weighing it against the emitters.
     pub radius: Float,

@@ -348,14 +348,15 @@ def test_an_unlit_model_without_a_camera_renders_as_the_command_line_renders_it(
 def test_a_scene_lit_by_the_default_rig_moves_its_lights_with_each_camera(tmp_path, run_cli):
     # A Scene keeps its lit copy between renders: each render's rig must be the one
     # of its own camera (the command line's, bit for bit), and the materials lit
-    # once (Ka times the ambient light; Ks dropped below Ns 1), not once per render.
+    # once (Ka times the ambient light; Ks dropped below Ns 1), not once per render;
+    # a physically based metal (MTL's Pm and Pr) reflects the studio in both.
     model = tmp_path / "model.obj"
     model.write_text(
         "mtllib m.mtl\nusemtl m\nv -1 0 0\nv 1 0 0\nv 0 2 0\nv 0 1 1\n"
         "f 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\nusemtl n\nv -3 -1 -3\nv 3 -1 -3\nv 3 -1 3\nf 5 7 6\n"
     )
     (tmp_path / "m.mtl").write_text(
-        "newmtl m\nKa 1 1 1\nKd 0.2 0.6 0.9\nKs 0.5 0.5 0.5\nNs 30\nnewmtl n\nKa 1 0 0\nKd 0.7 0.7 0.2\nKs 1 1 1\nNs 0.5\n"
+        "newmtl m\nKa 1 1 1\nKd 0.2 0.6 0.9\nKs 0.5 0.5 0.5\nNs 30\nPm 1\nPr 0.2\nnewmtl n\nKa 1 0 0\nKd 0.7 0.7 0.2\nKs 1 1 1\nNs 0.5\n"
     )
     scene = raytracer.Scene(model)
     cameras = [((0.5, 1.5, 4.0), (0, 1, 0)), ((-3.0, 2.0, 1.0), (0, 0.5, 0)), ((0.5, 1.5, 4.0), (0, 1, 0))]

@@ -124,6 +124,11 @@ impl PixelSampler {
             pixel: mix64(pixel.wrapping_add(self.seed_offset) ^ DIMENSION_SEED),
             reversed_index: sample.reverse_bits(),
             index_digits: (self.count.next_power_of_two() - 1).reverse_bits(),
+            independent_from: if self.count > 1 {
+                STRATIFIED_DIMENSIONS
+            } else {
+                0
+            },
             stream: mix64(
                 pixel
                     .wrapping_add(sample as u64)
@@ -222,6 +227,10 @@ pub struct PixelSample {
     /// bits for `n` samples per pixel, none for one sample (independent values,
     /// from `stream`).
     index_digits: u32,
+    /// The first dimension drawn as independent values: [`STRATIFIED_DIMENSIONS`]
+    /// with several samples a pixel, 0 with one. (One comparison a draw: long
+    /// Lambertian paths draw dozens of dimensions, most of them independent.)
+    independent_from: u32,
     /// A hash of the pixel and sample indices: the independent values' generator
     /// seed, and the lens position's.
     stream: u64,
@@ -285,32 +294,32 @@ impl PixelSample {
     /// dimension of the pair (long paths draw hundreds).
     #[inline]
     fn independent(&mut self, dimension: u32) -> Float {
-        let pair = dimension >> 1;
+        let pair = self.pair_output(dimension >> 1);
+        unit(if dimension & 1 == 0 {
+            pair >> 40
+        } else {
+            pair >> 8
+        })
+    }
+
+    /// Output `pair` of the sample's SplitMix64 generator, computed once for both
+    /// dimensions of the pair.
+    #[inline]
+    fn pair_output(&mut self, pair: u32) -> u64 {
         if self.pair_index != pair {
             let key = self
                 .stream
                 .wrapping_add(u64::from(pair).wrapping_mul(GOLDEN_GAMMA));
             (self.pair_index, self.pair) = (pair, mix64(key));
         }
-        unit(if dimension & 1 == 0 {
-            self.pair >> 40
-        } else {
-            self.pair >> 8
-        })
-    }
-
-    /// Whether a draw from `dimension` on takes independent values: with one sample
-    /// a pixel, or beyond [`STRATIFIED_DIMENSIONS`].
-    #[inline]
-    fn is_independent(&self, dimension: u32) -> bool {
-        self.index_digits == 0 || dimension >= STRATIFIED_DIMENSIONS
+        self.pair
     }
 
     /// The next dimension: a uniform value in `[0, 1)`.
     #[inline]
     pub fn next_1d(&mut self) -> Float {
         let dimension = self.take(1);
-        if self.is_independent(dimension) {
+        if dimension >= self.independent_from {
             return self.independent(dimension);
         }
         let hash = self.draw_hash(dimension);
@@ -322,7 +331,12 @@ impl PixelSample {
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let dimension = self.take(2);
-        if self.is_independent(dimension) {
+        if dimension >= self.independent_from {
+            if dimension & 1 == 0 {
+                // Both halves of one pair's output.
+                let pair = self.pair_output(dimension >> 1);
+                return Vec2::new(unit(pair >> 40), unit(pair >> 8));
+            }
             return Vec2::new(self.independent(dimension), self.independent(dimension + 1));
         }
         sobol_2d(self, self.draw_hash(dimension))

@@ -715,3 +715,64 @@ fn gif_textures_read_as_the_same_texels_in_png() {
     colours.dedup();
     assert_eq!(colours.len(), 8, "every texel its own colour: {colours:?}");
 }
+
+/// A DDS file of DXT1 blocks, each `[colour0, colour1, indices]`, `width` x
+/// `height` texels (multiples of 4), no mipmaps; the header as Microsoft's DDS
+/// reference describes it.
+fn dxt1_dds(width: u32, height: u32, blocks: &[(u16, u16, u32)]) -> Vec<u8> {
+    let mut header = [0u32; 31];
+    header[0] = 124; // dwSize
+    header[1] = 0x1 | 0x2 | 0x4 | 0x1000 | 0x80000; // CAPS HEIGHT WIDTH PIXELFORMAT LINEARSIZE
+    header[2] = height;
+    header[3] = width;
+    header[4] = width.div_ceil(4) * height.div_ceil(4) * 8; // the top level's bytes
+    header[18] = 32; // DDS_PIXELFORMAT: dwSize
+    header[19] = 0x4; // DDPF_FOURCC
+    header[20] = u32::from_le_bytes(*b"DXT1");
+    header[26] = 0x1000; // DDSCAPS_TEXTURE
+    let mut bytes = b"DDS ".to_vec();
+    bytes.extend(header.iter().flat_map(|w| w.to_le_bytes()));
+    for &(c0, c1, indices) in blocks {
+        bytes.extend(c0.to_le_bytes());
+        bytes.extend(c1.to_le_bytes());
+        bytes.extend(indices.to_le_bytes());
+    }
+    bytes
+}
+
+#[test]
+fn dds_textures_read_as_the_same_texels_in_png() {
+    // Genesis's Airplane/airplane.mtl maps `textures/diffuse.dds` (DXT5), as 3ds Max
+    // exports write: Blender and PIL (trimesh, Genesis) read DDS, so it is read here
+    // too. Two 4x4 DXT1 blocks, one above the other: red over blue (RGB565 0xF800 and
+    // 0x001F, every index 0: colour0), the same texels as the PNG beside it.
+    let dir = tempfile::tempdir().unwrap();
+    let dds = dxt1_dds(4, 8, &[(0xF800, 0, 0), (0x001F, 0, 0)]);
+    std::fs::write(dir.path().join("tex.dds"), dds).unwrap();
+    let rgb: Vec<u8> = (0..32)
+        .flat_map(|i| if i < 16 { [255, 0, 0] } else { [0, 0, 255] })
+        .collect();
+    write_png(&dir.path().join("tex.png"), 4, 8, 3, &rgb);
+    let obj = format!(
+        "{}{}",
+        square(0.0, 1.0, 1.0, "png", 0),
+        square(-1.0, 1.0, 1.0, "dds", 4)
+    );
+    let path = write_scene(
+        dir.path(),
+        &obj,
+        "newmtl png\nKd 1 1 1\nmap_Kd tex.png\nnewmtl dds\nKd 1 1 1\nmap_Kd tex.dds\n",
+    );
+    let description = formats::load_obj(&path).unwrap();
+    assert!(
+        description.warnings.is_empty(),
+        "{:?}",
+        description.warnings
+    );
+    let [png, dds] = [0, 1].map(|m| description.materials[m].clone());
+    for (v, colour) in [(0.75, Vec3::X), (0.25, Vec3::Z)] {
+        let uv = Vec2::new(0.5, v);
+        assert_eq!(png.at(uv).diffuse, colour, "{uv}");
+        assert_eq!(dds.at(uv).diffuse, colour, "{uv}");
+    }
+}

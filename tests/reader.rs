@@ -242,3 +242,52 @@ fn missing_files_and_mtl_errors_name_their_path() {
         "{message}"
     );
 }
+
+#[test]
+fn an_mtllib_name_with_spaces_is_one_file_when_that_file_exists() {
+    // Onshape writes `mtllib Part Studio 1.mtl` (Genesis's wheel.obj and
+    // cross_cutter.obj); Assimp and Blender read the rest of the line as one name.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("Part Studio 1.mtl"),
+        "newmtl red\nKd 1 0 0\n",
+    )
+    .unwrap();
+    let obj = dir.path().join("scene.obj");
+    let triangle = "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
+    std::fs::write(&obj, format!("mtllib Part Studio 1.mtl\n{triangle}")).unwrap();
+    let scene = formats::load_obj(&obj).unwrap();
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let material = &scene.materials[scene.triangles[0].material.0 as usize];
+    assert_eq!((material.name.as_str(), material.diffuse), ("red", Vec3::X));
+
+    // Names split at spaces still name several files: the one found is read, the
+    // one missing warned about.
+    std::fs::write(dir.path().join("a.mtl"), "newmtl red\nKd 0 1 0\n").unwrap();
+    std::fs::write(&obj, format!("mtllib a.mtl b.mtl\n{triangle}")).unwrap();
+    let scene = formats::load_obj(&obj).unwrap();
+    let material = &scene.materials[scene.triangles[0].material.0 as usize];
+    assert_eq!(material.diffuse, Vec3::Y);
+    let b = dir.path().join("b.mtl");
+    assert_eq!(
+        scene.warnings,
+        [format!(
+            "{}:1: material library {} not found; its materials get the default material",
+            obj.display(),
+            b.display()
+        )]
+    );
+
+    // A name with spaces found neither whole nor in parts is one warning, not one
+    // per word.
+    std::fs::write(&obj, format!("mtllib Part Studio 2.mtl\n{triangle}")).unwrap();
+    let scene = formats::load_obj(&obj).unwrap();
+    assert_eq!(
+        scene.warnings,
+        [format!(
+            "{}:1: material library {} not found; its materials get the default material",
+            obj.display(),
+            dir.path().join("Part Studio 2.mtl").display()
+        )]
+    );
+}

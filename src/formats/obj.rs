@@ -781,8 +781,17 @@ impl Skipped {
 
 /// A statement whose effect depends on earlier chunks, replayed in file order.
 enum Event {
-    Mtllib { line: usize, file: PathBuf },
-    Usemtl { line: usize, name: String },
+    /// `names`: the line's names split at spaces; `whole`: the rest of the line as
+    /// one name, tried first when there are several (`mtllib Part Studio 1.mtl`).
+    Mtllib {
+        line: usize,
+        names: Vec<PathBuf>,
+        whole: PathBuf,
+    },
+    Usemtl {
+        line: usize,
+        name: String,
+    },
 }
 
 /// One chunk's elements. Shape materials are slots: 0 is the material in force when
@@ -934,17 +943,16 @@ impl Chunk {
                     .push(Light::point(Vec3::new(x, y, z), Vec3::new(r, g, b)));
             }
             b"mtllib" => {
-                let mut any = false;
-                for name in tokens {
-                    any = true;
-                    self.events.push(Event::Mtllib {
-                        line: line_number,
-                        file: PathBuf::from(String::from_utf8_lossy(name).as_ref()),
-                    });
-                }
-                if !any {
+                let path = |name: &[u8]| PathBuf::from(String::from_utf8_lossy(name).as_ref());
+                let names: Vec<PathBuf> = tokens.map(path).collect();
+                if names.is_empty() {
                     return Err(ParseErrorKind::MissingName("mtllib"));
                 }
+                self.events.push(Event::Mtllib {
+                    line: line_number,
+                    names,
+                    whole: path(lex::rest_of_line(line, b"mtllib")),
+                });
             }
             b"usemtl" => {
                 // An empty name is a name: Blender writes `newmtl` and `usemtl` with
@@ -1129,8 +1137,8 @@ impl<'a> Resolver<'a> {
         let mut slots = vec![self.current_material];
         for event in &chunk.events {
             match event {
-                Event::Mtllib { line, file } => self
-                    .load_mtl(*line, file)
+                Event::Mtllib { line, names, whole } => self
+                    .load_mtllib(*line, names, whole)
                     .map_err(|error| Stop::Event { line: *line, error })?,
                 Event::Usemtl { line, name } => {
                     let id = match self.material_ids.get(name) {
@@ -1183,14 +1191,64 @@ impl<'a> Resolver<'a> {
         Ok(slots.into_iter().map(Option::unwrap_or_default).collect())
     }
 
-    /// Reads the library `relative` named at line `line`. A library named again
-    /// (under any spelling of its path) is not read again, so `mtllib a.mtl a.mtl ...`
-    /// cannot multiply memory use; one that cannot be read is an error of that line.
-    fn load_mtl(&mut self, line: usize, relative: &Path) -> Result<(), SceneError> {
-        let mtl_path = match self.path.parent() {
+    /// `path` relative to the OBJ file's folder.
+    fn beside(&self, relative: &Path) -> PathBuf {
+        match self.path.parent() {
             Some(dir) => dir.join(relative),
             None => relative.to_path_buf(),
+        }
+    }
+
+    /// Reads the libraries of an `mtllib` line. The OBJ format separates names by
+    /// spaces, but exporters write one name with spaces in it (Onshape's `mtllib
+    /// Part Studio 1.mtl`), which Assimp and Blender read as one file: a line of
+    /// several names whose whole rest is a file reads that file alone. Otherwise
+    /// each name is read; when none of them is found, one warning names the line's
+    /// rest, not one per word.
+    fn load_mtllib(
+        &mut self,
+        line: usize,
+        names: &[PathBuf],
+        whole: &Path,
+    ) -> Result<(), SceneError> {
+        if let [name] = names {
+            return self.load_mtl(line, name, true).map(drop);
+        }
+        let whole_path = self.beside(whole);
+        if self.access.admit(&whole_path).is_ok() && whole_path.is_file() {
+            return self.load_mtl(line, whole, true).map(drop);
+        }
+        let mut missing = Vec::new();
+        for name in names {
+            if !self.load_mtl(line, name, false)? {
+                missing.push(name);
+            }
+        }
+        let missing = if missing.len() == names.len() {
+            vec![whole]
+        } else {
+            missing.into_iter().map(PathBuf::as_path).collect()
         };
+        for name in missing {
+            self.warn_missing_library(line, &self.beside(name));
+        }
+        Ok(())
+    }
+
+    fn warn_missing_library(&mut self, line: usize, path: &Path) {
+        let shown = super::error::shown_path(path);
+        self.warn(
+            line,
+            &format!("material library {shown} not found; its materials get the default material"),
+        );
+    }
+
+    /// Reads the library `relative` named at line `line`, and says whether it was
+    /// found; a missing one is warned about when `warn` says so. A library named again
+    /// (under any spelling of its path) is not read again, so `mtllib a.mtl a.mtl ...`
+    /// cannot multiply memory use; one that cannot be read is an error of that line.
+    fn load_mtl(&mut self, line: usize, relative: &Path, warn: bool) -> Result<bool, SceneError> {
+        let mtl_path = self.beside(relative);
         let library_error = |path: &Path, error: &std::io::Error| SceneError::Parse {
             path: self.path.to_path_buf(),
             line,
@@ -1208,19 +1266,15 @@ impl<'a> Resolver<'a> {
             // default material (or the one a scene file gives the mesh).
             Err(error) if error.kind() == std::io::ErrorKind::NotFound => {
                 self.missing_library = true;
-                let shown = super::error::shown_path(&mtl_path);
-                self.warn(
-                    line,
-                    &format!(
-                        "material library {shown} not found; its materials get the default material"
-                    ),
-                );
-                return Ok(());
+                if warn {
+                    self.warn_missing_library(line, &mtl_path);
+                }
+                return Ok(false);
             }
             Err(error) => return Err(library_error(&mtl_path, &error)),
         };
         if !self.loaded_libraries.insert(identity) {
-            return Ok(());
+            return Ok(true);
         }
         let text = read_file(&mtl_path).map_err(|e| match e {
             SceneError::Io { path, error } => library_error(&path, &error),
@@ -1233,7 +1287,7 @@ impl<'a> Resolver<'a> {
             self.material_ids.insert(material.name.clone(), id);
             self.scene.materials.push(material);
         }
-        Ok(())
+        Ok(true)
     }
 
     fn fallback_material(&mut self) -> MaterialId {

@@ -235,6 +235,27 @@ fn an_mtl_material_of_shininess_zero_is_blenders_rough_dielectric() {
     check_albedo("Ns 0", &p, material);
 }
 
+/// trimesh's default material, which every OBJ it exports carries (`Ka 0.4`, `Ks
+/// 0.4`, `Ns 1`; Genesis's bathtub, duck, dragon, boat): an exponent of 1 is no
+/// highlight either, so path mode reads it as Blender's importer does, a rough
+/// dielectric of roughness `1 - sqrt(1 / 1000)` and specular `min(2 Ks, 1)`, not a
+/// lobe of albedo 0.4 white over the whole hemisphere.
+#[test]
+fn an_mtl_material_of_shininess_one_is_blenders_rough_dielectric() {
+    let material = Material {
+        diffuse: Vec3::new(0.8, 0.3, 0.1),
+        specular: Vec3::splat(0.4),
+        shininess: 1.0,
+        ..Material::named("trimesh default")
+    };
+    let p = Params {
+        roughness: 1.0 - (0.001f64).sqrt(),
+        specular: 0.8,
+        ..PLASTIC
+    };
+    check_albedo("Ns 1", &p, material);
+}
+
 #[test]
 fn a_rough_dielectric_without_diffuse_colour_returns_its_directional_albedo() {
     check(

@@ -146,14 +146,18 @@ pub enum Bsdf {
 impl Bsdf {
     /// The scattering of the MTL `material` (one with no physically based
     /// statements), at a textured point whose values are `surface` or from its
-    /// constants: SPEC's mixture, or a rough dielectric where `Ns 0` says so
+    /// constants: SPEC's mixture, or a rough dielectric where an `Ns` of 0 or 1 says so
     /// ([`mtl::reads_as_rough_dielectric`]).
     pub fn of_mtl(material: &Material, surface: Option<&SurfaceValues>) -> Bsdf {
         if mtl::reads_as_rough_dielectric(material) {
             let (kd, ks) = surface.map_or((material.diffuse, material.specular), |s| {
                 (s.diffuse, s.specular)
             });
-            return Bsdf::Gltf(gltf::GltfBsdf::new(&mtl::rough_dielectric(kd, ks)));
+            return Bsdf::Gltf(gltf::GltfBsdf::new(&mtl::rough_dielectric(
+                kd,
+                ks,
+                material.shininess,
+            )));
         }
         Bsdf::Mtl(match surface {
             Some(surface) => mtl::MtlMixture::at(material, surface),

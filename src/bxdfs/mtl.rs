@@ -9,7 +9,7 @@
 //! | `al2`, `Ni` | smooth dielectric, exact Fresnel | `dielectric`, `int_ior = Ni` | Transmission 1, IOR |
 //! | `Ke` | area light ([`crate::lights`]) | `area` emitter | Emission |
 //! | `Ka` | ignored: an ambient term has no physical meaning | | |
-//! | `Ns 0`, `Ks` | the whole material a rough dielectric ([`reads_as_rough_dielectric`]) | `roughplastic` | Roughness 1, Specular `Ks` |
+//! | `Ns` 0 to 1, `Ks` | the whole material a rough dielectric ([`reads_as_rough_dielectric`]) | `roughplastic` | Roughness `1 - sqrt(Ns / 1000)`, Specular `Ks` |
 //!
 //! `Kd + Ks` is scaled down to at most 1 per channel so that the Phong part conserves
 //! energy ([`MtlMixture::new`] says when it did).
@@ -51,16 +51,19 @@ pub struct MtlMixture {
 }
 
 /// Whether path mode reads the MTL `material` as a rough dielectric
-/// ([`rough_dielectric`]) rather than as a mixture: `Ns 0` with some `Ks`, no mirror
-/// or glass weight and no `map_Ns`. A Phong exponent of 0 is no highlight but a
-/// uniform lobe of albedo `Ks` over the whole hemisphere, which would wash the
-/// surface out in white; it is how Blender 2.8 to 3.x writes a material of roughness
-/// 1 (`Ns = 1000 (1 - roughness)^2`, its default Specular 0.5 as `Ks 0.5`), and how
-/// Blender's importer reads it back. Full mode keeps SPEC's Phong reading.
+/// ([`rough_dielectric`]) rather than as a mixture: `Ns` at most 1 with some `Ks`,
+/// no mirror or glass weight and no `map_Ns`. A Phong exponent of 0 is no highlight
+/// but a uniform lobe of albedo `Ks` over the whole hemisphere, and one of 1 a lobe
+/// no narrower than Lambert's cosine: either washes the surface out in white, grainy
+/// under an environment. `Ns 0` is how Blender 2.8 to 3.x writes a material of
+/// roughness 1 (`Ns = 1000 (1 - roughness)^2`, its default Specular 0.5 as `Ks
+/// 0.5`); `Ks 0.4` with `Ns 1` is trimesh's default material, which every OBJ it
+/// exports carries. Blender's importer reads both as rough dielectrics. Full mode
+/// keeps SPEC's Phong reading.
 pub fn reads_as_rough_dielectric(material: &Material) -> bool {
     let [local, mirror, glass] = material.albedo;
     material.pbr.is_none()
-        && material.shininess <= 0.0
+        && material.shininess <= 1.0
         && material.specular.max_element() > 0.0
         && local == 1.0
         && mirror <= 0.0
@@ -68,16 +71,17 @@ pub fn reads_as_rough_dielectric(material: &Material) -> bool {
         && (material.maps.as_ref()).is_none_or(|maps| maps.shininess.is_none())
 }
 
-/// The rough dielectric path mode reads an MTL material of `Ns 0`
-/// ([`reads_as_rough_dielectric`]) as, from its `Kd` and `Ks` at a point: Blender's
-/// importer's reading, roughness 1 and Specular `mean(Ks)`, in glTF's terms (as
+/// The rough dielectric path mode reads an MTL material of `Ns` at most 1
+/// ([`reads_as_rough_dielectric`]) as, from its `Kd`, `Ks` and `Ns` at a point:
+/// Blender's importer's reading, roughness `1 - sqrt(Ns / 1000)` (1 for `Ns 0`,
+/// 0.968 for `Ns 1`) and Specular `mean(Ks)`, in glTF's terms (as
 /// [`crate::formats`] reads Blender's `Ps`): base colour `Kd`, specular
 /// `min(2 mean(Ks), 1)` (Blender's Specular 0.5 is glTF's reflectance 0.04).
-pub fn rough_dielectric(kd: Vec3, ks: Vec3) -> PbrValues {
+pub fn rough_dielectric(kd: Vec3, ks: Vec3, ns: Float) -> PbrValues {
     PbrMaterial {
         base_color: kd.max(Vec3::ZERO),
         metallic: 0.0,
-        roughness: 1.0,
+        roughness: 1.0 - (ns.clamp(0.0, 1000.0) / 1000.0).sqrt(),
         specular: (2.0 * mean(ks.max(Vec3::ZERO))).min(1.0),
         ..PbrMaterial::default()
     }

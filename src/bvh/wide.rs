@@ -15,7 +15,7 @@ use wide::{f32x8, u32x8};
 
 use super::{BvhInvariantError, BvhParams, MAX_DEPTH};
 use crate::math::{Aabb, Float, Ray, Vec3};
-use crate::memory::prefetch_lines;
+use crate::memory::{prefetch_aligned_lines, prefetch_lines};
 
 /// Children per node: one 256-bit AVX register of `f32`.
 pub const WIDTH: usize = 8;
@@ -97,6 +97,15 @@ pub struct WideBvh {
 /// Most entries the traversal stack can hold: at most `WIDTH - 1` pending siblings per
 /// level, and the wide tree is no deeper than the binary one it came from.
 pub(crate) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+
+/// Entries of a single ray's walk stack: [`STACK_SIZE`] rounded up to a power of two,
+/// so that the stack's length is kept below it by a mask rather than checked at every
+/// push and pop (a tree deeper than the bound, which no build makes, wraps the stack
+/// and ends the walk early, but reads nothing unwritten).
+const WALK_STACK: usize = STACK_SIZE.next_power_of_two();
+
+/// A single ray's walk stack: pending children and their entry distances.
+type WalkStack = [MaybeUninit<(ChildRef, Float)>; WALK_STACK];
 
 /// What a slot or stack entry points at: a node (`item_count == 0`) or a leaf's items.
 #[derive(Clone, Copy, Debug)]
@@ -330,7 +339,8 @@ impl WideBvh {
     /// incoherent ray's next node is otherwise a cache miss the walk waits for.
     #[inline(always)]
     pub(super) fn prefetch_node(&self, child: ChildRef) {
-        prefetch_lines(
+        // A node is 64-byte aligned: its address needs no rounding to a line.
+        prefetch_aligned_lines(
             self.nodes.as_ptr().wrapping_add(child.index as usize),
             PREFETCH_LINES,
         );
@@ -352,7 +362,7 @@ impl WideBvh {
             return false;
         }
         // Uninitialised: zeroing 10 KB per ray would cost more than many node visits.
-        let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
+        let mut stack: WalkStack = [const { MaybeUninit::uninit() }; WALK_STACK];
         let mut walk = Walk::new(ray, start);
         loop {
             match self.step::<ORDERED, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf) {
@@ -366,17 +376,12 @@ impl WideBvh {
     /// Puts `child`, met at distance `t_enter`, on the walk's stack, and asks for
     /// its memory.
     #[inline(always)]
-    fn push(
-        &self,
-        walk: &mut Walk,
-        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
-        child: ChildRef,
-        t_enter: Float,
-    ) {
+    fn push(&self, walk: &mut Walk, stack: &mut WalkStack, child: ChildRef, t_enter: Float) {
         debug_assert!(walk.stack_len < STACK_SIZE);
         self.prefetch_node(child);
-        stack[walk.stack_len].write((child, t_enter));
-        walk.stack_len += 1;
+        // SAFETY: `stack_len < WALK_STACK` always (kept so by the mask below).
+        unsafe { stack.get_unchecked_mut(walk.stack_len) }.write((child, t_enter));
+        walk.stack_len = (walk.stack_len + 1) & (WALK_STACK - 1);
     }
 
     /// [`WideBvh::push`] of the children of the slots in `slots`, in slot order.
@@ -384,7 +389,7 @@ impl WideBvh {
     fn push_all(
         &self,
         walk: &mut Walk,
-        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        stack: &mut WalkStack,
         mut slots: u32,
         child: impl Fn(usize) -> ChildRef,
         t_enter: &[Float; WIDTH],
@@ -403,7 +408,7 @@ impl WideBvh {
     fn step<const ORDERED: bool, T, F>(
         &self,
         walk: &mut Walk,
-        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        stack: &mut WalkStack,
         t_max: &mut Float,
         items: &[T],
         leaf: &mut F,
@@ -470,18 +475,18 @@ impl WideBvh {
                         let run_start = walk.stack_len;
                         hits |= (1 << first) | (1 << second);
                         self.push_all(walk, stack, hits, child, t_enter);
+                        // SAFETY: entries `run_start..stack_len` were written just
+                        // above (a stack wrapped by a tree too deep makes this range
+                        // empty or inverted, which the indexing refuses).
+                        let run = unsafe {
+                            &mut *(&mut stack[run_start..walk.stack_len] as *mut [_]
+                                as *mut [(ChildRef, Float)])
+                        };
                         if ORDERED {
-                            // SAFETY: entries `run_start..stack_len` were written just
-                            // above.
-                            let run = unsafe {
-                                &mut *(&mut stack[run_start..walk.stack_len] as *mut [_]
-                                    as *mut [(ChildRef, Float)])
-                            };
                             sort_far_to_near(run);
                         }
+                        walk.current = run[run.len() - 1].0;
                         walk.stack_len -= 1;
-                        // SAFETY: written above (at least three entries were pushed).
-                        walk.current = unsafe { stack[walk.stack_len].assume_init() }.0;
                     }
                 }
                 return Step::Going;
@@ -493,8 +498,9 @@ impl WideBvh {
                 return Step::Finished;
             }
             walk.stack_len -= 1;
-            // SAFETY: every entry below `stack_len` was written before.
-            let (next, t_entry) = unsafe { stack[walk.stack_len].assume_init() };
+            // SAFETY: `stack_len < WALK_STACK`, and every entry below it was written
+            // before.
+            let (next, t_entry) = unsafe { stack.get_unchecked(walk.stack_len).assume_init() };
             if !ORDERED || t_entry < *t_max {
                 walk.current = next;
                 return Step::Going;
@@ -630,7 +636,9 @@ impl WideRay {
         reach: Float,
     ) -> (u32, f32x8) {
         let mut t_enter = f32x8::ZERO;
-        let mut t_exit = f32x8::splat(Float::INFINITY);
+        // No distance is NaN (`inv_dir` is finite and non-zero), so the first axis's
+        // far distance is the minimum of it and infinity.
+        let mut t_exit = f32x8::ZERO;
         for axis in 0..3 {
             // `(origin - plane) * -inv_dir`: the same rounding as `(plane - origin) *
             // inv_dir`, negation being exact (only a zero's sign can differ, which no
@@ -643,7 +651,8 @@ impl WideRay {
             let t_min = (self.origin[axis] - node.planes[2 * axis]) * neg_inv_dir;
             let t_max = (self.origin[axis] - node.planes[2 * axis + 1]) * neg_inv_dir;
             t_enter = t_enter.fast_max(select_by_sign(neg_inv_dir, t_min, t_max));
-            t_exit = t_exit.fast_min(select_by_sign(neg_inv_dir, t_max, t_min));
+            let far = select_by_sign(neg_inv_dir, t_max, t_min);
+            t_exit = if axis == 0 { far } else { t_exit.fast_min(far) };
         }
         let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
         let reach = f32x8::splat(reach);

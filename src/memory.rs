@@ -223,7 +223,7 @@ pub(crate) fn prefetch_lines<T>(address: *const T, lines: usize) {
 /// no rounding down.
 #[inline(always)]
 pub(crate) fn prefetch_aligned_lines<T>(address: *const T, lines: usize) {
-    debug_assert!(address as usize % 64 == 0);
+    debug_assert!((address as usize).is_multiple_of(64));
     #[cfg(target_arch = "x86_64")]
     {
         let start = address.cast::<i8>();

@@ -206,10 +206,11 @@ impl<'a> Binary<'a> {
         for (slot, &(child, leaf)) in slots.taken().iter().enumerate() {
             node.set_child_bounds(slot, self.nodes[child].bounds());
             if leaf {
-                (node.child[slot], node.item_count[slot]) = self.range(child);
+                let (first, count) = self.range(child);
+                node.set_leaf(slot, first, count);
             } else {
                 let wide_index = next_index + interior.len();
-                node.child[slot] = wide_index as u32;
+                node.set_node(slot, wide_index as u32);
                 interior.push((child, wide_index));
             }
         }
@@ -341,8 +342,8 @@ fn renumbered(mut node: WideNode, renumber: impl Fn(u32) -> u32) -> WideNode {
     for slot in 0..WIDTH {
         // Interior children have an index above 0 (the root is nobody's child);
         // unused slots keep 0.
-        if node.item_count[slot] == 0 && node.child[slot] != 0 {
-            node.child[slot] = renumber(node.child[slot]);
+        if node.item_count[slot] == 0 && node.link[slot] != 0 {
+            node.set_node(slot, renumber(node.link[slot]));
         }
     }
     node
@@ -396,7 +397,8 @@ impl WideBvh {
         let binary = Binary::new(bvh, max_leaf_prims, SlotCosts::new(params), !sequential);
         if binary.becomes_leaf(0) {
             let mut node = WideNode::EMPTY;
-            (node.child[0], node.item_count[0]) = binary.range(0);
+            let (first, count) = binary.range(0);
+            node.set_leaf(0, first, count);
             node.set_child_bounds(0, root.bounds());
             return WideBvh { nodes: vec![node] };
         }
@@ -528,7 +530,7 @@ mod tests {
             |index: usize| binary[index].is_leaf() || ranges[index].1 <= max_leaf_prims;
         let mut nodes = vec![WideNode::EMPTY];
         if binary[0].is_leaf() {
-            (nodes[0].child[0], nodes[0].item_count[0]) = ranges[0];
+            nodes[0].set_leaf(0, ranges[0].0, ranges[0].1);
             nodes[0].set_child_bounds(0, root.bounds());
             return WideBvh { nodes };
         }
@@ -554,12 +556,10 @@ mod tests {
             for (slot, &(child, leaf)) in slots.iter().enumerate() {
                 nodes[wide_index].set_child_bounds(slot, binary[child].bounds());
                 if leaf {
-                    (
-                        nodes[wide_index].child[slot],
-                        nodes[wide_index].item_count[slot],
-                    ) = ranges[child];
+                    nodes[wide_index].set_leaf(slot, ranges[child].0, ranges[child].1);
                 } else {
-                    nodes[wide_index].child[slot] = nodes.len() as u32;
+                    let next = nodes.len() as u32;
+                    nodes[wide_index].set_node(slot, next);
                     pending.push((child, nodes.len()));
                     nodes.push(WideNode::EMPTY);
                 }
@@ -617,7 +617,7 @@ mod tests {
     fn same(a: &WideBvh, b: &WideBvh) -> bool {
         a.nodes.len() == b.nodes.len()
             && a.nodes.iter().zip(&b.nodes).all(|(a, b)| {
-                a.child == b.child
+                a.link == b.link
                     && a.item_count == b.item_count
                     && (0..WIDTH).all(|s| a.child_bounds(s) == b.child_bounds(s))
             })

@@ -559,10 +559,7 @@ impl WideBvh {
                         // whether a child is hit is too random to branch on.
                         debug_assert!(stack_len < STACK_SIZE);
                         stack[stack_len].write(PacketEntry {
-                            child: ChildRef {
-                                index: node.child[slot],
-                                item_count: node.item_count[slot],
-                            },
+                            child: node.child_ref(slot),
                             rays: hits,
                             t_enter: if CLOSEST { frustum_enter[slot] } else { 0.0 },
                             parent: current.child.index,
@@ -570,10 +567,10 @@ impl WideBvh {
                         });
                         if hits != 0 {
                             if node.item_count[slot] > 0 {
-                                prefetch_leaf(node.child[slot], node.item_count[slot]);
+                                prefetch_leaf(node.child(slot), node.item_count[slot]);
                             } else {
                                 prefetch_lines(
-                                    self.nodes.as_ptr().wrapping_add(node.child[slot] as usize),
+                                    self.nodes.as_ptr().wrapping_add(node.child(slot) as usize),
                                     PREFETCH_LINES,
                                 );
                             }
@@ -751,10 +748,7 @@ impl WideBvh {
                     let slot = hits.trailing_zeros() as usize;
                     hits &= hits - 1;
                     debug_assert!(stack_len < STACK_SIZE);
-                    let entry = ChildRef {
-                        index: node.child[slot],
-                        item_count: node.item_count[slot],
-                    };
+                    let entry = node.child_ref(slot);
                     if PREFETCH {
                         if entry.item_count > 0 {
                             prefetch_leaf(entry.index, entry.item_count);
@@ -962,7 +956,7 @@ mod tests {
         }
         WideNode {
             planes: planes.map(f32x8::from),
-            child: [0; WIDTH],
+            link: [0; WIDTH],
             item_count: [0; WIDTH],
         }
     }

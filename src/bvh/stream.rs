@@ -96,10 +96,7 @@ impl WideBvh {
                 while slots != 0 {
                     let slot = slots.trailing_zeros() as usize;
                     slots &= slots - 1;
-                    let child = ChildRef {
-                        index: node.child[slot],
-                        item_count: node.item_count[slot],
-                    };
+                    let child = node.child_ref(slot);
                     if child.item_count > 0 {
                         prefetch_lines(
                             items.as_ptr().wrapping_add(child.index as usize),
@@ -181,7 +178,7 @@ impl WideBvh {
                         let slot = new.trailing_zeros() as usize;
                         new &= new - 1;
                         prefetch_lines(
-                            items.as_ptr().wrapping_add(node.child[slot] as usize),
+                            items.as_ptr().wrapping_add(node.child(slot) as usize),
                             PREFETCH_LINES,
                         );
                     }
@@ -211,7 +208,7 @@ impl WideBvh {
             for &(slot, _) in &interior[..interior_count] {
                 let slot = slot.index as usize;
                 let child = ChildRef {
-                    index: node.child[slot],
+                    index: node.child(slot),
                     item_count: 0,
                 };
                 self.prefetch_node(child);
@@ -231,7 +228,7 @@ impl WideBvh {
                 while let Some(nearest) = nearest_in_mask(left, entry) {
                     left &= !(1 << nearest);
                     if entry[nearest] <= t_max[ray] * CLOSEST_CULL_MARGIN {
-                        let (first, count) = (node.child[nearest], node.item_count[nearest]);
+                        let (first, count) = (node.child(nearest), node.item_count[nearest]);
                         leaf(ray, first, count, entry[nearest], &mut t_max[ray]);
                     }
                 }

@@ -11,11 +11,11 @@
 use std::mem::MaybeUninit;
 
 use glam::Vec4;
-use wide::{f32x8, u32x8};
+use wide::{f32x8, i32x8};
 
 use super::{BvhInvariantError, BvhParams, MAX_DEPTH};
 use crate::math::{Aabb, Float, Ray, Vec3};
-use crate::memory::prefetch_lines;
+use crate::memory::{prefetch_aligned_lines, prefetch_lines};
 
 /// Children per node: one 256-bit AVX register of `f32`.
 pub const WIDTH: usize = 8;
@@ -34,13 +34,19 @@ pub(super) const SLAB_EXIT_SLACK: Float = 1.0 + 2.0 * 3.0 * (Float::EPSILON * 0.
 pub struct WideNode {
     /// Box planes of the children, lane `i` belonging to child `i`.
     pub planes: [f32x8; 6],
-    /// Interior child: index of its node. Leaf child: index of its first item.
-    pub child: [u32; WIDTH],
+    /// Interior child or unused slot: index of its node (0 if unused). Leaf child:
+    /// index of its first item with the top bit ([`LEAF_LINK`]) set, so that one
+    /// comparison with the node count tells a node from a leaf (and checks the
+    /// node's index). [`WideNode::child`] is the index without that bit.
+    pub link: [u32; WIDTH],
     /// Interior child or unused slot: 0. Leaf child: number of items, at least 1.
     pub item_count: [u32; WIDTH],
 }
 
 const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
+
+/// The bit of a [`WideNode::link`] that marks a leaf.
+pub const LEAF_LINK: u32 = 1 << 31;
 
 impl WideNode {
     pub(super) const EMPTY: WideNode = WideNode {
@@ -52,9 +58,43 @@ impl WideNode {
             f32x8::splat(Float::INFINITY),
             f32x8::splat(Float::NEG_INFINITY),
         ],
-        child: [0; WIDTH],
+        link: [0; WIDTH],
         item_count: [0; WIDTH],
     };
+
+    /// Slot `slot`'s node index, or its first item if it is a leaf.
+    #[inline(always)]
+    pub fn child(&self, slot: usize) -> u32 {
+        self.link[slot] & !LEAF_LINK
+    }
+
+    /// What slot `slot` points at, its index without the leaf bit.
+    #[inline(always)]
+    pub(super) fn child_ref(&self, slot: usize) -> ChildRef {
+        ChildRef {
+            index: self.child(slot),
+            item_count: self.item_count[slot],
+        }
+    }
+
+    /// Points slot `slot` at node `index`.
+    ///
+    /// # Panics
+    /// If `index` has the top bit set (no tree has 2^31 nodes).
+    pub fn set_node(&mut self, slot: usize, index: u32) {
+        assert!(index < LEAF_LINK, "node index {index} too large");
+        (self.link[slot], self.item_count[slot]) = (index, 0);
+    }
+
+    /// Makes slot `slot` a leaf of items `first..first + count`.
+    ///
+    /// # Panics
+    /// If `count` is 0 or `first` has the top bit set (no scene has 2^31 items).
+    pub fn set_leaf(&mut self, slot: usize, first: u32, count: u32) {
+        assert!(first < LEAF_LINK, "first item {first} too large");
+        assert!(count > 0, "a leaf of no items");
+        (self.link[slot], self.item_count[slot]) = (first | LEAF_LINK, count);
+    }
 
     /// The box of child slot `slot` (inverted for an unused slot).
     pub fn child_bounds(&self, slot: usize) -> Aabb {
@@ -65,11 +105,12 @@ impl WideNode {
         }
     }
 
-    /// Bit `i` set if slot `i` is a leaf.
+    /// Bit `i` set if slot `i` is a leaf: the links' top bits.
     #[inline(always)]
     pub(super) fn leaf_slots(&self) -> u32 {
-        let interior = u32x8::from(self.item_count).simd_eq(u32x8::ZERO);
-        !interior.to_bitmask() & ((1 << WIDTH) - 1)
+        i32x8::from(bytemuck::cast::<[u32; WIDTH], [i32; WIDTH]>(self.link))
+            .simd_lt(i32x8::ZERO)
+            .to_bitmask()
     }
 
     pub(super) fn set_child_bounds(&mut self, slot: usize, bounds: Aabb) {
@@ -98,11 +139,28 @@ pub struct WideBvh {
 /// level, and the wide tree is no deeper than the binary one it came from.
 pub(crate) const STACK_SIZE: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
+/// Entries of a single ray's walk stack: [`STACK_SIZE`] rounded up to a power of two,
+/// so that the stack's length is kept below it by a mask rather than checked at every
+/// push and pop (a tree deeper than the bound, which no build makes, wraps the stack
+/// and ends the walk early, but reads nothing unwritten).
+const WALK_STACK: usize = STACK_SIZE.next_power_of_two();
+
+/// A single ray's walk stack: pending children and their entry distances.
+type WalkStack = [MaybeUninit<(Link, Float)>; WALK_STACK];
+
 /// What a slot or stack entry points at: a node (`item_count == 0`) or a leaf's items.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct ChildRef {
     pub(super) index: u32,
     pub(super) item_count: u32,
+}
+
+/// What a single ray's walk keeps of a child: its [`WideNode::link`] (a leaf's with
+/// the leaf bit) and item count.
+#[derive(Clone, Copy, Debug)]
+struct Link {
+    link: u32,
+    item_count: u32,
 }
 
 impl WideBvh {
@@ -114,7 +172,7 @@ impl WideBvh {
             .flat_map(|node| {
                 (0..WIDTH)
                     .filter(|&slot| node.item_count[slot] > 0)
-                    .map(|slot| (node.child[slot], node.item_count[slot]))
+                    .map(|slot| (node.child(slot), node.item_count[slot]))
             })
             .collect()
     }
@@ -171,7 +229,7 @@ impl WideBvh {
                 if node.item_count[slot] > 0 {
                     let (first, end) = (first_items[leaf], first_items[leaf + 1]);
                     assert!(end > first, "leaf {leaf} has no items");
-                    (node.child[slot], node.item_count[slot]) = (first, end - first);
+                    node.set_leaf(slot, first, end - first);
                     leaf += 1;
                 }
             }
@@ -227,7 +285,10 @@ impl WideBvh {
                         "node {index}: slot {slot} sticks out of its parent"
                     ));
                 }
-                let (child, items) = (node.child[slot], node.item_count[slot]);
+                let (child, items) = (node.child(slot), node.item_count[slot]);
+                if (items > 0) != (node.link[slot] & LEAF_LINK != 0) {
+                    return fail(format!("node {index}: slot {slot}'s leaf bit is wrong"));
+                }
                 if items == 0 {
                     pending.push((child as usize, Some(bounds)));
                     continue;
@@ -330,7 +391,8 @@ impl WideBvh {
     /// incoherent ray's next node is otherwise a cache miss the walk waits for.
     #[inline(always)]
     pub(super) fn prefetch_node(&self, child: ChildRef) {
-        prefetch_lines(
+        // A node is 64-byte aligned: its address needs no rounding to a line.
+        prefetch_aligned_lines(
             self.nodes.as_ptr().wrapping_add(child.index as usize),
             PREFETCH_LINES,
         );
@@ -352,7 +414,7 @@ impl WideBvh {
             return false;
         }
         // Uninitialised: zeroing 10 KB per ray would cost more than many node visits.
-        let mut stack = [const { MaybeUninit::<(ChildRef, Float)>::uninit() }; STACK_SIZE];
+        let mut stack: WalkStack = [const { MaybeUninit::uninit() }; WALK_STACK];
         let mut walk = Walk::new(ray, start);
         loop {
             match self.step::<ORDERED, T, F>(&mut walk, &mut stack, t_max, items, &mut leaf) {
@@ -366,17 +428,20 @@ impl WideBvh {
     /// Puts `child`, met at distance `t_enter`, on the walk's stack, and asks for
     /// its memory.
     #[inline(always)]
-    fn push(
-        &self,
-        walk: &mut Walk,
-        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
-        child: ChildRef,
-        t_enter: Float,
-    ) {
+    fn push(&self, walk: &mut Walk, stack: &mut WalkStack, child: Link, t_enter: Float) {
         debug_assert!(walk.stack_len < STACK_SIZE);
-        self.prefetch_node(child);
-        stack[walk.stack_len].write((child, t_enter));
-        walk.stack_len += 1;
+        // As `prefetch_node`: a leaf's link without its leaf bit (dropped by the
+        // doubling in 32 bits) points at the node of its first item's index.
+        prefetch_aligned_lines(
+            self.nodes
+                .as_ptr()
+                .cast::<u8>()
+                .wrapping_add(child.link.wrapping_mul(2) as usize * (size_of::<WideNode>() / 2)),
+            PREFETCH_LINES,
+        );
+        // SAFETY: `stack_len < WALK_STACK` always (kept so by the mask below).
+        unsafe { stack.get_unchecked_mut(walk.stack_len) }.write((child, t_enter));
+        walk.stack_len = (walk.stack_len + 1) & (WALK_STACK - 1);
     }
 
     /// [`WideBvh::push`] of the children of the slots in `slots`, in slot order.
@@ -384,9 +449,9 @@ impl WideBvh {
     fn push_all(
         &self,
         walk: &mut Walk,
-        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        stack: &mut WalkStack,
         mut slots: u32,
-        child: impl Fn(usize) -> ChildRef,
+        child: impl Fn(usize) -> Link,
         t_enter: &[Float; WIDTH],
     ) {
         while slots != 0 {
@@ -403,7 +468,7 @@ impl WideBvh {
     fn step<const ORDERED: bool, T, F>(
         &self,
         walk: &mut Walk,
-        stack: &mut [MaybeUninit<(ChildRef, Float)>; STACK_SIZE],
+        stack: &mut WalkStack,
         t_max: &mut Float,
         items: &[T],
         leaf: &mut F,
@@ -412,16 +477,13 @@ impl WideBvh {
         F: FnMut(u32, u32, &mut Float) -> bool,
     {
         let current = walk.current;
-        if current.item_count > 0 {
-            if leaf(current.index, current.item_count, t_max) {
-                return Step::Stopped;
-            }
-        } else {
-            let node = &self.nodes[current.index as usize];
+        // A leaf's link is beyond every node's index (the leaf bit): one comparison
+        // tells a node from a leaf and checks the node's index.
+        if let Some(node) = self.nodes.get(current.link as usize) {
             let (mut hits, t_enter) = walk.slabs.hit_children::<false>(node, *t_max);
             if hits != 0 {
-                let child = |slot: usize| ChildRef {
-                    index: node.child[slot],
+                let child = |slot: usize| Link {
+                    link: node.link[slot],
                     item_count: node.item_count[slot],
                 };
                 // The items of every leaf hit are asked for at once, the nearest's
@@ -433,7 +495,7 @@ impl WideBvh {
                     let slot = leaves.trailing_zeros() as usize;
                     leaves &= leaves - 1;
                     prefetch_lines(
-                        items.as_ptr().wrapping_add(node.child[slot] as usize),
+                        items.as_ptr().wrapping_add(node.child(slot) as usize),
                         PREFETCH_LINES,
                     );
                 }
@@ -470,21 +532,26 @@ impl WideBvh {
                         let run_start = walk.stack_len;
                         hits |= (1 << first) | (1 << second);
                         self.push_all(walk, stack, hits, child, t_enter);
+                        // SAFETY: entries `run_start..stack_len` were written just
+                        // above (a stack wrapped by a tree too deep makes this range
+                        // empty or inverted, which the indexing refuses).
+                        let run = unsafe {
+                            &mut *(&mut stack[run_start..walk.stack_len] as *mut [_]
+                                as *mut [(Link, Float)])
+                        };
                         if ORDERED {
-                            // SAFETY: entries `run_start..stack_len` were written just
-                            // above.
-                            let run = unsafe {
-                                &mut *(&mut stack[run_start..walk.stack_len] as *mut [_]
-                                    as *mut [(ChildRef, Float)])
-                            };
                             sort_far_to_near(run);
                         }
+                        walk.current = run[run.len() - 1].0;
                         walk.stack_len -= 1;
-                        // SAFETY: written above (at least three entries were pushed).
-                        walk.current = unsafe { stack[walk.stack_len].assume_init() }.0;
                     }
                 }
                 return Step::Going;
+            }
+        } else {
+            debug_assert!(current.link & LEAF_LINK != 0 && current.item_count > 0);
+            if leaf(current.link & !LEAF_LINK, current.item_count, t_max) {
+                return Step::Stopped;
             }
         }
         // Pop the next pending child that can still hold a closer hit.
@@ -493,8 +560,9 @@ impl WideBvh {
                 return Step::Finished;
             }
             walk.stack_len -= 1;
-            // SAFETY: every entry below `stack_len` was written before.
-            let (next, t_entry) = unsafe { stack[walk.stack_len].assume_init() };
+            // SAFETY: `stack_len < WALK_STACK`, and every entry below it was written
+            // before.
+            let (next, t_entry) = unsafe { stack.get_unchecked(walk.stack_len).assume_init() };
             if !ORDERED || t_entry < *t_max {
                 walk.current = next;
                 return Step::Going;
@@ -508,7 +576,7 @@ impl WideBvh {
 #[derive(Clone, Copy)]
 struct Walk {
     slabs: WideRay,
-    current: ChildRef,
+    current: Link,
     stack_len: usize,
 }
 
@@ -518,8 +586,8 @@ impl Walk {
     fn new(ray: &RayQuery, start: u32) -> Walk {
         Walk {
             slabs: WideRay::new(ray),
-            current: ChildRef {
-                index: start,
+            current: Link {
+                link: start,
                 item_count: 0,
             },
             stack_len: 0,
@@ -546,7 +614,7 @@ pub(crate) const PREFETCH_LINES: usize = 4;
 /// Insertion sort by decreasing entry distance: at most eight entries, mostly two or
 /// three, where it beats any general sort.
 #[inline(always)]
-pub(super) fn sort_far_to_near(run: &mut [(ChildRef, Float)]) {
+pub(super) fn sort_far_to_near<R: Copy>(run: &mut [(R, Float)]) {
     for i in 1..run.len() {
         let entry = run[i];
         let mut j = i;
@@ -630,7 +698,9 @@ impl WideRay {
         reach: Float,
     ) -> (u32, f32x8) {
         let mut t_enter = f32x8::ZERO;
-        let mut t_exit = f32x8::splat(Float::INFINITY);
+        // No distance is NaN (`inv_dir` is finite and non-zero), so the first axis's
+        // far distance is the minimum of it and infinity.
+        let mut t_exit = f32x8::ZERO;
         for axis in 0..3 {
             // `(origin - plane) * -inv_dir`: the same rounding as `(plane - origin) *
             // inv_dir`, negation being exact (only a zero's sign can differ, which no
@@ -643,7 +713,8 @@ impl WideRay {
             let t_min = (self.origin[axis] - node.planes[2 * axis]) * neg_inv_dir;
             let t_max = (self.origin[axis] - node.planes[2 * axis + 1]) * neg_inv_dir;
             t_enter = t_enter.fast_max(select_by_sign(neg_inv_dir, t_min, t_max));
-            t_exit = t_exit.fast_min(select_by_sign(neg_inv_dir, t_max, t_min));
+            let far = select_by_sign(neg_inv_dir, t_max, t_min);
+            t_exit = if axis == 0 { far } else { t_exit.fast_min(far) };
         }
         let t_exit = t_exit * f32x8::splat(SLAB_EXIT_SLACK);
         let reach = f32x8::splat(reach);
@@ -763,12 +834,12 @@ mod tests {
         // leaf of item 0 (x in 2..3). Node 1: a leaf of item 1 in slot 0.
         let mut root = WideNode::EMPTY;
         root.set_child_bounds(0, unit(0.0));
-        root.child[0] = 1;
+        root.set_node(0, 1);
         root.set_child_bounds(1, unit(2.0));
-        (root.child[1], root.item_count[1]) = (0, 1);
+        root.set_leaf(1, 0, 1);
         let mut inner = WideNode::EMPTY;
         inner.set_child_bounds(0, unit(0.0));
-        (inner.child[0], inner.item_count[0]) = (1, 1);
+        inner.set_leaf(0, 1, 1);
         let bvh = WideBvh {
             nodes: vec![root, inner],
         };
@@ -935,6 +1006,21 @@ mod validate_tests {
         assert!(
             shrunk.validate(200, bounds).is_err(),
             "a slot smaller than its contents"
+        );
+        // A leaf's link carries the leaf bit, a node's does not; `leaf_slots` reads it.
+        for node in &wide.nodes {
+            let leaves = (0..WIDTH).filter(|&s| node.item_count[s] > 0);
+            assert_eq!(node.leaf_slots(), leaves.map(|s| 1 << s).sum::<u32>());
+        }
+        let (node, leaf) = (0..wide.nodes.len())
+            .flat_map(|n| (0..WIDTH).map(move |s| (n, s)))
+            .find(|&(n, s)| wide.nodes[n].item_count[s] > 0)
+            .unwrap();
+        let mut unmarked = wide.clone();
+        unmarked.nodes[node].link[leaf] &= !LEAF_LINK;
+        assert!(
+            unmarked.validate(200, bounds).is_err(),
+            "a leaf without its bit"
         );
         let mut dangling = wide.clone();
         let unused = (0..WIDTH).find(|&s| dangling.nodes[0].child_bounds(s).min.x.is_infinite());

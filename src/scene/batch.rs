@@ -114,7 +114,7 @@ fn push_met_children<const ORDERED: bool>(
                 0.0
             };
             stack[*stack_len].write(Pending {
-                index: node.child[slot],
+                index: node.child(slot),
                 item_count: node.item_count[slot],
                 rays: met,
                 t_enter,

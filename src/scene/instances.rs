@@ -145,7 +145,7 @@ fn covering_boxes(mesh: &Scene) -> Vec<Aabb> {
             boxes.push(bounds);
             continue;
         }
-        let child = &nodes[root.child[slot] as usize];
+        let child = &nodes[root.child(slot) as usize];
         boxes.extend((0..WIDTH).filter_map(|s| used(child, s)));
     }
     boxes

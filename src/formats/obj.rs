@@ -1214,8 +1214,10 @@ impl<'a> Resolver<'a> {
         if let [name] = names {
             return self.load_mtl(line, name, true).map(drop);
         }
+        // Looked for first, then asked for: a render's list of the files it reads
+        // (the Dask renderer's `scene_files`) holds no name that is not a file.
         let whole_path = self.beside(whole);
-        if self.access.admit(&whole_path).is_ok() && whole_path.is_file() {
+        if whole_path.is_file() && self.access.admit(&whole_path).is_ok() {
             return self.load_mtl(line, whole, true).map(drop);
         }
         let mut missing = Vec::new();

@@ -69,3 +69,71 @@ fn behind_a_thin_sheet_recursion_beyond_the_box_adds_nothing() {
         assert_eq!(render_thin_sheet(&scene, depth), two, "depth {depth}");
     }
 }
+
+/// An octahedron of "radius" 1 whose vertex normals point out from its centre, as a
+/// coarse sphere's do, and, with `occluder`, a small flat triangle hovering 0.05 above
+/// the point `(0.8, 0.1, 0.1)` of its face in the positive octant.
+fn smooth_octahedron(occluder: bool) -> Scene {
+    let mut obj = String::from("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n");
+    obj += "vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n";
+    for (x, y, z) in [
+        (1, 3, 5),
+        (1, 6, 3),
+        (1, 5, 4),
+        (1, 4, 6),
+        (2, 5, 3),
+        (2, 3, 6),
+        (2, 4, 5),
+        (2, 6, 4),
+    ] {
+        obj += &format!("f {x}//{x} {y}//{y} {z}//{z}\n");
+    }
+    if occluder {
+        let centre = Vec3::new(0.8, 0.1, 0.1) + Vec3::ONE.normalize() * 0.05;
+        for corner in [Vec3::X, Vec3::Y, Vec3::Z] {
+            let v = centre + (corner - Vec3::splat(1.0 / 3.0)) * 0.03;
+            obj += &format!("v {} {} {}\n", v.x, v.y, v.z);
+        }
+        obj += "f 7 8 9\n";
+    }
+    let description = formats::parse_obj(obj.as_bytes(), Path::new("octahedron.obj")).unwrap();
+    Scene::build(description, &BvhParams::default())
+}
+
+/// The shadow terminator: where a flat triangle of a smooth mesh faces away from a
+/// light that its interpolated normal still faces, the shadow ray from the triangle
+/// runs into the mesh. A convex surface cannot shadow a point of itself whose normal
+/// faces the light, so the octahedron that stands for a sphere must not either: the
+/// shadow ray starts from the smooth surface its vertex normals describe. Where the
+/// light is well above the triangle, shadow rays still start on it, so the occluder
+/// just above the surface (nearer than the smooth surface) still casts its shadow.
+#[test]
+fn a_smooth_mesh_does_not_shadow_itself_where_its_shading_faces_the_light() {
+    let p = Vec3::new(0.8, 0.1, 0.1);
+    let face = Vec3::ONE.normalize();
+    let eye = p + Vec3::new(1.0, -0.3, -0.3).normalize() * 2.0;
+    let ray = raytracer::math::Ray::new(eye, (p - eye).normalize());
+
+    let scene = smooth_octahedron(false);
+    let hit = scene.intersect(&ray).expect("the ray meets the face");
+    assert!((hit.p - p).length() < 1e-5, "{}", hit.p);
+    // Behind the triangle's plane, in front of its shading normal.
+    let light = p + Vec3::new(1.0, -0.7, -0.7).normalize() * 10.0;
+    let to_light = (light - hit.p).normalize();
+    assert!(hit.n.dot(face) > 0.999 && hit.n.dot(to_light) < -0.1);
+    assert!(hit.ns.dot(to_light) > 0.5, "{}", hit.ns.dot(to_light));
+    let (shadow, distance) = hit.spawn_ray_to(light);
+    assert!(
+        !scene.occluded(&shadow, distance),
+        "self-shadowed from {shadow:?}"
+    );
+
+    let scene = smooth_octahedron(true);
+    let hit = scene.intersect(&ray).expect("the ray passes the occluder");
+    assert!((hit.p - p).length() < 1e-5, "{}", hit.p);
+    let (shadow, distance) = hit.spawn_ray_to(p + face * 3.0);
+    assert!(
+        scene.occluded(&shadow, distance),
+        "lit through the occluder"
+    );
+}

@@ -1174,6 +1174,7 @@ mod tests {
                     ns: n,
                     uv: Vec2::ZERO,
                     coat_ns: Vec3::ZERO,
+                    lift: Vec3::ZERO,
                     colour: Vec3::ONE,
                     material: crate::material::MaterialId(0),
                     front: true,

@@ -15,7 +15,7 @@ use wide::f32x16;
 use crate::bvh::{PACKET_SIZE, lanes_of};
 use crate::material::{Colours, Light};
 use crate::math::{Float, Ray, Vec3, dot_lanes as dot};
-use crate::scene::{Hit, SPAWN_OFFSET};
+use crate::scene::{Hit, SPAWN_OFFSET, TERMINATOR_COSINE};
 
 /// Lanes of sixteen `f32`, as stored between packets (loaded into `f32x16` per light).
 type Lanes = [Float; PACKET_SIZE];
@@ -30,6 +30,8 @@ pub(super) struct HitLanes {
     n: [Lanes; 3],
     /// Shading normals (`Hit::ns`).
     ns: [Lanes; 3],
+    /// `Hit::lift`: where shadow rays at grazing light start from.
+    lift: [Lanes; 3],
     /// `-ray.dir`.
     to_eye: [Lanes; 3],
     /// `Kd`.
@@ -57,6 +59,7 @@ impl HitLanes {
             p: NO_LANES,
             n: NO_LANES,
             ns: NO_LANES,
+            lift: NO_LANES,
             to_eye: NO_LANES,
             diffuse: NO_LANES,
             specular: NO_LANES,
@@ -81,6 +84,7 @@ impl HitLanes {
             self.p[axis][lane] = hit.p[axis];
             self.n[axis][lane] = hit.n[axis];
             self.ns[axis][lane] = hit.ns[axis];
+            self.lift[axis][lane] = hit.lift[axis];
             self.to_eye[axis][lane] = to_eye[axis];
             self.diffuse[axis][lane] = diffuse[axis];
             self.specular[axis][lane] = specular[axis];
@@ -161,11 +165,17 @@ impl HitLanes {
         }
 
         // `hit.spawn_ray_to(light.position)`: the origin off the surface on the side
-        // of `v`, then the unit direction and distance to the light from there.
+        // of `v`, lifted towards the smooth surface by `terminator_share` of the
+        // cosine to the light, then the unit direction and distance to the light
+        // from there.
         let n = load(&self.n);
         let side = dot(v, n).simd_ge(zero).select(one, -one);
         let offset = side * f32x16::from(self.offset);
-        let origin = [0, 1, 2].map(|axis| p[axis] + n[axis] * offset);
+        let share = one - dot(n, to_light) / f32x16::splat(TERMINATOR_COSINE);
+        let share = share.simd_lt(zero).select(zero, share);
+        let share = share.simd_gt(one).select(one, share);
+        let lift = load(&self.lift);
+        let origin = [0, 1, 2].map(|axis| (p[axis] + n[axis] * offset) + lift[axis] * share);
         let to_target = [0, 1, 2].map(|axis| position[axis] - origin[axis]);
         let distance = dot(to_target, to_target).sqrt();
         let dir = to_target.map(|c| c / distance);

@@ -685,7 +685,7 @@ mod tests {
     /// `HitLanes::light` against `light_term` and `Hit::spawn_ray_to` hit by hit, on
     /// random hits and colours and on the awkward cases: a light exactly at the hit
     /// point, behind the surface, `Ks = 0`, `Ns` of 0, 1 and 1000, overflowing
-    /// intensities.
+    /// intensities, hits lifted towards a smooth surface (`Hit::lift`) or not.
     #[test]
     fn lanes_compute_the_light_terms_and_shadow_rays_of_single_hits() {
         use rand::{Rng, SeedableRng};
@@ -746,6 +746,12 @@ mod tests {
                     ns,
                     uv: Vec2::ZERO,
                     coat_ns: Vec3::ZERO,
+                    // Half the hits lifted towards a smooth surface.
+                    lift: if lane % 2 == 0 {
+                        Vec3::ZERO
+                    } else {
+                        unit(&mut rng) * rng.random_range(0.0..0.1)
+                    },
                     colour: Vec3::ONE,
                     material: MaterialId(0),
                     front: true,

@@ -352,6 +352,9 @@ impl Instances {
             colour: inner.colour,
             // Zero (no coat normal of its own) stays zero.
             coat_ns: to_world(inner.coat_ns).unwrap_or(Vec3::ZERO),
+            // The placement's linear part is not kept (only its inverse): copies'
+            // shadow rays start on their triangles.
+            lift: Vec3::ZERO,
             material: inner.material,
             front: inner.front != placed.mirrored,
         }

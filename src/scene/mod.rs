@@ -36,6 +36,23 @@ use crate::stats::{Mark, Usage};
 /// `integrators::phong_lanes`).
 pub(crate) const SPAWN_OFFSET: Float = 1e-4;
 
+/// Below this cosine between a triangle's geometric normal and the way to a light, a
+/// shadow ray starts from the smooth surface its vertex normals describe
+/// ([`Hit::lift`]), all the way at a cosine of 0 and beyond: where the light grazes a
+/// flat triangle of a smooth mesh, or lies behind it while the shading normal still
+/// faces it (the shadow terminator). Above it, shadow rays start on the triangle, so
+/// that a lift never carries them past a nearby occluder. Blender's default for its
+/// "shadow terminator geometry offset" is the same 0.1.
+pub(crate) const TERMINATOR_COSINE: Float = 0.1;
+
+/// How much of [`Hit::lift`] a shadow ray's origin takes, from the cosine `cos`
+/// between the geometric normal (facing the ray) and the unit way to the light:
+/// `1 - cos / TERMINATOR_COSINE`, within 0..1.
+#[inline(always)]
+pub(crate) fn terminator_share(cos: Float) -> Float {
+    (1.0 - cos / TERMINATOR_COSINE).clamp(0.0, 1.0)
+}
+
 /// Shading data of one primitive, in leaf order.
 #[derive(Clone, Copy, Debug)]
 struct PrimShading {
@@ -228,6 +245,16 @@ pub struct Hit {
     /// ([`Material::at_point`]); white where there is none, on materials without
     /// maps or vertex colours, and in scenes without either.
     pub colour: Vec3,
+    /// From `p` to the smooth surface the triangle's vertex normals describe, on the
+    /// side `n` faces (Hanika, "Hacking the Shadow Terminator", Ray Tracing Gems II,
+    /// 2021): `p` moved out along each corner's normal by as far as it lies below that
+    /// corner's tangent plane, weighted by its barycentric coordinate. Shadow rays
+    /// towards a light that grazes the triangle or lies behind it start there
+    /// ([`Hit::spawn_ray_to`]), so that a coarse mesh with smooth normals does not
+    /// shadow itself in jagged triangles where its shading says it is lit. Zero on
+    /// flat triangles (vertex normals equal to the face's, or none), spheres, copies
+    /// of instanced meshes, and where the vertex normals face away from the ray.
+    pub lift: Vec3,
     /// The material.
     pub material: MaterialId,
     /// Whether the ray hit the front: the side a triangle's winding faces
@@ -255,10 +282,13 @@ impl Hit {
     }
 
     /// A ray from the hit point towards `target` and the distance to it, for shadow
-    /// tests against a light at `target`.
+    /// tests against a light at `target`: from the smooth surface ([`Hit::lift`]) as
+    /// far as the light grazes the triangle ([`TERMINATOR_COSINE`]).
     #[inline]
     pub fn spawn_ray_to(&self, target: Vec3) -> (Ray, Float) {
-        let origin = self.offset_origin(target - self.p);
+        let towards = target - self.p;
+        let share = try_unit(towards).map_or(0.0, |l| terminator_share(self.n.dot(l)));
+        let origin = self.offset_origin(towards) + self.lift * share;
         let to_target = target - origin;
         let distance = to_target.length();
         (

@@ -128,16 +128,18 @@ impl Scene {
             unreachable!("hits come from used lanes")
         };
         let shading = self.shading.get(prim);
-        let (p, n, ns) = match shape {
+        let (p, n, ns, lift) = match shape {
             Shape::Triangle(tri) => {
                 // `build` kept only triangles whose normal `try_unit` accepts.
                 let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
-                (ray.at(hit.t), n, self.shading_normal(shading, n, &hit))
+                let p = ray.at(hit.t);
+                let lift = self.smooth_lift(shading, &tri, p, &hit);
+                (p, n, self.shading_normal(shading, n, &hit), lift)
             }
             Shape::Sphere(s) => {
                 let p = ray.at(hit.t);
                 let n = try_unit(p - s.center).unwrap_or(-ray.dir);
-                (s.center + n * s.radius, n, n)
+                (s.center + n * s.radius, n, n, Vec3::ZERO)
             }
         };
         let front = n.dot(ray.dir) <= 0.0;
@@ -149,9 +151,36 @@ impl Scene {
             ns: face(ns),
             uv: Vec2::ZERO,
             coat_ns: Vec3::ZERO,
+            // Kept only on the side the ray came from: vertex normals facing away
+            // from it describe a surface behind the one it hit.
+            lift: if lift.dot(ray.dir) < 0.0 {
+                lift
+            } else {
+                Vec3::ZERO
+            },
             colour: Vec3::ONE,
             material: shading.material,
             front,
+        }
+    }
+
+    /// [`Hit::lift`] at `p`, barycentric coordinates `hit` on `tri`: zero without
+    /// vertex normals.
+    #[inline(always)]
+    fn smooth_lift(&self, shading: PrimShading, tri: &Triangle, p: Vec3, hit: &PrimHit) -> Vec3 {
+        match shading.normals {
+            [NO_NORMALS, ..] => Vec3::ZERO,
+            ids => {
+                let corners = [tri.v0, tri.v0 + tri.e1, tri.v0 + tri.e2];
+                let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
+                let mut lift = Vec3::ZERO;
+                for k in 0..3 {
+                    let normal = self.vertex_normals[ids[k] as usize];
+                    let below = (p - corners[k]).dot(normal).min(0.0);
+                    lift -= normal * (weights[k] * below);
+                }
+                if lift.is_finite() { lift } else { Vec3::ZERO }
+            }
         }
     }
 

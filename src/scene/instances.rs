@@ -352,11 +352,55 @@ impl Instances {
             colour: inner.colour,
             // Zero (no coat normal of its own) stays zero.
             coat_ns: to_world(inner.coat_ns).unwrap_or(Vec3::ZERO),
-            // The placement's linear part is not kept (only its inverse): copies'
-            // shadow rays start on their triangles.
-            lift: Vec3::ZERO,
+            // Made in world space from the placed corners and vertex normals, as the
+            // flattened mesh's is (the construction does not commute with a
+            // non-uniform scale), only where the mesh's own says there is one.
+            lift: if inner.lift == Vec3::ZERO {
+                Vec3::ZERO
+            } else {
+                self.placed_lift(placed, mesh, ray, packet, lane, &hit)
+            },
             material: inner.material,
             front: inner.front != placed.mirrored,
+        }
+    }
+
+    /// [`Hit::lift`] of a copy's hit, in world space: the mesh's triangle and vertex
+    /// normals placed, then lifted as a flattened triangle is; zero where the lift
+    /// would not face the ray.
+    #[cold]
+    fn placed_lift(
+        &self,
+        placed: &Placed,
+        mesh: &Scene,
+        ray: &Ray,
+        packet: u32,
+        lane: usize,
+        hit: &PrimHit,
+    ) -> Vec3 {
+        let packet = &mesh.packets[packet as usize];
+        let (Some(prim), Some(Shape::Triangle(tri))) = (packet.prim(lane), packet.shape(lane))
+        else {
+            return Vec3::ZERO;
+        };
+        let world_from_object = placed.object_from_world.inverse();
+        let v0 = world_from_object.transform_point3(tri.v0);
+        let placed_tri = Triangle {
+            v0,
+            e1: world_from_object.transform_point3(tri.v0 + tri.e1) - v0,
+            e2: world_from_object.transform_point3(tri.v0 + tri.e2) - v0,
+        };
+        let lift = mesh.smooth_lift_with(
+            mesh.shading.get(prim),
+            &placed_tri,
+            ray.at(hit.t),
+            hit,
+            |v| try_unit(placed.normal_to_world * v).unwrap_or(Vec3::ZERO),
+        );
+        if lift.dot(ray.dir) < 0.0 && lift.is_finite() {
+            lift
+        } else {
+            Vec3::ZERO
         }
     }
 

@@ -168,6 +168,21 @@ impl Scene {
     /// vertex normals.
     #[inline(always)]
     fn smooth_lift(&self, shading: PrimShading, tri: &Triangle, p: Vec3, hit: &PrimHit) -> Vec3 {
+        self.smooth_lift_with(shading, tri, p, hit, |v| v)
+    }
+
+    /// [`Scene::smooth_lift`] with each vertex normal first moved by `place` (an
+    /// instance's placement, giving a unit vector or zero), `tri` and `p` placed
+    /// already.
+    #[inline(always)]
+    pub(super) fn smooth_lift_with(
+        &self,
+        shading: PrimShading,
+        tri: &Triangle,
+        p: Vec3,
+        hit: &PrimHit,
+        place: impl Fn(Vec3) -> Vec3,
+    ) -> Vec3 {
         match shading.normals {
             [NO_NORMALS, ..] => Vec3::ZERO,
             ids => {
@@ -175,7 +190,7 @@ impl Scene {
                 let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
                 let mut lift = Vec3::ZERO;
                 for k in 0..3 {
-                    let normal = self.vertex_normals[ids[k] as usize];
+                    let normal = place(self.vertex_normals[ids[k] as usize]);
                     let below = (p - corners[k]).dot(normal).min(0.0);
                     lift -= normal * (weights[k] * below);
                 }

@@ -78,11 +78,14 @@ pub struct SceneDescription {
     /// What camera rays that leave the scene see in path mode, if not the
     /// environment.
     pub background: Option<Vec3>,
-    /// Whether full mode's physically based surfaces reflect path mode's studio
-    /// ([`crate::lights::environment::studio_radiance`]): set with the default light
-    /// rig ([`SceneDescription::add_default_light`]), which has no surroundings of
-    /// its own for a metal to mirror.
-    pub studio_reflections: bool,
+    /// Whether full mode's default light rig lights the scene (set by
+    /// [`SceneDescription::add_default_light`]). Full mode then shows a model as a
+    /// viewer would, beyond SPEC's rules, which scenes with lights of their own keep:
+    /// physically based surfaces reflect path mode's studio
+    /// ([`crate::lights::environment::studio_radiance`]; the rig has no surroundings
+    /// for a metal to mirror), and shadow rays at grazing light leave smooth meshes
+    /// from the surface their vertex normals describe ([`crate::Hit::lift`]).
+    pub lit_by_rig: bool,
     /// The named objects (a mesh file, a glTF node with a mesh), in the order they
     /// were read: each covers the triangles and spheres from its starts up to the
     /// next object's (see [`ObjectDesc`]). Empty when the reader named none.
@@ -412,7 +415,7 @@ impl SceneDescription {
             Vec3::splat(rig.key),
         ));
         self.lights.push(Light::point(eye, Vec3::splat(rig.fill)));
-        self.studio_reflections = true;
+        self.lit_by_rig = true;
         for material in &mut self.materials {
             // The surroundings' light is reflected by the diffuse colour, as a model
             // viewer (which reads no `Ka`) shows it; `Ka` scales it. Exporters write

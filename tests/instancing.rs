@@ -449,3 +449,44 @@ fn a_gltf_mesh_of_several_nodes_is_stored_once_and_renders_as_its_copies() {
         assert_same_image(&a, &b, mode);
     }
 }
+
+/// Under the default rig shadow rays at grazing light leave smooth meshes from the
+/// surface their vertex normals describe (`Hit::lift`): a copy's lift is made in
+/// world space from its placed corners and normals, as its flattened self's is, so
+/// the two scenes still render alike (the stretched and sheared balls among them);
+/// and the lift changes the picture, so the comparison is not of two unlifted ones.
+#[test]
+fn under_the_rig_instanced_copies_lift_their_shadow_rays_as_their_flattened_selves() {
+    use raytracer::{BvhParams, RenderOptions, Scene, render};
+    let (_dir, instanced, flat) = scenes();
+    let options = RenderOptions {
+        width: 160,
+        height: 120,
+        fov_degrees: 50.0,
+        look_from: raytracer::math::Vec3::new(0.0, 2.5, 7.0),
+        look_to: raytracer::math::Vec3::new(0.0, 0.3, 0.0),
+        ..RenderOptions::default()
+    };
+    let film = |path: &Path, lit: bool| {
+        let description = raytracer::formats::load(path).unwrap().description;
+        let mut scene = Scene::build(description, &BvhParams::default());
+        scene.set_lit_by_rig(lit);
+        render(&scene, &options).pixels
+    };
+    let differing = |a: &[raytracer::math::Vec3], b: &[raytracer::math::Vec3]| {
+        a.iter()
+            .zip(b)
+            .filter(|(a, b)| (**a - **b).abs().max_element() > 0.01)
+            .count()
+    };
+    let lifted = film(&instanced, true);
+    let pixels = lifted.len();
+    let flat_lifted = film(&flat, true);
+    let count = differing(&lifted, &flat_lifted);
+    assert!(count * 1000 <= pixels, "{count} of {pixels} pixels differ");
+    let unlifted = film(&instanced, false);
+    assert!(
+        differing(&lifted, &unlifted) > 10,
+        "the lift changed nothing"
+    );
+}

@@ -675,7 +675,7 @@ impl Loaded {
         let materials = std::mem::take(&mut scene.materials);
         let lit = rig(materials, options);
         scene.materials = lit.materials;
-        scene.studio_reflections = lit.studio_reflections;
+        scene.set_lit_by_rig(lit.lit_by_rig);
         scene.unlit = false;
         scene
     }

@@ -188,7 +188,7 @@ fn shade(
         ),
     };
 
-    if scene.studio_reflections
+    if scene.lit_by_rig()
         && !inside
         && let Some(values) = material.pbr_at_point(hit.uv, hit.colour)
     {

@@ -37,7 +37,7 @@ pub(super) struct Instances {
     /// Their world boxes, in the same order (for [`Scene::validate`]).
     bounds: Vec<Aabb>,
     /// Each mesh built once, in object space.
-    meshes: Vec<Scene>,
+    pub(super) meshes: Vec<Scene>,
     /// Primitive number of each mesh's first primitive: after the flat level's, the
     /// meshes' in turn ([`Scene::intersect_primitive`] names a copy's primitive by
     /// its mesh's).
@@ -429,6 +429,7 @@ impl Scene {
         scene.warnings.append(&mut warnings);
         scene.build_times.tree += started.elapsed();
         scene.instances = Some(Box::new(built));
+        scene.set_lit_by_rig(scene.lit_by_rig);
         // Cutouts are traced ray by ray; other scenes' packets, batches and streams
         // walk the top level with their packets.
         scene.ray_by_ray = scene.has_cutouts

@@ -214,9 +214,10 @@ pub struct Scene {
     /// What camera rays that leave the scene see in path mode, if not the
     /// environment.
     pub background: Option<Vec3>,
-    /// Whether full mode's physically based surfaces reflect the studio
-    /// ([`SceneDescription::studio_reflections`](crate::SceneDescription::studio_reflections)).
-    pub studio_reflections: bool,
+    /// Whether full mode's default light rig lights the scene
+    /// ([`SceneDescription::lit_by_rig`](crate::SceneDescription::lit_by_rig)): set
+    /// through [`Scene::set_lit_by_rig`], which tells the meshes of instances too.
+    lit_by_rig: bool,
     /// Half the diagonal of the scene's bounds: how far the environment's light
     /// reaches across the scene, for weighing it against the emitters.
     pub radius: Float,
@@ -309,6 +310,24 @@ impl Hit {
 }
 
 impl Scene {
+    /// Whether full mode's default light rig lights the scene
+    /// ([`SceneDescription::lit_by_rig`](crate::SceneDescription::lit_by_rig)).
+    pub fn lit_by_rig(&self) -> bool {
+        self.lit_by_rig
+    }
+
+    /// Says whether full mode's default light rig lights the scene, in the meshes of
+    /// its instances too (each built as a scene of its own), whose hits then lift
+    /// their shadow rays as a flattened copy's do.
+    pub fn set_lit_by_rig(&mut self, lit: bool) {
+        self.lit_by_rig = lit;
+        if let Some(instances) = &mut self.instances {
+            for mesh in &mut instances.meshes {
+                mesh.lit_by_rig = lit;
+            }
+        }
+    }
+
     /// Figures about the scene's BVH.
     pub fn bvh_summary(&self) -> &BvhSummary {
         &self.summary

@@ -133,7 +133,13 @@ impl Scene {
                 // `build` kept only triangles whose normal `try_unit` accepts.
                 let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
                 let p = ray.at(hit.t);
-                let lift = self.smooth_lift(shading, &tri, p, &hit);
+                // Under the default rig only: SPEC starts every shadow ray an epsilon
+                // off the triangle, and path mode never reads the lift.
+                let lift = if self.lit_by_rig {
+                    self.smooth_lift(shading, &tri, p, &hit)
+                } else {
+                    Vec3::ZERO
+                };
                 (p, n, self.shading_normal(shading, n, &hit), lift)
             }
             Shape::Sphere(s) => {

@@ -202,21 +202,7 @@ pub(crate) fn release_spare_capacity<T>(v: &Vec<T>) {
 /// result.
 #[inline(always)]
 pub(crate) fn prefetch_lines<T>(address: *const T, lines: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let start = (address as usize & !63) as *const i8;
-        for line in 0..lines {
-            // SAFETY: prefetching is a hint that never faults; SSE is part of the
-            // x86_64 baseline.
-            unsafe {
-                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                    start.wrapping_add(64 * line),
-                );
-            }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (address, lines);
+    prefetch_aligned_lines((address as usize & !63) as *const u8, lines);
 }
 
 /// [`prefetch_lines`] of an address known to start a cache line (64-byte aligned):

@@ -717,6 +717,26 @@ fn on_unit_sphere(dir: Vec3) -> Option<Vec3> {
     (disc > 0.0 && -dir.dot(p) > 0.2).then_some(p)
 }
 
+/// The pixels of the sphere well inside its outline and away from the highlights of
+/// `lights` (Ns 10000: nothing beyond 3 degrees): each pixel's value, its point on
+/// the sphere and its camera ray's mirror direction there.
+fn off_highlights(
+    pixels: &[Vec3],
+    lights: &[Light],
+    rays: &[Option<Vec3>],
+) -> Vec<(Vec3, Vec3, Vec3)> {
+    let cone = 3f32.to_radians().cos();
+    (pixels.iter().zip(rays))
+        .filter_map(|(pixel, dir)| {
+            let dir = (*dir)?;
+            let p = on_unit_sphere(dir)?;
+            let mirrored = dir - 2.0 * dir.dot(p) * p;
+            let near = (lights.iter()).any(|l| mirrored.dot((l.position - p).normalize()) > cone);
+            (!near).then_some((*pixel, p, mirrored))
+        })
+        .collect()
+}
+
 #[test]
 fn a_chrome_sphere_under_the_rig_mirrors_the_studio() {
     // A polished metal showed black in full mode but for the rig's two highlights:
@@ -727,28 +747,15 @@ fn a_chrome_sphere_under_the_rig_mirrors_the_studio() {
     use raytracer::lights::environment::studio_radiance;
     let (pixels, lights, rays) = chrome_sphere("");
     assert_eq!(lights.len(), 2, "the rig's key and fill lights");
-    let mut checked = 0;
-    for (pixel, dir) in pixels.iter().zip(&rays) {
-        let Some(p) = dir.and_then(on_unit_sphere) else {
-            continue;
-        };
-        let dir = dir.unwrap();
-        let mirrored = dir - 2.0 * dir.dot(p) * p;
-        // Away from the rig's highlights (Ns 10000: nothing beyond 3 degrees).
-        let near_highlight = lights
-            .iter()
-            .any(|light| mirrored.dot((light.position - p).normalize()) > 3f32.to_radians().cos());
-        if near_highlight {
-            continue;
-        }
-        let expected = studio_radiance(mirrored, 0.0).min(1.0);
+    let checked = off_highlights(&pixels, &lights, &rays);
+    assert!(checked.len() > 400, "{} pixels checked", checked.len());
+    for (pixel, p, mirrored) in &checked {
+        let expected = studio_radiance(*mirrored, 0.0).min(1.0);
         assert!(
             (*pixel - Vec3::splat(expected)).abs().max_element() < 2e-3,
             "at {p}: {pixel} against the studio's {expected}"
         );
-        checked += 1;
     }
-    assert!(checked > 400, "{checked} pixels checked");
     // Not a flat grey: the soft key light shows, and the dim dome around it.
     let on_sphere: Vec<f32> = (pixels.iter().zip(&rays))
         .filter(|(_, dir)| dir.and_then(on_unit_sphere).is_some())
@@ -766,18 +773,9 @@ fn a_chrome_sphere_in_a_scene_with_lights_mirrors_only_the_scene() {
     // highlight.
     let (pixels, lights, rays) = chrome_sphere("[[light]]\nposition = [3, 3, 3]\nintensity = 1\n");
     assert_eq!(lights.len(), 1);
-    let mut checked = 0;
-    for (pixel, dir) in pixels.iter().zip(&rays) {
-        let Some(p) = dir.and_then(on_unit_sphere) else {
-            continue;
-        };
-        let dir = dir.unwrap();
-        let mirrored = dir - 2.0 * dir.dot(p) * p;
-        if mirrored.dot((lights[0].position - p).normalize()) > 3f32.to_radians().cos() {
-            continue;
-        }
+    let checked = off_highlights(&pixels, &lights, &rays);
+    assert!(checked.len() > 400, "{} pixels checked", checked.len());
+    for (pixel, p, _) in &checked {
         assert!(pixel.max_element() < 1e-4, "at {p}: {pixel}");
-        checked += 1;
     }
-    assert!(checked > 400, "{checked} pixels checked");
 }

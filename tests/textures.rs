@@ -670,6 +670,25 @@ fn hits_interpolate_texture_coordinates_only_on_materials_with_maps() {
     );
 }
 
+/// Two squares in `dir`, one mapping its `tex.png`, the other its `tex.EXT`: their
+/// materials as read, with no warning.
+fn beside_png(dir: &Path, ext: &str) -> [Material; 2] {
+    let obj = format!(
+        "{}{}",
+        square(0.0, 1.0, 1.0, "png", 0),
+        square(-1.0, 1.0, 1.0, ext, 4)
+    );
+    let mtl =
+        format!("newmtl png\nKd 1 1 1\nmap_Kd tex.png\nnewmtl {ext}\nKd 1 1 1\nmap_Kd tex.{ext}\n");
+    let description = formats::load_obj(&write_scene(dir, &obj, &mtl)).unwrap();
+    assert!(
+        description.warnings.is_empty(),
+        "{:?}",
+        description.warnings
+    );
+    [0, 1].map(|m| description.materials[m].clone())
+}
+
 #[test]
 fn gif_textures_read_as_the_same_texels_in_png() {
     // pybullet_data's textured_sphere_smooth.mtl maps `checker_huge.gif`: GIF, which
@@ -685,23 +704,7 @@ fn gif_textures_read_as_the_same_texels_in_png() {
     image::codecs::gif::GifEncoder::new(file)
         .encode(&rgba, 4, 2, image::ExtendedColorType::Rgba8)
         .unwrap();
-    let obj = format!(
-        "{}{}",
-        square(0.0, 1.0, 1.0, "png", 0),
-        square(-1.0, 1.0, 1.0, "gif", 4)
-    );
-    let path = write_scene(
-        dir.path(),
-        &obj,
-        "newmtl png\nKd 1 1 1\nmap_Kd tex.png\nnewmtl gif\nKd 1 1 1\nmap_Kd tex.gif\n",
-    );
-    let description = formats::load_obj(&path).unwrap();
-    assert!(
-        description.warnings.is_empty(),
-        "{:?}",
-        description.warnings
-    );
-    let [png, gif] = [0, 1].map(|m| description.materials[m].clone());
+    let [png, gif] = beside_png(dir.path(), "gif");
     let mut colours = Vec::new();
     for k in 0..8 {
         let uv = Vec2::new(
@@ -753,23 +756,7 @@ fn dds_textures_read_as_the_same_texels_in_png() {
         .flat_map(|i| if i < 16 { [255, 0, 0] } else { [0, 0, 255] })
         .collect();
     write_png(&dir.path().join("tex.png"), 4, 8, 3, &rgb);
-    let obj = format!(
-        "{}{}",
-        square(0.0, 1.0, 1.0, "png", 0),
-        square(-1.0, 1.0, 1.0, "dds", 4)
-    );
-    let path = write_scene(
-        dir.path(),
-        &obj,
-        "newmtl png\nKd 1 1 1\nmap_Kd tex.png\nnewmtl dds\nKd 1 1 1\nmap_Kd tex.dds\n",
-    );
-    let description = formats::load_obj(&path).unwrap();
-    assert!(
-        description.warnings.is_empty(),
-        "{:?}",
-        description.warnings
-    );
-    let [png, dds] = [0, 1].map(|m| description.materials[m].clone());
+    let [png, dds] = beside_png(dir.path(), "dds");
     for (v, colour) in [(0.75, Vec3::X), (0.25, Vec3::Z)] {
         let uv = Vec2::new(0.5, v);
         assert_eq!(png.at(uv).diffuse, colour, "{uv}");

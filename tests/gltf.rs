@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use raytracer::formats::{self, LoadedScene, SceneFormat};
+use raytracer::material::BlendRule;
 use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::options::Origin;
 use raytracer::{BvhParams, Scene};
@@ -177,7 +178,7 @@ fn materials_map_base_colour_metal_roughness_emission_and_the_alpha_mask() {
         let cutout = ghost.cutout().unwrap();
         assert_eq!((cutout.factor, cutout.cutoff), (0.3, 0.5));
         assert!(!cutout.blend);
-        assert!(!cutout.keeps(Vec2::new(0.5, 0.5), 0, 0));
+        assert!(!cutout.keeps(Vec2::new(0.5, 0.5), BlendRule::Stochastic(0), 0));
         // Metal: roughness 0.5 is alpha 0.25, Ns = 2 / alpha^2 - 2 = 30; the base
         // colour is split between the highlight (1 - alpha) and the diffuse (alpha).
         let base = Vec3::new(0.9, 0.6, 0.3);

@@ -15,9 +15,9 @@ use raytracer::Scene;
 use raytracer::bvh::BvhParams;
 use raytracer::bxdfs::microfacet::Ggx;
 use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
-use raytracer::integrators::{Integrator, PathIntegrator};
+use raytracer::integrators::{Integrator, PathIntegrator, WhittedIntegrator};
 use raytracer::material::pbr::{PbrMaps, PbrMaterial};
-use raytracer::material::{Cutout, Material, MaterialId, MaterialMaps};
+use raytracer::material::{Cutout, Light, Material, MaterialId, MaterialMaps};
 use raytracer::math::{Float, Ray, Vec2, Vec3};
 use raytracer::sampler::PixelSampler;
 use raytracer::stats::RayCounts;
@@ -713,4 +713,95 @@ fn a_blended_surface_lets_one_minus_alpha_of_the_light_through() {
         (blocked - 0.3).abs() < 0.025,
         "shadow rays blocked: {blocked}"
     );
+}
+
+/// In a scene that blends in layers (full mode's), a blended surface of alpha `a`
+/// over a floor is its own value composited over the floor's,
+/// `a * surface + (1 - a) * behind`, at every pixel (no dither), where `surface` is its value when opaque
+/// and `behind` the floor's seen from behind it; it casts a shadow from alpha 0.5:
+/// the floor behind a veil of 0.3 is lit as with no veil, behind one of 0.7 as
+/// behind an opaque one.
+#[test]
+fn full_mode_composites_a_blended_surface_over_what_lies_behind_it() {
+    let quad = |z: Float, half: Float, material: u32, d: &mut SceneDescription| {
+        let first = d.positions.len() as u32;
+        for (x, y) in [(-half, -half), (half, -half), (half, half), (-half, half)] {
+            d.positions.push(Vec3::new(x, y, z));
+        }
+        for corners in [[0, 1, 2], [0, 2, 3]] {
+            d.triangles.push(TriangleDesc {
+                positions: corners.map(|k| first + k),
+                material: MaterialId(material),
+            });
+        }
+    };
+    // `veil`: none, blended of this alpha, or opaque.
+    let scene = |veil: Option<(Float, bool)>| {
+        let colour = |rgb: [Float; 3]| PbrMaterial {
+            base_color: Vec3::from(rgb),
+            metallic: 0.0,
+            roughness: 0.6,
+            ..PbrMaterial::default()
+        };
+        let (alpha, blend) = veil.unwrap_or((1.0, false));
+        let maps = MaterialMaps {
+            cutout: Some(Cutout {
+                map: None,
+                factor: alpha,
+                cutoff: 0.5,
+                blend,
+            }),
+            ..MaterialMaps::default()
+        };
+        let mut d = SceneDescription {
+            materials: vec![
+                Material::physically_based("floor", colour([0.2, 0.7, 0.3]), Vec3::ZERO, None),
+                Material::physically_based(
+                    "veil",
+                    colour([0.9, 0.3, 0.1]),
+                    Vec3::ZERO,
+                    Some(Box::new(maps)),
+                ),
+            ],
+            lights: vec![Light::point(Vec3::new(0.3, 0.4, 3.0), Vec3::ONE)],
+            ..SceneDescription::default()
+        };
+        quad(-1.0, 3.0, 0, &mut d);
+        if veil.is_some() {
+            quad(0.0, 1.0, 1, &mut d);
+        }
+        let mut scene = Scene::build(d, &BvhParams::default());
+        scene.set_blend_in_layers(true);
+        scene
+    };
+    let integrator = WhittedIntegrator { max_depth: 4 };
+    let sampler = PixelSampler::new(1, integrator.dimensions());
+    let value = |scene: &Scene, x: Float, y: Float, z: Float| {
+        let ray = Ray::new(Vec3::new(x, y, z), -Vec3::Z);
+        let mut rays = RayCounts::default();
+        integrator.radiance(scene, &ray, &mut sampler.sample(0, 0), &mut rays)
+    };
+    let (bare, shut) = (scene(None), scene(Some((1.0, false))));
+    for alpha in [0.3, 0.7] {
+        let (blended, opaque) = (scene(Some((alpha, true))), scene(Some((1.0, true))));
+        for i in 0..8 {
+            for j in 0..8 {
+                let at = |k: i32| (k as Float + 0.5) / 4.0 - 1.0;
+                let (x, y) = (at(i), at(j));
+                let behind = value(&blended, x, y, -0.5);
+                let lit_as = if alpha < 0.5 { &bare } else { &shut };
+                assert!(
+                    (behind - value(lit_as, x, y, -0.5)).abs().max_element() < 1e-6,
+                    "alpha {alpha}: the floor behind the veil at ({x}, {y}) is {behind}"
+                );
+                let surface = value(&opaque, x, y, 3.0);
+                let want = alpha * surface + (1.0 - alpha) * behind;
+                let got = value(&blended, x, y, 3.0);
+                assert!(
+                    (got - want).abs().max_element() < 1e-5,
+                    "alpha {alpha} at ({x}, {y}): {got}, expected {want} ({surface} over {behind})"
+                );
+            }
+        }
+    }
 }

@@ -221,6 +221,48 @@ fn blend_is_stochastic_transparency_and_mask_a_cutout() {
     assert_eq!(mask.coverage(TOP_LEFT), 1.0);
 }
 
+/// Full mode (the command line's default) composites a blended triangle over the
+/// backdrop rather than dithering it at its one ray a pixel: across the middle row,
+/// every pixel between the triangle's edges shows it, half the backdrop showing
+/// through, and neighbours differ by at most a few levels.
+#[test]
+fn full_mode_shows_a_blended_surface_without_dither() {
+    let fixture = Fixture::new();
+    let veil = fixture.gltf(
+        "veil",
+        &[r#"{"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.1, 0.5]}}"#],
+        "",
+    );
+    let (width, height) = (80, 60);
+    let rgb = render(
+        &veil,
+        &fixture.0.path().join("veil.png"),
+        &["--width", "80", "--height", "60"],
+    );
+    let red = |x: usize| i32::from(rgb[3 * (height / 2 * width + x)]);
+    let backdrop = red(0);
+    let covered: Vec<usize> = (0..width).filter(|&x| red(x) != backdrop).collect();
+    let (first, last) = (covered[0], *covered.last().unwrap());
+    assert!(
+        last - first > width / 4,
+        "the triangle spans {first}..={last}"
+    );
+    for x in first + 1..last {
+        assert!(
+            red(x) > backdrop + 20,
+            "pixel {x}: {} over {backdrop}",
+            red(x)
+        );
+        assert!(
+            (red(x) - red(x + 1)).abs() <= 3,
+            "pixels {x}, {}: {} and {}",
+            x + 1,
+            red(x),
+            red(x + 1)
+        );
+    }
+}
+
 #[test]
 fn gltf_extensions_land_in_the_material() {
     let fixture = Fixture::new();

@@ -540,11 +540,11 @@ pub(crate) struct Loaded {
     /// then lights it with the default rig at each render's camera, as the command
     /// line does.
     unlit: bool,
-    /// Copies of `scene` lit by the default rig ([`Loaded::lit_for`]), each lent to
-    /// one render at a time: built once per Scene (and once more per render running
-    /// at the same moment), not once per render; only the rig's two lights change
-    /// with the camera.
-    lit: Mutex<Vec<Scene>>,
+    /// Copies of `scene` as full mode renders it ([`Loaded::lit_for`]), each tagged
+    /// with whether the default rig lights it and lent to one render at a time:
+    /// built once per Scene (and once more per render running at the same moment),
+    /// not once per render; only the rig's two lights change with the camera.
+    lit: Mutex<Vec<(bool, Scene)>>,
     /// The objects' names when the scene's own are not the caller's (the meshes of
     /// `from_arrays` placed by instances).
     names: Option<Vec<String>>,
@@ -562,11 +562,13 @@ struct Counts {
     instances: usize,
 }
 
-/// The scene lit by the default rig for one render ([`Loaded::lit_for`]), handed
+/// The scene as full mode renders it for one render ([`Loaded::lit_for`]), handed
 /// back to its [`Loaded`] when the render ends.
 pub(crate) struct LitScene<'a> {
     scene: Option<Scene>,
-    pool: &'a Mutex<Vec<Scene>>,
+    /// Whether the default rig lights it (the pool's tag).
+    rig: bool,
+    pool: &'a Mutex<Vec<(bool, Scene)>>,
 }
 
 impl std::ops::Deref for LitScene<'_> {
@@ -579,7 +581,7 @@ impl std::ops::Deref for LitScene<'_> {
 impl Drop for LitScene<'_> {
     fn drop(&mut self) {
         if let Some(scene) = self.scene.take() {
-            lock(self.pool).push(scene);
+            lock(self.pool).push((self.rig, scene));
         }
     }
 }
@@ -647,36 +649,51 @@ impl Loaded {
         )?)
     }
 
-    /// The scene lit for `options`, if it needs lights it lacks: as the command line
-    /// does, a scene without lights rendered in full mode gets the default lighting
-    /// for this camera ([`SceneDescription::add_default_light`]). Call detached from
-    /// the interpreter.
+    /// The scene as full mode renders it for `options`, if that differs from the
+    /// scene as built: as the command line does, a scene without lights rendered in
+    /// full mode gets the default lighting for this camera
+    /// ([`SceneDescription::add_default_light`]), and blended surfaces are layers
+    /// ([`Scene::set_blend_in_layers`]). Call detached from the interpreter.
     pub(crate) fn lit_for(&self, options: &RenderOptions) -> Option<LitScene<'_>> {
-        if !(self.unlit && options.mode == raytracer::Mode::Full && options.default_light) {
+        if options.mode != raytracer::Mode::Full {
             return None;
         }
-        let spare = lock(&self.lit).pop();
-        let mut scene = spare.unwrap_or_else(|| self.lit_copy(options));
-        scene.lights = rig(Vec::new(), options).lights;
+        let lit = self.unlit && options.default_light;
+        if !lit && !self.scene.has_blended_materials() {
+            return None;
+        }
+        let spare = {
+            let mut pool = lock(&self.lit);
+            let found = pool.iter().position(|(tag, _)| *tag == lit);
+            found.map(|i| pool.swap_remove(i).1)
+        };
+        let mut scene = spare.unwrap_or_else(|| self.full_mode_copy(options, lit));
+        if lit {
+            scene.lights = rig(Vec::new(), options).lights;
+        }
         Some(LitScene {
             scene: Some(scene),
+            rig: lit,
             pool: &self.lit,
         })
     }
 
-    /// A copy of the scene with the default rig's changes to its materials (the
-    /// ambient light, no highlight below `Ns` 1) and its studio reflections, and not
-    /// unlit: what
+    /// A copy of the scene as full mode renders it: blended surfaces as layers, and,
+    /// if `lit`, with the default rig's changes to its materials (the ambient light,
+    /// no highlight below `Ns` 1) and its studio reflections, and not unlit: what
     /// [`Scene::build`] makes of the description with the rig added, whose BVH does
     /// not depend on the lights or on those material values. The caller sets the
     /// lights for its camera.
-    fn lit_copy(&self, options: &RenderOptions) -> Scene {
+    fn full_mode_copy(&self, options: &RenderOptions, lit: bool) -> Scene {
         let mut scene = self.scene.clone();
-        let materials = std::mem::take(&mut scene.materials);
-        let lit = rig(materials, options);
-        scene.materials = lit.materials;
-        scene.set_lit_by_rig(lit.lit_by_rig);
-        scene.unlit = false;
+        scene.set_blend_in_layers(true);
+        if lit {
+            let materials = std::mem::take(&mut scene.materials);
+            let lit = rig(materials, options);
+            scene.materials = lit.materials;
+            scene.set_lit_by_rig(lit.lit_by_rig);
+            scene.unlit = false;
+        }
         scene
     }
 }

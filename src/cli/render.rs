@@ -57,7 +57,9 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let options = &options;
     let parsed = Mark::now();
     let params = BvhParams::default();
-    let scene = Scene::build(description, &params);
+    let mut scene = Scene::build(description, &params);
+    // Full mode's one ray a pixel composites blended surfaces rather than dithering.
+    scene.set_blend_in_layers(options.mode == Mode::Full);
     let built = Mark::now();
     drop(loading);
     if options.samples_per_pixel_in_mode() != options.samples_per_pixel {

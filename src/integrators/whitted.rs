@@ -214,7 +214,35 @@ fn shade(
             }
         }
     }
+    // A blended surface (in a scene that blends in layers) over what lies behind it,
+    // as a rasterizer blends it; with no depth left it stays opaque.
+    if scene.blend_in_layers()
+        && depth > 1
+        && let Some(cutout) = material.cutout()
+        && cutout.blend
+    {
+        let alpha = cutout.alpha(hit.uv).clamp(0.0, 1.0);
+        if alpha < 1.0 {
+            value = alpha * value + (1.0 - alpha) * behind(scene, ray, hit, depth, inside, rays);
+        }
+    }
     saturate_finite(value)
+}
+
+/// What lies behind `hit` along `ray`: the ray traced on through the surface, with
+/// `depth` left, as SPEC's refraction through a sheet of index 1.
+#[inline(never)]
+fn behind(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    depth: u32,
+    inside: bool,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let onward = hit.spawn_ray(ray.dir);
+    rays.refracted += 1;
+    trace(scene, &onward, depth - 1, inside, rays)
 }
 
 /// What a physically based surface at `hit`, with its `values` there, reflects of the

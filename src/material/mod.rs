@@ -102,6 +102,29 @@ pub struct Cutout {
     pub blend: bool,
 }
 
+/// How a query treats a blended surface (glTF's `BLEND`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlendRule {
+    /// Stochastic transparency: the surface stops the ray of this key
+    /// ([`Cutout::ray_key`]) with probability alpha (path mode, and every query of a
+    /// scene that does not blend in layers).
+    Stochastic(u64),
+    /// A closest-hit query of a scene that blends in layers (full mode): the surface
+    /// is there wherever its alpha is above 0, and shading composites it over what
+    /// lies behind it, as a rasterizer blends it.
+    Layer,
+    /// A shadow ray of a scene that blends in layers: the surface casts a shadow
+    /// where its alpha is at least [`LAYER_SHADOW_ALPHA`], so that a pane of glass
+    /// does not darken a room while a half-opaque bag shades the floor, without the
+    /// dither a stochastic decision makes at one ray a pixel.
+    Shadow,
+}
+
+/// The alpha from which a blended surface casts a shadow in a scene that blends in
+/// layers ([`BlendRule::Shadow`]): the middle, where the expected transmittance
+/// `1 - alpha` rounds to none.
+pub const LAYER_SHADOW_ALPHA: Float = 0.5;
+
 impl Cutout {
     /// The alpha at texture coordinates `uv`.
     #[inline]
@@ -112,16 +135,19 @@ impl Cutout {
         }
     }
 
-    /// Whether the surface is there at texture coordinates `uv` for a ray of key
-    /// `ray` ([`Cutout::ray_key`]) meeting primitive `prim` (only a blended surface
-    /// reads them).
+    /// Whether the surface is there at texture coordinates `uv` for a query that
+    /// treats blended surfaces by `rule`, meeting primitive `prim` (only a blended
+    /// surface reads them).
     #[inline]
-    pub fn keeps(&self, uv: Vec2, ray: u64, prim: u32) -> bool {
+    pub fn keeps(&self, uv: Vec2, rule: BlendRule, prim: u32) -> bool {
         let alpha = self.alpha(uv);
-        if self.blend {
-            Cutout::uniform(ray, prim) < alpha
-        } else {
-            alpha >= self.cutoff
+        if !self.blend {
+            return alpha >= self.cutoff;
+        }
+        match rule {
+            BlendRule::Stochastic(ray) => Cutout::uniform(ray, prim) < alpha,
+            BlendRule::Layer => alpha > 0.0,
+            BlendRule::Shadow => alpha >= LAYER_SHADOW_ALPHA,
         }
     }
 

@@ -386,6 +386,7 @@ impl Scene {
             environment,
             background,
             lit_by_rig,
+            blend_in_layers: false,
             radius: if radius.is_finite() { radius } else { 0.0 },
             wide,
             packets,

@@ -25,7 +25,7 @@ use crate::bvh::{Bvh, BvhInvariantError, BvhParams, RayQuery, WideBvh};
 use crate::description::{SceneDescription, SphereDesc, TriangleDesc};
 use crate::lights::environment::Environment;
 use crate::lights::{AreaLights, AreaLightsBuilder};
-use crate::material::{Cutout, Light, Material, MaterialId};
+use crate::material::{BlendRule, Cutout, Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Ray, Vec2, Vec3, nearest_in_mask, try_unit};
 use crate::memory;
 use crate::shapes::{LANES, MAX_PRIM, PacketRay, PrimHit, Shape, Sphere, Triangle, TrianglePacket};
@@ -218,6 +218,11 @@ pub struct Scene {
     /// ([`SceneDescription::lit_by_rig`](crate::SceneDescription::lit_by_rig)): set
     /// through [`Scene::set_lit_by_rig`], which tells the meshes of instances too.
     lit_by_rig: bool,
+    /// Whether blended surfaces (glTF's `BLEND`) are layers for the queries
+    /// ([`Scene::blend_rule`]), composited by shading, rather than stochastic
+    /// transparency: full mode's one ray a pixel would show them dithered. Set
+    /// through [`Scene::set_blend_in_layers`], which tells the meshes of instances too.
+    blend_in_layers: bool,
     /// Half the diagonal of the scene's bounds: how far the environment's light
     /// reaches across the scene, for weighing it against the emitters.
     pub radius: Float,
@@ -309,6 +314,15 @@ impl Hit {
     }
 }
 
+/// The kinds of query a blended surface is treated apart in ([`Scene::blend_rule`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum BlendQuery {
+    /// The closest hit.
+    Closest,
+    /// Whether anything blocks a shadow ray.
+    Shadow,
+}
+
 impl Scene {
     /// Whether full mode's default light rig lights the scene
     /// ([`SceneDescription::lit_by_rig`](crate::SceneDescription::lit_by_rig)).
@@ -320,11 +334,47 @@ impl Scene {
     /// its instances too (each built as a scene of its own), whose hits then lift
     /// their shadow rays as a flattened copy's do.
     pub fn set_lit_by_rig(&mut self, lit: bool) {
-        self.lit_by_rig = lit;
+        self.for_each_level(|scene| scene.lit_by_rig = lit);
+    }
+
+    /// Whether blended surfaces are layers that shading composites over what lies
+    /// behind them ([`BlendRule::Layer`], [`BlendRule::Shadow`]) rather than
+    /// stochastic transparency ([`BlendRule::Stochastic`]).
+    pub fn blend_in_layers(&self) -> bool {
+        self.blend_in_layers
+    }
+
+    /// Says whether blended surfaces are layers (full mode, whose integrator
+    /// composites them) or stochastic transparency (path mode, the default), in the
+    /// meshes of its instances too.
+    pub fn set_blend_in_layers(&mut self, layers: bool) {
+        self.for_each_level(|scene| scene.blend_in_layers = layers);
+    }
+
+    /// Whether some material is blended (glTF's `alphaMode: BLEND`).
+    pub fn has_blended_materials(&self) -> bool {
+        let blended = |scene: &Scene| {
+            (scene.materials.iter()).any(|m| m.cutout().is_some_and(|cutout| cutout.blend))
+        };
+        blended(self) || (self.instances.as_ref()).is_some_and(|i| i.meshes.iter().any(blended))
+    }
+
+    /// `set` applied to this scene and to each mesh of its instances (each built as
+    /// a scene of its own).
+    fn for_each_level(&mut self, set: impl Fn(&mut Scene)) {
+        set(self);
         if let Some(instances) = &mut self.instances {
-            for mesh in &mut instances.meshes {
-                mesh.lit_by_rig = lit;
-            }
+            instances.meshes.iter_mut().for_each(set);
+        }
+    }
+
+    /// How a query of `kind` along `ray` treats blended surfaces.
+    #[inline]
+    pub(super) fn blend_rule(&self, ray: &Ray, kind: BlendQuery) -> BlendRule {
+        match (self.blend_in_layers, kind) {
+            (false, _) => BlendRule::Stochastic(Cutout::ray_key(ray.origin, ray.dir)),
+            (true, BlendQuery::Closest) => BlendRule::Layer,
+            (true, BlendQuery::Shadow) => BlendRule::Shadow,
         }
     }
 

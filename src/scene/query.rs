@@ -191,7 +191,7 @@ impl Scene {
     ) -> Option<(u32, usize, PrimHit)> {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
-        let key = Cutout::ray_key(ray.origin, ray.dir);
+        let rule = self.blend_rule(ray, BlendQuery::Closest);
         let mut closest = None;
         let mut t_max = t_max;
         self.wide
@@ -201,7 +201,7 @@ impl Scene {
                     let found = if packet.holds_spheres() {
                         packet.intersect_any_kind(&lanes, *t_max)
                     } else {
-                        self.nearest_kept_lane(packet, &lanes, *t_max, key)
+                        self.nearest_kept_lane(packet, &lanes, *t_max, rule)
                     };
                     if let Some((lane, hit)) = found {
                         *t_max = hit.t;
@@ -221,7 +221,7 @@ impl Scene {
         packet: &TrianglePacket,
         lanes: &PacketRay,
         t_max: Float,
-        key: u64,
+        rule: BlendRule,
     ) -> Option<(usize, PrimHit)> {
         let (mut mask, t, u, v) = packet.hits(lanes, t_max);
         while let Some(best) = nearest_in_mask(mask, &t) {
@@ -231,7 +231,7 @@ impl Scene {
                 v: v[best],
             };
             match packet.prim(best) {
-                Some(prim) if self.keeps(prim, hit.u, hit.v, key) => return Some((best, hit)),
+                Some(prim) if self.keeps(prim, hit.u, hit.v, rule) => return Some((best, hit)),
                 _ => mask &= !(1 << best),
             }
         }
@@ -305,7 +305,7 @@ impl Scene {
     pub(super) fn occluded_with_cutouts(&self, ray: &Ray, t_max: Float) -> bool {
         let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
-        let key = Cutout::ray_key(ray.origin, ray.dir);
+        let rule = self.blend_rule(ray, BlendQuery::Shadow);
         let mut t_max = t_max;
         self.wide
             .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
@@ -321,7 +321,7 @@ impl Scene {
                             mask &= mask - 1;
                             if packet
                                 .prim(lane)
-                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane], key))
+                                .is_some_and(|prim| self.keeps(prim, u[lane], v[lane], rule))
                             {
                                 return true;
                             }
@@ -334,7 +334,7 @@ impl Scene {
     /// The closest hit by testing every primitive with the scalar kernels: the slow
     /// reference for tests.
     pub fn intersect_linear(&self, ray: &Ray) -> Option<Hit> {
-        let key = Cutout::ray_key(ray.origin, ray.dir);
+        let rule = self.blend_rule(ray, BlendQuery::Closest);
         let mut closest = None;
         let mut t_max = Float::INFINITY;
         for (index, packet) in self.packets.iter().enumerate() {
@@ -346,7 +346,7 @@ impl Scene {
                     && (matches!(shape, Shape::Sphere(_))
                         || packet
                             .prim(lane)
-                            .is_some_and(|p| self.keeps(p, hit.u, hit.v, key)))
+                            .is_some_and(|p| self.keeps(p, hit.u, hit.v, rule)))
                 {
                     t_max = hit.t;
                     closest = Some((index as u32, lane, hit));

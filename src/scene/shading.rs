@@ -5,16 +5,16 @@ use super::*;
 
 impl Scene {
     /// Whether primitive `prim` (a triangle) is there at barycentrics `u`, `v` for
-    /// the ray of key `ray` ([`Cutout::ray_key`]): not cut out by its material's
-    /// alpha.
+    /// a query that treats blended surfaces by `rule` ([`Scene::blend_rule`]): not
+    /// cut out by its material's alpha.
     #[inline]
-    pub(super) fn keeps(&self, prim: u32, u: Float, v: Float, ray: u64) -> bool {
+    pub(super) fn keeps(&self, prim: u32, u: Float, v: Float, rule: BlendRule) -> bool {
         if !self.has_cutouts {
             return true;
         }
         let material = &self.materials[self.shading.get(prim).material.0 as usize];
         match material.cutout() {
-            Some(cutout) => cutout.keeps(self.uv_at(prim, u, v), ray, prim),
+            Some(cutout) => cutout.keeps(self.uv_at(prim, u, v), rule, prim),
             None => true,
         }
     }

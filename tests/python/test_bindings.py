@@ -374,6 +374,43 @@ def test_a_scene_lit_by_the_default_rig_moves_its_lights_with_each_camera(tmp_pa
     )
 
 
+def test_full_mode_composites_blended_surfaces_as_the_command_line_does(tmp_path, run_cli):
+    # A blended glTF triangle (alpha 0.5) over an opaque one: full mode composites it
+    # (the command line's image, bit for bit), lit by the rig or not, whichever
+    # render comes first; path mode keeps stochastic transparency.
+    import json
+    import struct
+
+    corners = [(-1, -1, 0), (1, -1, 0), (0, 1, 0), (-2, -2, -1), (2, -2, -1), (0, 2, -1)]
+    (tmp_path / "tri.bin").write_bytes(b"".join(struct.pack("<3f", *c) for c in corners))
+    accessor = lambda i: {"bufferView": 0, "byteOffset": 36 * i, "componentType": 5126, "count": 3, "type": "VEC3",
+                          "min": [-2, -2, -1], "max": [2, 2, 0]}
+    gltf = {
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": "tri.bin", "byteLength": 72}],
+        "bufferViews": [{"buffer": 0, "byteLength": 72}],
+        "accessors": [accessor(0), accessor(1)],
+        "materials": [
+            {"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.1, 0.5]}},
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.6, 0.9, 1]}},
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": i}, "material": i}]} for i in range(2)],
+        "nodes": [{"mesh": 0}, {"mesh": 1}],
+        "scenes": [{"nodes": [0, 1]}],
+    }
+    model = tmp_path / "veil.gltf"
+    model.write_text(json.dumps(gltf))
+    scene = raytracer.Scene(model)
+    for light in [False, True, False, True]:
+        out = tmp_path / "cli.exr"
+        flags = [] if light else ["--no-default-light"]
+        result = run_cli("render", model, "-o", out, "-q", "--width", 24, "--height", 18, *flags)
+        assert result.returncode == 0, result.stderr
+        mine = tmp_path / "python.exr"
+        raytracer.write_image(scene.render(width=24, height=18, default_light=light), mine, "full", 0.0)
+        assert mine.read_bytes() == out.read_bytes(), light
+
+
 def test_a_scene_confined_to_a_folder_opens_nothing_outside_it(tmp_path):
     folder = tmp_path / "scene"
     folder.mkdir()

@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use raytracer::material::BlendRule;
 use raytracer::math::{Float, Vec3};
 use raytracer::{BvhParams, Film, Mode, RenderOptions, Scene, SceneDescription, SceneError};
 use raytracer::{Material, formats, render};
@@ -201,7 +202,13 @@ fn check_maps(m: &Material) {
             assert!((n.length() - 1.0).abs() < 1e-3, "{m:?} at {uv}: normal {n}");
         }
         if let Some(cutout) = m.cutout() {
-            cutout.keeps(uv, 0, 0);
+            for rule in [
+                BlendRule::Stochastic(0),
+                BlendRule::Layer,
+                BlendRule::Shadow,
+            ] {
+                cutout.keeps(uv, rule, 0);
+            }
             assert!((0.0..=1.0).contains(&cutout.coverage(uv)), "{m:?} at {uv}");
         }
     }

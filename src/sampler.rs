@@ -259,7 +259,7 @@ const STRATIFIED_DIMENSIONS: u32 = 16;
 // Even, so that an independent pair's two dimensions are both independent or both not
 // and a stratified 2D draw ends on the first independent dimension only from an odd
 // start (`PixelSample::pair`).
-const _: () = assert!(STRATIFIED_DIMENSIONS % 2 == 0);
+const _: () = assert!(STRATIFIED_DIMENSIONS.is_multiple_of(2));
 
 impl PixelSample {
     /// Takes the next `count` dimensions, returning the first's index.
@@ -727,7 +727,7 @@ mod tests {
         // 1D draw at 16; 2D draws from odd and even dimensions.
         let expected = |values: &PixelSample, d: u32| {
             let output = values.pair_output(d / 2);
-            unit(if d % 2 == 0 {
+            unit(if d.is_multiple_of(2) {
                 output >> 40
             } else {
                 output >> 8

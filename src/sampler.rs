@@ -135,8 +135,8 @@ impl PixelSampler {
                     .wrapping_add(self.seed_offset),
             ),
             dimension: 0,
+            #[cfg(debug_assertions)]
             declared: self.dimensions,
-            pair_index: u32::MAX,
             pair: 0,
         }
     }
@@ -237,11 +237,13 @@ pub struct PixelSample {
     /// The next dimension to draw.
     dimension: u32,
     /// How many dimensions the integrator said it draws; drawing more is a bug in
-    /// the integrator (debug-asserted), though the values stay well defined.
+    /// the integrator (debug-asserted, kept in debug builds only), though the values
+    /// stay well defined.
+    #[cfg(debug_assertions)]
     declared: u32,
-    /// The generator output of the pair of independent dimensions `pair_index`
-    /// (`u32::MAX`: none yet).
-    pair_index: u32,
+    /// When the next dimension is odd and independent: the generator output of its
+    /// pair, drawn with the even dimension before it (or, after a stratified 2D draw
+    /// that ends on the first independent dimension, by that draw).
     pair: u64,
 }
 
@@ -254,11 +256,17 @@ pub struct PixelSample {
 /// independent values, these 1.02x-1.04x).
 const STRATIFIED_DIMENSIONS: u32 = 16;
 
+// Even, so that an independent pair's two dimensions are both independent or both not
+// and a stratified 2D draw ends on the first independent dimension only from an odd
+// start (`PixelSample::pair`).
+const _: () = assert!(STRATIFIED_DIMENSIONS.is_multiple_of(2));
+
 impl PixelSample {
     /// Takes the next `count` dimensions, returning the first's index.
     #[inline]
     fn take(&mut self, count: u32) -> u32 {
-        debug_assert!(
+        #[cfg(debug_assertions)]
+        assert!(
             self.dimension + count <= self.declared,
             "drew more than the {} dimensions the integrator declared",
             self.declared
@@ -289,30 +297,27 @@ impl PixelSample {
         laine_karras_permutation(self.reversed_index, seed) & self.index_digits
     }
 
-    /// Dimension `dimension`'s independent value: a 24-bit field of output
-    /// `dimension / 2` of the sample's SplitMix64 generator, kept for the other
-    /// dimension of the pair (long paths draw hundreds).
+    /// Dimension `dimension`'s independent value, the next one drawn: a 24-bit
+    /// field of output `dimension / 2` of the sample's SplitMix64 generator, made
+    /// at the pair's even dimension and kept for its odd one (long paths draw
+    /// hundreds), as the sampler before stratification did.
     #[inline]
     fn independent(&mut self, dimension: u32) -> Float {
-        let pair = self.pair_output(dimension >> 1);
         unit(if dimension & 1 == 0 {
-            pair >> 40
+            self.pair = self.pair_output(dimension >> 1);
+            self.pair >> 40
         } else {
-            pair >> 8
+            self.pair >> 8
         })
     }
 
-    /// Output `pair` of the sample's SplitMix64 generator, computed once for both
-    /// dimensions of the pair.
+    /// Output `pair` of the sample's SplitMix64 generator.
     #[inline]
-    fn pair_output(&mut self, pair: u32) -> u64 {
-        if self.pair_index != pair {
-            let key = self
-                .stream
-                .wrapping_add(u64::from(pair).wrapping_mul(GOLDEN_GAMMA));
-            (self.pair_index, self.pair) = (pair, mix64(key));
-        }
-        self.pair
+    fn pair_output(&self, pair: u32) -> u64 {
+        mix64(
+            self.stream
+                .wrapping_add(u64::from(pair).wrapping_mul(GOLDEN_GAMMA)),
+        )
     }
 
     /// The next dimension: a uniform value in `[0, 1)`.
@@ -333,11 +338,16 @@ impl PixelSample {
         let dimension = self.take(2);
         if dimension >= self.independent_from {
             if dimension & 1 == 0 {
-                // Both halves of one pair's output.
+                // Both halves of one pair's output (the next dimension makes its own).
                 let pair = self.pair_output(dimension >> 1);
                 return Vec2::new(unit(pair >> 40), unit(pair >> 8));
             }
             return Vec2::new(self.independent(dimension), self.independent(dimension + 1));
+        }
+        if dimension + 1 == self.independent_from {
+            // This draw ends on the first independent dimension (even: 16), whose
+            // pair's odd dimension, drawn next, reads the pair's output.
+            self.pair = self.pair_output(self.independent_from >> 1);
         }
         sobol_2d(self, self.draw_hash(dimension))
     }
@@ -706,6 +716,51 @@ mod tests {
         let one = PixelSampler::new(1, 2);
         let firsts: Vec<Float> = (0..64).map(|p| one.sample(p, 0).next_1d()).collect();
         assert!(!one_per_interval(firsts.into_iter(), 6));
+    }
+
+    #[test]
+    fn independent_dimensions_are_their_generator_outputs_however_drawn() {
+        // Dimension `d` of a draw starting at 16 or later (at 0 or later with one
+        // sample) is a field of output `d / 2` of the sample's generator whatever mix
+        // of 1D and 2D draws reaches it: after a 2D draw from 15, which ends on
+        // dimension 16 (stratified) and leaves 17 to read its pair's output; after a
+        // 1D draw at 16; 2D draws from odd and even dimensions.
+        let expected = |values: &PixelSample, d: u32| {
+            let output = values.pair_output(d / 2);
+            unit(if d.is_multiple_of(2) {
+                output >> 40
+            } else {
+                output >> 8
+            })
+        };
+        let patterns: [&[u32]; 4] = [&[1, 2, 1, 2, 1], &[2, 1], &[1, 1, 2], &[2, 2, 1]];
+        for (count, first_independent) in [(64, 16), (5, 16), (1, 0)] {
+            let sampler = PixelSampler::new(count, 40);
+            for pattern in patterns {
+                for start in 0..3 {
+                    let mut values = sampler.sample(77, count - 1);
+                    // Each value with the first dimension of its draw.
+                    let mut drawn: Vec<(Float, usize)> = vec![];
+                    (0..start).for_each(|d| drawn.push((values.next_1d(), d)));
+                    for &width in pattern.iter().cycle() {
+                        let d = drawn.len();
+                        if d + 2 > 40 {
+                            break;
+                        }
+                        match width {
+                            1 => drawn.push((values.next_1d(), d)),
+                            _ => drawn.extend(values.next_2d().to_array().map(|v| (v, d))),
+                        }
+                    }
+                    for (d, &(value, draw)) in drawn.iter().enumerate() {
+                        if draw >= first_independent {
+                            let d = d as u32;
+                            assert_eq!(value, expected(&values, d), "{count} spp, dimension {d}");
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

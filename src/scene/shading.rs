@@ -134,11 +134,14 @@ impl Scene {
                 let n = try_unit(tri.normal()).unwrap_or(-ray.dir);
                 let p = ray.at(hit.t);
                 // Under the default rig only: SPEC starts every shadow ray an epsilon
-                // off the triangle, and path mode never reads the lift.
-                let lift = if self.lit_by_rig {
-                    self.smooth_lift(shading, &tri, p, &hit)
-                } else {
-                    Vec3::ZERO
+                // off the triangle, and path mode never reads the lift. Kept only on
+                // the side the ray came from: vertex normals facing away from it
+                // describe a surface behind the one it hit.
+                let lift = match self.lit_by_rig {
+                    true => Some(self.smooth_lift(shading, &tri, p, &hit))
+                        .filter(|lift| lift.dot(ray.dir) < 0.0)
+                        .unwrap_or(Vec3::ZERO),
+                    false => Vec3::ZERO,
                 };
                 (p, n, self.shading_normal(shading, n, &hit), lift)
             }
@@ -157,13 +160,7 @@ impl Scene {
             ns: face(ns),
             uv: Vec2::ZERO,
             coat_ns: Vec3::ZERO,
-            // Kept only on the side the ray came from: vertex normals facing away
-            // from it describe a surface behind the one it hit.
-            lift: if lift.dot(ray.dir) < 0.0 {
-                lift
-            } else {
-                Vec3::ZERO
-            },
+            lift,
             colour: Vec3::ONE,
             material: shading.material,
             front,

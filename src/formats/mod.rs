@@ -19,6 +19,7 @@ pub mod environment;
 mod error;
 mod file;
 mod finite;
+mod gain_map;
 mod gltf;
 mod lex;
 mod material_check;

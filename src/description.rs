@@ -239,6 +239,30 @@ impl SceneDescription {
             .fold(shapes, Aabb::union)
     }
 
+    /// What the framing camera fits in the image
+    /// ([`crate::options::PartialOptions::framed_by`]): every triangle corner, the
+    /// spheres, and the box of each instance placed.
+    pub fn extent(&self) -> Extent {
+        let mut used = vec![false; self.positions.len()];
+        for t in &self.triangles {
+            for &i in &t.positions {
+                used[i as usize] = true;
+            }
+        }
+        let points = (self.positions.iter().zip(used))
+            .filter_map(|(&p, used)| used.then_some(p))
+            .collect();
+        let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(SceneDescription::bounds).collect();
+        Extent {
+            points,
+            spheres: self.spheres.iter().map(|s| (s.center, s.radius)).collect(),
+            boxes: (self.instances.iter())
+                .filter_map(|i| Some(i.world_bounds(*mesh_bounds.get(i.mesh as usize)?)))
+                .filter(|b| !b.is_empty())
+                .collect(),
+        }
+    }
+
     /// Triangles in the world counting every copy: those of the description itself
     /// and, for each instance, its mesh's.
     pub fn instanced_triangle_count(&self) -> u64 {
@@ -455,4 +479,34 @@ pub struct SphereDesc {
     pub radius: Float,
     /// The material.
     pub material: MaterialId,
+}
+
+/// The shapes of a scene as the framing camera sees them
+/// ([`SceneDescription::extent`]): points, spheres and boxes.
+#[derive(Clone, Debug, Default)]
+pub struct Extent {
+    points: Vec<Vec3>,
+    spheres: Vec<(Vec3, Float)>,
+    boxes: Vec<Aabb>,
+}
+
+impl Extent {
+    /// The largest `p.w` over the scene's points `p` (its convex hull's support
+    /// function), in f64 as the framing is; minus infinity for no shapes.
+    pub fn support(&self, w: glam::DVec3) -> f64 {
+        let dot = |p: Vec3| p.as_dvec3().dot(w);
+        let points = (self.points.par_iter())
+            .map(|&p| dot(p))
+            .reduce(|| f64::NEG_INFINITY, f64::max);
+        let spheres = (self.spheres.iter())
+            .map(|&(c, r)| dot(c) + f64::from(r) * w.length())
+            .fold(points, f64::max);
+        (self.boxes.iter())
+            .map(|b| {
+                (b.min.as_dvec3() * w)
+                    .max(b.max.as_dvec3() * w)
+                    .element_sum()
+            })
+            .fold(spheres, f64::max)
+    }
 }

@@ -826,7 +826,7 @@ impl PartialOptions {
     /// - unless a flag or the file sets the field of view, it is
     ///   [`FRAMED_FOV_DEGREES`] (vertical), from [`Origin::Framed`];
     /// - from the distance, and aimed at the point, at which the projections of the
-    ///   box's 8 corners fit the image (of the size these options give) with
+    ///   box's 8 corners ([`PartialOptions::framed_by`]: of the scene's points) fit the image (of the size these options give) with
     ///   [`FRAMED_FILL`] of it in the limiting dimension, centred (computed exactly, in
     ///   closed form): the box, and so the scene, is never cut.
     ///
@@ -840,7 +840,19 @@ impl PartialOptions {
     ///
     /// Call it last, after [`PartialOptions::or`]: the framing depends on the field of
     /// view, the aspect ratio and the world up direction.
-    pub fn framed(mut self, bounds: Aabb) -> PartialOptions {
+    pub fn framed(self, bounds: Aabb) -> PartialOptions {
+        let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+        self.framed_by(bounds, |w| (min * w).max(max * w).element_sum())
+    }
+
+    /// As [`PartialOptions::framed`], with the scene's own extent: `support(w)` is
+    /// the largest `p.w` over the scene's points `p` (its shapes' convex hull; the
+    /// box's corners give [`PartialOptions::framed`]), so that the projection of the
+    /// scene itself, not of its box, spans [`FRAMED_FILL`] of the limiting dimension,
+    /// centred. A long model seen along its length (a VR controller from behind, whose
+    /// box's near bottom corner projects far below it) is then centred; the box still
+    /// gives the direction of view, and a scene is never cut.
+    pub fn framed_by(mut self, bounds: Aabb, support: impl Fn(DVec3) -> f64) -> PartialOptions {
         if self.look_to.is_some() || bounds.is_empty() {
             return self;
         }
@@ -862,8 +874,11 @@ impl PartialOptions {
             (backward.as_dvec3(), right.as_dvec3(), camera_up.as_dvec3());
         // In f64: the diagonal of a box of 1e30 overflows f32 when squared.
         let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
-        // The largest p.w over the box's corners p.
-        let support = |w: DVec3| (min * w).max(max * w).element_sum();
+        // The box's own support where the scene's is not a number (no point at all).
+        let support = |w: DVec3| match support(w) {
+            s if s.is_finite() => s,
+            _ => (min * w).max(max * w).element_sum(),
+        };
         let mut size = (max - min).length();
         if size.is_nan() || size <= 0.0 {
             // A single point (or a degenerate box): any distance shows it.

@@ -378,3 +378,67 @@ fn a_pixels_samples_share_out_a_small_sun_evenly() {
         "spread {a_spread} stratified, {b_spread} independent (mean {b_mean})"
     );
 }
+
+/// A JPEG of `width` x `height` grey texels, `value(x)` in each column.
+fn grey_jpeg(width: u32, height: u32, value: impl Fn(u32) -> u8) -> Vec<u8> {
+    let image = image::GrayImage::from_fn(width, height, |x, _| image::Luma([value(x)]));
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 100)
+        .encode_image(&image)
+        .unwrap();
+    bytes
+}
+
+/// `jpeg` with an APP1 XMP segment holding `xmp` after its start marker.
+fn with_xmp(jpeg: &[u8], xmp: &str) -> Vec<u8> {
+    let mut payload = b"http://ns.adobe.com/xap/1.0/\0".to_vec();
+    payload.extend(xmp.as_bytes());
+    let mut out = jpeg[..2].to_vec();
+    out.extend([0xFF, 0xE1]);
+    out.extend(u16::try_from(payload.len() + 2).unwrap().to_be_bytes());
+    out.extend(payload);
+    out.extend(&jpeg[2..]);
+    out
+}
+
+#[test]
+fn a_jpeg_with_an_hdr_gain_map_is_read_at_its_full_range() {
+    // An Ultra HDR file (as viser ships Poly Haven's HDRIs): a grey SDR image of
+    // sRGB 128, then a gain map of 0 on the left and 1 on the right, log2 gains from
+    // 0 to 2: the right half is (0.216 + 1/64) * 4 - 1/64 = 0.910 at full range,
+    // where the SDR image alone gives 0.216.
+    let gain = with_xmp(
+        &grey_jpeg(16, 4, |x| if x < 8 { 0 } else { 255 }),
+        r#"<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"><rdf:Description xmlns:hdrgm="http://ns.adobe.com/hdr-gain-map/1.0/" hdrgm:Version="1.0" hdrgm:GainMapMin="0" hdrgm:GainMapMax="2" hdrgm:HDRCapacityMax="2"/></rdf:RDF></x:xmpmeta>"#,
+    );
+    let primary = with_xmp(
+        &grey_jpeg(16, 4, |_| 128),
+        &format!(
+            r#"<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"><rdf:Description xmlns:Container="http://ns.google.com/photos/1.0/container/" xmlns:Item="http://ns.google.com/photos/1.0/container/item/" xmlns:hdrgm="http://ns.adobe.com/hdr-gain-map/1.0/" hdrgm:Version="1.0"><Container:Directory><rdf:Seq><rdf:li rdf:parseType="Resource"><Container:Item Item:Semantic="Primary" Item:Mime="image/jpeg"/></rdf:li><rdf:li rdf:parseType="Resource"><Container:Item Item:Semantic="GainMap" Item:Mime="image/jpeg" Item:Length="{}"/></rdf:li></rdf:Seq></Container:Directory></rdf:Description></rdf:RDF></x:xmpmeta>"#,
+            gain.len()
+        ),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sky.jpg");
+    std::fs::write(&path, [primary, gain].concat()).unwrap();
+    let (desc, warning) =
+        raytracer::formats::environment::load_environment_map(&path, 1.0, 0.0).unwrap();
+    assert_eq!(warning, None);
+    let EnvironmentRadiance::Map(texture) = desc.radiance else {
+        panic!("not a map");
+    };
+    let sdr = raytracer::textures::srgb_to_linear(128.0 / 255.0);
+    let hdr = (sdr + 1.0 / 64.0) * 4.0 - 1.0 / 64.0;
+    for y in 0..4 {
+        // Columns away from the halves' edge, where the JPEG rings.
+        for (x, expected) in [(0, sdr), (2, sdr), (13, hdr), (15, hdr)] {
+            let t = texture.texel(x, y, raytracer::textures::Encoding::Linear);
+            for c in &t[..3] {
+                assert!(
+                    (c - expected).abs() < 0.02 * expected,
+                    "({x}, {y}): {t:?}, expected {expected}"
+                );
+            }
+        }
+    }
+}

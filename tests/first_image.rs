@@ -159,6 +159,68 @@ fn the_bundled_gltf_box_is_framed_and_fills_the_frame() {
     assert_framed_like_a_model_viewer(&options, bounds.min, bounds.max);
 }
 
+#[test]
+fn the_model_itself_not_its_box_is_centred_and_fills_the_frame() {
+    // Shapes whose boxes' corners are mostly empty: a corner of a cube (a
+    // tetrahedron), and a long slanted wedge seen along its length, as a VR
+    // controller is (its box's near bottom corner projected far below the model,
+    // which the box's framing left in the image's top half).
+    let shapes: [&[[f32; 3]]; 2] = [
+        &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]],
+        &[
+            [-0.3, 0.2, -3.0],
+            [0.3, 0.2, -3.0],
+            [0.0, 0.5, -3.0],
+            [-0.3, -0.3, 3.0],
+            [0.3, -0.3, 3.0],
+            [0.0, 0.0, 3.0],
+        ],
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for (k, shape) in shapes.into_iter().enumerate() {
+        let mut obj: String = shape
+            .iter()
+            .map(|v| format!("v {} {} {}\n", v[0], v[1], v[2]))
+            .collect();
+        // Every triple of vertices a face: the hull's faces among them.
+        let n = shape.len();
+        for a in 1..=n {
+            for b in a + 1..=n {
+                for c in b + 1..=n {
+                    obj += &format!("f {a} {b} {c}\n");
+                }
+            }
+        }
+        let path = dir.path().join(format!("shape{k}.obj"));
+        std::fs::write(&path, obj).unwrap();
+        let (_, options) = raytracer::formats::load(&path)
+            .unwrap()
+            .resolve(PartialOptions::default())
+            .unwrap();
+        let (w, h) = (options.width as f32, options.height as f32);
+        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for v in shape {
+            let (x, y) = project(&options, Vec3::from(*v));
+            (lo, hi) = ([lo[0].min(x), lo[1].min(y)], [hi[0].max(x), hi[1].max(y)]);
+        }
+        let centre = [(lo[0] + hi[0]) / 2.0 / w, (lo[1] + hi[1]) / 2.0 / h];
+        let fill = [(hi[0] - lo[0]) / w, (hi[1] - lo[1]) / h];
+        // The model's projection, not its box's, centred and filling 92% of the
+        // limiting dimension; in the other, centred between the planes that would
+        // touch it at that fill, so within a few pixels.
+        let limiting = usize::from(fill[1] > fill[0]);
+        let off = centre.map(|c| (c - 0.5).abs());
+        assert!(
+            off[limiting] < 1e-3 && off[1 - limiting] < 0.03,
+            "shape {k}: centred at {centre:?}, filling {fill:?}"
+        );
+        assert!(
+            (fill[0].max(fill[1]) - 0.92).abs() < 1e-3,
+            "shape {k}: fills {fill:?}"
+        );
+    }
+}
+
 /// `raytracer render ARGS` run in `dir`.
 fn render_in(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::cargo_bin("raytracer")

@@ -536,6 +536,9 @@ pub(crate) struct Loaded {
     options: PartialOptions,
     /// The box around the shapes, for a camera that frames them.
     bounds: raytracer::math::Aabb,
+    /// The shapes' corners, spheres and instance boxes, which that camera fits in
+    /// the image as the command line's does.
+    extent: raytracer::description::Extent,
     /// Whether the scene has no lights ([`SceneDescription::is_unlit`]): full mode
     /// then lights it with the default rig at each render's camera, as the command
     /// line does.
@@ -630,6 +633,7 @@ impl Loaded {
         Loaded {
             path,
             bounds: description.bounds(),
+            extent: description.extent(),
             unlit: description.is_unlit(),
             scene: Scene::build(description, &BvhParams::default()),
             options,
@@ -641,11 +645,10 @@ impl Loaded {
 
     /// The given options over the file's, with the command line's framing camera.
     fn resolve(&self, given: PartialOptions) -> Result<RenderOptions, Error> {
-        let bounds = self.bounds;
         Ok(formats::resolve_options(
             given,
             self.options.clone(),
-            || bounds,
+            || (self.bounds, &self.extent),
         )?)
     }
 

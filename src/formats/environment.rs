@@ -1,6 +1,7 @@
 //! Environment maps and colours as `--env` and a TOML `[environment]` name them: a
-//! colour `R,G,B`, or an equirectangular image (Radiance `.hdr`, OpenEXR, or any
-//! texture format), read under the texture limits ([`crate::textures`]).
+//! colour `R,G,B`, or an equirectangular image (Radiance `.hdr`, OpenEXR, a JPEG with
+//! an HDR gain map ([`super::gain_map`]), or any texture format), read under the
+//! texture limits ([`crate::textures`]).
 
 use std::path::Path;
 use std::sync::Arc;
@@ -174,9 +175,22 @@ pub fn load_environment_map(
             "{shown}: OpenEXR compressed with {compression}, which the renderer's decoder cannot read; convert it to ZIP or PIZ (for example `oiiotool {shown} --compression zip -o out.exr`) or use the .hdr version of the map"
         ));
     }
-    let texture = crate::textures::load_texture(path).map_err(|e| format!("{shown}: {e}"))?;
-    let warning = bad_texels(&texture).map(|count| {
-        format!("{shown}: {count} texels are NaN, infinite or negative; they emit nothing")
+    let mut texture = crate::textures::load_texture(path).map_err(|e| format!("{shown}: {e}"))?;
+    let mut warning = None;
+    // A JPEG with an HDR gain map (Ultra HDR) at its full range, not its SDR image.
+    if texture.is_8bit()
+        && let Ok(bytes) = std::fs::read(path)
+    {
+        match super::gain_map::hdr_from_gain_map(&bytes, &texture, path) {
+            Some(Ok(hdr)) => texture = Arc::new(hdr),
+            Some(Err(e)) => warning = Some(format!("{shown}: {e}; read as its SDR image")),
+            None => {}
+        }
+    }
+    let warning = warning.or_else(|| {
+        bad_texels(&texture).map(|count| {
+            format!("{shown}: {count} texels are NaN, infinite or negative; they emit nothing")
+        })
     });
     Ok((
         EnvironmentDesc {

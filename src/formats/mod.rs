@@ -19,6 +19,7 @@ pub mod environment;
 mod error;
 mod file;
 mod finite;
+mod gain_map;
 mod gltf;
 mod lex;
 mod material_check;
@@ -75,7 +76,9 @@ impl LoadedScene {
             .or(self.options.default_light.as_ref())
             .filter(|on| !on.value)
             .map(|off| off.origin.clone());
-        let options = resolve_options(flags, self.options, || self.description.bounds())?;
+        let options = resolve_options(flags, self.options, || {
+            (self.description.bounds(), self.description.extent())
+        })?;
         let mut description = self.description;
         description.add_default_light_off_by(&options, off_by.as_ref());
         Ok((description, options))
@@ -83,21 +86,26 @@ impl LoadedScene {
 }
 
 /// The options of [`LoadedScene::resolve`] alone, for callers that keep a built scene
-/// (the Python bindings): `flags` over `file`, the camera framing `bounds` when
-/// neither sets one, checked once.
+/// (the Python bindings): `flags` over `file`, the camera framing the scene's
+/// bounds and extent ([`crate::description::SceneDescription::extent`]) when neither
+/// sets one, checked once.
 ///
 /// # Errors
 /// The first option out of range, named by where it came from.
-pub fn resolve_options(
+pub fn resolve_options<E>(
     flags: PartialOptions,
     file: PartialOptions,
-    bounds: impl FnOnce() -> crate::math::Aabb,
-) -> Result<RenderOptions, OptionsError> {
+    extent: impl FnOnce() -> (crate::math::Aabb, E),
+) -> Result<RenderOptions, OptionsError>
+where
+    E: std::borrow::Borrow<crate::description::Extent>,
+{
     let mut options = flags.or(file);
-    // The bounds cost a pass over the triangles: only when they are needed (no
-    // target: a lone position looks at the scene's centre).
+    // The bounds and extent cost passes over the triangles: only when they are
+    // needed (no target: a lone position looks at the scene's centre).
     if options.look_to.is_none() {
-        options = options.framed(bounds());
+        let (bounds, extent) = extent();
+        options = options.framed_by(bounds, |w| extent.borrow().support(w));
     }
     options.resolve()
 }

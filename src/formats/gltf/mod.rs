@@ -13,6 +13,7 @@
 mod context;
 mod extensions;
 mod material;
+mod pose;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -134,6 +135,7 @@ pub fn parse_gltf_with(
         images: HashMap::new(),
         warned: Vec::new(),
         camera_found: false,
+        worlds: None,
         node_uses: {
             let mut uses = vec![0; document.meshes().len()];
             for mesh in document.nodes().filter_map(|n| n.mesh()) {
@@ -159,6 +161,12 @@ pub fn parse_gltf_with(
         ));
     }
     reader.read_scene().map_err(fail)?;
+    let animations = document.animations().len();
+    if animations > 0 {
+        reader.warn(format!(
+            "{animations} animation(s) not played: the nodes' default pose is rendered"
+        ));
+    }
     finite::drop_non_finite_triangles(&mut reader.scene, path);
     for message in reader.problems.messages() {
         reader.warn(message);
@@ -903,6 +911,8 @@ struct Reader<'a> {
     /// The kinds of warning already given, so that each is given once.
     warned: Vec<&'static str>,
     camera_found: bool,
+    /// Every node's world transform in the default pose, once a skin needs them.
+    worlds: Option<Vec<Mat4>>,
     /// How many nodes use each mesh: a mesh of more than one is read once and
     /// placed by instances.
     node_uses: Vec<usize>,
@@ -980,8 +990,22 @@ impl Reader<'_> {
                 ));
                 continue;
             }
+            // A skinned mesh is placed by its joints alone (its node's transform is
+            // ignored, as glTF says), so always as an object of its own.
+            let skin = match (node.mesh(), node.skin()) {
+                (Some(_), Some(skin)) => self.skin_matrices(&skin, &node),
+                _ => None,
+            };
             if let Some(mesh) = node.mesh() {
-                if let Some(extension) = self.instancing.get(&node.index()) {
+                if skin.is_some() {
+                    let name = node
+                        .name()
+                        .map_or_else(|| format!("node {}", node.index()), String::from);
+                    let object = crate::description::ObjectDesc::next_in(&self.scene, name);
+                    self.scene.objects.push(object);
+                    let weights = node.weights().or(mesh.weights());
+                    self.add_mesh(&mesh, &world, weights, skin.as_deref())?;
+                } else if let Some(extension) = self.instancing.get(&node.index()) {
                     // Its instances place the mesh, each an object.
                     let placements =
                         extensions::gpu_instancing::placements(document, &self.buffers, extension)
@@ -1001,7 +1025,8 @@ impl Reader<'_> {
                         .map_or_else(|| format!("node {}", node.index()), String::from);
                     let object = crate::description::ObjectDesc::next_in(&self.scene, name);
                     self.scene.objects.push(object);
-                    self.add_mesh(&mesh, &world)?;
+                    let weights = node.weights().or(mesh.weights());
+                    self.add_mesh(&mesh, &world, weights, skin.as_deref())?;
                 }
             }
             if let Some(camera) = node.camera() {
@@ -1038,7 +1063,7 @@ impl Reader<'_> {
                     scene.texcoords.len(),
                     scene.triangles.len(),
                 );
-                self.add_mesh(mesh, &Mat4::IDENTITY)?;
+                self.add_mesh(mesh, &Mat4::IDENTITY, mesh.weights(), None)?;
                 let index = self.scene.meshes.len() as u32;
                 let read = split_off_mesh(&mut self.scene, before);
                 self.scene.meshes.push(read);
@@ -1097,7 +1122,38 @@ impl Reader<'_> {
         extensions::draco::decode(extension, bytes, &declared)
     }
 
-    fn add_mesh(&mut self, mesh: &gltf::Mesh<'_>, world: &Mat4) -> Result<(), String> {
+    /// The skinning matrix of each of `skin`'s joints in the nodes' default pose, or
+    /// `None` with one warning (the mesh is then placed by its node, unskinned).
+    fn skin_matrices(&mut self, skin: &gltf::Skin<'_>, node: &gltf::Node<'_>) -> Option<Vec<Mat4>> {
+        let worlds = self
+            .worlds
+            .get_or_insert_with(|| pose::node_worlds(self.document));
+        match pose::joint_matrices(skin, worlds, &self.buffers) {
+            Ok(matrices) => Some(matrices),
+            Err(message) => {
+                self.warn_once(
+                    "skin",
+                    format!(
+                        "{}: skin {}: {message}; the mesh is placed by its node, unskinned",
+                        describe_node(node),
+                        skin.index()
+                    ),
+                );
+                None
+            }
+        }
+    }
+
+    /// Reads `mesh`'s primitives placed by `world`, or, given the `skin`'s joint
+    /// matrices, by its joints (each vertex by its own blend of them), with its
+    /// morph targets blended by `weights` first.
+    fn add_mesh(
+        &mut self,
+        mesh: &gltf::Mesh<'_>,
+        world: &Mat4,
+        weights: Option<&[f32]>,
+        skin: Option<&[Mat4]>,
+    ) -> Result<(), String> {
         // Normals go through the inverse transpose; a mirroring transform turns the
         // winding around, which glTF says to undo.
         let linear = Mat3::from_mat4(*world);
@@ -1124,7 +1180,8 @@ impl Reader<'_> {
                 ),
                 None => None,
             };
-            let (positions, normals, texcoords, indices, colours) = match draco {
+            let compressed = draco.is_some();
+            let (mut positions, mut normals, texcoords, indices, colours) = match draco {
                 Some(d) => {
                     let vec3 = |v: Vec<[f32; 3]>| v.into_iter().map(Vec3::from).collect::<Vec<_>>();
                     let texcoords = d.texcoords.map(|t| {
@@ -1217,17 +1274,78 @@ impl Reader<'_> {
                 }
             };
             let count = positions.len();
+            if let Some(weights) = weights.filter(|w| w.iter().any(|&w| w != 0.0))
+                && primitive.morph_targets().next().is_some()
+            {
+                let blended = match compressed {
+                    true => Err("a Draco-compressed primitive's morph targets are not read".into()),
+                    false => pose::morph(
+                        &primitive,
+                        weights,
+                        &mut positions,
+                        normals.as_deref_mut(),
+                        &self.buffers,
+                    ),
+                };
+                if let Err(message) = blended {
+                    self.warn_once(
+                        "morph",
+                        format!("{name}: {message}; the mesh is read without its morph targets"),
+                    );
+                }
+            }
+            // Each vertex's own placement when a skin places the mesh.
+            let skinned = skin.and_then(|matrices| {
+                let placements = match compressed {
+                    true => Err("a Draco-compressed primitive's joints are not read".into()),
+                    false => {
+                        pose::vertex_matrices(&primitive, matrices, count, *world, &self.buffers)
+                    }
+                };
+                match placements {
+                    Ok(placements) => Some(placements),
+                    Err(message) => {
+                        self.warn_once(
+                            "skin",
+                            format!("{name}: {message}; the mesh is placed by its node, unskinned"),
+                        );
+                        None
+                    }
+                }
+            });
             // A buffer may hold NaN, and a huge transform may overflow: the triangles
             // at such positions are dropped once the file is read (`formats::finite`).
-            let positions: Vec<Vec3> = positions
-                .iter()
-                .map(|&p| world.transform_point3(p))
-                .collect();
             // Normals that are not finite (in the file, or once placed by a singular
             // transform) and texture coordinates that are not finite are taken from
             // the triangles using them once the file is read, as positions are.
-            let normals: Option<Vec<Vec3>> =
-                normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect());
+            let (positions, normals, mirrored_at): (Vec<Vec3>, Option<Vec<Vec3>>, Vec<bool>) =
+                match &skinned {
+                    None => (
+                        positions
+                            .iter()
+                            .map(|&p| world.transform_point3(p))
+                            .collect(),
+                        normals.map(|n| n.iter().map(|&n| normal_matrix * n).collect()),
+                        Vec::new(),
+                    ),
+                    Some(placements) => (
+                        positions
+                            .iter()
+                            .zip(placements)
+                            .map(|(&p, m)| m.transform_point3(p))
+                            .collect(),
+                        normals.map(|n| {
+                            n.iter()
+                                .zip(placements)
+                                .map(|(&n, m)| pose::normal_matrix(m) * n)
+                                .collect()
+                        }),
+                        placements
+                            .iter()
+                            .map(|m| Mat3::from_mat4(*m).determinant() < 0.0)
+                            .collect(),
+                    ),
+                };
             let colours = match colours {
                 Some(c) if c.iter().any(|c| !c.is_finite()) => {
                     self.warn(format!(
@@ -1261,7 +1379,8 @@ impl Reader<'_> {
                 scene.texcoords.extend(texcoords);
             }
             for [a, b, c] in triangles {
-                let corners = if mirrored { [a, c, b] } else { [a, b, c] };
+                let turned = mirrored_at.get(a as usize).copied().unwrap_or(mirrored);
+                let corners = if turned { [a, c, b] } else { [a, b, c] };
                 scene.push_triangle(
                     TriangleDesc {
                         positions: corners.map(|i| position_base + i),

@@ -1012,7 +1012,8 @@ mod tests {
     /// The slab test's entry distances and hits are those of `(plane - origin) *
     /// inv_dir` with each axis's near plane chosen by the sign of the direction, for
     /// directions of either sign on every axis (and axis-parallel ones), origins inside,
-    /// outside and on the boxes' planes, and degenerate (flat) boxes.
+    /// outside and on the boxes' planes, and degenerate (flat) boxes; the any-hit
+    /// walk's test, its reach folded into the exit distance, gives the same hits.
     #[test]
     fn slab_test_matches_the_scalar_near_and_far_planes() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
@@ -1061,8 +1062,16 @@ mod tests {
                 dir[i % 3] = 0.0;
             }
             let query = RayQuery::new(&Ray::new(origin, dir.normalize()));
-            let reach = rng.random_range(0.0..6.0);
-            let (hits, t_enter) = WideRay::new(&query).hit_children::<false>(&node, reach);
+            let reach = match i % 7 {
+                0 => Float::INFINITY,
+                1 => 0.0,
+                _ => rng.random_range(0.0..6.0),
+            };
+            let slabs = WideRay::new(&query);
+            let (hits, t_enter) = slabs.hit_children::<false>(&node, reach);
+            // The any-hit walk's form, the reach folded into the exit: the same bits.
+            let within = slabs.hit_children_within(&node, &AnyHitLimit::new(reach));
+            assert_eq!(within, hits, "ray {i}, reach {reach}");
             for slot in 0..WIDTH {
                 let bounds = node.child_bounds(slot);
                 let (mut enter, mut exit) = (0.0 as Float, Float::INFINITY);

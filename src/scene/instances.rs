@@ -297,13 +297,12 @@ impl Instances {
         )
     }
 
-    /// Whether a copy blocks `ray` before `t_max`.
+    /// Whether a copy blocks `ray` (whose `query` the caller made) before `t_max`.
     #[inline]
-    fn occluded(&self, ray: &Ray, t_max: Float) -> bool {
-        let query = RayQuery::new(ray);
+    fn occluded(&self, ray: &Ray, query: &RayQuery, t_max: Float) -> bool {
         let mut t_max = t_max;
         self.top
-            .walk_any(&query, &mut t_max, &self.placed, |first, count, t_max| {
+            .walk_any(query, &mut t_max, &self.placed, |first, count, t_max| {
                 self.placed[first as usize..(first + count) as usize]
                     .iter()
                     .any(|placed| {
@@ -690,12 +689,12 @@ impl Scene {
         let mut reach = [Float::NEG_INFINITY; STREAM_RAYS];
         let mut queries = [RayQuery::new(&rays[0]); STREAM_RAYS];
         for (i, ray) in rays.iter().enumerate() {
-            blocked[i] = self.occluded_level(ray, t_max[i]);
+            queries[i] = RayQuery::new(ray);
+            blocked[i] = self.occluded_level_query(ray, &queries[i], t_max[i]);
             // A ray the flat level blocks enters no box (every entry is at least 0).
             if !blocked[i] {
                 reach[i] = t_max[i];
             }
-            queries[i] = RayQuery::new(ray);
         }
         let count = rays.len();
         let copies = instances.top.walk_stream_any(
@@ -754,7 +753,8 @@ impl Scene {
         ray: &Ray,
         t_max: Float,
     ) -> bool {
-        self.occluded_level(ray, t_max) || instances.occluded(ray, t_max)
+        let query = RayQuery::new(ray);
+        self.occluded_level_query(ray, &query, t_max) || instances.occluded(ray, &query, t_max)
     }
 
     /// [`Scene::source_index`] of a copy's primitive: its mesh's first triangle's

@@ -256,14 +256,20 @@ impl Scene {
     /// [`Scene::occluded`] on this level's own primitives (not its instances').
     #[inline(always)]
     pub(super) fn occluded_level(&self, ray: &Ray, t_max: Float) -> bool {
+        self.occluded_level_query(ray, &RayQuery::new(ray), t_max)
+    }
+
+    /// [`Scene::occluded_level`] with the ray's `query` made by the caller (a scene
+    /// with instances walks its top level with the same one).
+    #[inline(always)]
+    pub(super) fn occluded_level_query(&self, ray: &Ray, query: &RayQuery, t_max: Float) -> bool {
         if self.has_cutouts {
             return self.occluded_with_cutouts(ray, t_max);
         }
-        let query = RayQuery::new(ray);
         let lanes = PacketRay::new(ray);
         let mut t_max = t_max;
         self.wide
-            .walk_any(&query, &mut t_max, &self.packets, |first, count, t_max| {
+            .walk_any(query, &mut t_max, &self.packets, |first, count, t_max| {
                 self.blocker_in_leaf(&lanes, first, count, *t_max)
             })
     }

@@ -997,15 +997,10 @@ impl Reader<'_> {
                 _ => None,
             };
             if let Some(mesh) = node.mesh() {
-                if skin.is_some() {
-                    let name = node
-                        .name()
-                        .map_or_else(|| format!("node {}", node.index()), String::from);
-                    let object = crate::description::ObjectDesc::next_in(&self.scene, name);
-                    self.scene.objects.push(object);
-                    let weights = node.weights().or(mesh.weights());
-                    self.add_mesh(&mesh, &world, weights, skin.as_deref())?;
-                } else if let Some(extension) = self.instancing.get(&node.index()) {
+                // A skinned mesh is placed by its joints, never instanced.
+                let unskinned = skin.is_none();
+                if let Some(extension) = (self.instancing.get(&node.index())).filter(|_| unskinned)
+                {
                     // Its instances place the mesh, each an object.
                     let placements =
                         extensions::gpu_instancing::placements(document, &self.buffers, extension)
@@ -1015,7 +1010,7 @@ impl Reader<'_> {
                             })?;
                     let placements: Vec<Mat4> = placements.iter().map(|p| world * *p).collect();
                     self.add_instances(&mesh, &placements, &node)?;
-                } else if self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
+                } else if unskinned && self.node_uses.get(mesh.index()).is_some_and(|&n| n > 1) {
                     // A copy of a shared mesh: its instance is its object.
                     self.add_instances(&mesh, &[world], &node)?;
                 } else {

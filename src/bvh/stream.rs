@@ -172,16 +172,9 @@ impl WideBvh {
                     entries[ray] = t_enter.to_array();
                     let met = (u32x8::splat(hits) & SLOT_BITS_32).simd_ne(u32x8::ZERO);
                     entry_sums += t_enter & bytemuck::cast::<u32x8, f32x8>(met);
-                    let mut new = hits & leaf_slots & !asked;
+                    let new = hits & leaf_slots & !asked;
                     asked |= new;
-                    while new != 0 {
-                        let slot = new.trailing_zeros() as usize;
-                        new &= new - 1;
-                        prefetch_lines(
-                            items.as_ptr().wrapping_add(node.child(slot) as usize),
-                            PREFETCH_LINES,
-                        );
-                    }
+                    node.prefetch_leaves(new, items);
                 });
             let met = met_slots(&slot_rays);
             let leaves = met & leaf_slots;

@@ -113,6 +113,21 @@ impl WideNode {
             .to_bitmask()
     }
 
+    /// Asks for the memory of the items of each leaf slot in `slots`, so that they
+    /// are on their way together rather than one cache miss after another as the
+    /// leaf tests read them.
+    #[inline(always)]
+    pub(super) fn prefetch_leaves<T>(&self, mut slots: u32, items: &[T]) {
+        while slots != 0 {
+            let slot = slots.trailing_zeros() as usize;
+            slots &= slots - 1;
+            prefetch_lines(
+                items.as_ptr().wrapping_add(self.child(slot) as usize),
+                PREFETCH_LINES,
+            );
+        }
+    }
+
     pub(super) fn set_child_bounds(&mut self, slot: usize, bounds: Aabb) {
         let values = [
             bounds.min.x,
@@ -459,15 +474,7 @@ impl WideBvh {
                 if hits != 0 {
                     let leaves = hits & node.leaf_slots();
                     let mut interior = hits & !leaves;
-                    let mut pending = leaves;
-                    while pending != 0 {
-                        let slot = pending.trailing_zeros() as usize;
-                        pending &= pending - 1;
-                        prefetch_lines(
-                            items.as_ptr().wrapping_add(node.child(slot) as usize),
-                            PREFETCH_LINES,
-                        );
-                    }
+                    node.prefetch_leaves(leaves, items);
                     if interior != 0 {
                         let first = interior.trailing_zeros() as usize;
                         interior &= interior - 1;
@@ -583,16 +590,7 @@ impl WideBvh {
                 // The items of every leaf hit are asked for at once, the nearest's
                 // too: they are on their way together rather than one cache miss
                 // after another as the leaf test reads them.
-                let leaf_hits = hits & node.leaf_slots();
-                let mut leaves = leaf_hits;
-                while leaves != 0 {
-                    let slot = leaves.trailing_zeros() as usize;
-                    leaves &= leaves - 1;
-                    prefetch_lines(
-                        items.as_ptr().wrapping_add(node.child(slot) as usize),
-                        PREFETCH_LINES,
-                    );
-                }
+                node.prefetch_leaves(hits & node.leaf_slots(), items);
                 let t_enter = t_enter.as_array();
                 let first = hits.trailing_zeros() as usize;
                 hits &= hits - 1;

@@ -179,7 +179,7 @@ pub fn load_environment_map(
     let mut warning = None;
     // A JPEG with an HDR gain map (Ultra HDR) at its full range, not its SDR image.
     if texture.is_8bit()
-        && let Ok(bytes) = std::fs::read(path)
+        && let Some(bytes) = read_at_most(path, crate::textures::MAX_TEXTURE_BYTES)
     {
         match super::gain_map::hdr_from_gain_map(&bytes, &texture, path) {
             Some(Ok(hdr)) => texture = Arc::new(hdr),
@@ -209,6 +209,17 @@ pub fn environment_colour(colour: Vec3, strength: Float) -> EnvironmentDesc {
         strength,
         rotation_degrees: 0.0,
     }
+}
+
+/// The bytes of the file at `path` if it holds at most `limit` of them: read again
+/// for its gain map after the texture reader checked its size, so bounded again in
+/// case the file changed in between.
+fn read_at_most(path: &Path, limit: u64) -> Option<Vec<u8>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    let file = std::fs::File::open(path).ok()?;
+    file.take(limit + 1).read_to_end(&mut bytes).ok()?;
+    (bytes.len() as u64 <= limit).then_some(bytes)
 }
 
 /// The number of texels with a channel that is not finite or is negative, if any.

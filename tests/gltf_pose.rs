@@ -158,6 +158,30 @@ fn morph_targets_are_blended_by_the_default_weights_of_the_node_else_the_mesh() 
 }
 
 #[test]
+fn nodes_sharing_a_morphed_mesh_each_pose_it_by_their_own_weights() {
+    // Three nodes place one mesh (so as instances of one read mesh): the first two
+    // with weights of their own, the third with the mesh's.
+    let dir = tempfile::tempdir().unwrap();
+    let json = r#""scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
+  "nodes": [
+    {"mesh": 0, "weights": [1.0]},
+    {"mesh": 0, "weights": [0.0], "translation": [10, 0, 0]},
+    {"mesh": 0, "translation": [20, 0, 0]}
+  ],
+  "meshes": [{"weights": [0.5], "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "targets": [{"POSITION": 5}]}]}]"#;
+    let (triangles, warnings) = corners(&write(dir.path(), "shared", json));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(triangles.len(), 3);
+    for (x, z) in [(0.0, 2.0), (10.0, 0.0), (20.0, 1.0)] {
+        let corner = Vec3::new(x, 1.0, z);
+        assert!(
+            triangles.iter().any(|t| close(t[2], corner)),
+            "no triangle with its third corner at {corner}: {triangles:?}"
+        );
+    }
+}
+
+#[test]
 fn animations_are_one_warning_naming_the_file_and_the_pose_is_the_default() {
     let dir = tempfile::tempdir().unwrap();
     let path = write(

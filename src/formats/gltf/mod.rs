@@ -916,8 +916,10 @@ struct Reader<'a> {
     /// How many nodes use each mesh: a mesh of more than one is read once and
     /// placed by instances.
     node_uses: Vec<usize>,
-    /// The index in [`SceneDescription::meshes`] of each such mesh read so far.
-    instanced: HashMap<usize, u32>,
+    /// The index in [`SceneDescription::meshes`] of each such mesh read so far, by
+    /// the mesh and the morph weights it was posed with (the bits of each): nodes
+    /// that share a mesh may pose it differently.
+    instanced: HashMap<(usize, Vec<u32>), u32>,
     /// The JSON object of each material.
     raw_materials: Vec<Value>,
     /// The `EXT_mesh_gpu_instancing` object of each node that has one.
@@ -1039,7 +1041,8 @@ impl Reader<'_> {
 
     /// Places copies of `mesh` (which several nodes use, or `node`'s instancing
     /// places) by each of `placements`: the mesh is read once (the first time) into
-    /// [`SceneDescription::meshes`], in its own space. Placements that are not
+    /// [`SceneDescription::meshes`], in its own space, once for each set of morph
+    /// weights its nodes pose it with. Placements that are not
     /// invertible affine maps (a zero scale hides an instance) are skipped, with one
     /// warning for the node.
     fn add_instances(
@@ -1048,7 +1051,20 @@ impl Reader<'_> {
         placements: &[Mat4],
         node: &gltf::Node<'_>,
     ) -> Result<(), String> {
-        let index = match self.instanced.get(&mesh.index()) {
+        // The node's weights replace the mesh's; they matter only to morph targets.
+        let morphed = mesh
+            .primitives()
+            .any(|p| p.morph_targets().next().is_some());
+        let weights = node.weights().or(mesh.weights()).filter(|_| morphed);
+        let key = (
+            mesh.index(),
+            weights
+                .unwrap_or_default()
+                .iter()
+                .map(|w| w.to_bits())
+                .collect(),
+        );
+        let index = match self.instanced.get(&key) {
             Some(&index) => index,
             None => {
                 let scene = &self.scene;
@@ -1058,11 +1074,11 @@ impl Reader<'_> {
                     scene.texcoords.len(),
                     scene.triangles.len(),
                 );
-                self.add_mesh(mesh, &Mat4::IDENTITY, mesh.weights(), None)?;
+                self.add_mesh(mesh, &Mat4::IDENTITY, weights, None)?;
                 let index = self.scene.meshes.len() as u32;
                 let read = split_off_mesh(&mut self.scene, before);
                 self.scene.meshes.push(read);
-                self.instanced.insert(mesh.index(), index);
+                self.instanced.insert(key, index);
                 index
             }
         };

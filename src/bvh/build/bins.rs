@@ -27,11 +27,11 @@ pub(super) struct AxisBins {
 }
 
 /// The empty box in the lanes of [`AxisBins`]: every lane `+inf`.
-const EMPTY_LANES: f32x8 = f32x8::new([Float::INFINITY; 8]);
+pub(super) const EMPTY_LANES: f32x8 = f32x8::new([Float::INFINITY; 8]);
 
 /// The box of eight lanes `lanes` (see [`AxisBins`]).
 #[inline(always)]
-fn bounds_of(lanes: f32x8) -> Bounds {
+pub(super) fn bounds_of(lanes: f32x8) -> Bounds {
     let [x, y, z, _, nx, ny, nz, _] = lanes.to_array();
     Bounds {
         min: Vec3A::new(x, y, z),

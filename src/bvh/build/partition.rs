@@ -2,9 +2,12 @@
 //! and in fixed blocks on all threads for big nodes), and the blocks' kept heads
 //! gathered to the front, which also compacts the references made in parallel.
 
-use glam::{BVec3A, Vec3A};
 use rayon::prelude::*;
+use wide::f32x8;
 
+use super::bins::{EMPTY_LANES, bounds_of};
+#[cfg(test)]
+use super::refs::measure;
 use super::refs::{Bounds, PrimRef};
 
 /// Partitions `refs` so that those `goes_left` come first and measures the
@@ -17,25 +20,24 @@ pub(super) fn partition(
     // Branch-free: the side is data-dependent and mispredicts half the time. Every
     // element of `refs[mid..i]` goes right, so swapping a right element with
     // `refs[mid]` changes nothing that matters. The centroid bounds of both sides
-    // grow in the same pass rather than in a second one reading the node again:
-    // each side's by a select of its grown and its old bounds, which leaves the
-    // side not taken exactly as it was (the same bounds as measuring each side).
+    // grow in the same pass rather than in a second one reading the node again, as
+    // eight lanes each (the bins' form, `[min, -max]`: one `min` a side): each
+    // side's by the centroid or by `+inf`, which leaves it exactly as it was, so
+    // the same bounds as measuring each side.
     let mut mid = 0;
-    let mut sides = [Bounds::EMPTY; 2];
+    let mut sides = [EMPTY_LANES; 2];
     for i in 0..refs.len() {
         let r = refs[i];
         let left = goes_left(&r);
-        let c = r.centroid2();
-        let mask = BVec3A::splat(left);
+        let c = r.centroid_lanes();
+        let mask = f32x8::splat(f32::from_bits(0u32.wrapping_sub(u32::from(left))));
         let [l, rt] = &mut sides;
-        l.min = Vec3A::select(mask, l.min.min(c), l.min);
-        l.max = Vec3A::select(mask, l.max.max(c), l.max);
-        rt.min = Vec3A::select(mask, rt.min, rt.min.min(c));
-        rt.max = Vec3A::select(mask, rt.max, rt.max.max(c));
+        *l = l.fast_min(mask.select(c, EMPTY_LANES));
+        *rt = rt.fast_min(mask.select(EMPTY_LANES, c));
         refs.swap(i, mid);
         mid += usize::from(left);
     }
-    (mid, sides)
+    (mid, sides.map(bounds_of))
 }
 
 /// [`partition`] on all threads: each block of `block` primitives is partitioned on
@@ -118,4 +120,61 @@ pub(super) fn gather_block_heads(refs: &mut [PrimRef], block: usize, heads: &[us
         .into_par_iter()
         .for_each(|(a, b)| a.swap_with_slice(b));
     mid
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+    use crate::math::Aabb;
+
+    /// The same bits, lane by lane, of both boxes.
+    fn same(a: Bounds, b: Bounds) -> bool {
+        let bits = |v: glam::Vec3A| v.to_array().map(f32::to_bits);
+        bits(a.min) == bits(b.min) && bits(a.max) == bits(b.max)
+    }
+
+    /// The partition puts those going left first, and the centroid bounds it grows
+    /// in its pass (as eight lanes) are bit for bit those of measuring each side
+    /// afterwards, and so are those of the blocks on all threads.
+    #[test]
+    fn partition_measures_each_side_exactly() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        for case in 0..100 {
+            let count = rng.random_range(0..2000);
+            let mut refs: Vec<PrimRef> = (0..count)
+                .map(|i| {
+                    let min = glam::Vec3::new(rng.random(), rng.random(), rng.random()) * 8.0 - 4.0;
+                    let size = glam::Vec3::new(rng.random(), rng.random(), rng.random());
+                    PrimRef::new(
+                        Aabb {
+                            min,
+                            max: min + size,
+                        },
+                        i,
+                    )
+                })
+                .collect();
+            let plane = rng.random_range(-4.0..4.0);
+            let axis = case % 3;
+            let goes_left = |r: &PrimRef| r.centroid2_on(axis) < plane;
+            let mut blocked = refs.clone();
+            let (mid, sides) = partition(&mut refs, goes_left);
+            assert!(refs[..mid].iter().all(goes_left), "case {case}");
+            assert!(!refs[mid..].iter().any(goes_left), "case {case}");
+            let measured = [measure(&refs[..mid]).1, measure(&refs[mid..]).1];
+            for side in 0..2 {
+                assert!(
+                    same(sides[side], measured[side]),
+                    "case {case}, side {side}"
+                );
+            }
+            let (blocked_mid, blocked_sides) = partition_parallel(&mut blocked, 100, goes_left);
+            assert_eq!(blocked_mid, mid, "case {case}");
+            for side in 0..2 {
+                assert!(same(blocked_sides[side], measured[side]), "case {case}");
+            }
+        }
+    }
 }

@@ -55,6 +55,14 @@ impl PrimRef {
         let bits = |mask: [u32; 8]| f32x8::new(mask.map(f32::from_bits));
         (f32x8::new(lanes) & bits(KEEP)) ^ bits(FLIP)
     }
+    /// [`PrimRef::centroid2`] as a box's eight lanes (see `bins::AxisBins`): `c`,
+    /// 0, then `-c`, 0, each lane the same float as `min + max` or its negation.
+    /// [`PrimRef::lanes`] `[m, -M]` minus its halves swapped `[-M, m]`.
+    #[inline(always)]
+    pub(super) fn centroid_lanes(&self) -> f32x8 {
+        let lanes = self.lanes();
+        lanes - swap_halves(lanes)
+    }
     /// Twice the centroid: the factor 1/2 cancels in every comparison.
     #[inline(always)]
     pub(super) fn centroid2(&self) -> Vec3A {
@@ -67,6 +75,23 @@ impl PrimRef {
         let min: &[f32; 4] = self.min_and_index.as_ref();
         let max: &[f32; 4] = self.max.as_ref();
         min[axis] + max[axis]
+    }
+}
+
+/// Lanes 4 to 7 of `x`, then lanes 0 to 3.
+#[inline(always)]
+fn swap_halves(x: f32x8) -> f32x8 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    {
+        use std::arch::x86_64::{__m256, _mm256_permute2f128_ps};
+        let v: __m256 = bytemuck::cast(x);
+        // SAFETY: AVX is enabled at compile time (the `cfg` above).
+        bytemuck::cast(unsafe { _mm256_permute2f128_ps::<1>(v, v) })
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+    {
+        let [a, b, c, d, e, f, g, h] = x.to_array();
+        f32x8::new([e, f, g, h, a, b, c, d])
     }
 }
 

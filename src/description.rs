@@ -509,4 +509,61 @@ impl Extent {
             })
             .fold(spheres, f64::max)
     }
+
+    /// The unit normal (either way round) of the plane the scene lies in, if it is
+    /// flat: points alone (no spheres, no instances) that span a plane and lie no
+    /// farther from it than [`FLAT_THICKNESS`] of the scene's largest width (a
+    /// polygon or a decal, with its coordinates rounded to 6 digits). The framing
+    /// camera then sees it face-on, as it sees a scene flat in x, y or z.
+    pub fn flat_normal(&self) -> Option<glam::DVec3> {
+        use glam::DVec3;
+        if !self.spheres.is_empty() || !self.boxes.is_empty() || self.points.len() < 3 {
+            return None;
+        }
+        let count = self.points.len() as f64;
+        let sum = |f: &(dyn Fn(DVec3) -> [f64; 6] + Sync)| {
+            (self.points.par_iter())
+                .map(|&p| f(p.as_dvec3()))
+                .reduce(|| [0.0; 6], |a, b| std::array::from_fn(|i| a[i] + b[i]))
+        };
+        let [x, y, z, ..] = sum(&|p| [p.x, p.y, p.z, 0.0, 0.0, 0.0]);
+        let centroid = DVec3::new(x, y, z) / count;
+        let [xx, xy, xz, yy, yz, zz] = sum(&|p| {
+            let d = p - centroid;
+            [
+                d.x * d.x,
+                d.x * d.y,
+                d.x * d.z,
+                d.y * d.y,
+                d.y * d.z,
+                d.z * d.z,
+            ]
+        });
+        // The covariance of points in a plane has the plane's normal as its null
+        // vector: every row is perpendicular to it, so the largest cross product of
+        // two rows lies along it.
+        let rows = [
+            DVec3::new(xx, xy, xz),
+            DVec3::new(xy, yy, yz),
+            DVec3::new(xz, yz, zz),
+        ];
+        let normal = [
+            rows[0].cross(rows[1]),
+            rows[0].cross(rows[2]),
+            rows[1].cross(rows[2]),
+        ]
+        .into_iter()
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?
+        .try_normalize()?;
+        let width = |w: DVec3| self.support(w) + self.support(-w);
+        let widest = [DVec3::X, DVec3::Y, DVec3::Z]
+            .map(width)
+            .into_iter()
+            .fold(0.0, f64::max);
+        (width(normal) <= FLAT_THICKNESS * widest).then_some(normal)
+    }
 }
+
+/// How thin, against its largest width, a scene is flat for the framing camera
+/// ([`Extent::flat_normal`]).
+pub const FLAT_THICKNESS: f64 = 1e-3;

@@ -301,6 +301,51 @@ fn a_flat_scene_is_framed_face_on() {
 }
 
 #[test]
+fn a_flat_scene_in_a_tilted_plane_is_framed_face_on() {
+    // A thin strip (8 by 1.5, as Assimp's regr_3429812.obj) in a plane tilted about
+    // two axes, its coordinates rounded to 6 digits as an OBJ writes them: from the
+    // usual direction it was seen nearly edge-on, a line across the image.
+    let (u, v) = (
+        Vec3::new(0.8, -0.3, 0.52).normalize(),
+        Vec3::new(0.2, 0.9, 0.1).normalize(),
+    );
+    let v = (v - u * u.dot(v)).normalize();
+    let normal = u.cross(v);
+    let origin = Vec3::new(0.05, 0.96, 0.09);
+    let corners = [(0.0, 0.0), (8.0, 0.0), (8.0, 1.5), (0.0, 1.5)]
+        .map(|(a, b): (f32, f32)| origin + (u * a + v * b) * 1e-3);
+    let mut obj = String::new();
+    for c in corners {
+        obj += &format!("v {:.6} {:.6} {:.6}\n", c.x, c.y, c.z);
+    }
+    obj += "f 1 2 3 4\n";
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("strip.obj");
+    std::fs::write(&path, obj).unwrap();
+    let loaded = raytracer::formats::load(&path).unwrap();
+    let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
+    let back = (options.look_from - options.look_to).normalize();
+    assert!(
+        back.dot(normal).abs() > 0.999,
+        "{back} against the normal {normal}"
+    );
+    // From the side the usual view (front, above) looks at.
+    assert!(back.z > 0.0, "{back}");
+    // A box's corners, or a sphere, are not flat: the usual direction stays.
+    let cube = LoadedScene {
+        description: raytracer::formats::parse_obj(
+            box_obj(Vec3::ZERO, Vec3::ONE).as_bytes(),
+            Path::new("cube.obj"),
+        )
+        .unwrap(),
+        options: PartialOptions::default(),
+    };
+    let (_, options) = cube.resolve(PartialOptions::default()).unwrap();
+    let back = (options.look_from - options.look_to).normalize();
+    assert!(back.x > 0.1 && back.y > 0.1 && back.z > 0.5, "{back}");
+}
+
+#[test]
 fn a_camera_from_flags_or_file_is_not_framed_and_a_lone_position_aims_at_the_centre() {
     let bounds = Aabb {
         min: Vec3::splat(5.0),

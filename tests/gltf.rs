@@ -382,6 +382,55 @@ fn position_accessors_without_bounds_are_read_with_one_warning() {
 }
 
 #[test]
+fn incomplete_triangles_and_points_and_lines_are_one_warning_each() {
+    // Assimp's IncorrectVertexArrays/Cube.gltf: triangle lists of 35 vertices (or
+    // indices) and primitives of lines. The whole triangles render, as three.js and
+    // Assimp read them, with one warning naming the first list and what is skipped;
+    // the points and lines, one warning counting them (it named the first alone).
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("incomplete.gltf");
+    let quad = r#"{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -0.5, 0], "max": [1, 0.5, 0]}"#;
+    let primitive = |mode: u32, indices: bool| {
+        format!(
+            r#"{{"primitives": [{{"attributes": {{"POSITION": 0}}, "mode": {mode}{}}}]}}"#,
+            if indices { r#", "indices": 1"# } else { "" }
+        )
+    };
+    let meshes = [
+        primitive(4, true),
+        primitive(1, false),
+        primitive(0, false),
+        primitive(3, true),
+        primitive(4, false),
+    ]
+    .join(", ");
+    let text = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1, 2, 3, 4]}}],
+        "nodes": [{{"mesh": 0}}, {{"mesh": 1}}, {{"mesh": 2}}, {{"mesh": 3}}, {{"mesh": 4, "translation": [3, 0, 0]}}],
+        "meshes": [{meshes}],
+        "accessors": [{quad}, {{"bufferView": 1, "componentType": 5123, "count": 5, "type": "SCALAR"}}],
+        "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+        "buffers": [{{"byteLength": 62, "uri": "data:application/octet-stream;base64,AACAvwAAAL8AAAAAAACAPwAAAL8AAAAAAACAPwAAAD8AAAAAAACAvwAAAD8AAAAAAAABAAIAAAACAAMAAAA="}}]}}"#
+    );
+    std::fs::write(&path, text).unwrap();
+    let loaded = formats::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let file = path.display();
+    assert_eq!(
+        loaded.description.warnings,
+        [
+            format!(
+                "{file}: mesh 0 primitive 0: 5 indices for TRIANGLES, not a multiple of 3; the last two are skipped"
+            ),
+            format!(
+                "{file}: mesh 1 primitive 0 and 2 more: points and lines are not rendered; skipped"
+            ),
+        ]
+    );
+    // One triangle of each list: (0, 1, 2) of the indices, the first three vertices.
+    assert_eq!(loaded.description.triangles.len(), 2);
+}
+
+#[test]
 fn a_missing_image_is_a_warning_and_the_surface_renders_without_it() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::copy(fixture("scene.bin"), dir.path().join("scene.bin")).unwrap();

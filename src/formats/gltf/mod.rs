@@ -134,6 +134,7 @@ pub fn parse_gltf_with(
         materials: HashMap::new(),
         images: HashMap::new(),
         warned: Vec::new(),
+        points_and_lines: Vec::new(),
         camera_found: false,
         worlds: None,
         node_uses: {
@@ -161,6 +162,7 @@ pub fn parse_gltf_with(
         ));
     }
     reader.read_scene().map_err(fail)?;
+    reader.warn_points_and_lines();
     let animations = document.animations().len();
     if animations > 0 {
         reader.warn(format!(
@@ -910,6 +912,8 @@ struct Reader<'a> {
     images: HashMap<usize, Option<Arc<Texture>>>,
     /// The kinds of warning already given, so that each is given once.
     warned: Vec<&'static str>,
+    /// The primitives of points or lines met (mesh and primitive), skipped.
+    points_and_lines: Vec<(usize, usize)>,
     camera_found: bool,
     /// Every node's world transform in the default pose, once a skin needs them.
     worlds: Option<Vec<Mat4>>,
@@ -934,6 +938,22 @@ impl Reader<'_> {
         self.scene
             .warnings
             .push(format!("{}: {message}", self.path.display()));
+    }
+
+    /// One warning for the primitives of points and lines skipped, naming the first
+    /// and counting the others.
+    fn warn_points_and_lines(&mut self) {
+        let Some(&(mesh, primitive)) = self.points_and_lines.first() else {
+            return;
+        };
+        let more = match self.points_and_lines.len() - 1 {
+            0 => String::new(),
+            1 => " and 1 more".into(),
+            n => format!(" and {n} more"),
+        };
+        self.warn(format!(
+            "mesh {mesh} primitive {primitive}{more}: points and lines are not rendered; skipped"
+        ));
     }
 
     fn warn_once(&mut self, kind: &'static str, message: String) {
@@ -1162,10 +1182,11 @@ impl Reader<'_> {
                 mode,
                 Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
             ) {
-                self.warn_once(
-                    "points and lines",
-                    format!("{name}: points and lines are not rendered; skipped"),
-                );
+                // Told once for the file, counted (`Reader::warn_points_and_lines`).
+                let key = (mesh.index(), primitive.index());
+                if !self.points_and_lines.contains(&key) {
+                    self.points_and_lines.push(key);
+                }
                 continue;
             }
             let draco = match self.draco.get(&(mesh.index(), primitive.index())) {
@@ -1351,6 +1372,22 @@ impl Reader<'_> {
                 other => other,
             };
             let material = self.material(primitive.material());
+            if mode == Mode::Triangles && indices.len() % 3 != 0 {
+                let (what, count) = match primitive.indices() {
+                    Some(_) => ("indices", indices.len()),
+                    None => ("vertices", count),
+                };
+                self.warn_once(
+                    "incomplete triangle",
+                    format!(
+                        "{name}: {count} {what} for TRIANGLES, not a multiple of 3; the last {} skipped",
+                        match count % 3 {
+                            1 => "one is",
+                            _ => "two are",
+                        }
+                    ),
+                );
+            }
             let triangles = triangles(mode, &indices);
             let base = |len: usize| -> Result<u32, String> {
                 u32::try_from(len + count)

@@ -280,6 +280,28 @@ fn malformed_and_truncated_files_are_errors_naming_the_file() {
     }
     let error = error_of("bad.gltf", b"{ not json");
     assert!(error.contains("not a valid glTF file"), "{error}");
+    // A default scene that does not exist (Assimp's NoScene.gltf), and indices out of
+    // range, in words (the crate wrote `invalid glTF: scene: Index out of bounds;`).
+    let error = error_of(
+        "noscene.gltf",
+        br#"{"asset": {"version": "2.0"}, "scene": 0}"#,
+    );
+    assert!(
+        error.ends_with(
+            "noscene.gltf: not a valid glTF file: scene: no such scene (the file has 0 scenes)"
+        ),
+        "{error}"
+    );
+    let error = error_of(
+        "nomesh.gltf",
+        br#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 4}, {"camera": 1}]}"#,
+    );
+    assert!(
+        error.ends_with(
+            "nomesh.gltf: not a valid glTF file: nodes[0].mesh: index out of range; nodes[1].camera: index out of range"
+        ),
+        "{error}"
+    );
     // A missing .bin file.
     let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
     let error = error_of("lonely.gltf", gltf.as_bytes());

@@ -110,7 +110,13 @@ pub fn parse_gltf_with(
     };
     extensions::draco::give_views(&mut root, &draco);
     let compressed = compressed_views(&mut root, &meshopt).map_err(fail)?;
-    let document = Document::from_json(root).map_err(invalid)?;
+    let scenes = root.scenes.len();
+    let document = Document::from_json(root).map_err(|e| {
+        fail(format!(
+            "not a valid glTF file: {}",
+            invalid_reason(e, scenes)
+        ))
+    })?;
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let buffers = read_buffers(
@@ -1627,6 +1633,39 @@ fn split_off_mesh(
         scene.triangle_normals.clear();
     }
     mesh
+}
+
+/// What the `gltf` crate's validation found wrong, in words: each problem (the first
+/// three) as `PATH: WHAT`, where the crate writes `invalid glTF: PATH: Index out of
+/// bounds;`. A default `scene` that does not exist (Assimp's `NoScene.gltf`) says how
+/// many the file has.
+fn invalid_reason(error: gltf::Error, scenes: usize) -> String {
+    use gltf::json::validation::Error as Problem;
+    let gltf::Error::Validation(problems) = error else {
+        return error.to_string();
+    };
+    let shown = 3;
+    let mut parts: Vec<String> = (problems.iter().take(shown))
+        .map(|(path, problem)| {
+            let path = path.as_str();
+            let what = match problem {
+                Problem::IndexOutOfBounds if path == "scene" => format!(
+                    "no such scene (the file has {scenes} scene{})",
+                    if scenes == 1 { "" } else { "s" }
+                ),
+                Problem::IndexOutOfBounds => "index out of range".into(),
+                Problem::Invalid => "invalid value".into(),
+                Problem::Missing => "missing".into(),
+                Problem::Oversize => "too large for this machine".into(),
+                Problem::Unsupported => "not supported".into(),
+            };
+            format!("{path}: {what}")
+        })
+        .collect();
+    if problems.len() > shown {
+        parts.push(format!("and {} more problems", problems.len() - shown));
+    }
+    parts.join("; ")
 }
 
 /// The triangles of a primitive's index list in `mode`, degenerate ones included

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use crate::material::{Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Vec2, Vec3, try_unit};
-use crate::options::{Mode, RenderOptions};
+use crate::options::{Flat, Mode, RenderOptions};
 
 /// The default light rig of an unlit scene in full mode
 /// ([`SceneDescription::add_default_light`]): a key light above and to the left of
@@ -253,7 +253,23 @@ impl SceneDescription {
             .filter_map(|(&p, used)| used.then_some(p))
             .collect();
         let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(SceneDescription::bounds).collect();
+        // The triangles' winding, for a flat scene's side: their normals weighted by
+        // area, summed, and their areas (twice each, as cross products are).
+        let corner = |i: u32| self.positions[i as usize].as_dvec3();
+        let (facing, area) = (self.triangles.par_iter())
+            .map(|t| {
+                let [a, b, c] = t.positions.map(corner);
+                let n = (b - a).cross(c - a);
+                // Triangles at non-finite corners are dropped later.
+                if n.is_finite() {
+                    (n, n.length())
+                } else {
+                    (glam::DVec3::ZERO, 0.0)
+                }
+            })
+            .reduce(|| (glam::DVec3::ZERO, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
         Extent {
+            facing: (facing, area),
             points,
             spheres: self.spheres.iter().map(|s| (s.center, s.radius)).collect(),
             boxes: (self.instances.iter())
@@ -485,6 +501,8 @@ pub struct SphereDesc {
 /// ([`SceneDescription::extent`]): points, spheres and boxes.
 #[derive(Clone, Debug, Default)]
 pub struct Extent {
+    /// The sum of the triangles' area-weighted normals, and of their areas.
+    facing: (glam::DVec3, f64),
     points: Vec<Vec3>,
     spheres: Vec<(Vec3, Float)>,
     boxes: Vec<Aabb>,
@@ -510,12 +528,12 @@ impl Extent {
             .fold(spheres, f64::max)
     }
 
-    /// The unit normal (either way round) of the plane the scene lies in, if it is
-    /// flat: points alone (no spheres, no instances) that span a plane and lie no
-    /// farther from it than [`FLAT_THICKNESS`] of the scene's largest width (a
-    /// polygon or a decal, with its coordinates rounded to 6 digits). The framing
-    /// camera then sees it face-on, as it sees a scene flat in x, y or z.
-    pub fn flat_normal(&self) -> Option<glam::DVec3> {
+    /// The unit normal of the plane the scene lies in, if it is flat: points alone
+    /// (no spheres, no instances) that span a plane and lie no farther from it than
+    /// [`FLAT_THICKNESS`] of the scene's largest width (a polygon or a decal, with
+    /// its coordinates rounded to 6 digits). The framing camera then sees it face-on,
+    /// as it sees a scene flat in x, y or z.
+    pub fn flat_normal(&self) -> Option<Flat> {
         use glam::DVec3;
         if !self.spheres.is_empty() || !self.boxes.is_empty() || self.points.len() < 3 {
             return None;
@@ -560,7 +578,20 @@ impl Extent {
             .map(width)
             .into_iter()
             .fold(0.0, f64::max);
-        (width(normal) <= FLAT_THICKNESS * widest).then_some(normal)
+        if width(normal) > FLAT_THICKNESS * widest {
+            return None;
+        }
+        let (facing, area) = self.facing;
+        Some(match facing.dot(normal) {
+            along if along < -0.5 * area => Flat {
+                normal: -normal,
+                faced: true,
+            },
+            along => Flat {
+                normal,
+                faced: along > 0.5 * area,
+            },
+        })
     }
 }
 

@@ -318,19 +318,34 @@ fn a_flat_scene_in_a_tilted_plane_is_framed_face_on() {
     for c in corners {
         obj += &format!("v {:.6} {:.6} {:.6}\n", c.x, c.y, c.z);
     }
-    obj += "f 1 2 3 4\n";
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("strip.obj");
-    std::fs::write(&path, obj).unwrap();
-    let loaded = raytracer::formats::load(&path).unwrap();
-    let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
-    let back = (options.look_from - options.look_to).normalize();
-    assert!(
-        back.dot(normal).abs() > 0.999,
-        "{back} against the normal {normal}"
-    );
-    // From the side the usual view (front, above) looks at.
-    assert!(back.z > 0.0, "{back}");
+    // Seen from the side its face looks to (counter-clockwise corners), whichever
+    // it is; a pair of faces that disagree, from the side the usual view (front,
+    // above, so +z) looks at.
+    assert!(normal.z > 0.0);
+    for (faces, side) in [
+        ("f 1 2 3 4\n", normal),
+        ("f 4 3 2 1\n", -normal),
+        ("f 1 2 3\nf 1 4 3\n", normal),
+    ] {
+        std::fs::write(&path, format!("{obj}{faces}")).unwrap();
+        let loaded = raytracer::formats::load(&path).unwrap();
+        let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
+        let back = (options.look_from - options.look_to).normalize();
+        assert!(back.dot(side) > 0.999, "{faces:?}: {back} against {side}");
+    }
+    // Not from well below, whichever way the face looks: Assimp's
+    // multiple_spaces.obj, one triangle facing down, showed dark in path mode.
+    for faces in ["f 1 2 3\n", "f 3 2 1\n"] {
+        let path = dir.path().join("triangle.obj");
+        std::fs::write(&path, format!("v 1 2 3\nv 2 3 1\nv 3 1 2\n{faces}")).unwrap();
+        let loaded = raytracer::formats::load(&path).unwrap();
+        let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
+        let back = (options.look_from - options.look_to).normalize();
+        let normal = Vec3::ONE.normalize();
+        assert!(back.dot(normal) > 0.999, "{faces:?}: {back}");
+    }
     // A box's corners, or a sphere, are not flat: the usual direction stays.
     let cube = LoadedScene {
         description: raytracer::formats::parse_obj(

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::material::{Light, Material, MaterialId};
 use crate::math::{Aabb, Float, Vec2, Vec3, try_unit};
-use crate::options::{Mode, RenderOptions};
+use crate::options::{Flat, Mode, RenderOptions};
 
 /// The default light rig of an unlit scene in full mode
 /// ([`SceneDescription::add_default_light`]): a key light above and to the left of
@@ -271,7 +271,23 @@ impl SceneDescription {
             .filter_map(|(&p, used)| used.then_some(p))
             .collect();
         let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(SceneDescription::bounds).collect();
+        // The triangles' winding, for a flat scene's side: their normals weighted by
+        // area, summed, and their areas (twice each, as cross products are).
+        let corner = |i: u32| self.positions[i as usize].as_dvec3();
+        let (facing, area) = (self.triangles.par_iter())
+            .map(|t| {
+                let [a, b, c] = t.positions.map(corner);
+                let n = (b - a).cross(c - a);
+                // Triangles at non-finite corners are dropped later.
+                if n.is_finite() {
+                    (n, n.length())
+                } else {
+                    (glam::DVec3::ZERO, 0.0)
+                }
+            })
+            .reduce(|| (glam::DVec3::ZERO, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
         Extent {
+            facing: (facing, area),
             points,
             spheres: self.spheres.iter().map(|s| (s.center, s.radius)).collect(),
             boxes: (self.instances.iter())
@@ -503,6 +519,8 @@ pub struct SphereDesc {
 /// ([`SceneDescription::extent`]): points, spheres and boxes.
 #[derive(Clone, Debug, Default)]
 pub struct Extent {
+    /// The sum of the triangles' area-weighted normals, and of their areas.
+    facing: (glam::DVec3, f64),
     points: Vec<Vec3>,
     spheres: Vec<(Vec3, Float)>,
     boxes: Vec<Aabb>,
@@ -527,7 +545,77 @@ impl Extent {
             })
             .fold(spheres, f64::max)
     }
+
+    /// The unit normal of the plane the scene lies in, if it is flat: points alone
+    /// (no spheres, no instances) that span a plane and lie no farther from it than
+    /// [`FLAT_THICKNESS`] of the scene's largest width (a polygon or a decal, with
+    /// its coordinates rounded to 6 digits). The framing camera then sees it face-on,
+    /// as it sees a scene flat in x, y or z.
+    pub fn flat_normal(&self) -> Option<Flat> {
+        use glam::DVec3;
+        if !self.spheres.is_empty() || !self.boxes.is_empty() || self.points.len() < 3 {
+            return None;
+        }
+        let count = self.points.len() as f64;
+        let sum = |f: &(dyn Fn(DVec3) -> [f64; 6] + Sync)| {
+            (self.points.par_iter())
+                .map(|&p| f(p.as_dvec3()))
+                .reduce(|| [0.0; 6], |a, b| std::array::from_fn(|i| a[i] + b[i]))
+        };
+        let [x, y, z, ..] = sum(&|p| [p.x, p.y, p.z, 0.0, 0.0, 0.0]);
+        let centroid = DVec3::new(x, y, z) / count;
+        let [xx, xy, xz, yy, yz, zz] = sum(&|p| {
+            let d = p - centroid;
+            [
+                d.x * d.x,
+                d.x * d.y,
+                d.x * d.z,
+                d.y * d.y,
+                d.y * d.z,
+                d.z * d.z,
+            ]
+        });
+        // The covariance of points in a plane has the plane's normal as its null
+        // vector: every row is perpendicular to it, so the largest cross product of
+        // two rows lies along it.
+        let rows = [
+            DVec3::new(xx, xy, xz),
+            DVec3::new(xy, yy, yz),
+            DVec3::new(xz, yz, zz),
+        ];
+        let normal = [
+            rows[0].cross(rows[1]),
+            rows[0].cross(rows[2]),
+            rows[1].cross(rows[2]),
+        ]
+        .into_iter()
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?
+        .try_normalize()?;
+        let width = |w: DVec3| self.support(w) + self.support(-w);
+        let widest = [DVec3::X, DVec3::Y, DVec3::Z]
+            .map(width)
+            .into_iter()
+            .fold(0.0, f64::max);
+        if width(normal) > FLAT_THICKNESS * widest {
+            return None;
+        }
+        let (facing, area) = self.facing;
+        Some(match facing.dot(normal) {
+            along if along < -0.5 * area => Flat {
+                normal: -normal,
+                faced: true,
+            },
+            along => Flat {
+                normal,
+                faced: along > 0.5 * area,
+            },
+        })
+    }
 }
+
+/// How thin, against its largest width, a scene is flat for the framing camera
+/// ([`Extent::flat_normal`]).
+pub const FLAT_THICKNESS: f64 = 1e-3;
 
 #[cfg(test)]
 mod tests {

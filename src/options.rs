@@ -852,7 +852,22 @@ impl PartialOptions {
     /// centred. A long model seen along its length (a VR controller from behind, whose
     /// box's near bottom corner projects far below it) is then centred; the box still
     /// gives the direction of view, and a scene is never cut.
-    pub fn framed_by(mut self, bounds: Aabb, support: impl Fn(DVec3) -> f64) -> PartialOptions {
+    pub fn framed_by(self, bounds: Aabb, support: impl Fn(DVec3) -> f64) -> PartialOptions {
+        self.framed_facing(bounds, support, None)
+    }
+
+    /// As [`PartialOptions::framed_by`], for a scene that lies in the plane of normal
+    /// `flat` ([`crate::description::Extent::flat_normal`]): seen face-on, from the
+    /// side the normal points to if the scene's triangles face it (their winding),
+    /// else from the side nearer the usual direction of view, and never from well
+    /// below; unless the plane is x, y or z = c (seen along -x, -y or -z as
+    /// [`PartialOptions::framed`] says).
+    pub fn framed_facing(
+        mut self,
+        bounds: Aabb,
+        support: impl Fn(DVec3) -> f64,
+        flat: Option<Flat>,
+    ) -> PartialOptions {
         if self.look_to.is_some() || bounds.is_empty() {
             return self;
         }
@@ -868,7 +883,7 @@ impl PartialOptions {
         let tan_v = (f64::from(fov).to_radians() / 2.0).tan();
         let tan_h = tan_v * aspect;
         let up = value_or(&self.up, RenderOptions::default().up);
-        let backward = framing_direction(bounds, up);
+        let backward = framing_direction(bounds, up, flat);
         let (right, camera_up) = crate::math::view_basis(backward, up);
         let (backward, right, camera_up) =
             (backward.as_dvec3(), right.as_dvec3(), camera_up.as_dvec3());
@@ -1031,9 +1046,28 @@ fn keep_aspect(given: &Sourced<i64>, before: i64, other: Sourced<i64>) -> Source
     )
 }
 
+/// How far below its plane (the cosine between the view and the world's down
+/// direction) the framing camera may look at a flat scene before it looks from the
+/// other side ([`PartialOptions::framed_facing`]).
+const FLAT_FROM_BELOW: f64 = 0.25;
+
+/// The plane a flat scene lies in
+/// ([`Extent::flat_normal`](crate::description::Extent::flat_normal)), for the
+/// framing camera to see it face-on ([`PartialOptions::framed_facing`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Flat {
+    /// Its unit normal: towards the side the triangles' front faces
+    /// (counter-clockwise corners) look to, when most of their area agrees on one.
+    pub normal: DVec3,
+    /// Whether they do (else the normal may point either way).
+    pub faced: bool,
+}
+
 /// The unit direction from the centre of `bounds` to the eye of the camera that
-/// frames them ([`PartialOptions::framed`]), for the world up direction `up`.
-fn framing_direction(bounds: Aabb, up: Vec3) -> Vec3 {
+/// frames them ([`PartialOptions::framed`]), for the world up direction `up`; along
+/// `flat`, the normal of the plane the scene lies in, if given (and the box is not
+/// flat in x, y or z).
+fn framing_direction(bounds: Aabb, up: Vec3, plane: Option<Flat>) -> Vec3 {
     let extent = bounds.max - bounds.min;
     let flat = |e: Float| e <= 1e-6 * extent.max_element();
     match [flat(extent.x), flat(extent.y), flat(extent.z)] {
@@ -1056,6 +1090,22 @@ fn framing_direction(bounds: Aabb, up: Vec3) -> Vec3 {
     );
     let direction =
         (front * azimuth.cos() + right * azimuth.sin()) * elevation.cos() + up * elevation.sin();
+    let direction = match plane {
+        // Face-on: from the side the triangles face (where a texture reads the right
+        // way round), else the one the usual view looks at; but not from well below
+        // (a face turned down, lit from above in path mode's studio, shows dark).
+        Some(Flat { normal, faced }) => {
+            let normal = match faced || normal.dot(direction) >= 0.0 {
+                true => normal,
+                false => -normal,
+            };
+            match normal.dot(up) < -FLAT_FROM_BELOW {
+                true => -normal,
+                false => normal,
+            }
+        }
+        None => direction,
+    };
     direction.normalize().as_vec3()
 }
 

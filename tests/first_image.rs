@@ -301,6 +301,66 @@ fn a_flat_scene_is_framed_face_on() {
 }
 
 #[test]
+fn a_flat_scene_in_a_tilted_plane_is_framed_face_on() {
+    // A thin strip (8 by 1.5, as Assimp's regr_3429812.obj) in a plane tilted about
+    // two axes, its coordinates rounded to 6 digits as an OBJ writes them: from the
+    // usual direction it was seen nearly edge-on, a line across the image.
+    let (u, v) = (
+        Vec3::new(0.8, -0.3, 0.52).normalize(),
+        Vec3::new(0.2, 0.9, 0.1).normalize(),
+    );
+    let v = (v - u * u.dot(v)).normalize();
+    let normal = u.cross(v);
+    let origin = Vec3::new(0.05, 0.96, 0.09);
+    let corners = [(0.0, 0.0), (8.0, 0.0), (8.0, 1.5), (0.0, 1.5)]
+        .map(|(a, b): (f32, f32)| origin + (u * a + v * b) * 1e-3);
+    let mut obj = String::new();
+    for c in corners {
+        obj += &format!("v {:.6} {:.6} {:.6}\n", c.x, c.y, c.z);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("strip.obj");
+    // Seen from the side its face looks to (counter-clockwise corners), whichever
+    // it is; a pair of faces that disagree, from the side the usual view (front,
+    // above, so +z) looks at.
+    assert!(normal.z > 0.0);
+    for (faces, side) in [
+        ("f 1 2 3 4\n", normal),
+        ("f 4 3 2 1\n", -normal),
+        ("f 1 2 3\nf 1 4 3\n", normal),
+    ] {
+        std::fs::write(&path, format!("{obj}{faces}")).unwrap();
+        let loaded = raytracer::formats::load(&path).unwrap();
+        let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
+        let back = (options.look_from - options.look_to).normalize();
+        assert!(back.dot(side) > 0.999, "{faces:?}: {back} against {side}");
+    }
+    // Not from well below, whichever way the face looks: Assimp's
+    // multiple_spaces.obj, one triangle facing down, showed dark in path mode.
+    for faces in ["f 1 2 3\n", "f 3 2 1\n"] {
+        let path = dir.path().join("triangle.obj");
+        std::fs::write(&path, format!("v 1 2 3\nv 2 3 1\nv 3 1 2\n{faces}")).unwrap();
+        let loaded = raytracer::formats::load(&path).unwrap();
+        let (_, options) = loaded.resolve(PartialOptions::default()).unwrap();
+        let back = (options.look_from - options.look_to).normalize();
+        let normal = Vec3::ONE.normalize();
+        assert!(back.dot(normal) > 0.999, "{faces:?}: {back}");
+    }
+    // A box's corners, or a sphere, are not flat: the usual direction stays.
+    let cube = LoadedScene {
+        description: raytracer::formats::parse_obj(
+            box_obj(Vec3::ZERO, Vec3::ONE).as_bytes(),
+            Path::new("cube.obj"),
+        )
+        .unwrap(),
+        options: PartialOptions::default(),
+    };
+    let (_, options) = cube.resolve(PartialOptions::default()).unwrap();
+    let back = (options.look_from - options.look_to).normalize();
+    assert!(back.x > 0.1 && back.y > 0.1 && back.z > 0.5, "{back}");
+}
+
+#[test]
 fn a_camera_from_flags_or_file_is_not_framed_and_a_lone_position_aims_at_the_centre() {
     let bounds = Aabb {
         min: Vec3::splat(5.0),

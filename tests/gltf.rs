@@ -280,6 +280,28 @@ fn malformed_and_truncated_files_are_errors_naming_the_file() {
     }
     let error = error_of("bad.gltf", b"{ not json");
     assert!(error.contains("not a valid glTF file"), "{error}");
+    // A default scene that does not exist (Assimp's NoScene.gltf), and indices out of
+    // range, in words (the crate wrote `invalid glTF: scene: Index out of bounds;`).
+    let error = error_of(
+        "noscene.gltf",
+        br#"{"asset": {"version": "2.0"}, "scene": 0}"#,
+    );
+    assert!(
+        error.ends_with(
+            "noscene.gltf: not a valid glTF file: scene: no such scene (the file has 0 scenes)"
+        ),
+        "{error}"
+    );
+    let error = error_of(
+        "nomesh.gltf",
+        br#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 4}, {"camera": 1}]}"#,
+    );
+    assert!(
+        error.ends_with(
+            "nomesh.gltf: not a valid glTF file: nodes[0].mesh: index out of range; nodes[1].camera: index out of range"
+        ),
+        "{error}"
+    );
     // A missing .bin file.
     let gltf = std::fs::read_to_string(fixture("scene.gltf")).unwrap();
     let error = error_of("lonely.gltf", gltf.as_bytes());
@@ -379,6 +401,55 @@ fn position_accessors_without_bounds_are_read_with_one_warning() {
         let hit = scene.intersect(&ray).expect("the quad is there");
         assert!((hit.t - 5.0).abs() < 1e-5, "{}", hit.t);
     }
+}
+
+#[test]
+fn incomplete_triangles_and_points_and_lines_are_one_warning_each() {
+    // Assimp's IncorrectVertexArrays/Cube.gltf: triangle lists of 35 vertices (or
+    // indices) and primitives of lines. The whole triangles render, as three.js and
+    // Assimp read them, with one warning naming the first list and what is skipped;
+    // the points and lines, one warning counting them (it named the first alone).
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("incomplete.gltf");
+    let quad = r#"{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -0.5, 0], "max": [1, 0.5, 0]}"#;
+    let primitive = |mode: u32, indices: bool| {
+        format!(
+            r#"{{"primitives": [{{"attributes": {{"POSITION": 0}}, "mode": {mode}{}}}]}}"#,
+            if indices { r#", "indices": 1"# } else { "" }
+        )
+    };
+    let meshes = [
+        primitive(4, true),
+        primitive(1, false),
+        primitive(0, false),
+        primitive(3, true),
+        primitive(4, false),
+    ]
+    .join(", ");
+    let text = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1, 2, 3, 4]}}],
+        "nodes": [{{"mesh": 0}}, {{"mesh": 1}}, {{"mesh": 2}}, {{"mesh": 3}}, {{"mesh": 4, "translation": [3, 0, 0]}}],
+        "meshes": [{meshes}],
+        "accessors": [{quad}, {{"bufferView": 1, "componentType": 5123, "count": 5, "type": "SCALAR"}}],
+        "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+        "buffers": [{{"byteLength": 62, "uri": "data:application/octet-stream;base64,AACAvwAAAL8AAAAAAACAPwAAAL8AAAAAAACAPwAAAD8AAAAAAACAvwAAAD8AAAAAAAABAAIAAAACAAMAAAA="}}]}}"#
+    );
+    std::fs::write(&path, text).unwrap();
+    let loaded = formats::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let file = path.display();
+    assert_eq!(
+        loaded.description.warnings,
+        [
+            format!(
+                "{file}: mesh 0 primitive 0: 5 indices for TRIANGLES, not a multiple of 3; the last two are skipped"
+            ),
+            format!(
+                "{file}: mesh 1 primitive 0 and 2 more: points and lines are not rendered; skipped"
+            ),
+        ]
+    );
+    // One triangle of each list: (0, 1, 2) of the indices, the first three vertices.
+    assert_eq!(loaded.description.triangles.len(), 2);
 }
 
 #[test]

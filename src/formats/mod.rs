@@ -105,7 +105,8 @@ where
     // needed (no target: a lone position looks at the scene's centre).
     if options.look_to.is_none() {
         let (bounds, extent) = extent();
-        options = options.framed_by(bounds, |w| extent.borrow().support(w));
+        let extent = extent.borrow();
+        options = options.framed_facing(bounds, |w| extent.support(w), extent.flat_normal());
     }
     options.resolve()
 }

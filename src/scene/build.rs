@@ -213,25 +213,19 @@ impl Scene {
                     |i| if dropped[i] { None } else { bounds_of(i) },
                     params,
                 );
-                warnings.push(format!(
-                    "skipped {duplicates} duplicate shape{} (the same corners, normals, texture coordinates and material as another)",
-                    if duplicates == 1 { "" } else { "s" }
-                ));
             }
         }
 
         let tree_built = Mark::now();
-        let degenerate = triangle_count + spheres.len() - order.len() - duplicates;
-        if degenerate > 0 {
-            warnings.push(format!(
-                "skipped {degenerate} degenerate (zero-area) triangle{}",
-                if degenerate == 1 { "" } else { "s" }
-            ));
-        }
+        let skipped = Skipped {
+            degenerate: triangle_count + spheres.len() - order.len() - duplicates,
+            duplicates,
+        };
+        warnings.extend(skipped.warnings());
         // A level of no shapes of its own renders its instances' (a scene of instances
         // only): nothing is missing then.
         if order.is_empty() && instances.is_empty() {
-            warnings.push("the scene has no shapes left to render: every ray misses".into());
+            warnings.push(NO_SHAPES_LEFT.into());
         }
         let area_lights = collect_area_lights(
             (&positions, &texcoords),
@@ -406,10 +400,55 @@ impl Scene {
             summary,
             build_times,
             warnings,
+            skipped,
             ray_by_ray: has_cutouts,
             instances: None,
         };
         (scene, meshes, instances)
+    }
+}
+
+/// The warning of a scene with nothing to render.
+pub(super) const NO_SHAPES_LEFT: &str = "the scene has no shapes left to render: every ray misses";
+
+/// The shapes a level's build dropped: counted, so that a scene of several levels (a
+/// glTF file's meshes used by several nodes) warns once with the totals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct Skipped {
+    /// Triangles of zero area.
+    pub(super) degenerate: usize,
+    /// Copies of another shape.
+    pub(super) duplicates: usize,
+}
+
+impl Skipped {
+    /// The warnings that say what was skipped: none for nothing.
+    pub(super) fn warnings(self) -> Vec<String> {
+        let plural = |n: usize| if n == 1 { "" } else { "s" };
+        let mut warnings = Vec::new();
+        if self.duplicates > 0 {
+            warnings.push(format!(
+                "skipped {} duplicate shape{} (the same corners, normals, texture coordinates and material as another)",
+                self.duplicates,
+                plural(self.duplicates)
+            ));
+        }
+        if self.degenerate > 0 {
+            warnings.push(format!(
+                "skipped {} degenerate (zero-area) triangle{}",
+                self.degenerate,
+                plural(self.degenerate)
+            ));
+        }
+        warnings
+    }
+
+    /// Both counts added.
+    pub(super) fn add(self, other: Skipped) -> Skipped {
+        Skipped {
+            degenerate: self.degenerate + other.degenerate,
+            duplicates: self.duplicates + other.duplicates,
+        }
     }
 }
 

@@ -190,7 +190,14 @@ impl Instances {
             // waits for the caches but not for page walks as well.
             crate::memory::collapse_into_huge_pages(&scene.wide.nodes);
             crate::memory::collapse_into_huge_pages(&scene.packets);
-            warnings.append(&mut scene.warnings);
+            // What each mesh skipped is told once for the scene, added up
+            // (`Scene::build_instanced`), and a mesh with no shapes left leaves the
+            // scene its other shapes.
+            let own = scene.skipped.warnings();
+            warnings.extend(
+                (scene.warnings.drain(..))
+                    .filter(|w| !own.contains(w) && w != super::build::NO_SHAPES_LEFT),
+            );
             first_prim.push(prim_count as u32);
             first_source.push(source_count);
             prim_count += scene.prim_count();
@@ -421,6 +428,19 @@ impl Scene {
         let started = std::time::Instant::now();
         let mut warnings = Vec::new();
         let built = Instances::build(meshes, &instances, &scene, params, &mut warnings);
+        // One warning per kind of what the levels skipped, with the totals, where the
+        // flat level's own would be.
+        let own = scene.skipped.warnings();
+        let at = (scene.warnings.iter())
+            .position(|w| own.contains(w))
+            .unwrap_or(scene.warnings.len());
+        scene.warnings.retain(|w| !own.contains(w));
+        scene.skipped = (built.meshes.iter()).fold(scene.skipped, |total, m| total.add(m.skipped));
+        let totals = scene.skipped.warnings();
+        scene.warnings.splice(at..at, totals);
+        if built.placed.is_empty() && scene.prim_count() == 0 {
+            scene.warnings.push(super::build::NO_SHAPES_LEFT.into());
+        }
         // Each copy is an object of its own, after the flat level's.
         for (i, instance) in instances.iter().enumerate() {
             (scene.objects).push_after_shapes(format!("instance {i} of mesh {}", instance.mesh));
@@ -921,6 +941,68 @@ mod tests {
             let flags = crate::memory::smaps_field(inside, "VmFlags:");
             assert!(flags.contains(" hg"), "{flags}");
         }
+    }
+
+    #[test]
+    fn what_the_levels_skip_is_one_warning_per_kind_with_the_totals() {
+        // A flat level with 1 degenerate triangle, two meshes with 2 and 3 (each
+        // placed twice), and a third mesh with nothing but a degenerate triangle:
+        // one warning of 7 (each mesh counted once, as `raytracer info` counts), not
+        // one per level ("... (and 3 more like it)"), and no "no shapes left" for the
+        // empty mesh while others render.
+        let triangle = |positions| TriangleDesc {
+            positions,
+            material: MaterialId(0),
+        };
+        let level = |degenerate: u32| SceneDescription {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X * 2.0],
+            triangles: std::iter::once(triangle([0, 1, 2]))
+                .chain((0..degenerate).map(|_| triangle([0, 1, 3])))
+                .collect(),
+            ..SceneDescription::default()
+        };
+        let mut d = level(1);
+        d.materials = vec![crate::material::Material::named("m")];
+        d.meshes = vec![level(2), level(3), {
+            let mut empty = level(1);
+            empty.triangles.remove(0);
+            empty
+        }];
+        for mesh in [0, 0, 1, 1, 2] {
+            d.instances.push(InstanceDesc {
+                mesh,
+                world_from_object: Affine3A::from_translation(Vec3::new(mesh as f32, 0.0, 0.0)),
+                winding_kept: false,
+            });
+        }
+        let scene = Scene::build(d, &BvhParams::default());
+        assert_eq!(
+            scene.warnings,
+            ["skipped 7 degenerate (zero-area) triangles"]
+        );
+        // Nothing at all left: one warning of that.
+        let mut d = SceneDescription {
+            materials: vec![crate::material::Material::named("m")],
+            ..SceneDescription::default()
+        };
+        d.meshes = vec![{
+            let mut empty = level(1);
+            empty.triangles.remove(0);
+            empty
+        }];
+        d.instances.push(InstanceDesc {
+            mesh: 0,
+            world_from_object: Affine3A::IDENTITY,
+            winding_kept: false,
+        });
+        let scene = Scene::build(d, &BvhParams::default());
+        assert_eq!(
+            scene.warnings,
+            [
+                "skipped 1 degenerate (zero-area) triangle",
+                "the scene has no shapes left to render: every ray misses"
+            ]
+        );
     }
 
     #[test]

@@ -205,6 +205,8 @@ pub struct Scene {
     build_times: BuildTimes,
     /// Warnings from reading and building.
     pub warnings: Vec<String>,
+    /// The shapes the build dropped, of every level.
+    skipped: build::Skipped,
     /// Whether nothing lights the scene
     /// ([`SceneDescription::is_unlit`](crate::SceneDescription::is_unlit)) and it has
     /// no environment: path mode then lights it with its default studio.

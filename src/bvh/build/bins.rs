@@ -231,7 +231,7 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     use super::*;
-    use crate::math::Aabb;
+    use crate::bvh::build::refs::random_refs;
 
     /// The eight-lane bins hold exactly the boxes and counts that growing plain
     /// boxes gives, and price planes exactly as a sweep over plain boxes does.
@@ -240,20 +240,7 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
         for case in 0..200 {
             let count = rng.random_range(1..300);
-            let refs: Vec<PrimRef> = (0..count)
-                .map(|i| {
-                    let min =
-                        glam::Vec3::new(rng.random(), rng.random(), rng.random()) * 20.0 - 10.0;
-                    let size = glam::Vec3::new(rng.random(), rng.random(), rng.random());
-                    PrimRef::new(
-                        Aabb {
-                            min,
-                            max: min + size,
-                        },
-                        i,
-                    )
-                })
-                .collect();
+            let refs = random_refs(&mut rng, count, 20.0);
             let centroids = refs.iter().fold(Bounds::EMPTY, |mut acc, r| {
                 acc.grow(r.centroid2(), r.centroid2());
                 acc

@@ -6,9 +6,9 @@ use rayon::prelude::*;
 use wide::f32x8;
 
 use super::bins::{EMPTY_LANES, bounds_of};
-#[cfg(test)]
-use super::refs::measure;
 use super::refs::{Bounds, PrimRef};
+#[cfg(test)]
+use super::refs::{measure, random_refs};
 
 /// Partitions `refs` so that those `goes_left` come first and measures the
 /// centroids of both sides: `(number going left, [left, right] centroid bounds)`.
@@ -127,7 +127,6 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     use super::*;
-    use crate::math::Aabb;
 
     /// The same bits, lane by lane, of both boxes.
     fn same(a: Bounds, b: Bounds) -> bool {
@@ -143,19 +142,7 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(11);
         for case in 0..100 {
             let count = rng.random_range(0..2000);
-            let mut refs: Vec<PrimRef> = (0..count)
-                .map(|i| {
-                    let min = glam::Vec3::new(rng.random(), rng.random(), rng.random()) * 8.0 - 4.0;
-                    let size = glam::Vec3::new(rng.random(), rng.random(), rng.random());
-                    PrimRef::new(
-                        Aabb {
-                            min,
-                            max: min + size,
-                        },
-                        i,
-                    )
-                })
-                .collect();
+            let mut refs = random_refs(&mut rng, count, 8.0);
             let plane = rng.random_range(-4.0..4.0);
             let axis = case % 3;
             let goes_left = |r: &PrimRef| r.centroid2_on(axis) < plane;

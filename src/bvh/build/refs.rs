@@ -142,3 +142,24 @@ pub(super) fn measure(refs: &[PrimRef]) -> (Bounds, Bounds) {
             (b, c)
         })
 }
+
+/// `count` references to boxes of random sizes up to 1 along each axis, their
+/// minimum corners spread over a cube of side `spread` centred on the origin: the
+/// build tests' primitives.
+#[cfg(test)]
+pub(super) fn random_refs(rng: &mut impl rand::Rng, count: usize, spread: f32) -> Vec<PrimRef> {
+    (0..count)
+        .map(|i| {
+            let min =
+                glam::Vec3::new(rng.random(), rng.random(), rng.random()) * spread - spread / 2.0;
+            let size = glam::Vec3::new(rng.random(), rng.random(), rng.random());
+            PrimRef::new(
+                Aabb {
+                    min,
+                    max: min + size,
+                },
+                i,
+            )
+        })
+        .collect()
+}

@@ -123,7 +123,10 @@ impl Scene {
         }
         if description.instances.is_empty() {
             description.meshes = Vec::new();
-            return Scene::build_level(description, params).0;
+            let mut scene = Scene::build_level(description, params).0;
+            let nothing_left = scene.prim_count() == 0;
+            scene.warn_skipped(nothing_left);
+            return scene;
         }
         Scene::build_instanced(description, params)
     }
@@ -152,7 +155,7 @@ impl Scene {
             background,
             lit_by_rig,
             objects,
-            mut warnings,
+            warnings,
             meshes,
             instances,
         } = description;
@@ -217,16 +220,12 @@ impl Scene {
         }
 
         let tree_built = Mark::now();
+        // Told by the whole scene's build (`Scene::warn_skipped`): a scene of several
+        // levels warns once with the totals.
         let skipped = Skipped {
             degenerate: triangle_count + spheres.len() - order.len() - duplicates,
             duplicates,
         };
-        warnings.extend(skipped.warnings());
-        // A level of no shapes of its own renders its instances' (a scene of instances
-        // only): nothing is missing then.
-        if order.is_empty() && instances.is_empty() {
-            warnings.push(NO_SHAPES_LEFT.into());
-        }
         let area_lights = collect_area_lights(
             (&positions, &texcoords),
             &triangles,
@@ -408,8 +407,17 @@ impl Scene {
     }
 }
 
-/// The warning of a scene with nothing to render.
-pub(super) const NO_SHAPES_LEFT: &str = "the scene has no shapes left to render: every ray misses";
+impl Scene {
+    /// Warns of what the build skipped ([`Scene::skipped`]), and that nothing is left
+    /// to render if `nothing_left`: once for the whole scene, after its levels.
+    pub(super) fn warn_skipped(&mut self, nothing_left: bool) {
+        self.warnings.extend(self.skipped.warnings());
+        if nothing_left {
+            self.warnings
+                .push("the scene has no shapes left to render: every ray misses".into());
+        }
+    }
+}
 
 /// The shapes a level's build dropped: counted, so that a scene of several levels (a
 /// glTF file's meshes used by several nodes) warns once with the totals.

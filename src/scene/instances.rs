@@ -191,13 +191,8 @@ impl Instances {
             crate::memory::collapse_into_huge_pages(&scene.wide.nodes);
             crate::memory::collapse_into_huge_pages(&scene.packets);
             // What each mesh skipped is told once for the scene, added up
-            // (`Scene::build_instanced`), and a mesh with no shapes left leaves the
-            // scene its other shapes.
-            let own = scene.skipped.warnings();
-            warnings.extend(
-                (scene.warnings.drain(..))
-                    .filter(|w| !own.contains(w) && w != super::build::NO_SHAPES_LEFT),
-            );
+            // (`Scene::build_instanced`).
+            warnings.append(&mut scene.warnings);
             first_prim.push(prim_count as u32);
             first_source.push(source_count);
             prim_count += scene.prim_count();
@@ -428,19 +423,12 @@ impl Scene {
         let started = std::time::Instant::now();
         let mut warnings = Vec::new();
         let built = Instances::build(meshes, &instances, &scene, params, &mut warnings);
-        // One warning per kind of what the levels skipped, with the totals, where the
-        // flat level's own would be.
-        let own = scene.skipped.warnings();
-        let at = (scene.warnings.iter())
-            .position(|w| own.contains(w))
-            .unwrap_or(scene.warnings.len());
-        scene.warnings.retain(|w| !own.contains(w));
+        // One warning per kind of what the levels skipped, with the totals (each mesh
+        // counted once, as `raytracer info` counts); a mesh with no shapes left leaves
+        // the scene its other shapes.
         scene.skipped = (built.meshes.iter()).fold(scene.skipped, |total, m| total.add(m.skipped));
-        let totals = scene.skipped.warnings();
-        scene.warnings.splice(at..at, totals);
-        if built.placed.is_empty() && scene.prim_count() == 0 {
-            scene.warnings.push(super::build::NO_SHAPES_LEFT.into());
-        }
+        let nothing_left = built.placed.is_empty() && scene.prim_count() == 0;
+        scene.warn_skipped(nothing_left);
         // Each copy is an object of its own, after the flat level's.
         for (i, instance) in instances.iter().enumerate() {
             (scene.objects).push_after_shapes(format!("instance {i} of mesh {}", instance.mesh));

@@ -140,7 +140,7 @@ pub fn parse_gltf_with(
         materials: HashMap::new(),
         images: HashMap::new(),
         warned: Vec::new(),
-        points_and_lines: Vec::new(),
+        points_and_lines: std::collections::BTreeSet::new(),
         camera_found: false,
         worlds: None,
         node_uses: {
@@ -918,8 +918,9 @@ struct Reader<'a> {
     images: HashMap<usize, Option<Arc<Texture>>>,
     /// The kinds of warning already given, so that each is given once.
     warned: Vec<&'static str>,
-    /// The primitives of points or lines met (mesh and primitive), skipped.
-    points_and_lines: Vec<(usize, usize)>,
+    /// The primitives of points or lines met (mesh and primitive), skipped: a set,
+    /// since nodes sharing a mesh meet its primitives again.
+    points_and_lines: std::collections::BTreeSet<(usize, usize)>,
     camera_found: bool,
     /// Every node's world transform in the default pose, once a skin needs them.
     worlds: Option<Vec<Mat4>>,
@@ -949,7 +950,7 @@ impl Reader<'_> {
     }
 
     /// One warning for the primitives of points and lines skipped, naming the first
-    /// and counting the others.
+    /// (by mesh and primitive index) and counting the others.
     fn warn_points_and_lines(&mut self) {
         let Some(&(mesh, primitive)) = self.points_and_lines.first() else {
             return;
@@ -1205,10 +1206,8 @@ impl Reader<'_> {
                 Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
             ) {
                 // Told once for the file, counted (`Reader::warn_points_and_lines`).
-                let key = (mesh.index(), primitive.index());
-                if !self.points_and_lines.contains(&key) {
-                    self.points_and_lines.push(key);
-                }
+                self.points_and_lines
+                    .insert((mesh.index(), primitive.index()));
                 continue;
             }
             let draco = match self.draco.get(&(mesh.index(), primitive.index())) {

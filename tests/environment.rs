@@ -442,3 +442,37 @@ fn a_jpeg_with_an_hdr_gain_map_is_read_at_its_full_range() {
         }
     }
 }
+
+#[test]
+fn dwa_compressed_maps_read_as_the_reference_openexr_library_decodes_them() {
+    // HDRI packages ship lossy DWAA/DWAB maps (drei's presets are DWAB): each fixture
+    // must read texel for texel as OpenEXR's own decoding of it, kept losslessly (ZIP)
+    // beside it by tests/data/environment/dwa/make_dwa.py.
+    let folder = format!("{}/tests/data/environment/dwa", env!("CARGO_MANIFEST_DIR"));
+    let texture_of = |name: &str| {
+        let path = std::path::PathBuf::from(format!("{folder}/{name}"));
+        let (desc, _) = raytracer::formats::environment::load_environment_map(&path, 1.0, 0.0)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let EnvironmentRadiance::Map(texture) = desc.radiance else {
+            panic!("{name}: not a map");
+        };
+        texture
+    };
+    for compression in ["dwaa", "dwab"] {
+        let ours = texture_of(&format!("map-{compression}.exr"));
+        let reference = texture_of(&format!("map-{compression}-decoded.exr"));
+        assert_eq!(ours.size(), (96, 48));
+        assert_eq!(reference.size(), (96, 48));
+        let mut brightest: Float = 0.0;
+        for y in 0..48 {
+            for x in 0..96 {
+                let encoding = raytracer::textures::Encoding::Linear;
+                let (a, b) = (ours.texel(x, y, encoding), reference.texel(x, y, encoding));
+                assert_eq!(a[..3], b[..3], "{compression} texel ({x}, {y})");
+                brightest = brightest.max(a[0]);
+            }
+        }
+        // The sun survives the lossy blocks.
+        assert!(brightest > 20.0, "{compression}: brightest {brightest}");
+    }
+}

@@ -158,9 +158,8 @@ impl EnvironmentOptions {
 /// negative (they emit nothing).
 ///
 /// # Errors
-/// A file that cannot be read or is not an image (naming the file), an OpenEXR file
-/// of a compression the decoder cannot read (DWAA, DWAB: naming it and a fix), an
-/// image over the texture limits.
+/// A file that cannot be read or is not an image (naming the file), an image over the
+/// texture limits.
 pub fn load_environment_map(
     path: &Path,
     strength: Float,
@@ -169,11 +168,6 @@ pub fn load_environment_map(
     let shown = path.display();
     if path.is_dir() {
         return Err(format!("{shown}: is a directory"));
-    }
-    if let Some(compression) = unreadable_exr_compression(path) {
-        return Err(format!(
-            "{shown}: OpenEXR compressed with {compression}, which the renderer's decoder cannot read; convert it to ZIP or PIZ (for example `oiiotool {shown} --compression zip -o out.exr`) or use the .hdr version of the map"
-        ));
     }
     let mut texture = crate::textures::load_texture(path).map_err(|e| format!("{shown}: {e}"))?;
     let mut warning = None;
@@ -244,20 +238,4 @@ fn bad_texels(texture: &Arc<Texture>) -> Option<usize> {
         }
     }
     (bad > 0).then_some(bad)
-}
-
-/// The compression of an OpenEXR file that the `exr` crate cannot decode.
-fn unreadable_exr_compression(path: &Path) -> Option<&'static str> {
-    let is_exr = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if !is_exr {
-        return None;
-    }
-    let meta = exr::meta::MetaData::read_from_file(path, false).ok()?;
-    meta.headers.iter().find_map(|h| match h.compression {
-        exr::compression::Compression::DWAA(_) => Some("DWAA"),
-        exr::compression::Compression::DWAB(_) => Some("DWAB"),
-        _ => None,
-    })
 }

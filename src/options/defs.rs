@@ -718,7 +718,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "the scene's; none",
         example: "0.5,0.5,0.5",
         help: "Path mode's environment, lighting the scene from infinitely far away and seen where camera rays leave it: an equirectangular image (Radiance .hdr, OpenEXR, PNG or JPEG; +Y up, oriented as three.js and Blender show it) or a colour R,G,B. Replaces the scene file's [environment] [default: the scene's; none].",
-        details: "OpenEXR files compressed with DWAA or DWAB are refused (convert them to ZIP or PIZ); PNG and JPEG are read as sRGB, a JPEG with an HDR gain map (Ultra HDR, as viser ships Poly Haven's HDRIs) at its full range. A scene file gives either environment.file, relative to its folder, or environment.color, a number or [r, g, b], not both.",
+        details: "OpenEXR of every compression, lossy DWAA and DWAB included (as HDRI packages ship them); PNG and JPEG are read as sRGB, a JPEG with an HDR gain map (Ultra HDR, as viser ships Poly Haven's HDRIs) at its full range. A scene file gives either environment.file, relative to its folder, or environment.color, a number or [r, g, b], not both.",
         set: |o, v, origin| match v {
             Value::Text(text) => {
                 o.env = sourced(text, origin);

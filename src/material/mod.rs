@@ -302,6 +302,11 @@ impl Material {
         material.diffuse = values.diffuse;
         material.specular = values.specular;
         material.shininess = values.shininess;
+        // An anisotropic surface needs its texture coordinates for its tangents,
+        // which the readers and the scene keep for materials with maps alone.
+        if pbr.is_anisotropic() {
+            material.maps.get_or_insert_default();
+        }
         material.pbr = Some(Box::new(pbr));
         material
     }

@@ -702,9 +702,9 @@ Kd = 0.5
     assert_eq!(e.sheen_roughness, 0.6);
     assert!(e.multiple_scattering && !plastic.multiple_scattering);
     assert_eq!((e.anisotropy, e.anisotropy_rotation), (0.6, 1.5));
-    // Anisotropic: it keeps maps, so that the readers and the scene keep its
-    // texture coordinates for its tangents.
-    assert!(m[1].maps.is_some() && m[0].maps.is_none());
+    // Anisotropic: the readers and the scene keep texture coordinates for its
+    // tangents, though it has no maps.
+    assert!(m[1].needs_texcoords() && m[1].maps.is_none() && !m[0].needs_texcoords());
     assert_eq!(m[1].emission, Vec3::new(4.0, 2.0, 0.0));
 
     // Ke and Ni stand for emission and ior; Kd and Ks are ignored.

@@ -302,11 +302,6 @@ impl Material {
         material.diffuse = values.diffuse;
         material.specular = values.specular;
         material.shininess = values.shininess;
-        // An anisotropic surface needs its texture coordinates for its tangents,
-        // which the readers and the scene keep for materials with maps alone.
-        if pbr.is_anisotropic() {
-            material.maps.get_or_insert_default();
-        }
         material.pbr = Some(Box::new(pbr));
         material
     }
@@ -360,6 +355,14 @@ impl Material {
             maps.apply(uv, colour, &mut values, self.pbr.as_deref());
         }
         values
+    }
+
+    /// Whether hits on the material read texture coordinates: it has maps, or it is
+    /// anisotropic (its tangents come from them). The readers and the scene keep
+    /// texture coordinates only when some material does.
+    #[inline]
+    pub fn needs_texcoords(&self) -> bool {
+        self.maps.is_some() || self.pbr.as_deref().is_some_and(PbrMaterial::is_anisotropic)
     }
 
     /// Whether some of the surface may be cut out (`map_d`, glTF's alpha mask).

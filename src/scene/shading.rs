@@ -252,11 +252,11 @@ impl Scene {
             return details;
         };
         let material = details.material;
-        let has_maps = self
+        let reads_texcoords = self
             .materials
             .get(material.0 as usize)
-            .is_some_and(|m| m.maps.is_some());
-        if !has_maps {
+            .is_some_and(Material::needs_texcoords);
+        if !reads_texcoords {
             return details;
         }
         let uv = self.uv_at(prim, hit.u, hit.v);

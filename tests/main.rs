@@ -8,6 +8,7 @@
 mod fuzz_checks;
 mod support;
 
+mod anisotropy;
 mod arguments;
 mod bvh;
 mod cli;

@@ -289,9 +289,11 @@ fn gltf_extensions_land_in_the_material() {
                 "normalTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [4, 5]}}},
                 "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 1, 1], "sheenColorTexture": {"index": 0,
                 "extensions": {"KHR_texture_transform": {"scale": [6, 7]}}}}}}"#,
+            r#"{"name": "brushed", "extensions": {"KHR_materials_anisotropy": {"anisotropyStrength": 0.6,
+                "anisotropyRotation": 1.2, "anisotropyTexture": {"index": 0}}}}"#,
         ],
         r#""extensionsUsed": ["KHR_materials_ior", "KHR_materials_specular", "KHR_materials_transmission",
-            "KHR_materials_volume", "KHR_materials_clearcoat", "KHR_materials_sheen",
+            "KHR_materials_volume", "KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_anisotropy",
             "KHR_materials_emissive_strength", "KHR_texture_transform"],
            "extensionsRequired": ["KHR_materials_volume", "KHR_materials_clearcoat"],"#,
     );
@@ -350,6 +352,25 @@ fn gltf_extensions_land_in_the_material() {
     assert_eq!(normal.options.scale, Vec2::new(4.0, 5.0));
     let sheen = maps.pbr.sheen_color.as_ref().unwrap();
     assert_eq!(sheen.options.scale, Vec2::new(6.0, 7.0));
+
+    // KHR_materials_anisotropy: the strength times the texture's blue (linear), the
+    // direction its red and green in [-1, 1] turned by the rotation.
+    let brushed = pbr(&m[7]);
+    assert_eq!(
+        (brushed.anisotropy, brushed.anisotropy_rotation),
+        (0.6, 1.2)
+    );
+    let [r, g, b, _] = TEXELS[0];
+    let values = m[7].pbr_at(TOP_LEFT).unwrap();
+    assert!(close(values.anisotropy, 0.6 * unit(b)), "{values:?}");
+    let maps = m[7].maps.as_deref().map(|m| &m.pbr);
+    let direction = brushed.anisotropy_direction(TOP_LEFT, maps);
+    let (x, y) = (2.0 * unit(r) - 1.0, 2.0 * unit(g) - 1.0);
+    let turned = y.atan2(x) + 1.2;
+    assert!(
+        close(direction.x, turned.cos()) && close(direction.y, turned.sin()),
+        "{direction}"
+    );
 }
 
 #[test]
@@ -558,7 +579,7 @@ fn mtl_pbr_statements_make_a_physically_based_material_and_others_stay_phong() {
          map_Kd rgba.png\nmap_Bump -bm 0.5 normal.png\n\
          newmtl mapped\nKd 1 1 1\nmap_Pr -imfchan g rgba.png\nmap_Pm -imfchan b rgba.png\nNs 1000\n\
          newmtl from_ns\nKd 1 1 1\nPm 1\nNs 250\n\
-         newmtl bad\nPr 1.5\nPm -0.5\nNi 0.5\n",
+         newmtl bad\nPr 1.5\nPm -0.5\nNi 0.5\naniso 1.5\n",
         dir,
     );
     let path = dir.join("m.mtl");
@@ -577,6 +598,9 @@ fn mtl_pbr_statements_make_a_physically_based_material_and_others_stay_phong() {
     assert!(close(blender.transmission, 0.4));
     assert_eq!((blender.clearcoat, blender.clearcoat_roughness), (0.6, 0.2));
     assert_eq!(blender.sheen_color, Vec3::splat(0.3));
+    // `aniso` the strength, `anisor` in turns (Blender's Anisotropic Rotation).
+    assert_eq!(blender.anisotropy, 0.1);
+    assert!(close(blender.anisotropy_rotation, std::f32::consts::PI));
     assert_eq!(m[1].emission, Vec3::new(4.0, 2.0, 0.0)); // Ke above 1
     assert_eq!(m[1].ambient, Vec3::ZERO); // Blender's Ka is its metallic
     let maps = m[1].maps.as_deref().unwrap();
@@ -596,15 +620,14 @@ fn mtl_pbr_statements_make_a_physically_based_material_and_others_stay_phong() {
 
     let bad = pbr(&m[4]);
     assert_eq!((bad.roughness, bad.metallic, bad.ior), (1.0, 0.0, 1.0));
+    assert_eq!(bad.anisotropy, 1.0);
     let p = path.display();
     assert_eq!(
         library.warnings,
         [
-            format!(
-                "{p}: material 'blender': anisotropy ('aniso', 'anisor') is read but not rendered"
-            ),
             format!("{p}: material 'bad': metallic outside [0, 1], clamped"),
             format!("{p}: material 'bad': roughness outside [0, 1], clamped"),
+            format!("{p}: material 'bad': anisotropy outside [0, 1], clamped"),
             format!("{p}: material 'bad': ior below 1, read as 1"),
         ]
     );
@@ -634,6 +657,8 @@ clearcoat_roughness = 0.2
 sheen_color = [0.1, 0.2, 0.3]
 sheen_roughness = 0.6
 multiple_scattering = true
+anisotropy = 0.6
+anisotropy_rotation = 1.5
 emission = [1, 0.5, 0]
 emission_strength = 4
 
@@ -648,6 +673,8 @@ roughness = 0.5
 roughness = 2
 attenuation_distance = 0
 metallic = nan
+anisotropy = nan
+anisotropy_rotation = inf
 
 [materials.phong]
 Kd = 0.5
@@ -674,6 +701,10 @@ Kd = 0.5
     assert_eq!(e.sheen_color, Vec3::new(0.1, 0.2, 0.3));
     assert_eq!(e.sheen_roughness, 0.6);
     assert!(e.multiple_scattering && !plastic.multiple_scattering);
+    assert_eq!((e.anisotropy, e.anisotropy_rotation), (0.6, 1.5));
+    // Anisotropic: the readers and the scene keep texture coordinates for its
+    // tangents, though it has no maps.
+    assert!(m[1].needs_texcoords() && m[1].maps.is_none() && !m[0].needs_texcoords());
     assert_eq!(m[1].emission, Vec3::new(4.0, 2.0, 0.0));
 
     // Ke and Ni stand for emission and ior; Kd and Ks are ignored.
@@ -685,6 +716,7 @@ Kd = 0.5
     let bad = pbr(&m[3]);
     assert_eq!((bad.roughness, bad.metallic), (1.0, 0.0));
     assert_eq!(bad.attenuation_distance, Float::INFINITY);
+    assert_eq!((bad.anisotropy, bad.anisotropy_rotation), (0.0, 0.0));
 
     assert!(m[4].pbr.is_none());
     assert_eq!(m[4].diffuse, Vec3::splat(0.5));
@@ -698,6 +730,8 @@ Kd = 0.5
             ),
             format!("{p}: material 'bad': metallic is NaN, read as 0"),
             format!("{p}: material 'bad': roughness outside [0, 1], clamped"),
+            format!("{p}: material 'bad': anisotropy is NaN, read as 0"),
+            format!("{p}: material 'bad': anisotropy rotation is not finite, read as 0"),
             format!(
                 "{p}: material 'bad': attenuation distance of 0 or less, read as infinite (no attenuation)"
             ),

@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 
 use super::gltf::GltfBsdf;
 use super::lambert::Lambert;
-use super::microfacet::{Ggx, GgxReflection};
+use super::microfacet::{AnisoGgx, AnisoGgxReflection, Ggx, GgxReflection};
 use super::mtl::MtlMixture;
 use super::phong::Phong;
 use super::sheen::Sheen;
@@ -80,6 +80,26 @@ fn subjects() -> Vec<(&'static str, Box<dyn Lobe>, bool)> {
             "ggx 0.7",
             Box::new(GgxReflection {
                 ggx: Ggx { alpha: 0.7 },
+            }),
+            true,
+        ),
+        (
+            "anisotropic ggx 0.6 x 0.15",
+            Box::new(AnisoGgxReflection {
+                ggx: AnisoGgx {
+                    alpha_x: 0.6,
+                    alpha_y: 0.15,
+                },
+            }),
+            true,
+        ),
+        (
+            "anisotropic ggx 0.2 x 0.9",
+            Box::new(AnisoGgxReflection {
+                ggx: AnisoGgx {
+                    alpha_x: 0.2,
+                    alpha_y: 0.9,
+                },
             }),
             true,
         ),
@@ -184,6 +204,45 @@ fn subjects() -> Vec<(&'static str, Box<dyn Lobe>, bool)> {
                 ..dielectric(0.7)
             })),
             true,
+        ),
+        (
+            "gltf anisotropic metal 0.8",
+            Box::new(gltf(PbrMaterial {
+                base_color: Vec3::new(0.95, 0.93, 0.88),
+                metallic: 1.0,
+                roughness: 0.4,
+                anisotropy: 0.8,
+                ..PbrMaterial::default()
+            })),
+            true,
+        ),
+        (
+            "gltf anisotropic plastic, turned",
+            Box::new(gltf(PbrMaterial {
+                anisotropy: 0.5,
+                anisotropy_rotation: 0.7,
+                ..dielectric(0.5)
+            })),
+            true,
+        ),
+        (
+            "gltf anisotropic thin transmission",
+            Box::new(gltf(PbrMaterial {
+                transmission: 1.0,
+                anisotropy: 0.6,
+                ..dielectric(0.5)
+            })),
+            true,
+        ),
+        (
+            "gltf anisotropic volume",
+            Box::new(gltf(PbrMaterial {
+                transmission: 0.8,
+                thickness: 1.0,
+                anisotropy: 0.7,
+                ..dielectric(0.6)
+            })),
+            false,
         ),
         (
             "gltf everything, smooth coat",

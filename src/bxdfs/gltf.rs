@@ -39,7 +39,7 @@ use std::f32::consts::{FRAC_1_PI, PI};
 
 use super::fresnel::{schlick_scalar, schlick_weight};
 use super::lambert::cosine_hemisphere;
-use super::microfacet::{self, Ggx, reflection_pdf};
+use super::microfacet::{self, AnisoGgx, Ggx, reflection_pdf};
 use super::sheen::{self, Sheen};
 use super::{Frame, Lobe, LocalSample};
 use crate::material::pbr::PbrValues;
@@ -69,6 +69,12 @@ pub struct GltfBsdf {
     sheened: bool,
     /// Whether the GGX reflection lobes are compensated for multiple scattering.
     multiple_scattering: bool,
+    /// The base's anisotropic distribution (`KHR_materials_anisotropy`), which
+    /// replaces `ggx` for every base lobe (specular reflection, transmission) when
+    /// set; `None` for an anisotropy of 0, which leaves every value as it was.
+    aniso: Option<AnisoGgx>,
+    /// The direction of anisotropy in tangent space ([`PbrValues::anisotropy_direction`]).
+    aniso_direction: Vec2,
     /// Whether the material is the common plain one: a rough metal, dielectric or
     /// mix of both with no transmission, clearcoat, sheen or compensation, whose
     /// value and density take the short path ([`GltfAt::plain_eval_pdf`]).
@@ -97,16 +103,28 @@ impl GltfBsdf {
     /// The BSDF of `values`.
     pub fn new(values: &PbrValues) -> GltfBsdf {
         let sheened = values.sheen_color.max_element() > 0.0;
-        let ggx = Ggx::from_roughness(values.roughness);
+        let aniso = (values.anisotropy > 0.0)
+            .then(|| AnisoGgx::from_roughness(values.roughness, values.anisotropy));
+        let ggx = match aniso {
+            // What the compensation's albedo table and the delta test read: the
+            // isotropic distribution of the same area, never a delta.
+            Some(a) => Ggx {
+                alpha: (a.alpha_x * a.alpha_y).sqrt(),
+            },
+            None => Ggx::from_roughness(values.roughness),
+        };
         GltfBsdf {
             plain: !(values.transmission > 0.0
                 || values.clearcoat > 0.0
                 || sheened
                 || values.multiple_scattering
+                || aniso.is_some()
                 || ggx.is_delta()),
             base: values.base_color,
             metallic: values.metallic,
-            ggx: Ggx::from_roughness(values.roughness),
+            ggx,
+            aniso,
+            aniso_direction: values.anisotropy_direction,
             f0: values.dielectric_f0(),
             f90: values.specular,
             transmission: values.transmission,
@@ -140,6 +158,59 @@ impl GltfBsdf {
             alpha: self.ggx.alpha,
             f90: self.f90,
         })
+    }
+
+    /// The direction of anisotropy in tangent space, if the material is anisotropic:
+    /// what the shading frame's tangent is turned by where the hit has no tangent
+    /// of its own.
+    #[inline]
+    pub fn anisotropy_direction(&self) -> Option<Vec2> {
+        self.aniso.map(|_| self.aniso_direction)
+    }
+
+    /// The base distribution's `D(h)`.
+    #[inline]
+    fn base_d(&self, h: Vec3) -> Float {
+        match &self.aniso {
+            Some(a) => a.d(h),
+            None => self.ggx.d(h),
+        }
+    }
+
+    /// The base distribution's `G2(wo, wi)`.
+    #[inline]
+    fn base_g2(&self, wo: Vec3, wi: Vec3) -> Float {
+        match &self.aniso {
+            Some(a) => a.g2(wo, wi),
+            None => self.ggx.g2(wo, wi),
+        }
+    }
+
+    /// The base distribution's visibility `V(wo, wi)`.
+    #[inline]
+    fn base_visibility(&self, wo: Vec3, wi: Vec3) -> Float {
+        match &self.aniso {
+            Some(a) => a.visibility(wo, wi),
+            None => self.ggx.visibility(wo, wi),
+        }
+    }
+
+    /// The base distribution's density of visible normals.
+    #[inline]
+    fn base_visible_pdf(&self, wo: Vec3, h: Vec3) -> Float {
+        match &self.aniso {
+            Some(a) => a.visible_pdf(wo, h),
+            None => self.ggx.visible_pdf(wo, h),
+        }
+    }
+
+    /// A visible normal of the base distribution.
+    #[inline]
+    fn base_sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        match &self.aniso {
+            Some(a) => a.sample_visible(wo, u),
+            None => self.ggx.sample_visible(wo, u),
+        }
     }
 
     /// Whether some lobe is not a delta.
@@ -181,8 +252,13 @@ impl GltfBsdf {
         if wo.z <= 0.0 {
             return at;
         }
-        let a2 = self.ggx.alpha * self.ggx.alpha;
-        at.visibility_o = (a2 + (1.0 - a2) * wo.z * wo.z).sqrt();
+        at.visibility_o = match &self.aniso {
+            Some(a) => a.stretched_length(wo),
+            None => {
+                let a2 = self.ggx.alpha * self.ggx.alpha;
+                (a2 + (1.0 - a2) * wo.z * wo.z).sqrt()
+            }
+        };
         // G1 = 1 / (1 + Lambda) and 2 Lambda + 1 = visibility_o / n.wo, so
         // G1 / (4 n.wo) = 1 / (2 (n.wo + visibility_o)).
         at.pdf_scale = 0.5 / (wo.z + at.visibility_o);
@@ -222,7 +298,7 @@ impl GltfBsdf {
             let h = (wo + mirrored).normalize();
             let w = schlick_weight(wo.dot(h));
             let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * w;
-            let btdf = self.ggx.d(h) * self.ggx.visibility(wo, mirrored);
+            let btdf = self.base_d(h) * self.base_visibility(wo, mirrored);
             return self.base * (weight * (1.0 - fd.max_element()) * btdf);
         }
         let eta = self.eta(front);
@@ -233,7 +309,7 @@ impl GltfBsdf {
         let w = schlick_weight(o);
         let fd = self.f0 + (Vec3::splat(self.f90) - self.f0) * w;
         let denominator = (i + o / eta) * (i + o / eta) * wi.z.abs() * wo.z;
-        let btdf = self.ggx.d(h) * self.ggx.g2(wo, wi) * (i * o).abs() / denominator;
+        let btdf = self.base_d(h) * self.base_g2(wo, wi) * (i * o).abs() / denominator;
         // Radiance crossing into a denser medium is compressed into a smaller solid
         // angle: divided by eta^2, as pbrt and Mitsuba do in radiance mode.
         self.base * (weight * (1.0 - fd.max_element()) * btdf / (eta * eta))
@@ -244,6 +320,14 @@ impl GltfBsdf {
     fn transmission_pdf(&self, wo: Vec3, wi: Vec3, front: bool) -> Float {
         if !self.volume {
             let h = (wo + Vec3::new(wi.x, wi.y, -wi.z)).normalize();
+            if self.aniso.is_some() {
+                let cos = wo.dot(h);
+                return if cos > 0.0 {
+                    self.base_visible_pdf(wo, h) / (4.0 * cos)
+                } else {
+                    0.0
+                };
+            }
             return reflection_pdf(&self.ggx, wo, h);
         }
         let eta = self.eta(front);
@@ -252,7 +336,7 @@ impl GltfBsdf {
         };
         let (o, i) = (wo.dot(h), wi.dot(h));
         let jacobian = i.abs() / ((i + o / eta) * (i + o / eta));
-        self.ggx.visible_pdf(wo, h) * jacobian
+        self.base_visible_pdf(wo, h) * jacobian
     }
 }
 
@@ -411,7 +495,7 @@ impl GltfAt<'_> {
         let base_layer = if wi.z > 0.0 {
             let h = (wo + wi).normalize();
             half = h;
-            let d = if g.ggx.is_delta() { 0.0 } else { g.ggx.d(h) };
+            let d = if g.ggx.is_delta() { 0.0 } else { g.base_d(h) };
             pdf += (p[DIFFUSE] + p[SHEEN]) * (wi.z * FRAC_1_PI);
             if p[SPECULAR] > 0.0 {
                 pdf += p[SPECULAR] * self.specular_pdf(d, h);
@@ -550,6 +634,14 @@ impl GltfAt<'_> {
     /// `wo` half computed once in [`GltfBsdf::at`].
     #[inline(always)]
     fn visibility(&self, wi: Vec3) -> Float {
+        if let Some(a) = &self.bsdf.aniso {
+            let denominator = wi.z.abs() * self.visibility_o + self.wo.z * a.stretched_length(wi);
+            return if denominator > 0.0 {
+                0.5 / denominator
+            } else {
+                0.0
+            };
+        }
         let denominator = self.visibility_denominator(wi);
         if denominator > 0.0 {
             0.5 / denominator
@@ -616,12 +708,12 @@ impl GltfAt<'_> {
         let wi = match lobe {
             DIFFUSE | SHEEN => cosine_hemisphere(u),
             SPECULAR if g.ggx.is_delta() => return Some(self.delta_reflection(p[SPECULAR])),
-            SPECULAR => reflect(-wo, g.ggx.sample_visible(wo, u)),
+            SPECULAR => reflect(-wo, g.base_sample_visible(wo, u)),
             TRANSMISSION if g.ggx.is_delta() => {
                 return self.delta_transmission(p[TRANSMISSION]);
             }
             TRANSMISSION => {
-                let h = g.ggx.sample_visible(wo, u);
+                let h = g.base_sample_visible(wo, u);
                 if g.volume {
                     refract(-wo, h, 1.0 / g.eta(front))?
                 } else {

@@ -698,7 +698,7 @@ mod tests {
         let valid = samples.valid.to_bitmask();
         let mut sampled = 0;
         for (lane, (bsdf, wo, ns, ng)) in scalar.iter().enumerate() {
-            let at = bsdf.at(*wo, *ns, *ng, Vec3::ZERO, true);
+            let at = bsdf.at(*wo, *ns, *ng, Vec3::ZERO, Vec3::ZERO, true);
             let (f0, pdf0) = at.eval_and_pdf(wi[lane]);
             let here = format!("lane {lane}: {bsdf:?} wo {wo} ns {ns} ng {ng}");
             if at.has_smooth_lobes() != (smooth >> lane & 1 == 1) {

@@ -56,6 +56,27 @@ impl Frame {
         }
     }
 
+    /// The frame of an anisotropic surface about the unit normal `n`, its first
+    /// tangent along the direction of anisotropy: `tangent` made orthogonal to `n`
+    /// (the hit's, already turned by the material: [`crate::scene::Hit::tangent`]),
+    /// or where that is zero or along `n`, [`Frame::from_normal`]'s tangent turned
+    /// by `direction` (`(cos, sin)` towards its second tangent).
+    #[inline]
+    pub fn anisotropic(n: Vec3, tangent: Vec3, direction: Vec2) -> Frame {
+        let t = match (tangent - n * n.dot(tangent)).try_normalize() {
+            Some(t) => t,
+            None => {
+                let base = Frame::from_normal(n);
+                (base.t * direction.x + base.b * direction.y).normalize()
+            }
+        };
+        Frame {
+            t,
+            b: n.cross(t),
+            n,
+        }
+    }
+
     /// `v` in the frame's coordinates.
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
@@ -176,12 +197,22 @@ impl Bsdf {
 
     /// This BSDF at one path vertex, seen from `wo`: `ns` is the unit shading normal
     /// facing `wo`, `ng` the geometric one (also facing `wo`), `coat_ns` a clear
-    /// coat's own shading normal ([`crate::scene::Hit::coat_ns`], zero for `ns`);
-    /// `front` says whether `wo` is on the side the geometric normal of the surface
-    /// faces (outside a volume). Light sampling's `eval` and `pdf` and the bounce's
-    /// `sample` share what it computes once (the frame, the lobe probabilities).
+    /// coat's own shading normal ([`crate::scene::Hit::coat_ns`], zero for `ns`),
+    /// `tangent` the direction of anisotropy ([`crate::scene::Hit::tangent`], zero
+    /// where the hit has none), read by anisotropic materials alone; `front` says
+    /// whether `wo` is on the side the geometric normal of the surface faces (outside
+    /// a volume). Light sampling's `eval` and `pdf` and the bounce's `sample` share
+    /// what it computes once (the frame, the lobe probabilities).
     #[inline(always)]
-    pub fn at(&self, wo: Vec3, ns: Vec3, ng: Vec3, coat_ns: Vec3, front: bool) -> BsdfAt<'_> {
+    pub fn at(
+        &self,
+        wo: Vec3,
+        ns: Vec3,
+        ng: Vec3,
+        coat_ns: Vec3,
+        tangent: Vec3,
+        front: bool,
+    ) -> BsdfAt<'_> {
         match self {
             Bsdf::Mtl(mixture) => BsdfAt::Mtl {
                 mixture,
@@ -190,7 +221,7 @@ impl Bsdf {
                 ng,
                 front,
             },
-            Bsdf::Gltf(g) => gltf_at(g, wo, ns, ng, coat_ns, front),
+            Bsdf::Gltf(g) => gltf_at(g, wo, ns, ng, coat_ns, tangent, front),
         }
     }
 
@@ -320,9 +351,13 @@ fn gltf_at<'a>(
     ns: Vec3,
     ng: Vec3,
     coat_ns: Vec3,
+    tangent: Vec3,
     front: bool,
 ) -> BsdfAt<'a> {
-    let frame = Frame::from_normal(ns);
+    let frame = match g.anisotropy_direction() {
+        None => Frame::from_normal(ns),
+        Some(direction) => Frame::anisotropic(ns, tangent, direction),
+    };
     let coat = (coat_ns != Vec3::ZERO).then(|| frame.to_local(coat_ns));
     BsdfAt::Gltf(GltfVertex {
         at: g.at(frame.to_local(wo), front, coat),

@@ -97,6 +97,17 @@ pub(crate) fn check_pbr(
         defaults.sheen_roughness,
         "sheen roughness",
     );
+    unit(&mut pbr.anisotropy, defaults.anisotropy, "anisotropy");
+    if !pbr.anisotropy_rotation.is_finite() {
+        pbr.anisotropy_rotation = defaults.anisotropy_rotation;
+        problems.note(
+            format!(
+                "anisotropy rotation is not finite, read as {}",
+                defaults.anisotropy_rotation
+            ),
+            name,
+        );
+    }
     let mut colour = |value: &mut Vec3, default: Vec3, what: &str| {
         if value.is_nan() {
             *value = default;

@@ -81,8 +81,10 @@ struct PbrStatements {
     sheen: Option<Float>,
     clearcoat: Option<Float>,
     clearcoat_roughness: Option<Float>,
-    /// `aniso` or `anisor`: read, not rendered.
-    anisotropy: bool,
+    /// `aniso`: the anisotropy strength; `anisor`: its rotation in turns (1 a full
+    /// circle, as Blender's Principled BSDF's "Anisotropic Rotation").
+    anisotropy: Option<Float>,
+    anisotropy_rotation: Option<Float>,
     /// `Tf`: Blender writes its transmission there (grey).
     transmission: Option<Vec3>,
     /// `map_Pr`, `map_Pm`, `map_Ps`.
@@ -225,8 +227,9 @@ struct Read<'a> {
 ///   likewise twice; transmission the mean of `Tf` (Blender writes its transmission
 ///   there, and only for PBR materials);
 /// - sheen colour `Ps` grey (`map_Ps` its map) at roughness 0.5 (Blender's default),
-///   clearcoat `Pc`, clearcoat roughness `Pcr`; `aniso` and `anisor` are read and
-///   not rendered (one warning);
+///   clearcoat `Pc`, clearcoat roughness `Pcr`; anisotropy `aniso`
+///   (`KHR_materials_anisotropy`'s strength) turned by `anisor` turns (`2 pi
+///   anisor` radians, Blender's "Anisotropic Rotation");
 /// - emission `Ke` (which may exceed 1), `map_Ke`; `map_d` stays the cutout, and
 ///   `bump`/`norm` the shading normal (`-bm` scaling a normal map's tilt, as
 ///   Blender's normal map strength).
@@ -276,14 +279,12 @@ fn physically_based(
         clearcoat_roughness: statements.clearcoat_roughness.unwrap_or(0.0),
         sheen_color: Vec3::splat(sheen),
         sheen_roughness: 0.5,
+        anisotropy: statements.anisotropy.unwrap_or(0.0),
+        anisotropy_rotation: statements
+            .anisotropy_rotation
+            .map_or(0.0, |turns| turns * std::f32::consts::TAU),
         ..PbrMaterial::default()
     };
-    if statements.anisotropy {
-        problems.note(
-            "anisotropy ('aniso', 'anisor') is read but not rendered",
-            &material.name,
-        );
-    }
     let defaults = PbrMaterial {
         metallic: 0.0,
         ..PbrMaterial::default()
@@ -484,14 +485,8 @@ fn parse_line(
         b"Ps" => pbr.sheen = one("Ps")?,
         b"Pc" => pbr.clearcoat = one("Pc")?,
         b"Pcr" => pbr.clearcoat_roughness = one("Pcr")?,
-        b"aniso" | b"anisor" => {
-            one(if keyword == b"aniso" {
-                "aniso"
-            } else {
-                "anisor"
-            })?;
-            pbr.anisotropy = true;
-        }
+        b"aniso" => pbr.anisotropy = one("aniso")?,
+        b"anisor" => pbr.anisotropy_rotation = one("anisor")?,
         _ => {}
     }
     match keyword {

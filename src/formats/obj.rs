@@ -354,7 +354,7 @@ fn chunk_faces(statements: &[Chunk], bases: &[Counts], shapings: Vec<Shaping>) -
 /// when the file has texture coordinates and a material (all loaded by now) has a map
 /// to read with them. Most large meshes have neither, and pay nothing.
 fn keeps_triangle_texcoords(total: &Counts, scene: &SceneDescription) -> bool {
-    total.texcoords > 0 && scene.materials.iter().any(|m| m.maps.is_some())
+    total.texcoords > 0 && scene.materials.iter().any(Material::needs_texcoords)
 }
 
 /// Whether the description keeps each triangle's normal indices as read: only when

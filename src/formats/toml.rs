@@ -344,6 +344,8 @@ struct MaterialTable {
     sheen_color: Option<Splat>,
     sheen_roughness: Option<Float>,
     multiple_scattering: Option<bool>,
+    anisotropy: Option<Float>,
+    anisotropy_rotation: Option<Float>,
     #[serde(rename = "emission")]
     emission_colour: Option<Splat>,
     emission_strength: Option<Float>,
@@ -369,6 +371,8 @@ impl MaterialTable {
             sheen_roughness,
             emission_colour,
             emission_strength,
+            anisotropy,
+            anisotropy_rotation,
             ..
         } = self;
         [
@@ -392,6 +396,8 @@ impl MaterialTable {
                 clearcoat_roughness,
                 sheen_roughness,
                 emission_strength,
+                anisotropy,
+                anisotropy_rotation,
             ]
             .iter()
             .any(|v| v.is_some())
@@ -1087,6 +1093,10 @@ fn physically_based(
         sheen_color: colour(p.sheen_color, defaults.sheen_color),
         sheen_roughness: p.sheen_roughness.unwrap_or(defaults.sheen_roughness),
         multiple_scattering: p.multiple_scattering.unwrap_or(false),
+        anisotropy: p.anisotropy.unwrap_or(defaults.anisotropy),
+        anisotropy_rotation: p
+            .anisotropy_rotation
+            .unwrap_or(defaults.anisotropy_rotation),
     };
     let phong_keys = [
         ("Ka", table.ambient.is_some()),
@@ -1400,7 +1410,7 @@ al = [0.1, 0.2, 0.7]
             ),
             (
                 "[materials.m]\nTr = 0.5\n",
-                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`, `base_color`, `metallic`, `roughness`, `ior`, `specular`, `specular_color`, `transmission`, `thickness`, `attenuation_color`, `attenuation_distance`, `clearcoat`, `clearcoat_roughness`, `sheen_color`, `sheen_roughness`, `multiple_scattering`, `emission`, `emission_strength`",
+                "DIR/s.toml:2: materials.m.Tr: unknown field `Tr`, expected one of `Ka`, `Kd`, `Ks`, `Ke`, `Ns`, `Ni`, `d`, `al`, `base_color`, `metallic`, `roughness`, `ior`, `specular`, `specular_color`, `transmission`, `thickness`, `attenuation_color`, `attenuation_distance`, `clearcoat`, `clearcoat_roughness`, `sheen_color`, `sheen_roughness`, `multiple_scattering`, `anisotropy`, `anisotropy_rotation`, `emission`, `emission_strength`",
             ),
             (
                 "[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n",

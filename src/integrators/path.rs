@@ -325,7 +325,7 @@ impl PathIntegrator {
             None => &self.scattering[hit.material.0 as usize],
         };
         let wo = -ray.dir;
-        let bsdf = scattering.at(wo, hit.ns, hit.n, hit.coat_ns, hit.front);
+        let bsdf = scattering.at(wo, hit.ns, hit.n, hit.coat_ns, hit.tangent, hit.front);
         let sample = &mut path.sample;
 
         // Next-event estimation: one light, chosen by power.
@@ -1174,6 +1174,7 @@ mod tests {
                     ns: n,
                     uv: Vec2::ZERO,
                     coat_ns: Vec3::ZERO,
+                    tangent: Vec3::ZERO,
                     lift: Vec3::ZERO,
                     colour: Vec3::ONE,
                     material: crate::material::MaterialId(0),

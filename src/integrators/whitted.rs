@@ -774,6 +774,7 @@ mod tests {
                     ns,
                     uv: Vec2::ZERO,
                     coat_ns: Vec3::ZERO,
+                    tangent: Vec3::ZERO,
                     // Half the hits lifted towards a smooth surface.
                     lift: if lane % 2 == 0 {
                         Vec3::ZERO

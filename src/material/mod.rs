@@ -357,6 +357,14 @@ impl Material {
         values
     }
 
+    /// Whether hits on the material read texture coordinates: it has maps, or it is
+    /// anisotropic (its tangents come from them). The readers and the scene keep
+    /// texture coordinates only when some material does.
+    #[inline]
+    pub fn needs_texcoords(&self) -> bool {
+        self.maps.is_some() || self.pbr.as_deref().is_some_and(PbrMaterial::is_anisotropic)
+    }
+
     /// Whether some of the surface may be cut out (`map_d`, glTF's alpha mask).
     #[inline]
     pub fn cutout(&self) -> Option<&Cutout> {

@@ -50,6 +50,13 @@ pub struct PbrMaterial {
     /// `multiple_scattering`; off, as glTF's single-scattering model is defined):
     /// Turquin's (2019) scaling, so that a rough white metal loses no energy.
     pub multiple_scattering: bool,
+    /// `KHR_materials_anisotropy` `anisotropyStrength`, in [0, 1] (0: isotropic):
+    /// the GGX `alpha` along the direction of anisotropy becomes `mix(alpha, 1,
+    /// strength^2)`, across it stays `alpha`.
+    pub anisotropy: Float,
+    /// `KHR_materials_anisotropy` `anisotropyRotation`: the direction of anisotropy,
+    /// in radians counter-clockwise from the tangent towards the bitangent (0).
+    pub anisotropy_rotation: Float,
 }
 
 impl Default for PbrMaterial {
@@ -70,6 +77,8 @@ impl Default for PbrMaterial {
             sheen_color: Vec3::ZERO,
             sheen_roughness: 0.0,
             multiple_scattering: false,
+            anisotropy: 0.0,
+            anisotropy_rotation: 0.0,
         }
     }
 }
@@ -104,6 +113,10 @@ pub struct PbrMaps {
     pub sheen_color: Option<TextureMap>,
     /// `sheenRoughnessTexture` (alpha).
     pub sheen_roughness: Option<TextureMap>,
+    /// `anisotropyTexture` (linear): red and green the direction in tangent space
+    /// (from [0, 1] to [-1, 1]), turned by the rotation; blue multiplies the
+    /// strength.
+    pub anisotropy: Option<TextureMap>,
 }
 
 impl PbrMaps {
@@ -145,6 +158,12 @@ pub struct PbrValues {
     pub sheen_roughness: Float,
     /// Multiple-scattering compensation ([`PbrMaterial::multiple_scattering`]).
     pub multiple_scattering: bool,
+    /// Anisotropy strength, in [0, 1] (0: isotropic, the isotropic GGX exactly).
+    pub anisotropy: Float,
+    /// The direction of anisotropy in tangent space, `(cos, sin)` of the rotation:
+    /// what the BSDF turns its frame's default tangent by where the hit gives no
+    /// tangent of its own ([`crate::scene::Hit::tangent`]).
+    pub anisotropy_direction: Vec2,
 }
 
 impl PbrMaterial {
@@ -177,7 +196,55 @@ impl PbrMaterial {
             sheen_color: colour(self.sheen_color),
             sheen_roughness: self.sheen_roughness.clamp(0.0, 1.0),
             multiple_scattering: self.multiple_scattering,
+            anisotropy: self.anisotropy_strength(),
+            anisotropy_direction: rotation_direction(self.anisotropy_rotation),
         }
+    }
+
+    /// The anisotropy strength in [0, 1]; 0 for NaN.
+    #[inline]
+    fn anisotropy_strength(&self) -> Float {
+        if self.anisotropy > 0.0 {
+            self.anisotropy.min(1.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether the material is anisotropic somewhere: a strength above 0 (the
+    /// texture's blue only multiplies it).
+    #[inline]
+    pub fn is_anisotropic(&self) -> bool {
+        self.anisotropy_strength() > 0.0
+    }
+
+    /// The unit direction of anisotropy at `uv` in tangent space (x along the
+    /// tangent, y along the bitangent): the `anisotropyTexture`'s red and green
+    /// mapped to [-1, 1] and normalised, or the tangent, turned counter-clockwise by
+    /// the rotation, as the extension's "Implementation" section does.
+    pub fn anisotropy_direction(&self, uv: Vec2, maps: Option<&PbrMaps>) -> Vec2 {
+        let rotation = rotation_direction(self.anisotropy_rotation);
+        let Some(map) = maps.and_then(|m| m.anisotropy.as_ref()) else {
+            return rotation;
+        };
+        let texel = map.colour(uv, Encoding::Linear);
+        let direction = Vec2::new(2.0 * texel.x - 1.0, 2.0 * texel.y - 1.0)
+            .try_normalize()
+            .unwrap_or(Vec2::X);
+        Vec2::new(
+            rotation.x * direction.x - rotation.y * direction.y,
+            rotation.y * direction.x + rotation.x * direction.y,
+        )
+    }
+}
+
+/// `(cos, sin)` of `radians`; `(1, 0)` when it is not finite.
+fn rotation_direction(radians: Float) -> Vec2 {
+    if radians.is_finite() {
+        let (sin, cos) = radians.sin_cos();
+        Vec2::new(cos, sin)
+    } else {
+        Vec2::X
     }
 }
 
@@ -222,6 +289,12 @@ impl PbrMaps {
         scalar(&self.clearcoat_roughness, &mut values.clearcoat_roughness);
         colour(&self.sheen_color, &mut values.sheen_color);
         scalar(&self.sheen_roughness, &mut values.sheen_roughness);
+        if let Some(map) = &self.anisotropy {
+            let strength = map.colour(uv, Encoding::Linear).z.clamp(0.0, 1.0);
+            values.anisotropy *= strength;
+            // The direction stays the rotation's: the scene turns the hit's tangent
+            // by the map ([`crate::scene::Hit::tangent`]).
+        }
     }
 }
 

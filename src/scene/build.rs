@@ -317,7 +317,7 @@ impl Scene {
 
         // Texture coordinates only where a material can use them. An index out of
         // range (a description not made by a reader) counts as none.
-        let textured = materials.iter().any(|m| m.maps.is_some())
+        let textured = materials.iter().any(Material::needs_texcoords)
             && triangle_texcoords.iter().any(Option::is_some);
         let prim_texcoords: Vec<[u32; 3]> = if textured {
             let in_range = |ids: [u32; 3]| ids.iter().all(|&i| (i as usize) < texcoords.len());

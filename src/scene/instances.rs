@@ -353,6 +353,13 @@ impl Instances {
             colour: inner.colour,
             // Zero (no coat normal of its own) stays zero.
             coat_ns: to_world(inner.coat_ns).unwrap_or(Vec3::ZERO),
+            // A direction in the surface: placed by the linear part itself.
+            tangent: if inner.tangent == Vec3::ZERO {
+                Vec3::ZERO
+            } else {
+                try_unit(placed.object_from_world.matrix3.inverse() * inner.tangent)
+                    .unwrap_or(Vec3::ZERO)
+            },
             // Made in world space from the placed corners and vertex normals, as the
             // flattened mesh's is (the construction does not commute with a
             // non-uniform scale), only where the mesh's own says there is one.

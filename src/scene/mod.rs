@@ -248,6 +248,14 @@ pub struct Hit {
     /// differs from `ns` (its own normal map, or none under the base's normal map),
     /// facing as `ns` does; zero where it is `ns`.
     pub coat_ns: Vec3,
+    /// The unit direction of anisotropy of an anisotropic material
+    /// (`KHR_materials_anisotropy`): the tangent along the triangle's texture
+    /// coordinates' `u` turned by the material's rotation and direction map, in the
+    /// plane of `u` and `v` (the tangent frame normal maps use); zero on other
+    /// materials and where there are no texture coordinates (spheres, meshes
+    /// without them, a degenerate UV layout), where the BSDF turns a default
+    /// tangent instead ([`crate::bxdfs::Frame::anisotropic`]).
+    pub tangent: Vec3,
     /// The vertex colour interpolated at the hit (linear RGB), which multiplies the
     /// diffuse or base colour of a material that takes vertex colours
     /// ([`Material::at_point`]); white where there is none, on materials without

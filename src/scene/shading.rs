@@ -160,6 +160,7 @@ impl Scene {
             ns: face(ns),
             uv: Vec2::ZERO,
             coat_ns: Vec3::ZERO,
+            tangent: Vec3::ZERO,
             lift,
             colour: Vec3::ONE,
             material: shading.material,
@@ -251,11 +252,11 @@ impl Scene {
             return details;
         };
         let material = details.material;
-        let has_maps = self
+        let reads_texcoords = self
             .materials
             .get(material.0 as usize)
-            .is_some_and(|m| m.maps.is_some());
-        if !has_maps {
+            .is_some_and(Material::needs_texcoords);
+        if !reads_texcoords {
             return details;
         }
         let uv = self.uv_at(prim, hit.u, hit.v);
@@ -275,6 +276,16 @@ impl Scene {
         }
         if let Some(coat) = coat {
             details.coat_ns = turn(coat);
+        }
+        if let Some(pbr) = self.materials[material.0 as usize]
+            .pbr
+            .as_deref()
+            .filter(|pbr| pbr.is_anisotropic())
+            && let Some((tangent, bitangent)) = self.tangents(prim, &triangle, ns)
+        {
+            let maps = self.materials[material.0 as usize].maps.as_deref();
+            let direction = pbr.anisotropy_direction(uv, maps.map(|m| &m.pbr));
+            details.tangent = tangent * direction.x + bitangent * direction.y;
         }
         details
     }

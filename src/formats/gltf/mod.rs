@@ -180,7 +180,7 @@ pub fn parse_gltf_with(
         reader.warn(message);
     }
     // As the OBJ reader: texture coordinate indices only where a map can use them.
-    if reader.scene.materials.iter().all(|m| m.maps.is_none()) {
+    if !reader.scene.materials.iter().any(Material::needs_texcoords) {
         reader.scene.triangle_texcoords = Vec::new();
     }
     Ok(LoadedScene {

@@ -4,6 +4,7 @@
 //! a file's `extensionsUsed` that are in neither list get one warning each; those in
 //! `extensionsRequired` are an error (see [`super::check_extensions`]).
 
+pub(super) mod anisotropy;
 pub(super) mod clearcoat;
 pub(super) mod draco;
 pub(super) mod emissive_strength;
@@ -40,6 +41,7 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
     volume::EXTENSION,
     clearcoat::EXTENSION,
     sheen::EXTENSION,
+    anisotropy::EXTENSION,
     emissive_strength::EXTENSION,
 ];
 

@@ -1087,6 +1087,7 @@ fn physically_based(
         sheen_color: colour(p.sheen_color, defaults.sheen_color),
         sheen_roughness: p.sheen_roughness.unwrap_or(defaults.sheen_roughness),
         multiple_scattering: p.multiple_scattering.unwrap_or(false),
+        unlit: false,
     };
     let phong_keys = [
         ("Ka", table.ambient.is_some()),

@@ -50,6 +50,12 @@ pub struct PbrMaterial {
     /// `multiple_scattering`; off, as glTF's single-scattering model is defined):
     /// Turquin's (2019) scaling, so that a rough white metal loses no energy.
     pub multiple_scattering: bool,
+    /// `KHR_materials_unlit`: the surface shows its base colour (factor, map and
+    /// vertex colour) to the eye, whatever the lights, and scatters nothing: a camera
+    /// ray (or one continuing it through mirrors and glass) that meets it sees exactly
+    /// that colour; any other ray that meets it ends there, so it casts shadows but
+    /// lights no other surface (see `docs/scene-format.md`).
+    pub unlit: bool,
 }
 
 impl Default for PbrMaterial {
@@ -70,6 +76,7 @@ impl Default for PbrMaterial {
             sheen_color: Vec3::ZERO,
             sheen_roughness: 0.0,
             multiple_scattering: false,
+            unlit: false,
         }
     }
 }

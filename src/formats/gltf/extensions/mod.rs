@@ -15,6 +15,7 @@ pub(super) mod sheen;
 pub(super) mod specular;
 pub(super) mod texture_transform;
 pub(super) mod transmission;
+pub(super) mod unlit;
 pub(super) mod volume;
 
 use gltf::json::Value;
@@ -31,7 +32,8 @@ pub(super) struct Extension {
 }
 
 /// The material extensions read, in the order they are applied: specular-glossiness
-/// first, since it replaces the core model's base colour, metallic and roughness.
+/// first, since it replaces the core model's base colour, metallic and roughness;
+/// unlit last, since it drops what the others set but the base colour.
 pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
     pbr_specular_glossiness::EXTENSION,
     ior::EXTENSION,
@@ -41,6 +43,7 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
     clearcoat::EXTENSION,
     sheen::EXTENSION,
     emissive_strength::EXTENSION,
+    unlit::EXTENSION,
 ];
 
 /// The other extensions read: lights and mesh instancing (by the scene walk), Draco

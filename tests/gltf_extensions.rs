@@ -1,0 +1,226 @@
+//! glTF extensions and texture features beyond the core material:
+//! `KHR_materials_unlit`.
+//! Each test writes a small glTF file of its own: a square facing +z.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::{Value, json};
+
+use crate::support;
+
+/// A vertex attribute of the square: its name, glTF type and values, 4 vertices.
+struct Attribute {
+    name: &'static str,
+    kind: &'static str,
+    values: Vec<f32>,
+}
+
+fn attribute(name: &'static str, kind: &'static str, values: &[f32]) -> Attribute {
+    Attribute {
+        name,
+        kind,
+        values: values.to_vec(),
+    }
+}
+
+/// The square's corners (-1..1 in x and y, z = 0), normals +z, `TEXCOORD_0` from 0
+/// to 1.
+fn square_attributes() -> Vec<Attribute> {
+    vec![
+        attribute(
+            "POSITION",
+            "VEC3",
+            &[-1., -1., 0., 1., -1., 0., 1., 1., 0., -1., 1., 0.],
+        ),
+        attribute(
+            "NORMAL",
+            "VEC3",
+            &[0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.],
+        ),
+        attribute("TEXCOORD_0", "VEC2", &[0., 1., 1., 1., 1., 0., 0., 0.]),
+    ]
+}
+
+/// Writes `name.gltf` (with `name.bin`) into `dir`: the square with `attributes`,
+/// material `material` and whatever top-level keys `extra` adds (textures, images,
+/// extensions, lights, further nodes).
+fn write_square(
+    dir: &Path,
+    name: &str,
+    attributes: &[Attribute],
+    material: Value,
+    extra: Value,
+) -> PathBuf {
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut attrs = serde_json::Map::new();
+    for (i, a) in attributes.iter().enumerate() {
+        let offset = bin.len();
+        for v in &a.values {
+            bin.extend(v.to_le_bytes());
+        }
+        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": a.values.len() * 4}));
+        let mut accessor =
+            json!({"bufferView": i, "componentType": 5126, "count": 4, "type": a.kind});
+        if a.name == "POSITION" {
+            accessor["min"] = json!([-1, -1, 0]);
+            accessor["max"] = json!([1, 1, 0]);
+        }
+        accessors.push(accessor);
+        attrs.insert(a.name.into(), json!(i));
+    }
+    let offset = bin.len();
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend(i.to_le_bytes());
+    }
+    views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 12}));
+    accessors.push(
+        json!({"bufferView": views.len() - 1, "componentType": 5123, "count": 6, "type": "SCALAR"}),
+    );
+    std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
+    let mut gltf = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": attrs, "indices": accessors.len() - 1, "material": 0}]}],
+        "materials": [material],
+        "buffers": [{"uri": format!("{name}.bin"), "byteLength": bin.len()}],
+        "bufferViews": views,
+        "accessors": accessors,
+    });
+    if let (Value::Object(gltf), Value::Object(extra)) = (&mut gltf, extra) {
+        for (key, value) in extra {
+            match (gltf.get_mut(&key), value) {
+                (Some(Value::Array(list)), Value::Array(more)) => list.extend(more),
+                (_, value) => {
+                    gltf.insert(key, value);
+                }
+            }
+        }
+    }
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, serde_json::to_string_pretty(&gltf).unwrap()).unwrap();
+    path
+}
+
+/// The linear RGB of pixel (`x`, `y`) of EXR file `path`.
+fn exr_pixel(path: &Path, x: usize, y: usize) -> [f32; 3] {
+    let (width, _, channels) = support::read_exr(path);
+    ["R", "G", "B"].map(|c| channels[c][y * width + x])
+}
+
+/// Renders `scene` with `flags` (with `-q`), asserting success; returns stderr.
+fn render(scene: &Path, out: &Path, flags: &[&str]) -> String {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend(flags);
+    let output = support::raytracer(&args);
+    let stderr = support::stderr(&output);
+    assert!(output.status.success(), "{stderr}");
+    stderr
+}
+
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// An unlit square: base colour factor times a 1x1 texture times a vertex colour,
+/// constant over the square, under a bright point light and a camera looking at it
+/// head on; the expected linear colour.
+fn unlit_square(dir: &Path, unlit: bool) -> (PathBuf, [f32; 3]) {
+    let texel = [200u8, 120, 40];
+    support::write_png(&dir.join("texel.png"), 1, 1, 3, &texel);
+    let factor = [0.9f32, 0.7, 0.5];
+    let vertex = [0.5f32, 1.0, 0.8];
+    let mut attributes = square_attributes();
+    attributes.push(attribute("COLOR_0", "VEC3", &vertex.repeat(4)));
+    let mut material = json!({
+        "pbrMetallicRoughness": {
+            "baseColorFactor": [factor[0], factor[1], factor[2], 1.0],
+            "baseColorTexture": {"index": 0},
+            "metallicFactor": 0.0,
+        },
+        "emissiveFactor": [1.0, 0.0, 0.0],
+    });
+    if unlit {
+        material["extensions"] = json!({"KHR_materials_unlit": {}});
+    }
+    let path = write_square(
+        dir,
+        if unlit { "unlit" } else { "lit" },
+        &attributes,
+        material,
+        json!({
+            "extensionsUsed": ["KHR_materials_unlit", "KHR_lights_punctual"],
+            "textures": [{"source": 0}],
+            "images": [{"uri": "texel.png"}],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 50.0}]}},
+            "nodes": [
+                {"camera": 0, "translation": [0, 0, 3]},
+                {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0.5, 0.5, 1]},
+            ],
+            "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.01}}],
+            "scenes": [{"nodes": [0, 1, 2]}],
+        }),
+    );
+    let want =
+        std::array::from_fn(|i| factor[i] * srgb_to_linear(texel[i] as f32 / 255.0) * vertex[i]);
+    (path, want)
+}
+
+/// Renders the unlit square in `mode` to EXR (the linear film, before the tone map)
+/// and checks that three pixels are its base colour.
+fn check_unlit(mode: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, want) = unlit_square(dir.path(), true);
+    let out = dir.path().join(format!("{mode}.exr"));
+    let stderr = render(
+        &path,
+        &out,
+        &[
+            "--mode", mode, "--width", "32", "--height", "32", "--spp", "4",
+        ],
+    );
+    assert!(!stderr.contains("KHR_materials_unlit"), "{stderr}");
+    for (x, y) in [(16, 16), (10, 20), (20, 12)] {
+        let got = exr_pixel(&out, x, y);
+        for c in 0..3 {
+            assert!(
+                (got[c] - want[c]).abs() < 1e-3,
+                "{mode} mode at ({x}, {y}): {got:?}, want {want:?}"
+            );
+        }
+    }
+    // The same square lit: not its base colour (the test can tell).
+    let (lit, _) = unlit_square(dir.path(), false);
+    let out = dir.path().join("lit.exr");
+    render(
+        &lit,
+        &out,
+        &[
+            "--mode", mode, "--width", "32", "--height", "32", "--spp", "4",
+        ],
+    );
+    let got = exr_pixel(&out, 16, 16);
+    assert!((0..3).any(|c| (got[c] - want[c]).abs() > 0.05), "{got:?}");
+}
+
+#[test]
+fn an_unlit_surface_shows_its_base_colour_exactly_in_path_mode() {
+    check_unlit("path");
+}
+
+#[test]
+fn an_unlit_surface_shows_its_base_colour_exactly_in_full_mode() {
+    check_unlit("full");
+}

@@ -1,5 +1,5 @@
 //! glTF extensions and texture features beyond the core material:
-//! `KHR_materials_unlit`.
+//! `KHR_materials_unlit`, `EXT_texture_webp`.
 //! Each test writes a small glTF file of its own: a square facing +z.
 
 use std::path::{Path, PathBuf};
@@ -223,4 +223,160 @@ fn an_unlit_surface_shows_its_base_colour_exactly_in_path_mode() {
 #[test]
 fn an_unlit_surface_shows_its_base_colour_exactly_in_full_mode() {
     check_unlit("full");
+}
+
+fn webp_fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/gltf/webp")
+        .join(name)
+}
+
+/// A square whose base colour texture is texture 0, with `texture` its JSON and
+/// `images` the file's images (copied from the WebP fixture's folder by name).
+fn textured_square(
+    dir: &Path,
+    name: &str,
+    texture: Value,
+    images: &[&str],
+    used: Value,
+) -> PathBuf {
+    for image in images {
+        let from = webp_fixture(image);
+        if from.exists() {
+            std::fs::copy(from, dir.join(image)).unwrap();
+        }
+    }
+    let images: Vec<Value> = images.iter().map(|i| json!({"uri": i})).collect();
+    let mut extra = json!({"textures": [texture], "images": images});
+    if let (Value::Object(extra), Value::Object(used)) = (&mut extra, used) {
+        extra.extend(used);
+    }
+    write_square(
+        dir,
+        name,
+        &square_attributes(),
+        json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}),
+        extra,
+    )
+}
+
+/// The base colour of the first material of `path` at texture coordinates `uv`
+/// (nearest texel centres of the 4x3 fixture), and its warnings.
+fn base_colours(path: &Path) -> (Vec<raytracer::math::Vec3>, Vec<String>) {
+    let loaded = raytracer::formats::load(path).unwrap_or_else(|e| panic!("{e}"));
+    let material = &loaded.description.materials[0];
+    let mut colours = Vec::new();
+    for y in 0..3 {
+        for x in 0..4 {
+            let uv = raytracer::math::Vec2::new((x as f32 + 0.5) / 4.0, (y as f32 + 0.5) / 3.0);
+            colours.push(material.pbr_at(uv).unwrap().base_color);
+        }
+    }
+    (colours, loaded.description.warnings)
+}
+
+#[test]
+fn a_webp_texture_reads_the_same_texels_as_its_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let webp =
+        json!({"extensionsUsed": ["EXT_texture_webp"], "extensionsRequired": ["EXT_texture_webp"]});
+    let used = json!({"extensionsUsed": ["EXT_texture_webp"]});
+    let png = textured_square(d, "png", json!({"source": 0}), &["texels.png"], json!({}));
+    let (want, warnings) = base_colours(&png);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The texels differ: a test that can fail.
+    assert!(want.windows(2).all(|w| w[0] != w[1]), "{want:?}");
+    // Required, with no core source; and with a core fallback (a different image,
+    // not read).
+    support::write_png(&d.join("grey.png"), 1, 1, 3, &[128, 128, 128]);
+    for (name, texture, images) in [
+        (
+            "required",
+            json!({"extensions": {"EXT_texture_webp": {"source": 0}}}),
+            vec!["texels.webp"],
+        ),
+        (
+            "fallback",
+            json!({"source": 1, "extensions": {"EXT_texture_webp": {"source": 0}}}),
+            vec!["texels.webp", "grey.png"],
+        ),
+    ] {
+        let extensions = if name == "required" {
+            webp.clone()
+        } else {
+            used.clone()
+        };
+        let path = textured_square(d, name, texture, &images, extensions);
+        let (got, warnings) = base_colours(&path);
+        assert!(warnings.is_empty(), "{name}: {warnings:?}");
+        for (g, w) in got.iter().zip(&want) {
+            assert!(
+                (*g - *w).abs().max_element() < 1e-6,
+                "{name}: {got:?} vs {want:?}"
+            );
+        }
+    }
+    // A WebP that cannot be decoded: its core image instead, with a warning naming
+    // the file and the image; without one, the surface renders without it.
+    std::fs::write(d.join("broken.webp"), b"RIFF\x10\x00\x00\x00WEBPVP8L\x00").unwrap();
+    std::fs::copy(webp_fixture("texels.png"), d.join("texels.png")).unwrap();
+    let path = textured_square(
+        d,
+        "broken",
+        json!({"source": 1, "extensions": {"EXT_texture_webp": {"source": 0}}}),
+        &["broken.webp", "texels.png"],
+        used.clone(),
+    );
+    let (got, warnings) = base_colours(&path);
+    assert_eq!(got, want);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with(&format!("{}: image 0: ", path.display()))
+            && warnings[0].contains("core image"),
+        "{warnings:?}"
+    );
+    let path = textured_square(
+        d,
+        "broken-required",
+        json!({"extensions": {"EXT_texture_webp": {"source": 0}}}),
+        &["broken.webp"],
+        webp.clone(),
+    );
+    let loaded = raytracer::formats::load(&path).unwrap();
+    let warnings = &loaded.description.warnings;
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with(&format!("{}: image 0: cannot", path.display()))
+            && warnings[0].ends_with("the surface renders without it"),
+        "{warnings:?}"
+    );
+    assert!(loaded.description.materials[0].maps.is_none());
+    // An extension whose source is no image of the file: its core source, with a
+    // warning; with none, an error naming the file.
+    let path = textured_square(
+        d,
+        "bad-source",
+        json!({"source": 0, "extensions": {"EXT_texture_webp": {"source": 7}}}),
+        &["texels.png"],
+        used,
+    );
+    let (got, warnings) = base_colours(&path);
+    assert_eq!(got, want);
+    assert_eq!(
+        warnings,
+        [format!(
+            "{}: texture 0: its EXT_texture_webp 'source' is not an image of the file; its core source is read",
+            path.display()
+        )]
+    );
+    let path = textured_square(
+        d,
+        "no-source",
+        json!({"extensions": {"EXT_texture_webp": {"source": 7}}}),
+        &["texels.png"],
+        webp,
+    );
+    let error = raytracer::formats::load(&path).unwrap_err().to_string();
+    assert!(error.starts_with(&path.display().to_string()), "{error}");
 }

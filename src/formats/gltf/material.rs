@@ -119,23 +119,13 @@ impl Reader<'_> {
             );
         }
         let image = texture.source();
-        let loaded = match self.images.get(&image.index()) {
-            Some(loaded) => loaded.clone(),
-            None => {
-                let loaded = match self.load_image(&image) {
-                    Ok(texture) => Some(texture),
-                    Err(reason) => {
-                        self.warn(format!(
-                            "image {}: {reason}; the surface renders without it",
-                            image.index()
-                        ));
-                        None
-                    }
-                };
-                self.images.insert(image.index(), loaded.clone());
-                loaded
-            }
-        }?;
+        // `EXT_texture_webp`: the core image, if the WebP one cannot be read.
+        let fallback = (self.webp_fallbacks.get(&texture.index()))
+            .and_then(|&i| self.document.images().nth(i));
+        let loaded = match self.image(&image, fallback.is_some()) {
+            Some(loaded) => loaded,
+            None => self.image(&fallback?, false)?,
+        };
         let wrap = |mode| match mode {
             gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
             gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
@@ -150,6 +140,29 @@ impl Reader<'_> {
                 ..TextureOptions::default()
             },
         })
+    }
+
+    /// Image `image`, decoded once; `None`, with a warning naming it (and, if
+    /// `has_fallback`, what is read instead), if it cannot be read.
+    fn image(&mut self, image: &gltf::Image<'_>, has_fallback: bool) -> Option<Arc<Texture>> {
+        if let Some(loaded) = self.images.get(&image.index()) {
+            return loaded.clone();
+        }
+        let loaded = match self.load_image(image) {
+            Ok(texture) => Some(texture),
+            Err(reason) => {
+                let then = match has_fallback {
+                    true => {
+                        "the texture's core image (its EXT_texture_webp fallback) is read instead"
+                    }
+                    false => "the surface renders without it",
+                };
+                self.warn(format!("image {}: {reason}; {then}", image.index()));
+                None
+            }
+        };
+        self.images.insert(image.index(), loaded.clone());
+        loaded
     }
 
     fn load_image(&self, image: &gltf::Image<'_>) -> Result<Arc<Texture>, String> {

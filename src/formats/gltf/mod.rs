@@ -95,6 +95,7 @@ pub fn parse_gltf_with(
     // from the file's own JSON (see `material`): the `gltf` crate keeps none of them.
     let used = |name: &str| root.extensions_used.iter().any(|e| e == name);
     let raw = used(extensions::gpu_instancing::NAME)
+        || used(extensions::texture_webp::NAME)
         || used(extensions::draco::NAME)
         || used(extensions::meshopt::NAME)
         || used(extensions::meshopt::KHR_NAME);
@@ -103,12 +104,15 @@ pub fn parse_gltf_with(
         instancing,
         draco,
         meshopt,
+        webp,
     } = if root.materials.is_empty() && !raw {
         RawJson::default()
     } else {
         raw_json(bytes).map_err(invalid)?
     };
     extensions::draco::give_views(&mut root, &draco);
+    let (webp_fallbacks, webp_warnings) =
+        extensions::texture_webp::use_webp_sources(&mut root, &webp);
     let compressed = compressed_views(&mut root, &meshopt).map_err(fail)?;
     let scenes = root.scenes.len();
     let document = Document::from_json(root).map_err(|e| {
@@ -154,8 +158,12 @@ pub fn parse_gltf_with(
         raw_materials,
         instancing,
         draco,
+        webp_fallbacks,
         problems: MaterialProblems::default(),
     };
+    for warning in webp_warnings {
+        reader.warn(warning);
+    }
     for name in unsupported {
         reader.warn(format!(
             "extension {name} is not supported; the file is read without it"
@@ -231,6 +239,8 @@ struct RawJson {
     /// mesh and primitive index.
     draco: HashMap<(usize, usize), Value>,
     meshopt: MeshoptJson,
+    /// The `EXT_texture_webp` object of each texture that has one, by texture index.
+    webp: Vec<(usize, Value)>,
 }
 
 /// The `EXT_meshopt_compression` and `KHR_meshopt_compression` objects of a file.
@@ -315,6 +325,13 @@ fn raw_json(bytes: &[u8]) -> Result<RawJson, gltf::Error> {
                         raw.draco.insert((m, p), extension);
                     }
                 }
+            }
+        }
+    }
+    if let Some(Value::Array(textures)) = root.get_mut("textures") {
+        for (index, texture) in textures.iter_mut().enumerate() {
+            if let Some(extension) = take_extension(texture, extensions::texture_webp::NAME) {
+                raw.webp.push((index, extension));
             }
         }
     }
@@ -938,6 +955,9 @@ struct Reader<'a> {
     /// The `KHR_draco_mesh_compression` object of each primitive that has one, by
     /// mesh and primitive index.
     draco: HashMap<(usize, usize), Value>,
+    /// The core image of each texture read from its `EXT_texture_webp` image, by
+    /// texture index: read if the WebP image cannot be.
+    webp_fallbacks: HashMap<usize, usize>,
     /// Problems of the materials' values, for one warning per kind.
     problems: MaterialProblems,
 }

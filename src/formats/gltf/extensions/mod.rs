@@ -14,6 +14,7 @@ pub(super) mod pbr_specular_glossiness;
 pub(super) mod sheen;
 pub(super) mod specular;
 pub(super) mod texture_transform;
+pub(super) mod texture_webp;
 pub(super) mod transmission;
 pub(super) mod unlit;
 pub(super) mod volume;
@@ -48,8 +49,9 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
 
 /// The other extensions read: lights and mesh instancing (by the scene walk), Draco
 /// compressed primitives (by the mesh reader), meshopt compressed buffer views
-/// (decoded as the buffers are read), quantized attributes (by the mesh reader), and
-/// texture transforms (on every texture reference).
+/// (decoded as the buffers are read), quantized attributes (by the mesh reader),
+/// texture transforms (on every texture reference) and WebP images (each texture
+/// pointed at its WebP image before the document is validated).
 pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     draco::NAME,
@@ -58,6 +60,7 @@ pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     meshopt::KHR_NAME,
     "KHR_mesh_quantization",
     texture_transform::NAME,
+    texture_webp::NAME,
 ];
 
 /// Whether extension `name` is read.

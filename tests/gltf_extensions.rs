@@ -1,5 +1,6 @@
 //! glTF extensions and texture features beyond the core material:
-//! `KHR_materials_unlit`, `EXT_texture_webp`.
+//! `KHR_materials_unlit`, `EXT_texture_webp`, and extensions read and ignored
+//! (`KHR_materials_variants`, `KHR_xmp_json_ld`).
 //! Each test writes a small glTF file of its own: a square facing +z.
 
 use std::path::{Path, PathBuf};
@@ -379,4 +380,43 @@ fn a_webp_texture_reads_the_same_texels_as_its_png() {
     );
     let error = raytracer::formats::load(&path).unwrap_err().to_string();
     assert!(error.starts_with(&path.display().to_string()), "{error}");
+}
+
+#[test]
+fn variants_and_xmp_metadata_are_read_without_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let material = |colour: [f32; 3]| json!({"pbrMetallicRoughness": {"baseColorFactor": [colour[0], colour[1], colour[2], 1.0], "metallicFactor": 0.0}});
+    let path = write_square(
+        dir.path(),
+        "variants",
+        &square_attributes(),
+        material([0.8, 0.1, 0.1]),
+        json!({
+            "extensionsUsed": ["KHR_materials_variants", "KHR_xmp_json_ld"],
+            "materials": [material([0.1, 0.8, 0.1])],
+            "extensions": {
+                "KHR_materials_variants": {"variants": [{"name": "green"}]},
+                "KHR_xmp_json_ld": {"packets": [{"@context": {"dc": "http://purl.org/dc/elements/1.1/"}, "dc:creator": {"@list": ["A. Modeller"]}}]},
+            },
+            "asset": {"version": "2.0", "extensions": {"KHR_xmp_json_ld": {"packet": 0}}},
+        }),
+    );
+    // The primitive's variant mapping: green under variant 0.
+    let mut gltf: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    gltf["meshes"][0]["primitives"][0]["extensions"] =
+        json!({"KHR_materials_variants": {"mappings": [{"material": 1, "variants": [0]}]}});
+    std::fs::write(&path, gltf.to_string()).unwrap();
+    let loaded = raytracer::formats::load(&path).unwrap();
+    let d = &loaded.description;
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    // The default look: the primitive's own material, red.
+    let used: Vec<_> = d.triangles.iter().map(|t| t.material).collect();
+    assert_eq!(used.len(), 2);
+    for m in used {
+        let colour = d.materials[m.0 as usize]
+            .pbr_at(raytracer::math::Vec2::ZERO)
+            .unwrap()
+            .base_color;
+        assert_eq!(colour, raytracer::math::Vec3::new(0.8, 0.1, 0.1));
+    }
 }

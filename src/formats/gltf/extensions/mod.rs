@@ -1,8 +1,9 @@
 //! glTF extensions, one file each. A material extension is an [`Extension`]: its
 //! name and what it does to a [`MaterialContext`] given its JSON object; adding one
 //! is a new file here and one line in [`MATERIAL_EXTENSIONS`]. Extensions named in
-//! a file's `extensionsUsed` that are in neither list get one warning each; those in
-//! `extensionsRequired` are an error (see [`super::check_extensions`]).
+//! a file's `extensionsUsed` that are in none of the lists (the others read, and
+//! [`IGNORED_EXTENSIONS`]) get one warning each; those in `extensionsRequired` are
+//! an error (see [`super::check_extensions`]).
 
 pub(super) mod clearcoat;
 pub(super) mod draco;
@@ -63,7 +64,19 @@ pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     texture_webp::NAME,
 ];
 
-/// Whether extension `name` is read.
+/// Extensions read and ignored, without a warning, because ignoring them renders the
+/// file as it should look.
+pub(super) const IGNORED_EXTENSIONS: &[&str] = &[
+    // Alternative materials a viewer may switch to; a primitive's own `material`
+    // is its default look, and is what the mesh reader reads.
+    "KHR_materials_variants",
+    // XMP metadata (authorship, licence) in JSON-LD: nothing to render.
+    "KHR_xmp_json_ld",
+];
+
+/// Whether extension `name` is read (or ignored on purpose).
 pub(super) fn supported(name: &str) -> bool {
-    OTHER_EXTENSIONS.contains(&name) || MATERIAL_EXTENSIONS.iter().any(|e| e.name == name)
+    OTHER_EXTENSIONS.contains(&name)
+        || IGNORED_EXTENSIONS.contains(&name)
+        || MATERIAL_EXTENSIONS.iter().any(|e| e.name == name)
 }

@@ -1,6 +1,6 @@
-//! glTF extensions and texture features beyond the core material:
-//! `KHR_materials_unlit`, `EXT_texture_webp`, and extensions read and ignored
-//! (`KHR_materials_variants`, `KHR_xmp_json_ld`).
+//! glTF extensions and texture features beyond the core material: `KHR_materials_unlit`,
+//! `EXT_texture_webp`, extensions read and ignored (`KHR_materials_variants`,
+//! `KHR_xmp_json_ld`), and textures on texture coordinates other than `TEXCOORD_0`.
 //! Each test writes a small glTF file of its own: a square facing +z.
 
 use std::path::{Path, PathBuf};
@@ -419,4 +419,107 @@ fn variants_and_xmp_metadata_are_read_without_a_warning() {
             .base_color;
         assert_eq!(colour, raytracer::math::Vec3::new(0.8, 0.1, 0.1));
     }
+}
+
+/// The base colour where a ray down -z at (`x`, `y`) meets the square of `path`.
+fn base_colour_at(path: &Path, points: &[(f32, f32)]) -> (Vec<raytracer::math::Vec3>, Vec<String>) {
+    use raytracer::math::{Ray, Vec3};
+    let loaded = raytracer::formats::load(path).unwrap_or_else(|e| panic!("{e}"));
+    let warnings = loaded.description.warnings.clone();
+    let scene = raytracer::Scene::build(loaded.description, &raytracer::BvhParams::default());
+    let colours = points
+        .iter()
+        .map(|&(x, y)| {
+            let hit = scene
+                .intersect(&Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z))
+                .expect("the ray meets the square");
+            let material = &scene.materials[hit.material.0 as usize];
+            material
+                .pbr_at_point(hit.uv, hit.colour)
+                .unwrap()
+                .base_color
+        })
+        .collect();
+    (colours, warnings)
+}
+
+#[test]
+fn textures_on_another_texture_coordinate_set_read_that_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(webp_fixture("texels.png"), d.join("texels.png")).unwrap();
+    let points = [
+        (-0.8, -0.8),
+        (-0.3, 0.6),
+        (0.2, -0.1),
+        (0.7, 0.8),
+        (0.9, -0.5),
+    ];
+    let extra = || json!({"textures": [{"source": 0}], "images": [{"uri": "texels.png"}]});
+    // The reference: the texture on TEXCOORD_0.
+    let reference = write_square(
+        d,
+        "reference",
+        &square_attributes(),
+        json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}),
+        extra(),
+    );
+    let (want, warnings) = base_colour_at(&reference, &points);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The same coordinates as TEXCOORD_1, with TEXCOORD_0 all at one corner.
+    let mut attributes = square_attributes();
+    attributes[2].values = vec![0.9; 8];
+    attributes.push(attribute(
+        "TEXCOORD_1",
+        "VEC2",
+        &[0., 1., 1., 1., 1., 0., 0., 0.],
+    ));
+    let on_one =
+        |name: &str, material: Value| write_square(d, name, &attributes, material, extra());
+    let path = on_one(
+        "set1",
+        json!({
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 1}, "metallicRoughnessTexture": {"index": 0, "texCoord": 1}},
+            // Not read, so its set does not count.
+            "occlusionTexture": {"index": 0, "texCoord": 0},
+        }),
+    );
+    let (got, warnings) = base_colour_at(&path, &points);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(got, want);
+    // Mixed sets: the base colour's, with one warning naming the file.
+    let path = on_one(
+        "mixed",
+        json!({
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 1}},
+            "emissiveTexture": {"index": 0},
+        }),
+    );
+    let (got, warnings) = base_colour_at(&path, &points);
+    assert_eq!(got, want);
+    assert_eq!(
+        warnings,
+        [format!(
+            "{}: material 0: its textures use TEXCOORD_0 and TEXCOORD_1, but one set is read per primitive: TEXCOORD_1, for all of them",
+            path.display()
+        )]
+    );
+    // A set the primitive does not have: TEXCOORD_0, with a warning.
+    let path = on_one(
+        "missing",
+        json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 2}}}),
+    );
+    let (got, warnings) = base_colour_at(&path, &points);
+    assert!(
+        got.windows(2)
+            .all(|w| (w[0] - w[1]).abs().max_element() < 1e-5),
+        "{got:?}"
+    );
+    assert_eq!(
+        warnings,
+        [format!(
+            "{}: mesh 0 primitive 0: its material's textures use TEXCOORD_2, which it does not have; TEXCOORD_0 is read instead",
+            path.display()
+        )]
+    );
 }

@@ -487,6 +487,17 @@ fn textures_on_another_texture_coordinate_set_read_that_set() {
     let (got, warnings) = base_colour_at(&path, &points);
     assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(got, want);
+    // A texture transform's texCoord overrides the texture's own.
+    let path = write_square(
+        d,
+        "transform",
+        &attributes,
+        json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 0, "extensions": {"KHR_texture_transform": {"texCoord": 1}}}}}),
+        json!({"textures": [{"source": 0}], "images": [{"uri": "texels.png"}], "extensionsUsed": ["KHR_texture_transform"]}),
+    );
+    let (got, warnings) = base_colour_at(&path, &points);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(got, want);
     // Mixed sets: the base colour's, with one warning naming the file.
     let path = on_one(
         "mixed",

@@ -353,7 +353,7 @@ impl Texture {
             .with_guessed_format()
             .map_err(|e| e.to_string())?;
         if reader.format().is_none() {
-            return Err("not an image format the renderer reads (PNG, JPEG, TGA, BMP, GIF, DDS, Radiance HDR, OpenEXR)".into());
+            return Err("not an image format the renderer reads (PNG, JPEG, WebP, TGA, BMP, GIF, DDS, Radiance HDR, OpenEXR)".into());
         }
         let mut limits = image::Limits::default();
         limits.max_image_width = Some(MAX_TEXTURE_SIZE);

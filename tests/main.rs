@@ -23,6 +23,7 @@ mod fuzz_regressions;
 mod geometry;
 mod gltf;
 mod gltf_compression;
+mod gltf_extensions;
 mod gltf_pose;
 mod instancing;
 mod integrators;

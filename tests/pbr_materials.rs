@@ -425,16 +425,16 @@ fn unknown_extensions_warn_and_unsupported_required_ones_are_errors() {
     let fixture = Fixture::new();
     let loaded = fixture.load(
         &[r#"{"name": "a"}"#],
-        r#""extensionsUsed": ["KHR_materials_unlit", "EXT_texture_webp", "KHR_texture_transform"],"#,
+        r#""extensionsUsed": ["KHR_materials_iridescence", "EXT_lights_image_based", "KHR_texture_transform"],"#,
     );
     assert_eq!(
         fixture.warnings(&loaded),
         [
-            "extension KHR_materials_unlit is not supported; the file is read without it",
-            "extension EXT_texture_webp is not supported; the file is read without it",
+            "extension KHR_materials_iridescence is not supported; the file is read without it",
+            "extension EXT_lights_image_based is not supported; the file is read without it",
         ]
     );
-    for required in ["KHR_texture_basisu", "EXT_texture_webp"] {
+    for required in ["KHR_texture_basisu", "EXT_lights_image_based"] {
         let path = fixture.gltf(
             "required",
             &[r#"{"name": "a"}"#],

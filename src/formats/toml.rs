@@ -1097,6 +1097,7 @@ fn physically_based(
         anisotropy_rotation: p
             .anisotropy_rotation
             .unwrap_or(defaults.anisotropy_rotation),
+        unlit: false,
     };
     let phong_keys = [
         ("Ka", table.ambient.is_some()),

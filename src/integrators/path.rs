@@ -98,6 +98,7 @@ impl PathIntegrator {
             .map(|(m, bsdf)| {
                 m.maps.is_none()
                     && m.emission == Vec3::ZERO
+                    && !m.is_unlit()
                     && matches!(bsdf, Bsdf::Gltf(g) if g.is_plain())
             })
             .collect();
@@ -230,6 +231,10 @@ struct PathState {
     throughput: Vec3,
     /// What the previous bounce knew, for weighing an emitter the path hits.
     previous_delta: bool,
+    /// Whether the path is still the eye's: its camera ray, or one continuing it
+    /// through smooth (delta) reflections and refractions only. Unlit surfaces
+    /// (`KHR_materials_unlit`) show their colour to such paths alone.
+    eye: bool,
     previous_pdf: Float,
     previous_point: Vec3,
     eta: Float,
@@ -249,6 +254,7 @@ impl PathState {
             radiance: Vec3::ZERO,
             throughput: Vec3::ONE,
             previous_delta: true,
+            eye: true,
             previous_pdf: 0.0,
             previous_point: ray.origin,
             eta: 1.0,
@@ -293,6 +299,18 @@ impl PathIntegrator {
             path.throughput *= (-path.medium * hit.t).exp();
         }
         let material = &scene.materials[hit.material.0 as usize];
+        if material.is_unlit() {
+            // `KHR_materials_unlit`: the eye sees the base colour, whatever the
+            // lights; the surface scatters nothing, so it shadows what lies behind it
+            // but lights no other surface (a rasteriser's unlit material: it casts a
+            // shadow map's shadow and takes part in no one's lighting).
+            if path.eye
+                && let Some(colour) = material.unlit_colour(hit.uv, hit.colour)
+            {
+                path.radiance += path.throughput * colour;
+            }
+            return done;
+        }
         // A textured material's scattering is made for this hit from the values of
         // its maps here; an untextured one's was made once, in `new`.
         let textured = (material.maps.as_ref()).map(|_| material.at_point(hit.uv, hit.colour));
@@ -381,6 +399,7 @@ impl PathIntegrator {
         }
         path.eta *= scattered.eta;
         path.previous_delta = scattered.delta;
+        path.eye &= scattered.delta;
         path.previous_pdf = scattered.pdf;
         path.previous_point = hit.p;
         path.ray = hit.spawn_unit_ray(scattered.wi);
@@ -747,6 +766,7 @@ impl PathIntegrator {
             let path = &mut paths[lane];
             path.throughput = throughput.lane(lane);
             path.previous_delta = false;
+            path.eye = false;
             path.previous_pdf = sampled.pdf.as_array()[lane];
             path.previous_point = p.lane(lane);
             path.ray = Ray {

@@ -175,6 +175,9 @@ fn shade(
     direct: impl DirectLight,
 ) -> Vec3 {
     let material = &scene.materials[hit.material.0 as usize];
+    if material.is_unlit() {
+        return unlit(scene, ray, hit, depth, inside, rays);
+    }
     let [local_weight, reflect_weight, refract_weight] = material.albedo;
     // The colours at the hit: an untextured material's constants, read in place, or
     // a textured one's values there.
@@ -216,6 +219,33 @@ fn shade(
     }
     // A blended surface (in a scene that blends in layers) over what lies behind it,
     // as a rasterizer blends it; with no depth left it stays opaque.
+    if scene.blend_in_layers()
+        && depth > 1
+        && let Some(cutout) = material.cutout()
+        && cutout.blend
+    {
+        let alpha = cutout.alpha(hit.uv).clamp(0.0, 1.0);
+        if alpha < 1.0 {
+            value = alpha * value + (1.0 - alpha) * behind(scene, ray, hit, depth, inside, rays);
+        }
+    }
+    saturate_finite(value)
+}
+
+/// The value of an unlit surface's hit (`KHR_materials_unlit`): its base colour
+/// there, whatever the lights (no ambient, no reflection); a blended one over what
+/// lies behind it, as for any surface.
+#[inline(never)]
+fn unlit(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    depth: u32,
+    inside: bool,
+    rays: &mut RayCounts,
+) -> Vec3 {
+    let material = &scene.materials[hit.material.0 as usize];
+    let mut value = (material.unlit_colour(hit.uv, hit.colour)).unwrap_or(Vec3::ZERO);
     if scene.blend_in_layers()
         && depth > 1
         && let Some(cutout) = material.cutout()
@@ -494,7 +524,7 @@ impl WhittedIntegrator {
                 continue;
             };
             let material = &scene.materials[hit.material.0 as usize];
-            if material.albedo[0] == 0.0 {
+            if material.albedo[0] == 0.0 || material.is_unlit() {
                 continue;
             }
             match material.maps {

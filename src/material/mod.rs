@@ -336,6 +336,25 @@ impl Material {
         Some(values)
     }
 
+    /// Whether this is an unlit physically based material (`KHR_materials_unlit`,
+    /// [`PbrMaterial::unlit`]).
+    #[inline]
+    pub fn is_unlit(&self) -> bool {
+        self.pbr.as_deref().is_some_and(|pbr| pbr.unlit)
+    }
+
+    /// The colour an unlit material ([`Material::is_unlit`]) shows at texture
+    /// coordinates `uv` where the vertex colour is `colour`: its base colour there
+    /// (factor, map and vertex colour, linear); `None` for any other material.
+    #[inline]
+    pub fn unlit_colour(&self, uv: Vec2, colour: Vec3) -> Option<Vec3> {
+        if !self.is_unlit() {
+            return None;
+        }
+        self.pbr_at_point(uv, colour)
+            .map(|values| values.base_color)
+    }
+
     /// The material's values at texture coordinates `uv`: the constants, each
     /// multiplied by its map's filtered value there (colour maps decoded from sRGB).
     /// Without maps, the constants exactly.

@@ -57,6 +57,12 @@ pub struct PbrMaterial {
     /// `KHR_materials_anisotropy` `anisotropyRotation`: the direction of anisotropy,
     /// in radians counter-clockwise from the tangent towards the bitangent (0).
     pub anisotropy_rotation: Float,
+    /// `KHR_materials_unlit`: the surface shows its base colour (factor, map and
+    /// vertex colour) to the eye, whatever the lights, and scatters nothing: a camera
+    /// ray (or one continuing it through mirrors and glass) that meets it sees exactly
+    /// that colour; any other ray that meets it ends there, so it casts shadows but
+    /// lights no other surface (see `docs/scene-format.md`).
+    pub unlit: bool,
 }
 
 impl Default for PbrMaterial {
@@ -79,6 +85,7 @@ impl Default for PbrMaterial {
             multiple_scattering: false,
             anisotropy: 0.0,
             anisotropy_rotation: 0.0,
+            unlit: false,
         }
     }
 }

@@ -15,8 +15,6 @@ use crate::textures::{Channel, TextureMap};
 /// A glTF material being read: what the core and each extension have set so far.
 pub(super) struct MaterialContext<'r, 'a> {
     pub(super) reader: &'r mut Reader<'a>,
-    /// The material's index in the file.
-    pub(super) index: usize,
     /// Its name (`material3` when it has none).
     pub(super) name: String,
     pub(super) pbr: PbrMaterial,
@@ -116,9 +114,9 @@ impl MaterialContext<'_, '_> {
         Some(map)
     }
 
-    /// The map of texture reference `key` of `object` (a glTF `textureInfo`: `index`,
-    /// `texCoord` and `KHR_texture_transform`), if there is one and its image can be
-    /// read (else a warning).
+    /// The map of texture reference `key` of `object` (a glTF `textureInfo`: `index`
+    /// and `KHR_texture_transform`), if there is one and its image can be read (else
+    /// a warning).
     pub(super) fn texture(&mut self, object: &Value, key: &str) -> Option<TextureMap> {
         let info = object.get(key)?;
         let document = self.reader.document;
@@ -133,14 +131,9 @@ impl MaterialContext<'_, '_> {
         let transform = info
             .get("extensions")
             .and_then(|e| e.get(texture_transform::NAME));
-        let tex_coord = transform
-            .and_then(|t| t.get("texCoord"))
-            .or_else(|| info.get("texCoord"))
-            .and_then(Value::as_u64)
-            .unwrap_or(0);
-        let mut map = self
-            .reader
-            .texture_map(&texture, tex_coord as u32, self.index)?;
+        // Its `texCoord` is its material's (`material::texcoord_sets`), read by the
+        // mesh reader.
+        let mut map = self.reader.texture_map(&texture)?;
         if let Some(transform) = transform {
             let offset = self.numbers(transform, "offset", [0.0, 0.0]);
             let rotation = self.number(transform, "rotation", 0.0);

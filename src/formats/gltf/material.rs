@@ -11,7 +11,7 @@ use std::sync::Arc;
 use gltf::json::Value;
 
 use super::context::{MaterialContext, with_channel};
-use super::extensions::MATERIAL_EXTENSIONS;
+use super::extensions::{MATERIAL_EXTENSIONS, texture_transform, unlit};
 use super::{Reader, file_of_uri, read_uri};
 use crate::formats::material_check::check_pbr;
 use crate::material::pbr::PbrMaterial;
@@ -28,7 +28,6 @@ pub(super) fn convert(reader: &mut Reader<'_>, index: usize, json: &Value) -> Ma
         .map_or_else(|| format!("material{index}"), str::to_owned);
     let mut cx = MaterialContext {
         reader,
-        index,
         name,
         pbr: PbrMaterial::default(),
         maps: MaterialMaps::default(),
@@ -102,40 +101,87 @@ pub(super) fn convert(reader: &mut Reader<'_>, index: usize, json: &Value) -> Ma
     )
 }
 
+/// The texture coordinate set (`n` of `TEXCOORD_n`) each of the reader's materials
+/// is read with, by material index: the set its textures name in their `texCoord`
+/// (or their `KHR_texture_transform`'s), counting only the textures this reader
+/// reads (not `occlusionTexture`, which often has a set of its own, nor those of
+/// extensions it does not read; an unlit material's base colour alone). A scene
+/// keeps one set of texture coordinates per primitive, so a material whose textures
+/// name several sets is read with its base colour texture's (else the lowest), with
+/// one warning for the file naming the first such material.
+pub(super) fn texcoord_sets(reader: &mut Reader<'_>) -> Vec<u32> {
+    let mut mixed = None;
+    let sets = (reader.raw_materials.iter().enumerate())
+        .map(|(index, json)| {
+            let (base, mut sets) = texture_sets(json);
+            sets.sort_unstable();
+            sets.dedup();
+            let set = base.or(sets.first().copied()).unwrap_or(0);
+            if sets.len() > 1 && mixed.is_none() {
+                mixed = Some((index, sets, set));
+            }
+            set
+        })
+        .collect();
+    if let Some((index, sets, set)) = mixed {
+        let names: Vec<String> = sets.iter().map(|s| format!("TEXCOORD_{s}")).collect();
+        reader.warn_once(
+            "texcoord",
+            format!(
+                "material {index}: its textures use {}, but one set is read per primitive: TEXCOORD_{set}, for all of them",
+                names.join(" and ")
+            ),
+        );
+    }
+    sets
+}
+
+/// The set of material `json`'s base colour texture, if it has one, and the sets of
+/// all the textures read (see [`texcoord_sets`]).
+fn texture_sets(json: &Value) -> (Option<u32>, Vec<u32>) {
+    let set = |info: &Value| -> u32 {
+        let transform = (info.get("extensions")).and_then(|e| e.get(texture_transform::NAME));
+        (transform.and_then(|t| t.get("texCoord")))
+            .or_else(|| info.get("texCoord"))
+            .and_then(Value::as_u64)
+            .map_or(0, |s| u32::try_from(s).unwrap_or(u32::MAX))
+    };
+    let core = json.get("pbrMetallicRoughness");
+    let base = core.and_then(|c| c.get("baseColorTexture")).map(set);
+    let extensions = json.get("extensions").and_then(Value::as_object);
+    if extensions.is_some_and(|e| e.contains_key(unlit::EXTENSION.name)) {
+        return (base, base.into_iter().collect());
+    }
+    let mut sets: Vec<u32> = base.into_iter().collect();
+    let objects = [core, Some(json)]
+        .into_iter()
+        .flatten()
+        .chain((MATERIAL_EXTENSIONS.iter()).filter_map(|e| extensions.and_then(|x| x.get(e.name))));
+    for object in objects {
+        let Some(object) = object.as_object() else {
+            continue;
+        };
+        for (key, info) in object {
+            let texture = key.ends_with("Texture") && key != "occlusionTexture";
+            if texture && key != "baseColorTexture" && info.get("index").is_some() {
+                sets.push(set(info));
+            }
+        }
+    }
+    (base, sets)
+}
+
 impl Reader<'_> {
     /// The map of glTF texture `texture`, if its image can be read (else a warning).
-    pub(super) fn texture_map(
-        &mut self,
-        texture: &gltf::Texture<'_>,
-        tex_coord: u32,
-        material: usize,
-    ) -> Option<TextureMap> {
-        if tex_coord != 0 {
-            self.warn_once(
-                "texcoord",
-                format!(
-                    "material {material}: only TEXCOORD_0 is read; a texture on TEXCOORD_{tex_coord} uses it instead"
-                ),
-            );
-        }
+    pub(super) fn texture_map(&mut self, texture: &gltf::Texture<'_>) -> Option<TextureMap> {
         let image = texture.source();
-        let loaded = match self.images.get(&image.index()) {
-            Some(loaded) => loaded.clone(),
-            None => {
-                let loaded = match self.load_image(&image) {
-                    Ok(texture) => Some(texture),
-                    Err(reason) => {
-                        self.warn(format!(
-                            "image {}: {reason}; the surface renders without it",
-                            image.index()
-                        ));
-                        None
-                    }
-                };
-                self.images.insert(image.index(), loaded.clone());
-                loaded
-            }
-        }?;
+        // `EXT_texture_webp`: the core image, if the WebP one cannot be read.
+        let fallback = (self.webp_fallbacks.get(&texture.index()))
+            .and_then(|&i| self.document.images().nth(i));
+        let loaded = match self.image(&image, fallback.is_some()) {
+            Some(loaded) => loaded,
+            None => self.image(&fallback?, false)?,
+        };
         let wrap = |mode| match mode {
             gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
             gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
@@ -150,6 +196,29 @@ impl Reader<'_> {
                 ..TextureOptions::default()
             },
         })
+    }
+
+    /// Image `image`, decoded once; `None`, with a warning naming it (and, if
+    /// `has_fallback`, what is read instead), if it cannot be read.
+    fn image(&mut self, image: &gltf::Image<'_>, has_fallback: bool) -> Option<Arc<Texture>> {
+        if let Some(loaded) = self.images.get(&image.index()) {
+            return loaded.clone();
+        }
+        let loaded = match self.load_image(image) {
+            Ok(texture) => Some(texture),
+            Err(reason) => {
+                let then = match has_fallback {
+                    true => {
+                        "the texture's core image (its EXT_texture_webp fallback) is read instead"
+                    }
+                    false => "the surface renders without it",
+                };
+                self.warn(format!("image {}: {reason}; {then}", image.index()));
+                None
+            }
+        };
+        self.images.insert(image.index(), loaded.clone());
+        loaded
     }
 
     fn load_image(&self, image: &gltf::Image<'_>) -> Result<Arc<Texture>, String> {

@@ -95,6 +95,7 @@ pub fn parse_gltf_with(
     // from the file's own JSON (see `material`): the `gltf` crate keeps none of them.
     let used = |name: &str| root.extensions_used.iter().any(|e| e == name);
     let raw = used(extensions::gpu_instancing::NAME)
+        || used(extensions::texture_webp::NAME)
         || used(extensions::draco::NAME)
         || used(extensions::meshopt::NAME)
         || used(extensions::meshopt::KHR_NAME);
@@ -103,12 +104,15 @@ pub fn parse_gltf_with(
         instancing,
         draco,
         meshopt,
+        webp,
     } = if root.materials.is_empty() && !raw {
         RawJson::default()
     } else {
         raw_json(bytes).map_err(invalid)?
     };
     extensions::draco::give_views(&mut root, &draco);
+    let (webp_fallbacks, webp_warnings) =
+        extensions::texture_webp::use_webp_sources(&mut root, &webp);
     let compressed = compressed_views(&mut root, &meshopt).map_err(fail)?;
     let scenes = root.scenes.len();
     let document = Document::from_json(root).map_err(|e| {
@@ -154,8 +158,14 @@ pub fn parse_gltf_with(
         raw_materials,
         instancing,
         draco,
+        webp_fallbacks,
+        texcoord_sets: Vec::new(),
         problems: MaterialProblems::default(),
     };
+    reader.texcoord_sets = material::texcoord_sets(&mut reader);
+    for warning in webp_warnings {
+        reader.warn(warning);
+    }
     for name in unsupported {
         reader.warn(format!(
             "extension {name} is not supported; the file is read without it"
@@ -231,6 +241,8 @@ struct RawJson {
     /// mesh and primitive index.
     draco: HashMap<(usize, usize), Value>,
     meshopt: MeshoptJson,
+    /// The `EXT_texture_webp` object of each texture that has one, by texture index.
+    webp: Vec<(usize, Value)>,
 }
 
 /// The `EXT_meshopt_compression` and `KHR_meshopt_compression` objects of a file.
@@ -315,6 +327,13 @@ fn raw_json(bytes: &[u8]) -> Result<RawJson, gltf::Error> {
                         raw.draco.insert((m, p), extension);
                     }
                 }
+            }
+        }
+    }
+    if let Some(Value::Array(textures)) = root.get_mut("textures") {
+        for (index, texture) in textures.iter_mut().enumerate() {
+            if let Some(extension) = take_extension(texture, extensions::texture_webp::NAME) {
+                raw.webp.push((index, extension));
             }
         }
     }
@@ -657,6 +676,8 @@ const TEXCOORDS: Expected = Expected {
     types: QUANTIZED,
     dimensions: gltf::accessor::Dimensions::Vec2,
 };
+/// The names of the texture coordinate sets, for messages about the one read.
+const TEXCOORD_NAMES: [&str; 4] = ["TEXCOORD_0", "TEXCOORD_1", "TEXCOORD_2", "TEXCOORD_3"];
 
 /// The values of an attribute `accessor` (checked by [`check_accessor`]) as floats:
 /// integer components (core glTF's normalized texture coordinates, and every
@@ -938,6 +959,12 @@ struct Reader<'a> {
     /// The `KHR_draco_mesh_compression` object of each primitive that has one, by
     /// mesh and primitive index.
     draco: HashMap<(usize, usize), Value>,
+    /// The texture coordinate set each material's textures are read with, by
+    /// material index ([`material::texcoord_sets`]).
+    texcoord_sets: Vec<u32>,
+    /// The core image of each texture read from its `EXT_texture_webp` image, by
+    /// texture index: read if the WebP image cannot be.
+    webp_fallbacks: HashMap<usize, usize>,
     /// Problems of the materials' values, for one warning per kind.
     problems: MaterialProblems,
 }
@@ -1138,6 +1165,7 @@ impl Reader<'_> {
         &self,
         primitive: &gltf::Primitive<'_>,
         extension: &Value,
+        texcoord_set: u32,
     ) -> Result<extensions::draco::Decoded, String> {
         let name = extensions::draco::NAME;
         let index = (extension.get("bufferView").and_then(Value::as_u64))
@@ -1156,6 +1184,7 @@ impl Reader<'_> {
         let declared = extensions::draco::Declared {
             vertices,
             indices: primitive.indices().map(|a| a.count()),
+            texcoord: format!("TEXCOORD_{texcoord_set}"),
         };
         extensions::draco::decode(extension, bytes, &declared)
     }
@@ -1210,9 +1239,24 @@ impl Reader<'_> {
                     .insert((mesh.index(), primitive.index()));
                 continue;
             }
+            // The texture coordinates its material's textures use (one set a
+            // primitive: see `material::texcoord_sets`); TEXCOORD_0 if it has not
+            // that set.
+            let mut set = (primitive.material().index())
+                .and_then(|m| self.texcoord_sets.get(m).copied())
+                .unwrap_or(0);
+            if set != 0 && primitive.get(&gltf::Semantic::TexCoords(set)).is_none() {
+                self.warn_once(
+                    "texcoord set missing",
+                    format!(
+                        "{name}: its material's textures use TEXCOORD_{set}, which it does not have; TEXCOORD_0 is read instead"
+                    ),
+                );
+                set = 0;
+            }
             let draco = match self.draco.get(&(mesh.index(), primitive.index())) {
                 Some(extension) => Some(
-                    self.decode_draco(&primitive, extension)
+                    self.decode_draco(&primitive, extension, set)
                         .map_err(|e| format!("{name}: {e}"))?,
                 ),
                 None => None,
@@ -1249,8 +1293,14 @@ impl Reader<'_> {
                     let position_type =
                         checked(&POSITIONS, primitive.get(&gltf::Semantic::Positions))?;
                     let normal_type = checked(&NORMALS, primitive.get(&gltf::Semantic::Normals))?;
-                    let texcoord_type =
-                        checked(&TEXCOORDS, primitive.get(&gltf::Semantic::TexCoords(0)))?;
+                    let texcoord_expected = Expected {
+                        what: TEXCOORD_NAMES.get(set as usize).unwrap_or(&"TEXCOORD_n"),
+                        ..TEXCOORDS
+                    };
+                    let texcoord_type = checked(
+                        &texcoord_expected,
+                        primitive.get(&gltf::Semantic::TexCoords(set)),
+                    )?;
                     if let Some(message) = checked(&INDICES, primitive.indices())? {
                         return Err(format!("{name}: {message}"));
                     }
@@ -1280,7 +1330,7 @@ impl Reader<'_> {
                             .map(|n| n.into_iter().map(Vec3::from).collect::<Vec<_>>())
                             .filter(|n| n.len() == count);
                     let texcoords: Option<Vec<Vec2>> =
-                        attribute(gltf::Semantic::TexCoords(0), &texcoord_type)
+                        attribute(gltf::Semantic::TexCoords(set), &texcoord_type)
                             .and_then(|a| read_floats::<2>(a, buffers))
                             .map(|t| {
                                 // glTF's v runs down the image; this renderer's runs up.

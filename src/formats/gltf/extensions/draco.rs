@@ -74,6 +74,9 @@ pub(in super::super) struct Decoded {
 pub(in super::super) struct Declared {
     pub(in super::super) vertices: usize,
     pub(in super::super) indices: Option<usize>,
+    /// The texture coordinate set to read (`TEXCOORD_n`): the one its material's
+    /// textures use.
+    pub(in super::super) texcoord: String,
 }
 
 /// Decodes `extension`, a primitive's `KHR_draco_mesh_compression` object, whose
@@ -153,7 +156,8 @@ pub(in super::super) fn decode(
     let positions: Vec<[f32; 3]> =
         three(read("POSITION", Some(position_id), 3)?.unwrap_or_default());
     let normals = read("NORMAL", id("NORMAL")?, 3)?.map(three);
-    let texcoords = read("TEXCOORD_0", id("TEXCOORD_0")?, 2)?
+    let texcoord = declared.texcoord.as_str();
+    let texcoords = read(texcoord, id(texcoord)?, 2)?
         .map(|v| v.chunks_exact(2).map(|c| [c[0], c[1]]).collect());
     let colours = read("COLOR_0", id("COLOR_0")?, 3)?.map(three);
     Ok(Decoded {

@@ -332,6 +332,19 @@ impl PixelSample {
         unit_u32(self.shuffled_radical_inverse(hash as u32) ^ (hash >> 32) as u32)
     }
 
+    /// Passes over the next dimension as [`PixelSample::next_1d`] would draw it,
+    /// without making its value: every later draw is what it would have been. For a
+    /// draw whose value would not be read (a stratified one costs a hash and a
+    /// scramble). An independent even dimension still makes its pair's output, which
+    /// the odd dimension after it reads.
+    #[inline]
+    pub fn skip_1d(&mut self) {
+        let dimension = self.take(1);
+        if dimension >= self.independent_from && dimension & 1 == 0 {
+            self.pair = self.pair_output(dimension >> 1);
+        }
+    }
+
     /// The next two dimensions: a uniform point in `[0, 1)^2`.
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
@@ -758,6 +771,44 @@ mod tests {
                             assert_eq!(value, expected(&values, d), "{count} spp, dimension {d}");
                         }
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_skipped_dimension_leaves_every_later_draw_as_drawing_it_does() {
+        // Skipping dimension `k` and then drawing on, in 1D or 2D draws from odd and
+        // even dimensions, across the first independent dimension and with one
+        // sample (all independent), gives what drawing every dimension gives.
+        for count in [64, 5, 1] {
+            let sampler = PixelSampler::new(count, 40);
+            for skipped in 0..36 {
+                for width in [1, 2] {
+                    let rest = |values: &mut PixelSample| -> Vec<Float> {
+                        let mut drawn = vec![];
+                        for _ in 0..2 {
+                            match width {
+                                1 => drawn.push(values.next_1d()),
+                                _ => drawn.extend(values.next_2d().to_array()),
+                            }
+                        }
+                        drawn.push(values.next_1d());
+                        drawn
+                    };
+                    let mut drawn = sampler.sample(77, count - 1);
+                    let mut skipping = drawn.clone();
+                    (0..skipped).for_each(|_| {
+                        drawn.next_1d();
+                        skipping.next_1d();
+                    });
+                    drawn.next_1d();
+                    skipping.skip_1d();
+                    assert_eq!(
+                        rest(&mut skipping),
+                        rest(&mut drawn),
+                        "{count} spp, dimension {skipped} skipped, then {width}D draws"
+                    );
                 }
             }
         }

@@ -276,6 +276,16 @@ impl BsdfAt<'_> {
         }
     }
 
+    /// Whether [`BsdfAt::sample`] reads its `u_lobe`: not for an MTL material of one
+    /// lobe ([`mtl::MtlMixture::picks_lobe`]), whose caller may skip drawing it.
+    #[inline(always)]
+    pub fn picks_lobe(&self) -> bool {
+        match self {
+            BsdfAt::Mtl { mixture, .. } => mixture.picks_lobe(),
+            BsdfAt::Gltf(_) => true,
+        }
+    }
+
     /// `f(wo, wi)` of the non-delta lobes.
     #[inline(always)]
     pub fn eval(&self, wi: Vec3) -> Vec3 {

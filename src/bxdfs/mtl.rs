@@ -48,6 +48,10 @@ pub struct MtlMixture {
     /// Probabilities of sampling each lobe, in the order above; sum 1 unless the
     /// material scatters nothing.
     lobe_probability: [Float; 4],
+    /// Whether [`MtlMixture::sample`] reads its `u_lobe`: some lobe's probability
+    /// lies strictly between 0 and 1. Otherwise one lobe has probability 1 (or none
+    /// scatters) and every `u_lobe` in `[0, 1)` picks the same.
+    picks_lobe: bool,
 }
 
 /// Whether path mode reads the MTL `material` as a rough dielectric
@@ -141,6 +145,7 @@ impl MtlMixture {
         } else {
             Vec3::ZERO
         };
+        let picks_lobe = lobe_probability.iter().any(|&p| p > 0.0 && p < 1.0);
         let params = MtlMixture {
             diffuse,
             diffuse_weight,
@@ -150,6 +155,7 @@ impl MtlMixture {
             glass,
             ior: material.ior,
             lobe_probability,
+            picks_lobe,
         };
         (params, scaled)
     }
@@ -158,6 +164,14 @@ impl MtlMixture {
     #[inline]
     pub fn has_smooth_lobes(&self) -> bool {
         self.lobe_probability[0] + self.lobe_probability[1] > 0.0
+    }
+
+    /// Whether [`MtlMixture::sample`] reads its `u_lobe`: `false` when any value in
+    /// `[0, 1)` (0 among them) picks the same lobe, so that a caller need not draw
+    /// it.
+    #[inline]
+    pub fn picks_lobe(&self) -> bool {
+        self.picks_lobe
     }
 
     /// `f(wo, wi)` of the non-delta lobes (delta lobes are zero for any given `wi`).
@@ -380,6 +394,32 @@ mod tests {
                 (mean - expected).abs() < 0.02,
                 "{m:?}: {mean} vs {expected}"
             );
+        }
+    }
+
+    #[test]
+    fn a_lobe_is_picked_by_u_lobe_only_in_a_mixture() {
+        let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
+        let u = Vec2::new(0.3, 0.6);
+        for (m, mixed) in [
+            (material(0.7, 0.0, 1.0, [1.0, 0.0, 0.0]), false),
+            (material(0.0, 0.5, 20.0, [1.0, 0.0, 0.0]), false),
+            (material(0.0, 0.0, 1.0, [0.0, 1.0, 0.0]), false),
+            (material(0.0, 0.0, 1.0, [0.0, 0.0, 1.0]), false),
+            (material(0.0, 0.0, 1.0, [0.0, 0.0, 0.0]), false),
+            (material(0.5, 0.0, 1.0, [0.5, 0.5, 0.0]), true),
+            (material(0.4, 0.4, 10.0, [1.0, 0.0, 0.0]), true),
+        ] {
+            let (params, _) = MtlMixture::new(&m);
+            assert_eq!(params.picks_lobe(), mixed, "{m:?}");
+            if !mixed {
+                // Any `u_lobe` samples what 0 does.
+                let first = params.sample(wo, Vec3::Z, Vec3::Z, true, 0.0, u);
+                for u_lobe in [0.25, 0.5, 0.999, crate::math::ONE_BELOW_ONE] {
+                    let s = params.sample(wo, Vec3::Z, Vec3::Z, true, u_lobe, u);
+                    assert_eq!(s, first, "{m:?}, {u_lobe}");
+                }
+            }
         }
     }
 

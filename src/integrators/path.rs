@@ -67,6 +67,9 @@ pub struct PathIntegrator {
     /// ([`PathIntegrator::step_plain`]): a plain glTF material
     /// ([`GltfBsdf::is_plain`]) without maps or emission.
     plain: Vec<bool>,
+    /// Whether some material is plain: if none is, [`PathIntegrator::step_plain`]
+    /// is not called (a Lambertian MTL scene's batches skip its look at every lane).
+    any_plain: bool,
     /// Most path segments.
     max_depth: u32,
     /// What rays that leave the scene see: the scene's environment, or white when the
@@ -94,7 +97,7 @@ impl PathIntegrator {
                 None => Bsdf::of_mtl(m, None),
             })
             .collect();
-        let plain = (scene.materials.iter().zip(&scattering))
+        let plain: Vec<bool> = (scene.materials.iter().zip(&scattering))
             .map(|(m, bsdf)| {
                 m.maps.is_none()
                     && m.emission == Vec3::ZERO
@@ -102,6 +105,7 @@ impl PathIntegrator {
                     && matches!(bsdf, Bsdf::Gltf(g) if g.is_plain())
             })
             .collect();
+        let any_plain = plain.contains(&true);
         let unlit = scene.unlit && default_light;
         let (environment, background) = if unlit {
             let backdrop = scene.background.unwrap_or(STUDIO_BACKDROP);
@@ -112,6 +116,7 @@ impl PathIntegrator {
         PathIntegrator {
             scattering,
             plain,
+            any_plain,
             max_depth,
             environment_probability: 0.0,
             area_probability: 0.0,
@@ -380,8 +385,14 @@ impl PathIntegrator {
             }
         }
 
-        // Scattering: where the path goes next.
-        let u_lobe = sample.next_1d();
+        // Scattering: where the path goes next. A material of one lobe reads no
+        // `u_lobe`: its dimension is passed over, undrawn.
+        let u_lobe = if bsdf.picks_lobe() {
+            sample.next_1d()
+        } else {
+            sample.skip_1d();
+            0.0
+        };
         let u_direction = sample.next_2d();
         let Some(scattered) = bsdf.sample(u_lobe, u_direction) else {
             return Step {
@@ -406,17 +417,20 @@ impl PathIntegrator {
         rays.scattered += 1;
         path.depth += 1;
 
-        let u_survive = sample.next_1d();
         let largest = path.throughput.max_element();
         // Zero (nothing more to carry) or NaN.
         let mut alive = !(largest.is_nan() || largest <= 0.0);
+        // Russian roulette's dimension, drawn only where it is played.
         if alive && path.depth >= RUSSIAN_ROULETTE_DEPTH {
+            let u_survive = sample.next_1d();
             let keep = (largest * path.eta * path.eta).min(0.95);
             if u_survive >= keep {
                 alive = false;
             } else {
                 path.throughput /= keep;
             }
+        } else {
+            sample.skip_1d();
         }
         Step { shadow, alive }
     }
@@ -840,14 +854,18 @@ impl PathIntegrator {
                     }
                 }
             }
-            let (plain, shadowed_plain, ended) = self.step_plain(
-                scene,
-                paths,
-                &hits,
-                alive,
-                (&mut shadow_rays, &mut shadow_t),
-                rays,
-            );
+            let (plain, shadowed_plain, ended) = if self.any_plain {
+                self.step_plain(
+                    scene,
+                    paths,
+                    &hits,
+                    alive,
+                    (&mut shadow_rays, &mut shadow_t),
+                    rays,
+                )
+            } else {
+                (0, 0, 0)
+            };
             let mut shadowed = shadowed_plain;
             let scalar = alive & !plain;
             alive &= !ended;

@@ -14,7 +14,7 @@ use raytracer::Scene;
 use raytracer::bvh::BvhParams;
 use raytracer::bxdfs::Bsdf;
 use raytracer::bxdfs::gltf::GltfBsdf;
-use raytracer::bxdfs::microfacet::AnisoGgx;
+use raytracer::bxdfs::microfacet::{AnisoGgx, Distribution};
 use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::integrators::{Integrator, PathIntegrator};
 use raytracer::material::pbr::PbrMaterial;

@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use raytracer::Scene;
 use raytracer::bvh::BvhParams;
-use raytracer::bxdfs::microfacet::Ggx;
+use raytracer::bxdfs::microfacet::{Distribution, Ggx};
 use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::integrators::{Integrator, PathIntegrator, WhittedIntegrator};
 use raytracer::material::pbr::{PbrMaps, PbrMaterial};

@@ -39,7 +39,7 @@ use std::f32::consts::{FRAC_1_PI, PI};
 
 use super::fresnel::{schlick_scalar, schlick_weight};
 use super::lambert::cosine_hemisphere;
-use super::microfacet::{self, AnisoGgx, Ggx, reflection_pdf};
+use super::microfacet::{self, AnisoGgx, Distribution, Ggx, reflection_pdf};
 use super::sheen::{self, Sheen};
 use super::{Frame, Lobe, LocalSample};
 use crate::material::pbr::PbrValues;
@@ -320,15 +320,10 @@ impl GltfBsdf {
     fn transmission_pdf(&self, wo: Vec3, wi: Vec3, front: bool) -> Float {
         if !self.volume {
             let h = (wo + Vec3::new(wi.x, wi.y, -wi.z)).normalize();
-            if self.aniso.is_some() {
-                let cos = wo.dot(h);
-                return if cos > 0.0 {
-                    self.base_visible_pdf(wo, h) / (4.0 * cos)
-                } else {
-                    0.0
-                };
-            }
-            return reflection_pdf(&self.ggx, wo, h);
+            return match &self.aniso {
+                Some(a) => reflection_pdf(a, wo, h),
+                None => reflection_pdf(&self.ggx, wo, h),
+            };
         }
         let eta = self.eta(front);
         let Some(h) = refraction_half_vector(wo, wi, eta) else {

@@ -18,6 +18,61 @@ use crate::math::{Float, Vec2, Vec3, sin_cos};
 /// rather than a distribution whose `D` would overflow.
 pub const DELTA_ALPHA: Float = 1e-4;
 
+/// What a microfacet distribution gives: its `D`, Smith's `Lambda`, the visibility in
+/// the form its specification writes, and sampling of visible normals; the terms
+/// built of these alike for every distribution are provided here once.
+pub trait Distribution {
+    /// `D(h)` for a unit `h` in the shading frame.
+    fn d(&self, h: Vec3) -> Float;
+
+    /// Smith's `Lambda(w)`.
+    fn lambda(&self, w: Vec3) -> Float;
+
+    /// The height-correlated visibility `V = G2 / (4 |n.wo| |n.wi|)`.
+    fn visibility(&self, wo: Vec3, wi: Vec3) -> Float;
+
+    /// A microfacet normal seen from `wo` (`wo.z > 0`), distributed as
+    /// [`Distribution::visible_pdf`].
+    fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3;
+
+    /// Smith's masking `G1(w) = 1 / (1 + Lambda(w))`.
+    #[inline]
+    fn g1(&self, w: Vec3) -> Float {
+        1.0 / (1.0 + self.lambda(w))
+    }
+
+    /// The height-correlated masking-shadowing `G2 = 1 / (1 + Lambda(wo) +
+    /// Lambda(wi))`.
+    #[inline]
+    fn g2(&self, wo: Vec3, wi: Vec3) -> Float {
+        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+    }
+
+    /// The separable Smith visibility `G1(wo) G1(wi) / (4 |n.wo| |n.wi|)`: Mitsuba 3's
+    /// and pbrt-v3's masking-shadowing, for comparing with them (glTF's is
+    /// [`Distribution::visibility`]).
+    #[inline]
+    fn separable_visibility(&self, wo: Vec3, wi: Vec3) -> Float {
+        let cosines = 4.0 * wo.z.abs() * wi.z.abs();
+        if cosines > 0.0 {
+            self.g1(wo) * self.g1(wi) / cosines
+        } else {
+            0.0
+        }
+    }
+
+    /// The density of [`Distribution::sample_visible`] at the microfacet normal `h`:
+    /// `G1(wo) max(0, wo.h) D(h) / |wo.z|`.
+    #[inline]
+    fn visible_pdf(&self, wo: Vec3, h: Vec3) -> Float {
+        let cos_o = wo.z.abs();
+        if cos_o <= 0.0 {
+            return 0.0;
+        }
+        self.g1(wo) * wo.dot(h).max(0.0) * self.d(h) / cos_o
+    }
+}
+
 /// An isotropic GGX distribution of microfacet normals.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ggx {
@@ -39,10 +94,12 @@ impl Ggx {
     pub fn is_delta(&self) -> bool {
         self.alpha < DELTA_ALPHA
     }
+}
 
+impl Distribution for Ggx {
     /// `D(h)` for a unit `h` in the shading frame.
     #[inline]
-    pub fn d(&self, h: Vec3) -> Float {
+    fn d(&self, h: Vec3) -> Float {
         if h.z <= 0.0 {
             return 0.0;
         }
@@ -53,7 +110,7 @@ impl Ggx {
 
     /// Smith's `Lambda(w)`.
     #[inline]
-    pub fn lambda(&self, w: Vec3) -> Float {
+    fn lambda(&self, w: Vec3) -> Float {
         let cos2 = w.z * w.z;
         if cos2 <= 0.0 {
             return Float::INFINITY;
@@ -63,24 +120,11 @@ impl Ggx {
         0.5 * ((1.0 + a2 * tan2).sqrt() - 1.0)
     }
 
-    /// Smith's masking `G1(w) = 1 / (1 + Lambda(w))`.
-    #[inline]
-    pub fn g1(&self, w: Vec3) -> Float {
-        1.0 / (1.0 + self.lambda(w))
-    }
-
-    /// The height-correlated masking-shadowing `G2 = 1 / (1 + Lambda(wo) +
-    /// Lambda(wi))`.
-    #[inline]
-    pub fn g2(&self, wo: Vec3, wi: Vec3) -> Float {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
-    }
-
     /// glTF's visibility `V = G2 / (4 |n.wo| |n.wi|)`, in the form Appendix B writes
     /// it: `0.5 / (|n.wi| sqrt(a^2 + (1 - a^2) (n.wo)^2) + |n.wo| sqrt(a^2 + (1 - a^2)
     /// (n.wi)^2))`, which stays finite at grazing angles.
     #[inline]
-    pub fn visibility(&self, wo: Vec3, wi: Vec3) -> Float {
+    fn visibility(&self, wo: Vec3, wi: Vec3) -> Float {
         let a2 = self.alpha * self.alpha;
         let (co, ci) = (wo.z.abs(), wi.z.abs());
         let denominator =
@@ -92,37 +136,13 @@ impl Ggx {
         }
     }
 
-    /// The separable Smith visibility `G1(wo) G1(wi) / (4 |n.wo| |n.wi|)`: Mitsuba 3's
-    /// and pbrt-v3's masking-shadowing, for comparing with them (glTF's is
-    /// [`Ggx::visibility`]).
-    #[inline]
-    pub fn separable_visibility(&self, wo: Vec3, wi: Vec3) -> Float {
-        let cosines = 4.0 * wo.z.abs() * wi.z.abs();
-        if cosines > 0.0 {
-            self.g1(wo) * self.g1(wi) / cosines
-        } else {
-            0.0
-        }
-    }
-
-    /// The density of [`Ggx::sample_visible`] at the microfacet normal `h`:
-    /// `G1(wo) max(0, wo.h) D(h) / |wo.z|`.
-    #[inline]
-    pub fn visible_pdf(&self, wo: Vec3, h: Vec3) -> Float {
-        let cos_o = wo.z.abs();
-        if cos_o <= 0.0 {
-            return 0.0;
-        }
-        self.g1(wo) * wo.dot(h).max(0.0) * self.d(h) / cos_o
-    }
-
     /// A microfacet normal seen from `wo` (`wo.z > 0`), distributed as
     /// [`Ggx::visible_pdf`]: Dupuy and Benyoub's (2023) "Sampling Visible GGX
     /// Normals with Spherical Caps", the same distribution as Heitz's (2018)
     /// construction with one square root and one division fewer (no tangent frame
     /// about the view direction).
     #[inline]
-    pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+    fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
         let a = self.alpha;
         // The view direction in the hemisphere configuration.
         let v = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
@@ -170,9 +190,18 @@ impl AnisoGgx {
         }
     }
 
+    /// `|(ax w.x, ay w.y, w.z)|`: `|w.z| (1 + 2 Lambda(w))`, the half of the
+    /// visibility that depends on `w` alone.
+    #[inline]
+    pub fn stretched_length(&self, w: Vec3) -> Float {
+        Vec3::new(self.alpha_x * w.x, self.alpha_y * w.y, w.z).length()
+    }
+}
+
+impl Distribution for AnisoGgx {
     /// `D(h)` for a unit `h` in the shading frame.
     #[inline]
-    pub fn d(&self, h: Vec3) -> Float {
+    fn d(&self, h: Vec3) -> Float {
         if h.z <= 0.0 {
             return 0.0;
         }
@@ -181,16 +210,9 @@ impl AnisoGgx {
         1.0 / (PI * self.alpha_x * self.alpha_y * s * s)
     }
 
-    /// `|(ax w.x, ay w.y, w.z)|`: `|w.z| (1 + 2 Lambda(w))`, the half of the
-    /// visibility that depends on `w` alone.
-    #[inline]
-    pub fn stretched_length(&self, w: Vec3) -> Float {
-        Vec3::new(self.alpha_x * w.x, self.alpha_y * w.y, w.z).length()
-    }
-
     /// Smith's `Lambda(w)`.
     #[inline]
-    pub fn lambda(&self, w: Vec3) -> Float {
+    fn lambda(&self, w: Vec3) -> Float {
         let cos2 = w.z * w.z;
         if cos2 <= 0.0 {
             return Float::INFINITY;
@@ -200,22 +222,9 @@ impl AnisoGgx {
         0.5 * ((1.0 + tan2).sqrt() - 1.0)
     }
 
-    /// Smith's masking `G1(w) = 1 / (1 + Lambda(w))`.
-    #[inline]
-    pub fn g1(&self, w: Vec3) -> Float {
-        1.0 / (1.0 + self.lambda(w))
-    }
-
-    /// The height-correlated masking-shadowing `G2 = 1 / (1 + Lambda(wo) +
-    /// Lambda(wi))`.
-    #[inline]
-    pub fn g2(&self, wo: Vec3, wi: Vec3) -> Float {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
-    }
-
     /// The extension's `V = G2 / (4 |n.wo| |n.wi|)`.
     #[inline]
-    pub fn visibility(&self, wo: Vec3, wi: Vec3) -> Float {
+    fn visibility(&self, wo: Vec3, wi: Vec3) -> Float {
         let denominator =
             wi.z.abs() * self.stretched_length(wo) + wo.z.abs() * self.stretched_length(wi);
         if denominator > 0.0 {
@@ -225,35 +234,12 @@ impl AnisoGgx {
         }
     }
 
-    /// The separable Smith visibility `G1(wo) G1(wi) / (4 |n.wo| |n.wi|)` (Mitsuba
-    /// 3's), for comparing with Mitsuba.
-    #[inline]
-    pub fn separable_visibility(&self, wo: Vec3, wi: Vec3) -> Float {
-        let cosines = 4.0 * wo.z.abs() * wi.z.abs();
-        if cosines > 0.0 {
-            self.g1(wo) * self.g1(wi) / cosines
-        } else {
-            0.0
-        }
-    }
-
-    /// The density of [`AnisoGgx::sample_visible`] at `h`: `G1(wo) max(0, wo.h)
-    /// D(h) / |wo.z|`.
-    #[inline]
-    pub fn visible_pdf(&self, wo: Vec3, h: Vec3) -> Float {
-        let cos_o = wo.z.abs();
-        if cos_o <= 0.0 {
-            return 0.0;
-        }
-        self.g1(wo) * wo.dot(h).max(0.0) * self.d(h) / cos_o
-    }
-
     /// A microfacet normal seen from `wo` (`wo.z > 0`), distributed as
     /// [`AnisoGgx::visible_pdf`]: `wo` stretched by the two alphas to the
     /// hemisphere configuration, a visible normal of the unit hemisphere drawn on its
     /// spherical cap as [`Ggx::sample_visible`] does, stretched back.
     #[inline]
-    pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+    fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         let v = Vec3::new(ax * wo.x, ay * wo.y, wo.z).normalize();
         let z = (1.0 - u.x) * (1.0 + v.z) - v.z;
@@ -266,48 +252,6 @@ impl AnisoGgx {
 
 /// The smallest `alpha` of an anisotropic distribution along either axis.
 pub const MIN_ANISO_ALPHA: Float = 1e-3;
-
-/// The reflection lobe `D V` of an anisotropic GGX surface (white, no Fresnel).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AnisoGgxReflection {
-    /// The distribution.
-    pub ggx: AnisoGgx,
-}
-
-impl Lobe for AnisoGgxReflection {
-    #[inline]
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let h = (wo + wi).normalize();
-        Vec3::splat(self.ggx.d(h) * self.ggx.visibility(wo, wi))
-    }
-
-    #[inline]
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> Float {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let h = (wo + wi).normalize();
-        let cos = wo.dot(h);
-        if cos <= 0.0 {
-            return 0.0;
-        }
-        self.ggx.visible_pdf(wo, h) / (4.0 * cos)
-    }
-
-    #[inline]
-    fn sample(&self, wo: Vec3, _u_lobe: Float, u: Vec2) -> Option<LocalSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let h = self.ggx.sample_visible(wo, u);
-        let wi = crate::math::reflect(-wo, h);
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LocalSample::smooth(wi, self.eval(wo, wi) * wi.z / pdf, pdf))
-    }
-}
 
 /// Cosines of the albedo table, from 0 to 1.
 const ALBEDO_COSINES: usize = 32;
@@ -442,14 +386,18 @@ pub fn compensation(f0: Vec3, e: Float) -> Vec3 {
     Vec3::ONE + f0 * ((1.0 - e) / e)
 }
 
-/// The reflection lobe `D V` of a GGX surface (white, no Fresnel).
+/// The reflection lobe `D V` of a GGX surface (white, no Fresnel), isotropic
+/// ([`Ggx`]) or anisotropic ([`AnisoGgx`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GgxReflection {
+pub struct GgxReflection<D = Ggx> {
     /// The distribution.
-    pub ggx: Ggx,
+    pub ggx: D,
 }
 
-impl Lobe for GgxReflection {
+/// The reflection lobe of an anisotropic GGX surface.
+pub type AnisoGgxReflection = GgxReflection<AnisoGgx>;
+
+impl<D: Distribution> Lobe for GgxReflection<D> {
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
@@ -483,7 +431,7 @@ impl Lobe for GgxReflection {
 /// The density of the reflected direction whose half vector is `h`, when `h` is
 /// sampled from the normals visible from `wo`: `visible_pdf / (4 wo.h)`.
 #[inline]
-pub fn reflection_pdf(ggx: &Ggx, wo: Vec3, h: Vec3) -> Float {
+pub fn reflection_pdf(ggx: &impl Distribution, wo: Vec3, h: Vec3) -> Float {
     let cos = wo.dot(h);
     if cos <= 0.0 {
         return 0.0;

@@ -217,19 +217,7 @@ fn shade(
             }
         }
     }
-    // A blended surface (in a scene that blends in layers) over what lies behind it,
-    // as a rasterizer blends it; with no depth left it stays opaque.
-    if scene.blend_in_layers()
-        && depth > 1
-        && let Some(cutout) = material.cutout()
-        && cutout.blend
-    {
-        let alpha = cutout.alpha(hit.uv).clamp(0.0, 1.0);
-        if alpha < 1.0 {
-            value = alpha * value + (1.0 - alpha) * behind(scene, ray, hit, depth, inside, rays);
-        }
-    }
-    saturate_finite(value)
+    saturate_finite(over_behind(scene, ray, hit, depth, inside, rays, value))
 }
 
 /// The value of an unlit surface's hit (`KHR_materials_unlit`): its base colour
@@ -245,7 +233,24 @@ fn unlit(
     rays: &mut RayCounts,
 ) -> Vec3 {
     let material = &scene.materials[hit.material.0 as usize];
-    let mut value = (material.unlit_colour(hit.uv, hit.colour)).unwrap_or(Vec3::ZERO);
+    let value = (material.unlit_colour(hit.uv, hit.colour)).unwrap_or(Vec3::ZERO);
+    saturate_finite(over_behind(scene, ray, hit, depth, inside, rays, value))
+}
+
+/// `value`, a surface's at `hit`, over what lies behind it where the surface is
+/// blended (in a scene that blends in layers), as a rasterizer blends it; with no
+/// depth left it stays opaque.
+#[inline]
+fn over_behind(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    depth: u32,
+    inside: bool,
+    rays: &mut RayCounts,
+    value: Vec3,
+) -> Vec3 {
+    let material = &scene.materials[hit.material.0 as usize];
     if scene.blend_in_layers()
         && depth > 1
         && let Some(cutout) = material.cutout()
@@ -253,10 +258,10 @@ fn unlit(
     {
         let alpha = cutout.alpha(hit.uv).clamp(0.0, 1.0);
         if alpha < 1.0 {
-            value = alpha * value + (1.0 - alpha) * behind(scene, ray, hit, depth, inside, rays);
+            return alpha * value + (1.0 - alpha) * behind(scene, ray, hit, depth, inside, rays);
         }
     }
-    saturate_finite(value)
+    value
 }
 
 /// What lies behind `hit` along `ray`: the ray traced on through the surface, with

@@ -143,16 +143,7 @@ impl Distribution for Ggx {
     /// about the view direction).
     #[inline]
     fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
-        let a = self.alpha;
-        // The view direction in the hemisphere configuration.
-        let v = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
-        // A direction uniform on the spherical cap of the unit sphere below the
-        // plane through the origin normal to `v`: `z` in `[-v.z, 1]`.
-        let z = (1.0 - u.x) * (1.0 + v.z) - v.z;
-        let sin_theta = (1.0 - z * z).max(0.0).sqrt();
-        let (sin, cos) = sin_cos(2.0 * PI * u.y);
-        let h = Vec3::new(sin_theta * cos + v.x, sin_theta * sin + v.y, z + v.z);
-        Vec3::new(a * h.x, a * h.y, h.z.max(1e-6)).normalize()
+        visible_normal(self.alpha, self.alpha, wo, u)
     }
 }
 
@@ -240,14 +231,25 @@ impl Distribution for AnisoGgx {
     /// spherical cap as [`Ggx::sample_visible`] does, stretched back.
     #[inline]
     fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
-        let (ax, ay) = (self.alpha_x, self.alpha_y);
-        let v = Vec3::new(ax * wo.x, ay * wo.y, wo.z).normalize();
-        let z = (1.0 - u.x) * (1.0 + v.z) - v.z;
-        let sin_theta = (1.0 - z * z).max(0.0).sqrt();
-        let (sin, cos) = sin_cos(2.0 * PI * u.y);
-        let h = Vec3::new(sin_theta * cos + v.x, sin_theta * sin + v.y, z + v.z);
-        Vec3::new(ax * h.x, ay * h.y, h.z.max(1e-6)).normalize()
+        visible_normal(self.alpha_x, self.alpha_y, wo, u)
     }
+}
+
+/// A microfacet normal of the GGX distribution of `alpha`s `ax` along the local `x`
+/// and `ay` along `y`, seen from `wo` (`wo.z > 0`): `wo` stretched to the hemisphere
+/// configuration, a direction drawn uniformly on the spherical cap of the unit sphere
+/// below the plane through the origin normal to it (Dupuy and Benyoub 2023), and
+/// the normal there stretched back.
+#[inline]
+fn visible_normal(ax: Float, ay: Float, wo: Vec3, u: Vec2) -> Vec3 {
+    // The view direction in the hemisphere configuration.
+    let v = Vec3::new(ax * wo.x, ay * wo.y, wo.z).normalize();
+    // `z` in `[-v.z, 1]`.
+    let z = (1.0 - u.x) * (1.0 + v.z) - v.z;
+    let sin_theta = (1.0 - z * z).max(0.0).sqrt();
+    let (sin, cos) = sin_cos(2.0 * PI * u.y);
+    let h = Vec3::new(sin_theta * cos + v.x, sin_theta * sin + v.y, z + v.z);
+    Vec3::new(ax * h.x, ay * h.y, h.z.max(1e-6)).normalize()
 }
 
 /// The smallest `alpha` of an anisotropic distribution along either axis.

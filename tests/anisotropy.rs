@@ -325,3 +325,34 @@ fn anisotropic_ggx_matches_mitsubas_roughconductor() {
         );
     }
 }
+
+/// Without a tangent of the hit's, the default runs round the up axis (`+Y x n`):
+/// continuous across the equator, where the shading frame's own tangent flips with
+/// the sign of `n.z` (a seam across every brushed sphere), and a unit tangent
+/// perpendicular to the normal at the poles too.
+#[test]
+fn the_default_tangent_runs_round_the_up_axis_without_a_seam() {
+    use raytracer::bxdfs::Frame;
+    let along = Vec2::new(1.0, 0.0);
+    for x in [1.0, 0.3, -0.7] {
+        let above = Frame::anisotropic(Vec3::new(x, 0.2, 0.01).normalize(), Vec3::ZERO, along);
+        let below = Frame::anisotropic(Vec3::new(x, 0.2, -0.01).normalize(), Vec3::ZERO, along);
+        assert!(
+            above.t.dot(below.t) > 0.99,
+            "x {x}: {:?} above the equator, {:?} below",
+            above.t,
+            below.t
+        );
+        let n = Vec3::new(x, 0.2, 0.01).normalize();
+        let expected = Vec3::Y.cross(n).normalize();
+        assert!(
+            (above.t - expected).length() < 1e-5,
+            "{:?} against {expected:?}",
+            above.t
+        );
+    }
+    for n in [Vec3::Y, -Vec3::Y] {
+        let frame = Frame::anisotropic(n, Vec3::ZERO, along);
+        assert!((frame.t.length() - 1.0).abs() < 1e-5 && frame.t.dot(n).abs() < 1e-5);
+    }
+}

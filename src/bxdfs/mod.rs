@@ -59,15 +59,21 @@ impl Frame {
     /// The frame of an anisotropic surface about the unit normal `n`, its first
     /// tangent along the direction of anisotropy: `tangent` made orthogonal to `n`
     /// (the hit's, already turned by the material: [`crate::scene::Hit::tangent`]),
-    /// or where that is zero or along `n`, [`Frame::from_normal`]'s tangent turned
-    /// by `direction` (`(cos, sin)` towards its second tangent).
+    /// or where that is zero or along `n`, a default tangent turned by `direction`
+    /// (`(cos, sin)` towards `n x tangent`). The default runs round the up axis,
+    /// `+Y x n` (as Blender's radial default round its up axis): continuous over the
+    /// whole surface but at the two poles, where [`Frame::from_normal`]'s stands in
+    /// (whose own tangent flips where `n.z` changes sign, a seam across a sphere).
     #[inline]
     pub fn anisotropic(n: Vec3, tangent: Vec3, direction: Vec2) -> Frame {
         let t = match (tangent - n * n.dot(tangent)).try_normalize() {
             Some(t) => t,
             None => {
-                let base = Frame::from_normal(n);
-                (base.t * direction.x + base.b * direction.y).normalize()
+                let radial = match Vec3::Y.cross(n).try_normalize() {
+                    Some(t) => t,
+                    None => Frame::from_normal(n).t,
+                };
+                (radial * direction.x + n.cross(radial) * direction.y).normalize()
             }
         };
         Frame {

@@ -14,7 +14,7 @@ use raytracer::Scene;
 use raytracer::bvh::BvhParams;
 use raytracer::bxdfs::Bsdf;
 use raytracer::bxdfs::gltf::GltfBsdf;
-use raytracer::bxdfs::microfacet::{AnisoGgx, Distribution};
+use raytracer::bxdfs::microfacet::AnisoGgx;
 use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::integrators::{Integrator, PathIntegrator};
 use raytracer::material::pbr::PbrMaterial;
@@ -293,37 +293,14 @@ fn anisotropy_zero_is_the_isotropic_material_exactly() {
 /// Mitsuba's separable Smith term swapped in gives the same `f`.
 #[test]
 fn anisotropic_ggx_matches_mitsubas_roughconductor() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/materials/roughconductor_anisotropic.toml"
-    ))
-    .unwrap();
-    let table: toml::Table = text.parse().unwrap();
-    let pairs = table["pair"].as_array().unwrap();
-    assert!(pairs.len() >= 100);
-    let vector = |value: &toml::Value| {
-        let v: Vec<f64> = value
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_float().unwrap())
-            .collect();
-        Vec3::new(v[0] as Float, v[1] as Float, v[2] as Float)
-    };
-    for pair in pairs {
-        let ggx = AnisoGgx {
-            alpha_x: pair["alpha_u"].as_float().unwrap() as Float,
-            alpha_y: pair["alpha_v"].as_float().unwrap() as Float,
-        };
-        let (wi, wo) = (vector(&pair["wi"]), vector(&pair["wo"]));
-        let expected = pair["f"].as_float().unwrap() as Float;
-        let h = (wi + wo).normalize();
-        let ours = ggx.d(h) * ggx.separable_visibility(wo, wi);
-        assert!(
-            (ours - expected).abs() <= 1e-4 * expected.max(1e-3),
-            "{ggx:?}, wi {wi}, wo {wo}: ours {ours}, Mitsuba {expected}"
-        );
-    }
+    let pairs =
+        crate::support::check_against_mitsuba_table("roughconductor_anisotropic.toml", |pair| {
+            AnisoGgx {
+                alpha_x: pair["alpha_u"].as_float().unwrap() as Float,
+                alpha_y: pair["alpha_v"].as_float().unwrap() as Float,
+            }
+        });
+    assert!(pairs >= 100);
 }
 
 /// Without a tangent of the hit's, the default runs round the up axis (`+Y x n`):

@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use raytracer::Scene;
 use raytracer::bvh::BvhParams;
-use raytracer::bxdfs::microfacet::{Distribution, Ggx};
+use raytracer::bxdfs::microfacet::Ggx;
 use raytracer::description::{SceneDescription, SphereDesc, TriangleDesc};
 use raytracer::integrators::{Integrator, PathIntegrator, WhittedIntegrator};
 use raytracer::material::pbr::{PbrMaps, PbrMaterial};
@@ -503,35 +503,10 @@ fn a_volume_attenuates_by_beer_lambert_over_the_chord() {
 /// Smith term swapped in for glTF's height-correlated one gives the same `f`.
 #[test]
 fn ggx_matches_mitsubas_roughconductor_with_its_separable_smith_term() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/materials/roughconductor.toml"
-    ))
-    .unwrap();
-    let table: toml::Table = text.parse().unwrap();
-    let pairs = table["pair"].as_array().unwrap();
-    assert_eq!(pairs.len(), 96);
-    let vector = |value: &toml::Value| {
-        let v: Vec<f64> = value
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_float().unwrap())
-            .collect();
-        Vec3::new(v[0] as Float, v[1] as Float, v[2] as Float)
-    };
-    for pair in pairs {
-        let alpha = pair["alpha"].as_float().unwrap() as Float;
-        let (wi, wo) = (vector(&pair["wi"]), vector(&pair["wo"]));
-        let expected = pair["f"].as_float().unwrap() as Float;
-        let ggx = Ggx { alpha };
-        let h = (wi + wo).normalize();
-        let ours = ggx.d(h) * ggx.separable_visibility(wo, wi);
-        assert!(
-            (ours - expected).abs() <= 1e-4 * expected.max(1e-3),
-            "alpha {alpha}, wi {wi}, wo {wo}: ours {ours}, Mitsuba {expected}"
-        );
-    }
+    let pairs = crate::support::check_against_mitsuba_table("roughconductor.toml", |pair| Ggx {
+        alpha: pair["alpha"].as_float().unwrap() as Float,
+    });
+    assert_eq!(pairs, 96);
 }
 
 /// A smooth clear coat over a black base reflects by its own normal map

@@ -289,7 +289,7 @@ fn anisotropy_zero_is_the_isotropic_material_exactly() {
 
 /// Mitsuba 3's anisotropic `roughconductor` (GGX, `alpha_u` along the frame's `s`,
 /// `alpha_v` along `t`, a perfect conductor) at fixed pairs of directions, from
-/// `tests/data/materials/make_mitsuba_anisotropic.py`: our anisotropic `D` with
+/// `tests/data/materials/make_mitsuba.py --anisotropic`: our anisotropic `D` with
 /// Mitsuba's separable Smith term swapped in gives the same `f`.
 #[test]
 fn anisotropic_ggx_matches_mitsubas_roughconductor() {

@@ -72,6 +72,25 @@ fn lines_points_and_short_faces_are_skipped_with_one_warning_per_kind() {
 }
 
 #[test]
+fn numbers_followed_by_other_characters_are_read_by_their_leading_number() {
+    // As assimp's `number_formats.obj` spells them (`3.1+e2`), and `1,5`: assimp,
+    // tinyobjloader and Blender read the number the token starts with.
+    let (warnings, rgb) = render("trailing-characters.obj");
+    assert_eq!(
+        warnings,
+        [
+            "trailing-characters.obj:4: read 4 vertex lines with a number followed by other \
+             characters (such as '3.1+e2') by the leading number (3.1), as assimp, \
+             tinyobjloader and Blender do",
+        ]
+    );
+    // The triangle lies at z = -3 (`-3.0+e1` read as -3.0, not -30), so it fills the
+    // middle of the image, lit.
+    let [r, g, b] = centre(&rgb);
+    assert!(r > 50 && r == g && g == b, "{r} {g} {b}");
+}
+
+#[test]
 fn a_missing_material_library_leaves_the_default_material_with_one_warning() {
     let (warnings, rgb) = render("missing-mtl.obj");
     // One warning, not one per material name the library would have defined.

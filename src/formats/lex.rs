@@ -1,6 +1,8 @@
 //! Line and token splitting shared by the OBJ and MTL readers. Works on bytes and
 //! borrows from the file buffer: no allocation per line.
 
+use std::cell::Cell;
+
 use super::decimal;
 use super::error::ParseErrorKind;
 use crate::math::{Float, Vec3};
@@ -104,6 +106,24 @@ pub(crate) fn any_float(token: &[u8]) -> Result<Float, ParseErrorKind> {
     fast_float2::parse(token).map_err(|_| ParseErrorKind::BadNumber(show(token)))
 }
 
+/// Parses one vertex value as [`any_float`] does, or, where the token is a number
+/// followed by other characters (`3.1+e2`, a misspelt exponent; `1,5`), by that
+/// leading number, as assimp, tinyobjloader and Blender's importer read it; `lenient`
+/// is then set, for the caller's warning. A token that does not start with a number
+/// is still an error.
+#[inline]
+pub(crate) fn leading_float(token: &[u8], lenient: &Cell<bool>) -> Result<Float, ParseErrorKind> {
+    any_float(token).or_else(
+        |error| match fast_float2::parse_partial::<Float, _>(token) {
+            Ok((value, used)) if used > 0 => {
+                lenient.set(true);
+                Ok(value)
+            }
+            _ => Err(error),
+        },
+    )
+}
+
 /// Parses the next three tokens as a vertex position, normal or texture coordinate,
 /// whose values may be non-finite (see [`any_float`]); `statement` names the line in
 /// errors.
@@ -173,6 +193,21 @@ mod tests {
         assert_eq!(got[0], (1, vec![&b"v"[..], b"1", b"2", b"3"]));
         assert_eq!(got[1], (2, vec![]));
         assert_eq!(got[2], (3, vec![&b"f"[..], b"1", b"2", b"3"]));
+    }
+
+    #[test]
+    fn a_number_followed_by_other_characters_reads_as_the_number_leniently() {
+        let lenient = Cell::new(false);
+        assert_eq!(leading_float(b"-3.25", &lenient), Ok(-3.25));
+        assert!(!lenient.get());
+        assert_eq!(leading_float(b"3.1+e2", &lenient), Ok(3.1));
+        assert!(lenient.get());
+        for token in [&b"x"[..], b"+e2", b"-", b"."] {
+            assert_eq!(
+                leading_float(token, &lenient),
+                Err(ParseErrorKind::BadNumber(show(token)))
+            );
+        }
     }
 
     #[test]

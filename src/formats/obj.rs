@@ -1,7 +1,8 @@
 //! The OBJ reader: `v`, `vt`, `vn`, `f` (any polygon, all four vertex forms, negative
 //! indices), `s` (smoothing groups), `mtllib`, `usemtl`, and the extensions `S` (sphere)
 //! and `P` (point light). `l`, `p` and faces of fewer than 3 corners are skipped with
-//! one warning per kind, and a missing `.mtl` with one warning.
+//! one warning per kind, vertex values such as `3.1+e2` read as their leading number
+//! with one warning, and a missing `.mtl` with one warning.
 //!
 //! Large files are parsed in parallel, in three passes over chunks cut at line ends,
 //! and a fourth over the faces:
@@ -22,6 +23,7 @@
 //! The first problem in file order is the one reported, exactly as a sequential
 //! reader would.
 
+use std::cell::Cell;
 use std::collections::{HashMap, HashSet};
 use std::mem::MaybeUninit;
 use std::path::{Path, PathBuf};
@@ -276,9 +278,10 @@ fn parse_surveyed(
     let mut colours = Vec::with_capacity(filled.len());
     for filled in filled {
         match filled {
-            Filled::Complete(shaping, chunk_colours) => {
+            Filled::Complete(shaping, chunk_colours, lenient) => {
                 shapings.push(shaping);
                 colours.push(chunk_colours);
+                resolver.skipped[Skipped::LENIENT_NUMBER].add(&lenient);
             }
             Filled::Failed { line, kind } => {
                 return Err(SceneError::Parse {
@@ -406,8 +409,9 @@ fn kept_parts_of<T>(
 /// What pass 3 made of a chunk.
 enum Filled {
     /// Every element of the chunk's parts is written; what pass 4 needs of its
-    /// faces, and its vertex colours ([`Chunk::colours`]).
-    Complete(Shaping, Vec<(u32, Vec3)>),
+    /// faces, its vertex colours ([`Chunk::colours`]), and its vertex lines read
+    /// leniently (which only the general parser reads, so pass 1 cannot count them).
+    Complete(Shaping, Vec<(u32, Vec3)>, Skipped),
     /// The chunk's first problem, at `line` of the file.
     Failed { line: usize, kind: ParseErrorKind },
     /// The chunk has more or fewer elements than pass 1 counted.
@@ -418,7 +422,7 @@ enum Filled {
 fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<'_>) -> Filled {
     let mut shaping = Shaping::default();
     if scan::fill(text, base, materials, parts, &mut shaping).is_some() {
-        return Filled::Complete(shaping, Vec::new());
+        return Filled::Complete(shaping, Vec::new(), Skipped::default());
     }
     let mut chunk = Chunk::parse(text, *base);
     if let Some((line, kind)) = chunk.error {
@@ -452,6 +456,7 @@ fn fill(text: &[u8], base: &Counts, materials: &[MaterialId], parts: &mut Parts<
             Filled::Complete(
                 std::mem::take(&mut chunk.shaping),
                 std::mem::take(&mut chunk.colours),
+                chunk.skipped[Skipped::LENIENT_NUMBER],
             )
         }
         _ => Filled::Incomplete,
@@ -734,9 +739,9 @@ impl Counts {
     }
 }
 
-/// Statements that other tools write and this renderer skips with one warning per kind
-/// (as Blender's importer and tinyobjloader read such files): the first line of each
-/// kind and how many there were.
+/// Statements that other tools write and this renderer skips, or reads leniently, with
+/// one warning per kind (as Blender's importer and tinyobjloader read such files): the
+/// first line of each kind and how many there were.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Skipped {
     first_line: usize,
@@ -744,11 +749,14 @@ struct Skipped {
 }
 
 impl Skipped {
-    /// `l` (polylines), `p` (points), and faces of fewer than 3 corners.
-    const KINDS: usize = 3;
+    /// `l` (polylines), `p` (points), faces of fewer than 3 corners, and vertex
+    /// lines with a number followed by other characters (read by its leading
+    /// number, not skipped).
+    const KINDS: usize = 4;
     const LINE: usize = 0;
     const POINT: usize = 1;
     const SHORT_FACE: usize = 2;
+    const LENIENT_NUMBER: usize = 3;
 
     fn note(&mut self, line: usize) {
         if self.count == 0 {
@@ -774,7 +782,12 @@ impl Skipped {
             Skipped::POINT => {
                 format!("skipped {count} point element{s} ('p'): points have no area to render")
             }
-            _ => format!("skipped {count} face{s} of fewer than 3 vertices"),
+            Skipped::SHORT_FACE => format!("skipped {count} face{s} of fewer than 3 vertices"),
+            _ => format!(
+                "read {count} vertex line{s} with a number followed by other characters \
+                 (such as '3.1+e2') by the leading number (3.1), as assimp, tinyobjloader \
+                 and Blender do"
+            ),
         }
     }
 }
@@ -903,9 +916,11 @@ impl Chunk {
         line_number: usize,
         slot: &mut u32,
     ) -> Result<(), ParseErrorKind> {
+        let lenient = Cell::new(false);
+        let leading = |token: &[u8]| lex::leading_float(token, &lenient);
         match keyword {
             b"v" => {
-                let position = lex::any_vec3("v", &mut tokens)?;
+                let position = Vec3::from(lex::numbers::<3>("v", &mut tokens, leading)?);
                 if let Some(colour) = vertex_colour(tokens) {
                     self.colours.push((self.positions.len() as u32, colour));
                 }
@@ -913,11 +928,14 @@ impl Chunk {
             }
             // Non-finite normals and texture coordinates, like positions, are read
             // and left out of the triangles using them once the file is read.
-            b"vn" => self.normals.push(lex::any_vec3("vn", &mut tokens)?),
+            b"vn" => {
+                let normal = lex::numbers::<3>("vn", &mut tokens, leading)?;
+                self.normals.push(Vec3::from(normal));
+            }
             b"vt" => {
-                let u = lex::numbers::<1>("vt", &mut tokens, lex::any_float)?[0];
+                let u = lex::numbers::<1>("vt", &mut tokens, leading)?[0];
                 let v = match tokens.next() {
-                    Some(t) => lex::any_float(t)?,
+                    Some(t) => leading(t)?,
                     None => 0.0,
                 };
                 self.texcoords.push(Vec2::new(u, v));
@@ -965,6 +983,9 @@ impl Chunk {
                 *slot += 1;
             }
             _ => {}
+        }
+        if lenient.get() {
+            self.skipped[Skipped::LENIENT_NUMBER].note(line_number);
         }
         Ok(())
     }

@@ -144,6 +144,7 @@ impl Scene {
             positions,
             mut colours,
             normals,
+            tangents,
             texcoords,
             triangles,
             triangle_normals,
@@ -159,8 +160,23 @@ impl Scene {
             meshes,
             instances,
         } = description;
-        let objects = super::objects::Objects::new(objects, triangles.len(), spheres.len());
         let started = Mark::now();
+        // Vertex tangents for the triangles whose material reads a tangent frame,
+        // before the description's arrays are taken apart (in leaf order below).
+        let vertex_tangents = super::tangents::TangentInputs {
+            positions: &positions,
+            normals: &normals,
+            texcoords: &texcoords,
+            tangents: &tangents,
+            triangles: &triangles,
+            triangle_normals: &triangle_normals,
+            triangle_texcoords: &triangle_texcoords,
+            materials: &materials,
+            objects: &objects,
+        }
+        .build();
+        drop(tangents);
+        let objects = super::objects::Objects::new(objects, triangles.len(), spheres.len());
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
         // from the description (no second copy of the shapes exists while the
@@ -333,6 +349,18 @@ impl Scene {
         } else {
             Vec::new()
         };
+        // Tangent indices in leaf order, only where some triangle has them (all of
+        // which have texture coordinates, so the second phase reads them).
+        let prim_tangents: Vec<[u32; 3]> = match vertex_tangents.corners.is_empty() {
+            true => Vec::new(),
+            false => (order.par_iter())
+                .map(|&i| {
+                    (vertex_tangents.corners.get(i as usize).copied())
+                        .unwrap_or([super::tangents::NO_TANGENTS; 3])
+                })
+                .collect(),
+        };
+        let tangents = vertex_tangents.tangents;
         // Colours are interpolated by the second phase too.
         let second_phase = textured || !colours.is_empty();
         let texcoords = if textured { texcoords } else { Vec::new() };
@@ -389,6 +417,8 @@ impl Scene {
             source: order,
             objects,
             prim_texcoords,
+            tangents,
+            prim_tangents,
             second_phase,
             colours,
             prim_colours,

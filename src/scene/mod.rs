@@ -11,6 +11,7 @@ mod packet;
 mod query;
 mod shading;
 mod stream;
+mod tangents;
 #[cfg(test)]
 pub(crate) use packet::tests as packet_tests;
 
@@ -175,6 +176,13 @@ pub struct Scene {
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
     /// scenes neither store nor interpolate texture coordinates.
     prim_texcoords: Vec<[u32; 3]>,
+    /// Vertex tangents (unit `xyz`, `w` the bitangent's sign, ±1) of the triangles
+    /// whose material reads a tangent frame: a file's or MikkTSpace's
+    /// (`scene::tangents`). Empty when no material does.
+    tangents: Vec<glam::Vec4>,
+    /// Indices into `tangents` of each primitive's corners (leaf order), or
+    /// `[NO_TANGENTS; 3]`; empty unless some triangle has vertex tangents.
+    prim_tangents: Vec<[u32; 3]>,
     /// Whether hits take the second phase, [`Scene::textured_hit_details`]: the
     /// scene has texture coordinates for its maps, or vertex colours. One flag, so
     /// that a coloured scene without maps stores no texture coordinate indices.

@@ -303,7 +303,10 @@ mod tests {
             within(5.0),
             signs_agree
         );
-        assert!(within(5.0) >= 0.95, "{}", within(5.0));
+        // Measured: median 0, 99% within 0.02 degrees, the largest 0.03 (the
+        // exporter's and this build's rounding), every sign the file's.
+        assert!(within(0.1) >= 0.99, "{}", within(0.1));
+        assert!(within(1.0) == 1.0, "{}", within(1.0));
         assert_eq!(signs_agree, angles.len());
     }
 }

@@ -161,21 +161,6 @@ impl Scene {
             instances,
         } = description;
         let started = Mark::now();
-        // Vertex tangents for the triangles whose material reads a tangent frame,
-        // before the description's arrays are taken apart (in leaf order below).
-        let vertex_tangents = super::tangents::TangentInputs {
-            positions: &positions,
-            normals: &normals,
-            texcoords: &texcoords,
-            tangents: &tangents,
-            triangles: &triangles,
-            triangle_normals: &triangle_normals,
-            triangle_texcoords: &triangle_texcoords,
-            materials: &materials,
-            objects: &objects,
-        }
-        .build();
-        drop(tangents);
         let objects = super::objects::Objects::new(objects, triangles.len(), spheres.len());
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
@@ -201,10 +186,30 @@ impl Scene {
         // The environment's tables (an image's sampling distribution) are made
         // beside the tree: neither reads the other, and the tree's build leaves a
         // core idle at times (its top nodes' serial steps).
-        let (environment, (mut bvh, mut order)) = rayon::join(
-            || environment.as_ref().map(Environment::new),
+        // So are the vertex tangents of the triangles whose material reads a tangent
+        // frame (MikkTSpace's, for those the file gives none), from the
+        // description's arrays before they are taken apart in leaf order below.
+        let tangent_inputs = super::tangents::TangentInputs {
+            positions: &positions,
+            normals: &normals,
+            texcoords: &texcoords,
+            tangents: &tangents,
+            triangles: &triangles,
+            triangle_normals: &triangle_normals,
+            triangle_texcoords: &triangle_texcoords,
+            materials: &materials,
+            object_starts: objects.triangle_starts(),
+        };
+        let ((environment, vertex_tangents), (mut bvh, mut order)) = rayon::join(
+            || {
+                rayon::join(
+                    || environment.as_ref().map(Environment::new),
+                    || tangent_inputs.build(),
+                )
+            },
             || Bvh::build_filtered(triangle_count + spheres.len(), bounds_of, params),
         );
+        drop(tangents);
         // Copies of one primitive pile up in the BVH's coincident ranges, where every
         // ray would test each copy (200,000 copies of a triangle took minutes to
         // render): drop all but the first of each, and build again without them.

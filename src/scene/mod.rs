@@ -106,7 +106,8 @@ const NO_COLOURS: u32 = u32::MAX;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct BuildTimes {
     /// The binary BVH: the primitives' boxes, then binned SAH from the root (built
-    /// twice where duplicate shapes are dropped).
+    /// twice where duplicate shapes are dropped); beside it, an environment map's
+    /// sampling tables and the vertex tangents MikkTSpace makes.
     pub tree: std::time::Duration,
     /// Collapsing it into the 8-wide BVH (its SAH cost measured beside it).
     pub collapse: std::time::Duration,

@@ -5,7 +5,6 @@
 //! xNormal). Shading interpolates them ([`Scene::vertex_frame`]).
 
 use super::*;
-use crate::description::ObjectDesc;
 use glam::Vec4;
 
 /// Marks a primitive without vertex tangents in `Scene::prim_tangents`.
@@ -22,7 +21,8 @@ pub(super) struct TangentInputs<'a> {
     pub triangle_normals: &'a [Option<[u32; 3]>],
     pub triangle_texcoords: &'a [Option<[u32; 3]>],
     pub materials: &'a [Material],
-    pub objects: &'a [ObjectDesc],
+    /// Where each object's triangles begin: MikkTSpace runs object by object.
+    pub object_starts: &'a [u32],
 }
 
 /// The vertex tangents of a level: unit `xyz`, `w` the bitangent's sign (±1), and
@@ -95,8 +95,8 @@ impl TangentInputs<'_> {
             })
             .collect();
         // The rest, grouped by object.
-        let mut starts: Vec<usize> = (self.objects.iter())
-            .map(|o| (o.first_triangle as usize).min(count))
+        let mut starts: Vec<usize> = (self.object_starts.iter())
+            .map(|&start| (start as usize).min(count))
             .chain([0, count])
             .collect();
         starts.sort_unstable();
@@ -272,7 +272,7 @@ mod tests {
             triangle_normals: &with,
             triangle_texcoords: &with,
             materials: &[brushed()],
-            objects: &[],
+            object_starts: &[],
         }
         .build();
         assert_eq!((positions.len(), triangles.len()), (1360, 2314));

@@ -119,7 +119,8 @@ impl TangentInputs<'_> {
             })
             .collect();
         for (faces, made) in made {
-            // Corners of a welded vertex get the same tangent: stored once.
+            // Equal tangents (every corner of a welded vertex, and vertices of one
+            // flat face) are stored once.
             let mut seen: std::collections::HashMap<[u32; 4], u32> = Default::default();
             for (&i, made) in faces.iter().zip(made) {
                 let Some(made) = made else { continue };
@@ -226,6 +227,59 @@ mod tests {
             ..PbrMaterial::default()
         };
         Material::physically_based("brushed", pbr, Vec3::ZERO, None)
+    }
+
+    /// Two quads side by side with texture coordinates and normals, the first of
+    /// `first`, the second of `second` material.
+    fn two_quads(first: Material, second: Material) -> SceneDescription {
+        let mut d = SceneDescription::default();
+        for (q, material) in [0u32, 1].into_iter().zip([0, 1]) {
+            let x = q as Float * 3.0;
+            let base = d.positions.len() as u32;
+            for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                d.positions.push(Vec3::new(x + dx, dy, 0.0));
+                d.normals.push(Vec3::Z);
+                d.texcoords.push(Vec2::new(dx, dy));
+            }
+            for [a, b, c] in [[0, 1, 2], [0, 2, 3]] {
+                let ids = [base + a, base + b, base + c];
+                d.push_triangle(
+                    TriangleDesc {
+                        positions: ids,
+                        material: MaterialId(material),
+                    },
+                    Some(ids),
+                );
+                d.triangle_texcoords.push(Some(ids));
+            }
+        }
+        d.materials = vec![first, second];
+        d
+    }
+
+    /// Tangents are kept only where a material reads them: none at all in a scene
+    /// whose materials do not (texture coordinates alone do not ask for them), and
+    /// in a scene where one does, none for the other material's triangles.
+    #[test]
+    fn tangents_are_kept_only_for_materials_that_read_them() {
+        let mut textured = Material::fallback();
+        textured.maps = Some(Box::default());
+        let plain = Scene::build(
+            two_quads(textured.clone(), textured.clone()),
+            &BvhParams::default(),
+        );
+        assert!(!plain.texcoords.is_empty());
+        assert!(plain.tangents.is_empty() && plain.prim_tangents.is_empty());
+
+        let mixed = Scene::build(two_quads(textured, brushed()), &BvhParams::default());
+        assert_eq!(mixed.prim_tangents.len(), 4);
+        for prim in 0..4 {
+            let material = mixed.shading.get(prim).material;
+            assert_eq!(mixed.has_vertex_tangents(prim), material == MaterialId(1));
+        }
+        // The second quad's four vertices share one tangent (+x, `w` = 1), stored
+        // once.
+        assert_eq!(mixed.tangents, vec![Vec4::new(1.0, 0.0, 0.0, 1.0)]);
     }
 
     /// The tangents MikkTSpace makes for the real file `generic-fixed-hand-left.glb`

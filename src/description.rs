@@ -46,6 +46,15 @@ pub struct SceneDescription {
     pub texcoords: Vec<Vec2>,
     /// `vn` normals, as written (not normalized).
     pub normals: Vec<Vec3>,
+    /// Vertex tangents a file gives (glTF's `TANGENT`), by normal index: entry `i`
+    /// belongs to the corners whose normal is `normals[i]`. `xyz` is a unit tangent
+    /// along the texture's `u`, `w` (+1 or -1) the sign of the bitangent
+    /// `w * cross(normal, tangent)`; a zero entry (`w = 0`) is none. Empty when no
+    /// vertex has one; it may be shorter than `normals`, the vertices past its end
+    /// having none ([`SceneDescription::set_tangents`]). Corners without one get
+    /// MikkTSpace tangents at [`crate::Scene::build`], where their material has a
+    /// normal or bump map or is anisotropic.
+    pub tangents: Vec<glam::Vec4>,
     /// Vertex colours, linear RGB, by position index (glTF's `COLOR_0`, PLY's
     /// `red green blue`, OBJ's `v x y z r g b`): they multiply the diffuse (or base)
     /// colour of the material where they are interpolated. Empty when no vertex
@@ -190,6 +199,13 @@ impl SceneDescription {
     pub fn set_colours(&mut self, first: usize, colours: &[Vec3]) {
         self.colours.resize(first, Vec3::ONE);
         self.colours.extend_from_slice(colours);
+    }
+
+    /// Sets the tangents of the normals from `first` on to `tangents`, the normals
+    /// before it that have none given none (zero).
+    pub fn set_tangents(&mut self, first: usize, tangents: &[glam::Vec4]) {
+        self.tangents.resize(first, glam::Vec4::ZERO);
+        self.tangents.extend_from_slice(tangents);
     }
 
     /// Whether some triangle has a corner with a vertex colour, and so which

@@ -45,6 +45,7 @@ mod real_files;
 mod reference;
 mod scene_files;
 mod shapes;
+mod tangents;
 mod textures;
 mod tiles;
 mod vertex_colours;

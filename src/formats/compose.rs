@@ -71,6 +71,20 @@ impl Transform {
         self.normal_from_object * n
     }
 
+    /// A vertex tangent ([`SceneDescription::tangents`]) moved into the world: its
+    /// direction, a direction in the surface, by the linear part (not normalized),
+    /// and its bitangent sign turned by a mirroring transform (`cross(N n, M t)` then
+    /// runs against `M b`); zero (none) stays zero.
+    #[inline]
+    pub fn tangent(&self, t: glam::Vec4) -> glam::Vec4 {
+        let sign = if self.linear.determinant() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        (self.linear * t.truncate()).extend(t.w * sign)
+    }
+
     /// An instance's placement as a transform for [`SceneDescription::append`] (of
     /// meshes without spheres: it has no uniform scale).
     pub fn from_affine(a: &Affine3A) -> Transform {
@@ -151,6 +165,10 @@ impl SceneDescription {
             .par_iter_mut()
             .with_min_len(PARALLEL_RUN)
             .for_each(|n| *n = transform.normal(*n));
+        mesh.tangents
+            .par_iter_mut()
+            .with_min_len(PARALLEL_RUN)
+            .for_each(|t| *t = transform.tangent(*t));
         mesh.triangles
             .par_iter_mut()
             .with_min_len(PARALLEL_RUN)
@@ -208,6 +226,9 @@ impl SceneDescription {
         append(&mut self.objects, mesh.objects);
         if !mesh.colours.is_empty() {
             self.set_colours(self.positions.len(), &mesh.colours);
+        }
+        if !mesh.tangents.is_empty() {
+            self.set_tangents(self.normals.len(), &mesh.tangents);
         }
         append(&mut self.positions, mesh.positions);
         append(&mut self.normals, mesh.normals);

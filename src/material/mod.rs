@@ -384,6 +384,17 @@ impl Material {
         self.maps.is_some() || self.pbr.as_deref().is_some_and(PbrMaterial::is_anisotropic)
     }
 
+    /// Whether hits on the material read a tangent frame: it has a normal, bump or
+    /// clearcoat normal map, or it is anisotropic. The scene keeps vertex tangents
+    /// only for triangles of such materials.
+    #[inline]
+    pub fn needs_tangents(&self) -> bool {
+        self.maps
+            .as_deref()
+            .is_some_and(MaterialMaps::perturbs_normals)
+            || self.pbr.as_deref().is_some_and(PbrMaterial::is_anisotropic)
+    }
+
     /// Whether some of the surface may be cut out (`map_d`, glTF's alpha mask).
     #[inline]
     pub fn cutout(&self) -> Option<&Cutout> {

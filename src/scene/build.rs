@@ -144,6 +144,7 @@ impl Scene {
             positions,
             mut colours,
             normals,
+            tangents,
             texcoords,
             triangles,
             triangle_normals,
@@ -159,8 +160,8 @@ impl Scene {
             meshes,
             instances,
         } = description;
-        let objects = super::objects::Objects::new(objects, triangles.len(), spheres.len());
         let started = Mark::now();
+        let objects = super::objects::Objects::new(objects, triangles.len(), spheres.len());
 
         // Step 1: the BVH over the triangles with an area, then the spheres, straight
         // from the description (no second copy of the shapes exists while the
@@ -185,10 +186,30 @@ impl Scene {
         // The environment's tables (an image's sampling distribution) are made
         // beside the tree: neither reads the other, and the tree's build leaves a
         // core idle at times (its top nodes' serial steps).
-        let (environment, (mut bvh, mut order)) = rayon::join(
-            || environment.as_ref().map(Environment::new),
+        // So are the vertex tangents of the triangles whose material reads a tangent
+        // frame (MikkTSpace's, for those the file gives none), from the
+        // description's arrays before they are taken apart in leaf order below.
+        let tangent_inputs = super::tangents::TangentInputs {
+            positions: &positions,
+            normals: &normals,
+            texcoords: &texcoords,
+            tangents: &tangents,
+            triangles: &triangles,
+            triangle_normals: &triangle_normals,
+            triangle_texcoords: &triangle_texcoords,
+            materials: &materials,
+            object_starts: objects.triangle_starts(),
+        };
+        let ((environment, vertex_tangents), (mut bvh, mut order)) = rayon::join(
+            || {
+                rayon::join(
+                    || environment.as_ref().map(Environment::new),
+                    || tangent_inputs.build(),
+                )
+            },
             || Bvh::build_filtered(triangle_count + spheres.len(), bounds_of, params),
         );
+        drop(tangents);
         // Copies of one primitive pile up in the BVH's coincident ranges, where every
         // ray would test each copy (200,000 copies of a triangle took minutes to
         // render): drop all but the first of each, and build again without them.
@@ -333,6 +354,18 @@ impl Scene {
         } else {
             Vec::new()
         };
+        // Tangent indices in leaf order, only where some triangle has them (all of
+        // which have texture coordinates, so the second phase reads them).
+        let prim_tangents: Vec<[u32; 3]> = match vertex_tangents.corners.is_empty() {
+            true => Vec::new(),
+            false => (order.par_iter())
+                .map(|&i| {
+                    (vertex_tangents.corners.get(i as usize).copied())
+                        .unwrap_or([super::tangents::NO_TANGENTS; 3])
+                })
+                .collect(),
+        };
+        let tangents = vertex_tangents.tangents;
         // Colours are interpolated by the second phase too.
         let second_phase = textured || !colours.is_empty();
         let texcoords = if textured { texcoords } else { Vec::new() };
@@ -389,6 +422,8 @@ impl Scene {
             source: order,
             objects,
             prim_texcoords,
+            tangents,
+            prim_tangents,
             second_phase,
             colours,
             prim_colours,

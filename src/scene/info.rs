@@ -173,6 +173,7 @@ impl SceneSummary {
         let memory = MemoryEstimate {
             description: scene.positions.len() * size_of::<Vec3>()
                 + scene.normals.len() * size_of::<Vec3>()
+                + scene.tangents.len() * size_of::<glam::Vec4>()
                 + scene.texcoords.len() * size_of::<Vec2>()
                 + scene.triangles.len() * size_of::<TriangleDesc>()
                 + scene.triangle_normals.len() * size_of::<Option<[u32; 3]>>()

@@ -332,7 +332,8 @@ impl Instances {
         let perturbed = (mesh.materials.get(inner.material.0 as usize))
             .and_then(|m| m.maps.as_ref())
             .is_some_and(|maps| maps.perturbs_normals());
-        let ns = match mesh.packets[packet as usize].prim(lane) {
+        let prim = mesh.packets[packet as usize].prim(lane);
+        let ns = match prim {
             // Vertex normals placed one by one, then interpolated, as the flattened
             // mesh's are: under a non-uniform scale, placing the interpolated normal
             // would weigh the corners differently.
@@ -344,7 +345,7 @@ impl Instances {
             }
             _ => to_world(inner.ns).unwrap_or(n),
         };
-        Hit {
+        let placed_hit = Hit {
             t: hit.t,
             p: ray.at(hit.t),
             n,
@@ -370,6 +371,12 @@ impl Instances {
             },
             material: inner.material,
             front: inner.front != placed.mirrored,
+        };
+        match prim {
+            Some(prim) if mesh.has_vertex_tangents(prim) => {
+                placed_frame(placed, mesh, ray, prim, packet, lane, &hit, placed_hit)
+            }
+            _ => placed_hit,
         }
     }
 
@@ -420,6 +427,50 @@ impl Instances {
         self.top
             .validate(self.placed.len(), |i| self.bounds[i as usize])
     }
+}
+
+/// A copy's hit (`hit`, as [`Instances::hit`] placed it) on triangle `prim` of
+/// `mesh`, which has vertex tangents: its normal and bump maps and its direction of
+/// anisotropy made again in world space, in the frame of the placed vertex tangents
+/// (by the linear part, as directions in the surface) and normals (by the inverse
+/// transpose), as a flattened copy's are.
+#[cold]
+#[allow(clippy::too_many_arguments)]
+fn placed_frame(
+    placed: &Placed,
+    mesh: &Scene,
+    ray: &Ray,
+    prim: u32,
+    packet: u32,
+    lane: usize,
+    at: &PrimHit,
+    mut hit: Hit,
+) -> Hit {
+    let Some(Shape::Triangle(tri)) = mesh.packets[packet as usize].shape(lane) else {
+        return hit;
+    };
+    let to_world = |n: Vec3| try_unit(placed.normal_to_world * n);
+    // The geometric and shading normals as the mesh's own (not turned to the ray).
+    let n = try_unit(tri.normal()).and_then(to_world).unwrap_or(hit.n);
+    let ns = mesh.shading_normal_with(mesh.shading.get(prim), n, at, |v| {
+        to_world(v).unwrap_or(Vec3::ZERO)
+    });
+    let linear = placed.object_from_world.matrix3.inverse();
+    let mirrored = linear.determinant() < 0.0;
+    let frame = || mesh.vertex_frame(prim, ns, at, |t| linear * t, mirrored);
+    let turn = |v: Vec3| if ns.dot(ray.dir) > 0.0 { -v } else { v };
+    let (bumped, coat) = mesh.perturbed_normals(hit.material, hit.uv, ns, frame);
+    if let Some(bumped) = bumped {
+        hit.ns = turn(bumped);
+        hit.coat_ns = turn(ns);
+    }
+    if let Some(coat) = coat {
+        hit.coat_ns = turn(coat);
+    }
+    if let Some(tangent) = mesh.anisotropy_tangent(hit.material, hit.uv, frame) {
+        hit.tangent = tangent;
+    }
+    hit
 }
 
 impl Scene {

@@ -11,6 +11,7 @@ mod packet;
 mod query;
 mod shading;
 mod stream;
+mod tangents;
 #[cfg(test)]
 pub(crate) use packet::tests as packet_tests;
 
@@ -105,7 +106,8 @@ const NO_COLOURS: u32 = u32::MAX;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct BuildTimes {
     /// The binary BVH: the primitives' boxes, then binned SAH from the root (built
-    /// twice where duplicate shapes are dropped).
+    /// twice where duplicate shapes are dropped); beside it, an environment map's
+    /// sampling tables and the vertex tangents MikkTSpace makes.
     pub tree: std::time::Duration,
     /// Collapsing it into the 8-wide BVH (its SAH cost measured beside it).
     pub collapse: std::time::Duration,
@@ -175,6 +177,13 @@ pub struct Scene {
     /// `[NO_TEXCOORDS; 3]`; empty unless some material has maps, so that untextured
     /// scenes neither store nor interpolate texture coordinates.
     prim_texcoords: Vec<[u32; 3]>,
+    /// Vertex tangents (unit `xyz`, `w` the bitangent's sign, ±1) of the triangles
+    /// whose material reads a tangent frame: a file's or MikkTSpace's
+    /// (`scene::tangents`). Empty when no material does.
+    tangents: Vec<glam::Vec4>,
+    /// Indices into `tangents` of each primitive's corners (leaf order), or
+    /// `[NO_TANGENTS; 3]`; empty unless some triangle has vertex tangents.
+    prim_tangents: Vec<[u32; 3]>,
     /// Whether hits take the second phase, [`Scene::textured_hit_details`]: the
     /// scene has texture coordinates for its maps, or vertex colours. One flag, so
     /// that a coloured scene without maps stores no texture coordinate indices.

@@ -52,6 +52,11 @@ impl Objects {
         table
     }
 
+    /// Where each object's triangles begin, in order.
+    pub(super) fn triangle_starts(&self) -> &[u32] {
+        &self.triangle_starts
+    }
+
     /// Adds an object that holds none of the description's own shapes: an instance's
     /// copy, whose hits name it by [`Objects::placed_object`].
     pub fn push_after_shapes(&mut self, name: String) {

@@ -45,19 +45,17 @@ impl Scene {
         }
     }
 
-    /// The shading normal `ns` of triangle `prim` tilted by its material's bump or
-    /// normal map at `uv`, and by its clearcoat normal map, in the tangent frame its
-    /// texture coordinates give (`u` along the tangent, `v` along the bitangent, made
-    /// orthonormal about `ns`); `None` without such a map, texture coordinates or a
-    /// frame (a degenerate UV layout).
+    /// The shading normal `ns` tilted by `material`'s bump or normal map at `uv`,
+    /// and by its clearcoat normal map, in the tangent frame `frame` gives (tangent
+    /// and bitangent, orthonormal about `ns`: [`Scene::tangents`]); `None` without
+    /// such a map or a frame.
     #[inline]
     pub(super) fn perturbed_normals(
         &self,
-        prim: u32,
-        triangle: &Triangle,
         material: MaterialId,
         uv: Vec2,
         ns: Vec3,
+        frame: impl FnOnce() -> Option<(Vec3, Vec3)>,
     ) -> (Option<Vec3>, Option<Vec3>) {
         let Some(maps) = self
             .materials
@@ -67,7 +65,7 @@ impl Scene {
         else {
             return (None, None);
         };
-        let Some((tangent, bitangent)) = self.tangents(prim, triangle, ns) else {
+        let Some((tangent, bitangent)) = frame() else {
             return (None, None);
         };
         let tilt = |local: Vec3| try_unit(tangent * local.x + bitangent * local.y + ns * local.z);
@@ -77,11 +75,90 @@ impl Scene {
         )
     }
 
-    /// The unit tangent and bitangent of triangle `prim` about the unit normal `ns`,
-    /// along its texture coordinates' `u` and `v`; `None` without texture coordinates
-    /// or with a degenerate UV layout.
+    /// The direction of anisotropy of an anisotropic `material` at `uv` in the
+    /// tangent frame `frame` gives; `None` for other materials or without a frame.
     #[inline]
-    fn tangents(&self, prim: u32, triangle: &Triangle, ns: Vec3) -> Option<(Vec3, Vec3)> {
+    pub(super) fn anisotropy_tangent(
+        &self,
+        material: MaterialId,
+        uv: Vec2,
+        frame: impl FnOnce() -> Option<(Vec3, Vec3)>,
+    ) -> Option<Vec3> {
+        let material = self.materials.get(material.0 as usize)?;
+        let pbr = material.pbr.as_deref().filter(|pbr| pbr.is_anisotropic())?;
+        let (tangent, bitangent) = frame()?;
+        let maps = material.maps.as_deref();
+        let direction = pbr.anisotropy_direction(uv, maps.map(|m| &m.pbr));
+        Some(tangent * direction.x + bitangent * direction.y)
+    }
+
+    /// The unit tangent and bitangent of triangle `prim` at barycentrics `hit` about
+    /// the unit shading normal `ns`: its vertex tangents interpolated
+    /// ([`Scene::vertex_frame`]), else (a mesh without them, or where they give no
+    /// direction) the triangle's own along its texture coordinates
+    /// ([`Scene::uv_tangents`]).
+    #[inline]
+    fn tangents(
+        &self,
+        prim: u32,
+        triangle: &Triangle,
+        ns: Vec3,
+        hit: &PrimHit,
+    ) -> Option<(Vec3, Vec3)> {
+        self.vertex_frame(prim, ns, hit, |t| t, false)
+            .or_else(|| self.uv_tangents(prim, triangle, ns))
+    }
+
+    /// Whether primitive `prim` has vertex tangents.
+    #[inline]
+    pub(super) fn has_vertex_tangents(&self, prim: u32) -> bool {
+        (self.prim_tangents.get(prim as usize)).is_some_and(|ids| ids[0] != tangents::NO_TANGENTS)
+    }
+
+    /// The tangent frame of triangle `prim`'s vertex tangents at barycentrics `hit`
+    /// about the unit shading normal `ns`, as the glTF sample viewer and three.js
+    /// make it: each corner's tangent moved by `place` (an instance's linear part),
+    /// interpolated, made orthogonal to `ns` (Gram-Schmidt), and the bitangent
+    /// `sign * cross(ns, tangent)`, the sign turned where `mirrored` (a placement
+    /// that mirrors). `None` without vertex tangents, or where the interpolated
+    /// tangent has no direction across `ns`.
+    #[inline]
+    pub(super) fn vertex_frame(
+        &self,
+        prim: u32,
+        ns: Vec3,
+        hit: &PrimHit,
+        place: impl Fn(Vec3) -> Vec3,
+        mirrored: bool,
+    ) -> Option<(Vec3, Vec3)> {
+        let ids = *self.prim_tangents.get(prim as usize)?;
+        if ids[0] == tangents::NO_TANGENTS {
+            return None;
+        }
+        let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
+        let (mut tangent, mut sign) = (Vec3::ZERO, 0.0);
+        for k in 0..3 {
+            let t = self.tangents[ids[k] as usize];
+            tangent += try_unit(place(t.truncate())).unwrap_or(Vec3::ZERO) * weights[k];
+            sign += t.w * weights[k];
+        }
+        let tangent = try_unit(tangent - ns * ns.dot(tangent))?;
+        let bitangent = ns.cross(tangent);
+        Some((
+            tangent,
+            if (sign < 0.0) != mirrored {
+                -bitangent
+            } else {
+                bitangent
+            },
+        ))
+    }
+
+    /// The unit tangent and bitangent of triangle `prim` about the unit normal `ns`,
+    /// along its texture coordinates' `u` and `v` (one frame for the whole
+    /// triangle); `None` without texture coordinates or with a degenerate UV layout.
+    #[inline]
+    fn uv_tangents(&self, prim: u32, triangle: &Triangle, ns: Vec3) -> Option<(Vec3, Vec3)> {
         let ids = self.prim_texcoords.get(prim as usize)?;
         if ids[0] == NO_TEXCOORDS {
             return None;
@@ -268,7 +345,8 @@ impl Scene {
         // Turned with the normal they perturb, so that a bump cannot turn the shading
         // normal to the other side at grazing angles.
         let turn = |v: Vec3| if ns.dot(ray.dir) > 0.0 { -v } else { v };
-        let (bumped, coat) = self.perturbed_normals(prim, &triangle, material, uv, ns);
+        let frame = || self.tangents(prim, &triangle, ns, &hit);
+        let (bumped, coat) = self.perturbed_normals(material, uv, ns, frame);
         if let Some(bumped) = bumped {
             details.ns = turn(bumped);
             // A coat without a normal map of its own lies on the unperturbed surface.
@@ -277,15 +355,8 @@ impl Scene {
         if let Some(coat) = coat {
             details.coat_ns = turn(coat);
         }
-        if let Some(pbr) = self.materials[material.0 as usize]
-            .pbr
-            .as_deref()
-            .filter(|pbr| pbr.is_anisotropic())
-            && let Some((tangent, bitangent)) = self.tangents(prim, &triangle, ns)
-        {
-            let maps = self.materials[material.0 as usize].maps.as_deref();
-            let direction = pbr.anisotropy_direction(uv, maps.map(|m| &m.pbr));
-            details.tangent = tangent * direction.x + bitangent * direction.y;
+        if let Some(tangent) = self.anisotropy_tangent(material, uv, frame) {
+            details.tangent = tangent;
         }
         details
     }

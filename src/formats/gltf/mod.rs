@@ -19,7 +19,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Mat3, Mat4};
+use glam::{Mat3, Mat4, Vec4};
 use gltf::Document;
 use gltf::json::Value;
 
@@ -675,6 +675,12 @@ const TEXCOORDS: Expected = Expected {
     what: "TEXCOORD_0",
     types: QUANTIZED,
     dimensions: gltf::accessor::Dimensions::Vec2,
+};
+/// `KHR_mesh_quantization` allows normalized signed bytes and shorts.
+const TANGENTS: Expected = Expected {
+    what: "TANGENT",
+    types: QUANTIZED,
+    dimensions: gltf::accessor::Dimensions::Vec4,
 };
 /// The names of the texture coordinate sets, for messages about the one read.
 const TEXCOORD_NAMES: [&str; 4] = ["TEXCOORD_0", "TEXCOORD_1", "TEXCOORD_2", "TEXCOORD_3"];
@@ -1361,9 +1367,13 @@ impl Reader<'_> {
                 }
             };
             let count = positions.len();
+            // Blended morph targets move the normals and tangents: the file's tangents
+            // are then not read (MikkTSpace's are made for the posed mesh).
+            let mut morphed = false;
             if let Some(weights) = weights.filter(|w| w.iter().any(|&w| w != 0.0))
                 && primitive.morph_targets().next().is_some()
             {
+                morphed = true;
                 let blended = match compressed {
                     true => Err("a Draco-compressed primitive's morph targets are not read".into()),
                     false => pose::morph(
@@ -1443,6 +1453,30 @@ impl Reader<'_> {
                 other => other,
             };
             let material = self.material(primitive.material());
+            // The file's tangents, placed as the normals are, only where the material
+            // reads a tangent frame and the vertices have normals (glTF: without
+            // normals, tangents are ignored).
+            let tangents = match normals.is_some()
+                && !compressed
+                && !morphed
+                && self.scene.materials[material.0 as usize].needs_tangents()
+            {
+                true => self
+                    .read_tangents(&primitive, &name, count)
+                    .map(|tangents| {
+                        let place = |m: &Mat3, t: Vec4| {
+                            let sign = if m.determinant() < 0.0 { -1.0 } else { 1.0 };
+                            (*m * t.truncate()).extend(t.w * sign)
+                        };
+                        match &skinned {
+                            None => tangents.into_iter().map(|t| place(&linear, t)).collect(),
+                            Some(placements) => (tangents.into_iter().zip(placements))
+                                .map(|(t, m)| place(&Mat3::from_mat4(*m), t))
+                                .collect::<Vec<_>>(),
+                        }
+                    }),
+                false => None,
+            };
             if mode == Mode::Triangles && indices.len() % 3 != 0 {
                 let (what, count) = match primitive.indices() {
                     Some(_) => ("indices", indices.len()),
@@ -1476,6 +1510,9 @@ impl Reader<'_> {
             let has_normals = normals.is_some();
             if let Some(normals) = normals {
                 scene.normals.extend(normals);
+                if let Some(tangents) = &tangents {
+                    scene.set_tangents(normal_base as usize, tangents);
+                }
             }
             let has_texcoords = texcoords.is_some();
             if let Some(texcoords) = texcoords {
@@ -1496,6 +1533,57 @@ impl Reader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// `primitive`'s `TANGENT` (float, or normalized integers under
+    /// `KHR_mesh_quantization`), `w` read as its sign; `None` when it has none, or
+    /// with one warning per kind when it cannot be used (another type, a count that
+    /// is not `count`, a value that is not finite or a zero direction): its tangents
+    /// are then made by MikkTSpace, as for a primitive without them.
+    fn read_tangents(
+        &mut self,
+        primitive: &gltf::Primitive<'_>,
+        name: &str,
+        count: usize,
+    ) -> Option<Vec<Vec4>> {
+        let accessor = primitive.get(&gltf::Semantic::Tangents)?;
+        let instead = "its tangents are made by MikkTSpace instead";
+        if let Err(AccessorProblem::Type(message) | AccessorProblem::Bounds(message)) =
+            check_accessor(&accessor, &TANGENTS, &self.buffers)
+        {
+            self.warn_once("tangent type", format!("{name}: {message}; {instead}"));
+            return None;
+        }
+        let values = read_floats::<4>(accessor, &self.buffers).filter(|v| v.len() == count);
+        let Some(values) = values else {
+            self.warn_once(
+                "tangent count",
+                format!("{name}: TANGENT not readable or not one a vertex; {instead}"),
+            );
+            return None;
+        };
+        if values.iter().flatten().any(|x| !x.is_finite()) {
+            self.warn_once(
+                "tangent not finite",
+                format!("{name}: TANGENT values that are not finite; {instead}"),
+            );
+            return None;
+        }
+        if values
+            .iter()
+            .any(|[x, y, z, _]| [x, y, z].iter().all(|&&c| c == 0.0))
+        {
+            self.warn_once(
+                "tangent zero",
+                format!("{name}: TANGENT of zero length; {instead}"),
+            );
+            return None;
+        }
+        Some(
+            (values.into_iter())
+                .map(|[x, y, z, w]| Vec4::new(x, y, z, if w < 0.0 { -1.0 } else { 1.0 }))
+                .collect(),
+        )
     }
 
     fn add_camera(&mut self, camera: &gltf::Camera<'_>, world: &Mat4) {
@@ -1673,6 +1761,10 @@ fn split_off_mesh(
             false => Vec::new(),
         },
         positions: scene.positions.split_off(positions),
+        tangents: match scene.tangents.len() > normals {
+            true => scene.tangents.split_off(normals),
+            false => Vec::new(),
+        },
         normals: scene.normals.split_off(normals),
         texcoords: scene.texcoords.split_off(texcoords),
         triangles: scene.triangles.split_off(triangles),

@@ -681,7 +681,7 @@ impl EnvironmentMap {
 
     /// Asks the processor to fetch the texels [`EnvironmentMap::bilinear`] reads at
     /// `uv` (their cache lines in both rows).
-    #[inline]
+    #[inline(always)]
     fn prefetch_texels(&self, uv: Vec2) {
         let (width, height) = (self.width as i64, self.height as i64);
         let x = uv.x * self.width as Float - 0.5;

@@ -52,37 +52,11 @@ fn albedo(v: [f64; 3]) -> [f64; 3] {
     let alpha = ROUGHNESS * ROUGHNESS;
     let s2 = STRENGTH * STRENGTH;
     let (at, ab) = (alpha * (1.0 - s2) + s2, alpha);
-    let (n_s, n_phi) = (1500, 1440);
-    let mut sum = [0.0; 3];
-    for i in 0..n_s {
-        let s = (i as f64 + 0.5) / n_s as f64;
-        let theta = PI / 2.0 * s * s;
-        let d_theta = PI * s / n_s as f64;
-        for j in 0..n_phi {
-            let phi = 2.0 * PI * (j as f64 + 0.5) / n_phi as f64;
-            let h = [
-                theta.sin() * phi.cos(),
-                theta.sin() * phi.sin(),
-                theta.cos(),
-            ];
-            let v_h = dot(v, h);
-            let l = [
-                2.0 * v_h * h[0] - v[0],
-                2.0 * v_h * h[1] - v[1],
-                2.0 * v_h * h[2] - v[2],
-            ];
-            if v_h <= 0.0 || l[2] <= 0.0 {
-                continue;
-            }
-            let w = (1.0 - v_h).powi(5);
-            let specular = d_v(at, ab, v, l, h);
-            let measure = l[2] * 4.0 * v_h * theta.sin() * d_theta * (2.0 * PI / n_phi as f64);
-            for c in 0..3 {
-                sum[c] += (BASE[c] + (1.0 - BASE[c]) * w) * specular * measure;
-            }
-        }
-    }
-    sum
+    crate::support::half_vector_albedo(v, (1500, 1440), 2, false, |l, h, v_h| {
+        let w = (1.0 - v_h).powi(5);
+        let specular = d_v(at, ab, v, l, h);
+        BASE.map(|base| (base + (1.0 - base) * w) * specular)
+    })
 }
 
 fn metal(rotation: Float) -> PbrMaterial {

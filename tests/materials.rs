@@ -103,36 +103,9 @@ fn brdf(p: &Params, v: [f64; 3], l: [f64; 3]) -> [f64; 3] {
 /// peaks: `theta_h = (pi / 2) s^3`. Adds the clearcoat's mirror when it is smooth.
 fn albedo(p: &Params, cos_v: f64) -> [f64; 3] {
     let v = [(1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v];
-    let (n_s, n_phi) = (3000, 720);
-    let mut sum = [0.0; 3];
-    for i in 0..n_s {
-        let s = (i as f64 + 0.5) / n_s as f64;
-        let theta = PI / 2.0 * s * s * s;
-        let d_theta = PI / 2.0 * 3.0 * s * s / n_s as f64;
-        for j in 0..n_phi {
-            // Symmetric about the plane of v and the normal: half the circle, twice.
-            let phi = PI * (j as f64 + 0.5) / n_phi as f64;
-            let h = [
-                theta.sin() * phi.cos(),
-                theta.sin() * phi.sin(),
-                theta.cos(),
-            ];
-            let v_h = dot(v, h);
-            let l = [
-                2.0 * v_h * h[0] - v[0],
-                2.0 * v_h * h[1] - v[1],
-                2.0 * v_h * h[2] - v[2],
-            ];
-            if v_h <= 0.0 || l[2] <= 0.0 {
-                continue;
-            }
-            let f = brdf(p, v, l);
-            let measure = l[2] * 4.0 * v_h * theta.sin() * d_theta * (2.0 * PI / n_phi as f64);
-            for c in 0..3 {
-                sum[c] += f[c] * measure;
-            }
-        }
-    }
+    // Symmetric about the plane of v and the normal: half the circle, twice.
+    let mut sum =
+        crate::support::half_vector_albedo(v, (3000, 720), 3, true, |l, _, _| brdf(p, v, l));
     if p.clearcoat > 0.0 && p.clearcoat_roughness == 0.0 {
         let coat = p.clearcoat * (0.04 + 0.96 * (1.0 - cos_v).powi(5));
         sum = sum.map(|s| s + coat);

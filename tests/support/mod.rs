@@ -274,3 +274,49 @@ pub fn check_against_mitsuba_table<
     }
     pairs.len()
 }
+
+/// `integral f(l) cos(l) dl` over the hemisphere above z seen from the unit direction
+/// `v`, by a midpoint quadrature over half vectors `h` (`dl = 4 |v.h| dh`), dense
+/// where a microfacet distribution peaks: `theta_h = (pi / 2) s^power` for `s` in
+/// `n_s` steps, `phi_h` in `n_phi` steps round the circle, or round half of it
+/// (counted twice) where `f` is symmetric about the plane of `v` and z. `f(l, h,
+/// v.h)` is the BRDF's value for each colour channel.
+pub fn half_vector_albedo(
+    v: [f64; 3],
+    (n_s, n_phi): (usize, usize),
+    power: i32,
+    half_circle: bool,
+    mut f: impl FnMut([f64; 3], [f64; 3], f64) -> [f64; 3],
+) -> [f64; 3] {
+    use std::f64::consts::PI;
+    let circle = if half_circle { PI } else { 2.0 * PI };
+    let mut sum = [0.0; 3];
+    for i in 0..n_s {
+        let s = (i as f64 + 0.5) / n_s as f64;
+        let theta = PI / 2.0 * s.powi(power);
+        let d_theta = PI / 2.0 * f64::from(power) * s.powi(power - 1) / n_s as f64;
+        for j in 0..n_phi {
+            let phi = circle * (j as f64 + 0.5) / n_phi as f64;
+            let h = [
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ];
+            let v_h = v[0] * h[0] + v[1] * h[1] + v[2] * h[2];
+            let l = [
+                2.0 * v_h * h[0] - v[0],
+                2.0 * v_h * h[1] - v[1],
+                2.0 * v_h * h[2] - v[2],
+            ];
+            if v_h <= 0.0 || l[2] <= 0.0 {
+                continue;
+            }
+            let value = f(l, h, v_h);
+            let measure = l[2] * 4.0 * v_h * theta.sin() * d_theta * (2.0 * PI / n_phi as f64);
+            for c in 0..3 {
+                sum[c] += value[c] * measure;
+            }
+        }
+    }
+    sum
+}

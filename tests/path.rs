@@ -191,6 +191,76 @@ fn a_grey_sphere_in_the_furnace_returns_its_albedo_from_the_first_bounce() {
     assert_eq!(film.pixels[0], Vec3::ONE);
 }
 
+/// A square in the plane z = 0 whose vertex normals all lean 45 degrees towards -x,
+/// made of `material` (the OBJ default, a Lambertian grey of 0.8, if `None`), in a
+/// uniform white environment.
+fn leaning_square(material: Option<raytracer::material::Material>) -> Scene {
+    let obj = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvn -1 0 1\n\
+               f 1//1 2//1 3//1\nf 1//1 3//1 4//1\n";
+    let mut description = formats::parse_obj(obj.as_bytes(), Path::new("square.obj")).unwrap();
+    if let Some(material) = material {
+        description.materials[0] = material;
+    }
+    description.environment = Some(raytracer::formats::environment::environment_colour(
+        Vec3::ONE,
+        1.0,
+    ));
+    Scene::build(description, &BvhParams::default())
+}
+
+/// Seen from 60 degrees towards +x, the leaning normals face away from the eye, as
+/// interpolated normals do along a low-poly silhouette: every lobe would see the
+/// eye from below and the surface render black. The normal bent towards the eye
+/// until it mirrors the eye 0.01 (in cosine) above the surface, as Cycles bends
+/// it, leans `phi` from the geometric normal, and a Lambertian surface of albedo
+/// `rho` in a white sky then returns the sky's view factor of a plane tilted by
+/// `phi`, `rho (1 + cos phi) / 2` (its cosine-weighted directions below the
+/// surface are dropped). Both the scalar step (an MTL material) and the
+/// sixteen-lane one (a glTF material of `specular` 0) bend it.
+#[test]
+fn a_shading_normal_facing_away_from_the_eye_is_bent_towards_it() {
+    let (s60, c60) = (60f64.to_radians().sin(), 60f64.to_radians().cos());
+    let wo = [s60, 0.0, c60];
+    let ns = [-(0.5f64.sqrt()), 0.0, 0.5f64.sqrt()];
+    let cos_o = wo[0] * ns[0] + wo[2] * ns[2];
+    let mirrored = [2.0 * cos_o * ns[0] - wo[0], 2.0 * cos_o * ns[2] - wo[2]];
+    assert!(cos_o < 0.0 && mirrored[1] < 0.0);
+    // Above the surface by 0.01 on the mirrored direction's side (-x).
+    let threshold = (0.9 * wo[2]).min(0.01);
+    let wanted = [-(1.0 - threshold * threshold).sqrt(), threshold];
+    let bent = [wo[0] + wanted[0], wo[2] + wanted[1]];
+    let cos_phi = bent[1] / (bent[0] * bent[0] + bent[1] * bent[1]).sqrt();
+    let view_factor = (1.0 + cos_phi) / 2.0;
+    let mut options = options(Mode::Path, 8, 8, 64);
+    options.look_from = Vec3::new(5.0 * s60 as Float, 0.0, 5.0 * c60 as Float);
+    options.fov_degrees = 1.0;
+    let gltf_lambert = raytracer::material::Material::physically_based(
+        "lambert",
+        raytracer::material::pbr::PbrMaterial {
+            base_color: Vec3::splat(0.6),
+            metallic: 0.0,
+            specular: 0.0,
+            ..Default::default()
+        },
+        Vec3::ZERO,
+        None,
+    );
+    for (material, rho) in [(None, 0.8), (Some(gltf_lambert), 0.6)] {
+        let film = render(&leaning_square(material), &options);
+        let mean = film
+            .pixels
+            .iter()
+            .map(|v| f64::from(v.x + v.y + v.z) / 3.0)
+            .sum::<f64>()
+            / film.pixels.len() as f64;
+        let expected = rho * view_factor;
+        assert!(
+            (mean - expected).abs() < 0.01 * expected,
+            "albedo {rho}: mean {mean}, expected {expected} (cos phi {cos_phi})"
+        );
+    }
+}
+
 #[test]
 fn a_point_light_falls_off_with_the_square_of_the_distance() {
     // A Lambertian quad (the default material, Kd 0.8) facing the camera, lit by a

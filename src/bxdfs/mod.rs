@@ -96,6 +96,47 @@ impl Frame {
     }
 }
 
+/// The unit shading normal `ns` a path vertex scatters about, seen from `wo`, on a
+/// surface of unit geometric normal `ng` (`wo.ng >= 0`): `ns` itself where `wo` is
+/// above it and the mirror image of `wo` about it leaves above the surface; else
+/// the normal, bent towards `wo`, that mirrors `wo` into a direction `threshold`
+/// above the surface (in cosine), `threshold = min(0.9 wo.ng, 0.01)` as Cycles'
+/// `ensure_valid_specular_reflection` takes it.
+///
+/// Interpolated vertex normals face away from the eye along a low-poly silhouette,
+/// and normal maps tilt the normal away from grazing views: about such a normal
+/// every lobe sees `wo` from below and scatters nothing, and most of what it would
+/// reflect leaves through the surface, where `agrees` drops it: black fringes
+/// round smooth-shaded models and black specks in normal-mapped ones (Mitsuba 3
+/// and pbrt-v4 show them too; Cycles and the raster viewers do not). Flat surfaces
+/// (`ns == ng`) are never bent.
+#[inline(always)]
+pub fn scattering_normal(wo: Vec3, ns: Vec3, ng: Vec3) -> Vec3 {
+    let cos_o = wo.dot(ns);
+    let mirrored = 2.0 * cos_o * ns - wo;
+    let threshold = (0.9 * wo.dot(ng)).min(0.01);
+    if cos_o > 0.0 && mirrored.dot(ng) >= threshold {
+        return ns;
+    }
+    bend_towards(wo, mirrored, ng, threshold)
+}
+
+/// [`scattering_normal`]'s bent normal: the half vector of `wo` and the direction
+/// `threshold` above the surface in the plane of `ng` and `mirrored`.
+#[cold]
+#[inline(never)]
+fn bend_towards(wo: Vec3, mirrored: Vec3, ng: Vec3, threshold: Float) -> Vec3 {
+    let along = mirrored - ng * mirrored.dot(ng);
+    // Straight down, `mirrored` has no side: away from `wo`, as a grazing view
+    // reflects forwards.
+    let side = along
+        .try_normalize()
+        .or_else(|| (ng * wo.dot(ng) - wo).try_normalize())
+        .unwrap_or(Vec3::ZERO);
+    let wanted = ng * threshold + side * (1.0 - threshold * threshold).max(0.0).sqrt();
+    (wo + wanted).try_normalize().unwrap_or(ng)
+}
+
 /// Whether `wo` and `wi` lie on the same side of the local surface.
 #[inline]
 pub fn same_hemisphere(wo: Vec3, wi: Vec3) -> bool {

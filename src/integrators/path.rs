@@ -30,10 +30,10 @@
 use super::Integrator;
 use super::aov::PixelAovs;
 use crate::bvh::lanes_of;
-use crate::bxdfs::Bsdf;
 use crate::bxdfs::gltf::GltfBsdf;
 use crate::bxdfs::gltf_lanes::{self, LANES, PlainGather, V3, V3Gather};
 use crate::bxdfs::mtl::{MtlMixture, reads_as_rough_dielectric};
+use crate::bxdfs::{Bsdf, scattering_normal};
 use crate::camera::Camera;
 use crate::lights::LightSample;
 use crate::lights::environment::{
@@ -348,7 +348,12 @@ impl PathIntegrator {
             None => &self.scattering[hit.material.0 as usize],
         };
         let wo = -ray.dir;
-        let bsdf = scattering.at(wo, hit.ns, hit.n, hit.coat_ns, hit.tangent, hit.front);
+        let ns = scattering_normal(wo, hit.ns, hit.n);
+        let coat_ns = match hit.coat_ns {
+            Vec3::ZERO => Vec3::ZERO,
+            coat_ns => scattering_normal(wo, coat_ns, hit.n),
+        };
+        let bsdf = scattering.at(wo, ns, hit.n, coat_ns, hit.tangent, hit.front);
         let sample = &mut path.sample;
 
         // Next-event estimation: one light, chosen by power.
@@ -380,7 +385,7 @@ impl PathIntegrator {
                 path.unoccluded = path.throughput
                     * f
                     * light.radiance
-                    * (light.direction.dot(hit.ns).abs() * weight / light.pdf);
+                    * (light.direction.dot(ns).abs() * weight / light.pdf);
                 shadow = Some(shadow_ray_towards(&hit, &light));
             }
         }
@@ -602,7 +607,8 @@ impl PathIntegrator {
                 continue;
             }
             if let Bsdf::Gltf(g) = &self.scattering[material]
-                && gather.set(lane, g, -path.ray.dir, hit.ns, hit.n)
+                && let wo = -path.ray.dir
+                && gather.set(lane, g, wo, scattering_normal(wo, hit.ns, hit.n), hit.n)
             {
                 points.set(lane, hit.p);
                 plain |= 1 << lane;

@@ -148,3 +148,50 @@ fn under_the_rig_a_smooth_mesh_does_not_shadow_itself_where_its_shading_faces_th
         "lit through the occluder"
     );
 }
+
+/// A square in the plane z = 0 with every vertex normal `normal`, lit by full mode's
+/// default rig for `options`.
+fn square_under_the_rig(normal: Vec3, options: &RenderOptions) -> Scene {
+    let obj = format!(
+        "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvn {} {} {}\nf 1//1 2//1 3//1\nf 1//1 3//1 4//1\n",
+        normal.x, normal.y, normal.z
+    );
+    let mut description = formats::parse_obj(obj.as_bytes(), Path::new("square.obj")).unwrap();
+    description.add_default_light(options);
+    Scene::build(description, &BvhParams::default())
+}
+
+/// Under the default rig, a shading normal that faces away from the eye (as
+/// interpolated normals do along a low-poly silhouette) is shaded as the normal bent
+/// towards the eye until it mirrors the eye 0.01 (in cosine) above the surface:
+/// a square whose normals lean 45 degrees away from an eye 60 degrees off its axis
+/// looks as one whose normals are that bent normal, worked out here by its
+/// definition. Unbent, full mode shaded it about the normal turned round to face the
+/// ray, a dark fringe round smooth models.
+#[test]
+fn under_the_rig_a_shading_normal_facing_away_from_the_eye_is_bent_towards_it() {
+    let (s60, c60) = (60f32.to_radians().sin(), 60f32.to_radians().cos());
+    let wo = Vec3::new(s60, 0.0, c60);
+    let leaning = Vec3::new(-1.0, 0.0, 1.0).normalize();
+    let threshold = (0.9 * c60).min(0.01);
+    let wanted = Vec3::new(-(1.0 - threshold * threshold).sqrt(), 0.0, threshold);
+    let bent = (wo + wanted).normalize();
+    let options = RenderOptions {
+        width: 8,
+        height: 8,
+        fov_degrees: 1.0,
+        look_from: wo * 5.0,
+        look_to: Vec3::ZERO,
+        mode: Mode::Full,
+        ..RenderOptions::default()
+    };
+    let mean = |normal: Vec3| {
+        let film = render(&square_under_the_rig(normal, &options), &options);
+        film.pixels.iter().sum::<Vec3>() / film.pixels.len() as f32
+    };
+    let (seen, expected) = (mean(leaning), mean(bent));
+    assert!(
+        (seen - expected).abs().max_element() < 0.01 * expected.max_element(),
+        "leaning normals {seen}, bent ones {expected}"
+    );
+}

@@ -7,6 +7,7 @@ use super::phong_lanes::HitLanes;
 use super::{Band, Integrator, TileContext, TraceClock, trace_band_by_pixel};
 use crate::bvh::PACKET_SIZE;
 use crate::bxdfs::microfacet::split_sum;
+use crate::bxdfs::scattering_normal;
 use crate::lights::environment::studio_radiance;
 use crate::material::pbr::PbrValues;
 use crate::material::{Colours, Light};
@@ -129,15 +130,32 @@ fn trace_from(
     inside: bool,
     rays: &mut RayCounts,
 ) -> Vec3 {
-    let Some(hit) = hit else {
+    let Some(mut hit) = hit else {
         return Vec3::ZERO;
     };
+    bend_where_ours(scene, ray, &mut hit);
     let shadows = ShadowRays {
         scene,
         ray,
         hit: &hit,
     };
     shade(scene, ray, &hit, depth, inside, rays, shadows)
+}
+
+/// Turns `hit`'s shading normal as full mode shades it. SPEC's Phong material in a
+/// scene with its own lights keeps the normal as the hit has it (turned to face the
+/// ray), as the reference images show it; under the default rig, and for a
+/// physically based material, both of them ours, a normal that faces away from the
+/// eye (along a low-poly silhouette, in a normal map at a grazing view) is bent
+/// towards it as path mode bends it ([`scattering_normal`]), which would otherwise
+/// shade a dark fringe round smooth-shaded models.
+#[inline(always)]
+fn bend_where_ours(scene: &Scene, ray: &Ray, hit: &mut Hit) {
+    if hit.ns != hit.n
+        && (scene.lit_by_rig() || scene.materials[hit.material.0 as usize].pbr.is_some())
+    {
+        hit.ns = scattering_normal(-ray.dir, hit.ns, hit.n);
+    }
 }
 
 /// Where the point lights' part of a hit's value comes from: shadow rays traced one by
@@ -496,7 +514,7 @@ impl WhittedIntegrator {
         &self,
         scene: &Scene,
         camera_rays: &[Ray],
-        hits: &[Option<Hit>],
+        hits: &mut [Option<Hit>],
         out: &mut [Vec3],
         rays: &mut RayCounts,
         scratch: &mut PacketScratch,
@@ -505,6 +523,11 @@ impl WhittedIntegrator {
         assert_eq!(camera_rays.len(), out.len(), "one value per ray");
         assert_eq!(camera_rays.len(), hits.len(), "one hit per ray");
         let count = camera_rays.len();
+        for (ray, hit) in camera_rays.iter().zip(hits.iter_mut()) {
+            if let Some(hit) = hit {
+                bend_where_ours(scene, ray, hit);
+            }
+        }
 
         // Spots, directional lights and ranges are shaded hit by hit
         // (`direct_light`); the lanes know plain point lights only.

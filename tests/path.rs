@@ -261,6 +261,90 @@ fn a_shading_normal_facing_away_from_the_eye_is_bent_towards_it() {
     }
 }
 
+/// An octahedron of "radius" 1 whose vertex normals point out from its centre, as a
+/// coarse sphere's do, made of `material` (the OBJ default, a Lambertian grey of
+/// 0.8, if `None`), lit by a directional light from `towards_light` of illuminance
+/// `illuminance`.
+fn smooth_octahedron_lit(
+    material: Option<raytracer::material::Material>,
+    towards_light: Vec3,
+    illuminance: Float,
+) -> Scene {
+    let mut obj = String::from("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n");
+    obj += "vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n";
+    for (x, y, z) in [
+        (1, 3, 5),
+        (1, 6, 3),
+        (1, 5, 4),
+        (1, 4, 6),
+        (2, 5, 3),
+        (2, 3, 6),
+        (2, 4, 5),
+        (2, 6, 4),
+    ] {
+        obj += &format!("f {x}//{x} {y}//{y} {z}//{z}\n");
+    }
+    let mut description = formats::parse_obj(obj.as_bytes(), Path::new("octahedron.obj")).unwrap();
+    if let Some(material) = material {
+        description.materials[0] = material;
+    }
+    description.lights.push(raytracer::material::Light {
+        position: Vec3::ZERO,
+        intensity: Vec3::splat(illuminance),
+        kind: raytracer::material::LightKind::Directional {
+            direction: -towards_light.normalize(),
+        },
+        range: None,
+    });
+    Scene::build(description, &BvhParams::default())
+}
+
+/// The shadow terminator in path mode. At the point (0.8, 0.1, 0.1) of the
+/// octahedron's face in the positive octant, a light from (1, -0.7, -0.7) lies
+/// behind the flat triangle while the interpolated normal still faces it. A convex
+/// smooth surface cannot shadow a point of itself that faces the light, so the point
+/// must be lit as a sphere's would: `rho / pi * E * cos(ns, l)`, the light sampled
+/// past the terminator and its shadow ray started from the smooth surface the
+/// vertex normals describe. Before, the triangle's own plane cut the light off in
+/// steps of whole triangles along a coarse sphere's terminator. Both the scalar step
+/// (an MTL material) and the sixteen-lane one (a glTF material of `specular` 0).
+#[test]
+fn past_a_smooth_meshs_terminator_the_light_reaches_what_the_shading_normal_faces() {
+    let p = Vec3::new(0.8, 0.1, 0.1);
+    let ns = p.normalize();
+    let towards_light = Vec3::new(1.0, -0.7, -0.7).normalize();
+    assert!(towards_light.dot(Vec3::ONE) < 0.0 && towards_light.dot(ns) > 0.5);
+    let illuminance = 2.0;
+    let mut options = options(Mode::Path, 4, 4, 16);
+    options.look_from = p + Vec3::new(1.0, -0.3, -0.3).normalize() * 2.0;
+    options.look_to = p;
+    // A narrow view: the eye sees the face at a grazing angle, and across a wider
+    // one the shading normal's cosine to the light changes by percents.
+    options.fov_degrees = 0.02;
+    let gltf_lambert = raytracer::material::Material::physically_based(
+        "lambert",
+        raytracer::material::pbr::PbrMaterial {
+            base_color: Vec3::splat(0.6),
+            metallic: 0.0,
+            specular: 0.0,
+            ..Default::default()
+        },
+        Vec3::ZERO,
+        None,
+    );
+    for (material, rho) in [(None, 0.8), (Some(gltf_lambert), 0.6)] {
+        let scene = smooth_octahedron_lit(material, towards_light, illuminance);
+        let film = render(&scene, &options);
+        let expected = rho / std::f32::consts::PI * illuminance * ns.dot(towards_light);
+        for v in &film.pixels {
+            assert!(
+                (v.x - expected).abs() < 0.01 * expected,
+                "albedo {rho}: pixel {v}, expected {expected}"
+            );
+        }
+    }
+}
+
 #[test]
 fn a_point_light_falls_off_with_the_square_of_the_distance() {
     // A Lambertian quad (the default material, Kd 0.8) facing the camera, lit by a

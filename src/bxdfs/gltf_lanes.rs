@@ -433,16 +433,18 @@ impl PlainVertices {
         self.p_diffuse.simd_gt(F::ZERO) | self.p_specular.simd_gt(F::ZERO)
     }
 
-    /// [`super::BsdfAt::eval_and_pdf`] of world directions `wi`.
+    /// [`super::BsdfAt::eval_and_pdf`] of world directions `wi`; in the lanes of
+    /// `past_terminator`, [`super::BsdfAt::eval_past_terminator`] with a density of
+    /// 0 where `wi` lies below the geometric surface.
     #[inline(always)]
-    pub fn eval_and_pdf(&self, wi: V3) -> (V3, F) {
+    pub fn eval_and_pdf(&self, wi: V3, past_terminator: F) -> (V3, F) {
         let agrees = agrees(wi, self.frames.n, self.ng);
         let local = self.frames.to_local(wi);
-        let ok = agrees & self.above & local.z.simd_gt(F::ZERO);
+        let ok = (agrees | past_terminator) & self.above & local.z.simd_gt(F::ZERO);
         let (f, pdf) = self.local_eval_pdf(local);
         (
             V3::select(ok, f, V3::splat(Vec3::ZERO)),
-            ok.select(pdf, F::ZERO),
+            (ok & agrees).select(pdf, F::ZERO),
         )
     }
 
@@ -692,7 +694,7 @@ mod tests {
         let u_lobe: [Float; LANES] = std::array::from_fn(|_| numbers.next());
         let u: [[Float; LANES]; 2] =
             std::array::from_fn(|_| std::array::from_fn(|_| numbers.next()));
-        let (f, pdf) = lanes.eval_and_pdf(V3::from_vecs(&wi));
+        let (f, pdf) = lanes.eval_and_pdf(V3::from_vecs(&wi), F::ZERO);
         let smooth = lanes.has_smooth_lobes().to_bitmask();
         let samples = lanes.sample(F::from(u_lobe), u.map(F::from));
         let valid = samples.valid.to_bitmask();

@@ -348,6 +348,22 @@ impl BsdfAt<'_> {
         }
     }
 
+    /// `f(wo, wi)` of the non-delta lobes for a `wi` above the shading surface but
+    /// below the geometric one (past a smooth mesh's flat triangle, towards a light
+    /// whose shadow ray starts from the smooth surface, [`crate::scene::Hit::lift`]),
+    /// where [`BsdfAt::eval`] gives zero lest light leak through the surface. No
+    /// scattered ray leaves that way ([`BsdfAt::sample`] drops such directions), so
+    /// light sampling alone reaches it, with a weight of 1.
+    #[inline(never)]
+    pub fn eval_past_terminator(&self, wi: Vec3) -> Vec3 {
+        match self {
+            BsdfAt::Mtl {
+                mixture, wo, ns, ..
+            } => mixture.eval(*wo, wi, *ns, *ns),
+            BsdfAt::Gltf(g) => g.at.eval(g.frame.to_local(wi)),
+        }
+    }
+
     /// [`BsdfAt::eval`] and, where that is not zero, [`BsdfAt::pdf`] (else 0): a
     /// glTF material computes both from one half vector, as light sampling's MIS
     /// needs them.

@@ -43,7 +43,7 @@ use crate::lights::environment::{
 use crate::material::{LightKind, Material};
 use crate::math::{Float, Ray, Vec2, Vec3, saturate_finite};
 use crate::sampler::{PixelSample, PixelSampler};
-use crate::scene::{BATCH, Hit, SPAWN_OFFSET, Scene};
+use crate::scene::{BATCH, Hit, SPAWN_OFFSET, Scene, TERMINATOR_COSINE};
 use crate::stats::RayCounts;
 use std::f32::consts::PI;
 use wide::f32x16;
@@ -372,6 +372,11 @@ impl PathIntegrator {
             } else {
                 bsdf.eval_and_pdf(light.direction)
             };
+            let (f, bsdf_pdf) = if f == Vec3::ZERO && past_terminator(&hit, ns, light.direction) {
+                (bsdf.eval_past_terminator(light.direction), 0.0)
+            } else {
+                (f, bsdf_pdf)
+            };
             if f != Vec3::ZERO {
                 if let (Some(sample), Some(environment)) = (deferred, &self.environment) {
                     light.radiance = environment.sampled_radiance(&sample);
@@ -386,7 +391,7 @@ impl PathIntegrator {
                     * f
                     * light.radiance
                     * (light.direction.dot(ns).abs() * weight / light.pdf);
-                shadow = Some(shadow_ray_towards(&hit, &light));
+                shadow = Some(shadow_ray_towards(&hit, ns, &light));
             }
         }
 
@@ -595,6 +600,8 @@ impl PathIntegrator {
     ) -> (u32, u32, u32) {
         let mut gather = PlainGather::default();
         let mut points = V3Gather::splat(Vec3::ZERO);
+        let mut lifts = V3Gather::splat(Vec3::ZERO);
+        let mut lifted = 0u32;
         let mut plain = 0;
         for lane in lanes_of(alive) {
             let path = &paths[lane];
@@ -611,6 +618,10 @@ impl PathIntegrator {
                 && gather.set(lane, g, wo, scattering_normal(wo, hit.ns, hit.n), hit.n)
             {
                 points.set(lane, hit.p);
+                if hit.lift != Vec3::ZERO {
+                    lifts.set(lane, hit.lift);
+                    lifted |= 1 << lane;
+                }
                 plain |= 1 << lane;
             }
         }
@@ -729,7 +740,14 @@ impl PathIntegrator {
 
         // Next-event estimation: `step`'s, sixteen lanes at a time.
         let vertices = gather.at();
-        let (f, bsdf_pdf) = vertices.eval_and_pdf(direction);
+        let n = vertices.geometric_normals();
+        // `past_terminator`.
+        let past_terminator = gltf_lanes::mask(lifted)
+            & direction.dot(n).simd_le(f32x16::ZERO)
+            & direction
+                .dot(vertices.shading_normals())
+                .simd_gt(f32x16::ZERO);
+        let (f, bsdf_pdf) = vertices.eval_and_pdf(direction, past_terminator);
         let throughput = throughput.load();
         let weight = delta.select(f32x16::ONE, power_heuristic_lanes(light_pdf, bsdf_pdf));
         let scale = direction.dot(vertices.shading_normals()).abs() * weight / light_pdf;
@@ -753,9 +771,19 @@ impl PathIntegrator {
         let radiance = V3::select(point, point_radiance, radiance.load());
         let unoccluded = throughput.times(f).times(radiance).scale(scale);
         // `shadow_ray_towards`.
-        let n = vertices.geometric_normals();
         let offset = spawn_offsets(p);
-        let origin = spawn_origins(p, n, offset, direction);
+        let mut origin = spawn_origins(p, n, offset, direction);
+        if lifted & lit != 0 {
+            // `Hit::shadow_origin`: the share of the lift the light's grazing takes,
+            // on the side the shading normal faces.
+            let share = (f32x16::ONE - direction.dot(n) / f32x16::splat(TERMINATOR_COSINE))
+                .max(f32x16::ZERO)
+                .min(f32x16::ONE);
+            let facing = direction
+                .dot(vertices.shading_normals())
+                .simd_gt(f32x16::ZERO);
+            origin = origin.plus(lifts.load().scale(facing.select(share, f32x16::ZERO)));
+        }
         let clear = (distance - origin.minus(p).dot(direction)) * f32x16::splat(1.0 - 1e-3);
         for lane in lanes_of(lit) {
             rays.shadow += 1;
@@ -1039,10 +1067,36 @@ fn power_heuristic(pdf: Float, other: Float) -> Float {
 /// point, a little less from the offset origin, and the light's own surface must not
 /// block the ray to it.
 #[inline(always)]
-fn shadow_ray_towards(hit: &Hit, light: &LightSample) -> (Ray, Float) {
+fn shadow_ray_towards(hit: &Hit, ns: Vec3, light: &LightSample) -> (Ray, Float) {
+    if hit.lift != Vec3::ZERO && light.direction.dot(ns) > 0.0 {
+        return lifted_shadow_ray(hit, light);
+    }
     let ray = hit.spawn_unit_ray(light.direction);
     let distance = light.distance - (ray.origin - hit.p).dot(light.direction);
     (ray, distance * (1.0 - 1e-3))
+}
+
+/// [`shadow_ray_towards`] from a hit with a lift, towards a light on the side its
+/// shading normal faces: from the smooth surface as far as the light grazes the
+/// triangle (a light through the surface, a thin transmitting one, is tested from
+/// behind it, not through it).
+#[inline(never)]
+fn lifted_shadow_ray(hit: &Hit, light: &LightSample) -> (Ray, Float) {
+    let (ray, distance) = hit.spawn_shadow_ray(light.direction, light.distance);
+    (ray, distance * (1.0 - 1e-3))
+}
+
+/// Whether light sampling's unit `direction` from `hit` lies past the terminator of
+/// a smooth mesh's flat triangle: above the shading surface (of unit normal `ns`)
+/// but not the geometric one, where the hit has a smooth surface above it to start
+/// a shadow ray from ([`Hit::lift`]). The surface is lit there as its shading
+/// normal says ([`crate::bxdfs::BsdfAt::eval_past_terminator`]) wherever that
+/// shadow ray gets out (Hanika, "Hacking the Shadow Terminator"): on a coarse
+/// sphere the light's edge runs smooth rather than in steps of whole triangles,
+/// and under an environment the triangles do not show as patches.
+#[inline(always)]
+fn past_terminator(hit: &Hit, ns: Vec3, direction: Vec3) -> bool {
+    hit.lift != Vec3::ZERO && direction.dot(hit.n) <= 0.0 && direction.dot(ns) > 0.0
 }
 
 /// How far [`Hit::spawn_ray`] moves the origins of rays leaving the sixteen hit

@@ -133,7 +133,7 @@ fn trace_from(
     let Some(mut hit) = hit else {
         return Vec3::ZERO;
     };
-    bend_where_ours(scene, ray, &mut hit);
+    as_full_mode_shades(scene, ray, &mut hit);
     let shadows = ShadowRays {
         scene,
         ray,
@@ -142,15 +142,19 @@ fn trace_from(
     shade(scene, ray, &hit, depth, inside, rays, shadows)
 }
 
-/// Turns `hit`'s shading normal as full mode shades it. SPEC's Phong material in a
-/// scene with its own lights keeps the normal as the hit has it (turned to face the
-/// ray), as the reference images show it; under the default rig, and for a
-/// physically based material, both of them ours, a normal that faces away from the
-/// eye (along a low-poly silhouette, in a normal map at a grazing view) is bent
-/// towards it as path mode bends it ([`scattering_normal`]), which would otherwise
-/// shade a dark fringe round smooth-shaded models.
+/// `hit` as full mode shades it. SPEC's Phong material in a scene with its own
+/// lights keeps the shading normal as the hit has it (turned to face the ray), and
+/// its shadow rays start an epsilon off the triangle (no [`Hit::lift`]), as the
+/// reference images show it. Under the default rig, and for a physically based
+/// material, both of them ours, a normal that faces away from the eye (along a
+/// low-poly silhouette, in a normal map at a grazing view) is bent towards it as
+/// path mode bends it ([`scattering_normal`]), which would otherwise shade a dark
+/// fringe round smooth-shaded models; the rig's shadow rays keep the lift.
 #[inline(always)]
-fn bend_where_ours(scene: &Scene, ray: &Ray, hit: &mut Hit) {
+fn as_full_mode_shades(scene: &Scene, ray: &Ray, hit: &mut Hit) {
+    if !scene.lit_by_rig() {
+        hit.lift = Vec3::ZERO;
+    }
     if hit.ns != hit.n
         && (scene.lit_by_rig() || scene.materials[hit.material.0 as usize].pbr.is_some())
     {
@@ -525,7 +529,7 @@ impl WhittedIntegrator {
         let count = camera_rays.len();
         for (ray, hit) in camera_rays.iter().zip(hits.iter_mut()) {
             if let Some(hit) = hit {
-                bend_where_ours(scene, ray, hit);
+                as_full_mode_shades(scene, ray, hit);
             }
         }
 

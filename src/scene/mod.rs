@@ -275,10 +275,12 @@ pub struct Hit {
     /// 2021): `p` moved out along each corner's normal by as far as it lies below that
     /// corner's tangent plane, weighted by its barycentric coordinate. Shadow rays
     /// towards a light that grazes the triangle or lies behind it start there
-    /// ([`Hit::spawn_ray_to`]), so that a coarse mesh with smooth normals does not
-    /// shadow itself in jagged triangles where its shading says it is lit. Zero on
-    /// flat triangles (vertex normals equal to the face's, or none), spheres, copies
-    /// of instanced meshes, and where the vertex normals face away from the ray.
+    /// ([`Hit::spawn_ray_to`], [`Hit::spawn_shadow_ray`]), so that a coarse mesh with
+    /// smooth normals does not shadow itself in jagged triangles where its shading
+    /// says it is lit: path mode's always, full mode's under the default rig only
+    /// (SPEC starts every shadow ray an epsilon off the triangle). Zero on flat
+    /// triangles (vertex normals equal to the face's, or none), spheres, and where
+    /// the vertex normals face away from the ray.
     pub lift: Vec3,
     /// The material.
     pub material: MaterialId,
@@ -312,8 +314,7 @@ impl Hit {
     #[inline]
     pub fn spawn_ray_to(&self, target: Vec3) -> (Ray, Float) {
         let towards = target - self.p;
-        let share = try_unit(towards).map_or(0.0, |l| terminator_share(self.n.dot(l)));
-        let origin = self.offset_origin(towards) + self.lift * share;
+        let origin = self.shadow_origin(towards);
         let to_target = target - origin;
         let distance = to_target.length();
         (
@@ -323,6 +324,29 @@ impl Hit {
             },
             distance,
         )
+    }
+
+    /// A shadow ray from the hit along the unit `dir` towards a light `distance`
+    /// away, and the distance from its origin to the light along it: started as
+    /// [`Hit::spawn_ray_to`] starts its rays, from the smooth surface as far as the
+    /// light grazes the triangle.
+    #[inline]
+    pub fn spawn_shadow_ray(&self, dir: Vec3, distance: Float) -> (Ray, Float) {
+        let origin = self.shadow_origin(dir);
+        (Ray { origin, dir }, distance - (origin - self.p).dot(dir))
+    }
+
+    /// Where a shadow ray towards `towards` starts: off the surface on the side it
+    /// leaves towards, moved by the share of [`Hit::lift`] the light's grazing
+    /// takes ([`terminator_share`]).
+    #[inline(always)]
+    fn shadow_origin(&self, towards: Vec3) -> Vec3 {
+        let origin = self.offset_origin(towards);
+        if self.lift == Vec3::ZERO {
+            return origin;
+        }
+        let share = try_unit(towards).map_or(0.0, |l| terminator_share(self.n.dot(l)));
+        origin + self.lift * share
     }
 
     #[inline]

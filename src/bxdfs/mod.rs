@@ -112,6 +112,9 @@ impl Frame {
 /// (`ns == ng`) are never bent.
 #[inline(always)]
 pub fn scattering_normal(wo: Vec3, ns: Vec3, ng: Vec3) -> Vec3 {
+    if ns == ng {
+        return ns;
+    }
     let cos_o = wo.dot(ns);
     let mirrored = 2.0 * cos_o * ns - wo;
     let threshold = (0.9 * wo.dot(ng)).min(0.01);

@@ -74,20 +74,7 @@ fn behind_a_thin_sheet_recursion_beyond_the_box_adds_nothing() {
 /// coarse sphere's do, and, with `occluder`, a small flat triangle hovering 0.05 above
 /// the point `(0.8, 0.1, 0.1)` of its face in the positive octant.
 fn smooth_octahedron(occluder: bool) -> Scene {
-    let mut obj = String::from("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n");
-    obj += "vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n";
-    for (x, y, z) in [
-        (1, 3, 5),
-        (1, 6, 3),
-        (1, 5, 4),
-        (1, 4, 6),
-        (2, 5, 3),
-        (2, 3, 6),
-        (2, 4, 5),
-        (2, 6, 4),
-    ] {
-        obj += &format!("f {x}//{x} {y}//{y} {z}//{z}\n");
-    }
+    let mut obj = crate::support::smooth_octahedron_obj();
     if occluder {
         let centre = Vec3::new(0.8, 0.1, 0.1) + Vec3::ONE.normalize() * 0.05;
         for corner in [Vec3::X, Vec3::Y, Vec3::Z] {

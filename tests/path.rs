@@ -161,6 +161,11 @@ fn options(mode: Mode, width: u32, height: u32, spp: u32) -> RenderOptions {
 fn sphere_of_albedo(albedo: Float) -> Scene {
     let mut description = formats::parse_obj(b"S 0 0 0 1\n", Path::new("sphere.obj")).unwrap();
     description.materials[0].diffuse = Vec3::splat(albedo);
+    in_white_sky(description)
+}
+
+/// The scene of `description` under a uniform white environment.
+fn in_white_sky(mut description: raytracer::SceneDescription) -> Scene {
     description.environment = Some(raytracer::formats::environment::environment_colour(
         Vec3::ONE,
         1.0,
@@ -191,6 +196,23 @@ fn a_grey_sphere_in_the_furnace_returns_its_albedo_from_the_first_bounce() {
     assert_eq!(film.pixels[0], Vec3::ONE);
 }
 
+/// A glTF material of base colour `rho` that is Lambertian: a dielectric of
+/// `specular` 0 (`KHR_materials_specular`), which path mode shades in its sixteen-lane
+/// step.
+fn lambertian_gltf(rho: Float) -> raytracer::material::Material {
+    raytracer::material::Material::physically_based(
+        "lambert",
+        raytracer::material::pbr::PbrMaterial {
+            base_color: Vec3::splat(rho),
+            metallic: 0.0,
+            specular: 0.0,
+            ..Default::default()
+        },
+        Vec3::ZERO,
+        None,
+    )
+}
+
 /// A square in the plane z = 0 whose vertex normals all lean 45 degrees towards -x,
 /// made of `material` (the OBJ default, a Lambertian grey of 0.8, if `None`), in a
 /// uniform white environment.
@@ -201,11 +223,7 @@ fn leaning_square(material: Option<raytracer::material::Material>) -> Scene {
     if let Some(material) = material {
         description.materials[0] = material;
     }
-    description.environment = Some(raytracer::formats::environment::environment_colour(
-        Vec3::ONE,
-        1.0,
-    ));
-    Scene::build(description, &BvhParams::default())
+    in_white_sky(description)
 }
 
 /// Seen from 60 degrees towards +x, the leaning normals face away from the eye, as
@@ -234,17 +252,7 @@ fn a_shading_normal_facing_away_from_the_eye_is_bent_towards_it() {
     let mut options = options(Mode::Path, 8, 8, 64);
     options.look_from = Vec3::new(5.0 * s60 as Float, 0.0, 5.0 * c60 as Float);
     options.fov_degrees = 1.0;
-    let gltf_lambert = raytracer::material::Material::physically_based(
-        "lambert",
-        raytracer::material::pbr::PbrMaterial {
-            base_color: Vec3::splat(0.6),
-            metallic: 0.0,
-            specular: 0.0,
-            ..Default::default()
-        },
-        Vec3::ZERO,
-        None,
-    );
+    let gltf_lambert = lambertian_gltf(0.6);
     for (material, rho) in [(None, 0.8), (Some(gltf_lambert), 0.6)] {
         let film = render(&leaning_square(material), &options);
         let mean = film
@@ -270,20 +278,7 @@ fn smooth_octahedron_lit(
     towards_light: Vec3,
     illuminance: Float,
 ) -> Scene {
-    let mut obj = String::from("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n");
-    obj += "vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n";
-    for (x, y, z) in [
-        (1, 3, 5),
-        (1, 6, 3),
-        (1, 5, 4),
-        (1, 4, 6),
-        (2, 5, 3),
-        (2, 3, 6),
-        (2, 4, 5),
-        (2, 6, 4),
-    ] {
-        obj += &format!("f {x}//{x} {y}//{y} {z}//{z}\n");
-    }
+    let obj = support::smooth_octahedron_obj();
     let mut description = formats::parse_obj(obj.as_bytes(), Path::new("octahedron.obj")).unwrap();
     if let Some(material) = material {
         description.materials[0] = material;
@@ -321,17 +316,7 @@ fn past_a_smooth_meshs_terminator_the_light_reaches_what_the_shading_normal_face
     // A narrow view: the eye sees the face at a grazing angle, and across a wider
     // one the shading normal's cosine to the light changes by percents.
     options.fov_degrees = 0.02;
-    let gltf_lambert = raytracer::material::Material::physically_based(
-        "lambert",
-        raytracer::material::pbr::PbrMaterial {
-            base_color: Vec3::splat(0.6),
-            metallic: 0.0,
-            specular: 0.0,
-            ..Default::default()
-        },
-        Vec3::ZERO,
-        None,
-    );
+    let gltf_lambert = lambertian_gltf(0.6);
     for (material, rho) in [(None, 0.8), (Some(gltf_lambert), 0.6)] {
         let scene = smooth_octahedron_lit(material, towards_light, illuminance);
         let film = render(&scene, &options);

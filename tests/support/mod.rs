@@ -320,3 +320,23 @@ pub fn half_vector_albedo(
     }
     sum
 }
+
+/// An octahedron of "radius" 1 as OBJ text, whose vertex normals point out from its
+/// centre as a coarse sphere's do.
+pub fn smooth_octahedron_obj() -> String {
+    let mut obj = String::from("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n");
+    obj += "vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n";
+    for (x, y, z) in [
+        (1, 3, 5),
+        (1, 6, 3),
+        (1, 5, 4),
+        (1, 4, 6),
+        (2, 5, 3),
+        (2, 3, 6),
+        (2, 4, 5),
+        (2, 6, 4),
+    ] {
+        obj += &format!("f {x}//{x} {y}//{y} {z}//{z}\n");
+    }
+    obj
+}

@@ -357,13 +357,13 @@ impl BsdfAt<'_> {
     /// where [`BsdfAt::eval`] gives zero lest light leak through the surface. No
     /// scattered ray leaves that way ([`BsdfAt::sample`] drops such directions), so
     /// light sampling alone reaches it, with a weight of 1.
-    #[inline(never)]
+    #[inline(always)]
     pub fn eval_past_terminator(&self, wi: Vec3) -> Vec3 {
         match self {
             BsdfAt::Mtl {
                 mixture, wo, ns, ..
             } => mixture.eval(*wo, wi, *ns, *ns),
-            BsdfAt::Gltf(g) => g.at.eval(g.frame.to_local(wi)),
+            BsdfAt::Gltf(g) => gltf_eval_past_terminator(g, wi),
         }
     }
 
@@ -447,6 +447,11 @@ fn gltf_eval(g: &GltfVertex<'_>, wi: Vec3) -> Vec3 {
     if !agrees(wi, g.frame.n, g.ng) {
         return Vec3::ZERO;
     }
+    g.at.eval(g.frame.to_local(wi))
+}
+
+#[inline(never)]
+fn gltf_eval_past_terminator(g: &GltfVertex<'_>, wi: Vec3) -> Vec3 {
     g.at.eval(g.frame.to_local(wi))
 }
 

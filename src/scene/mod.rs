@@ -275,7 +275,7 @@ pub struct Hit {
     /// 2021): `p` moved out along each corner's normal by as far as it lies below that
     /// corner's tangent plane, weighted by its barycentric coordinate. Shadow rays
     /// towards a light that grazes the triangle or lies behind it start there
-    /// ([`Hit::spawn_ray_to`], [`Hit::spawn_shadow_ray`]), so that a coarse mesh with
+    /// ([`Hit::spawn_ray_to`], path mode's light samples), so that a coarse mesh with
     /// smooth normals does not shadow itself in jagged triangles where its shading
     /// says it is lit: path mode's always, full mode's under the default rig only
     /// (SPEC starts every shadow ray an epsilon off the triangle). Zero on flat
@@ -324,16 +324,6 @@ impl Hit {
             },
             distance,
         )
-    }
-
-    /// A shadow ray from the hit along the unit `dir` towards a light `distance`
-    /// away, and the distance from its origin to the light along it: started as
-    /// [`Hit::spawn_ray_to`] starts its rays, from the smooth surface as far as the
-    /// light grazes the triangle.
-    #[inline]
-    pub fn spawn_shadow_ray(&self, dir: Vec3, distance: Float) -> (Ray, Float) {
-        let origin = self.shadow_origin(dir);
-        (Ray { origin, dir }, distance - (origin - self.p).dot(dir))
     }
 
     /// Where a shadow ray towards `towards` starts: off the surface on the side it

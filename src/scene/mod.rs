@@ -314,7 +314,8 @@ impl Hit {
     #[inline]
     pub fn spawn_ray_to(&self, target: Vec3) -> (Ray, Float) {
         let towards = target - self.p;
-        let origin = self.shadow_origin(towards);
+        let share = try_unit(towards).map_or(0.0, |l| terminator_share(self.n.dot(l)));
+        let origin = self.offset_origin(towards) + self.lift * share;
         let to_target = target - origin;
         let distance = to_target.length();
         (
@@ -324,19 +325,6 @@ impl Hit {
             },
             distance,
         )
-    }
-
-    /// Where a shadow ray towards `towards` starts: off the surface on the side it
-    /// leaves towards, moved by the share of [`Hit::lift`] the light's grazing
-    /// takes ([`terminator_share`]).
-    #[inline(always)]
-    fn shadow_origin(&self, towards: Vec3) -> Vec3 {
-        let origin = self.offset_origin(towards);
-        if self.lift == Vec3::ZERO {
-            return origin;
-        }
-        let share = try_unit(towards).map_or(0.0, |l| terminator_share(self.n.dot(l)));
-        origin + self.lift * share
     }
 
     #[inline]
@@ -364,8 +352,9 @@ impl Scene {
     }
 
     /// Says whether full mode's default light rig lights the scene, in the meshes of
-    /// its instances too (each built as a scene of its own), whose hits then lift
-    /// their shadow rays as a flattened copy's do.
+    /// its instances too (each built as a scene of its own): full mode then lifts
+    /// its shadow rays off smooth meshes ([`Hit::lift`]) and bends their shading
+    /// normals towards the eye.
     pub fn set_lit_by_rig(&mut self, lit: bool) {
         self.for_each_level(|scene| scene.lit_by_rig = lit);
     }

@@ -741,16 +741,15 @@ impl PathIntegrator {
         // Next-event estimation: `step`'s, sixteen lanes at a time.
         let vertices = gather.at();
         let n = vertices.geometric_normals();
+        let cos_shading = direction.dot(vertices.shading_normals());
         // `past_terminator`.
         let past_terminator = gltf_lanes::mask(lifted)
             & direction.dot(n).simd_le(f32x16::ZERO)
-            & direction
-                .dot(vertices.shading_normals())
-                .simd_gt(f32x16::ZERO);
+            & cos_shading.simd_gt(f32x16::ZERO);
         let (f, bsdf_pdf) = vertices.eval_and_pdf(direction, past_terminator);
         let throughput = throughput.load();
         let weight = delta.select(f32x16::ONE, power_heuristic_lanes(light_pdf, bsdf_pdf));
-        let scale = direction.dot(vertices.shading_normals()).abs() * weight / light_pdf;
+        let scale = cos_shading.abs() * weight / light_pdf;
         let lit = lit & (vertices.has_smooth_lobes() & f.nonzero()).to_bitmask();
         // The light arriving: a point light's `I / d^2`, the others' looked up.
         let mut radiance = V3Gather::splat(Vec3::ZERO);
@@ -774,14 +773,12 @@ impl PathIntegrator {
         let offset = spawn_offsets(p);
         let mut origin = spawn_origins(p, n, offset, direction);
         if lifted & lit != 0 {
-            // `Hit::shadow_origin`: the share of the lift the light's grazing takes,
-            // on the side the shading normal faces.
+            // `shadow_ray_towards`'s lift: `terminator_share` of it, on the side
+            // the shading normal faces.
             let share = (f32x16::ONE - direction.dot(n) / f32x16::splat(TERMINATOR_COSINE))
                 .max(f32x16::ZERO)
                 .min(f32x16::ONE);
-            let facing = direction
-                .dot(vertices.shading_normals())
-                .simd_gt(f32x16::ZERO);
+            let facing = cos_shading.simd_gt(f32x16::ZERO);
             origin = origin.plus(lifts.load().scale(facing.select(share, f32x16::ZERO)));
         }
         let clear = (distance - origin.minus(p).dot(direction)) * f32x16::splat(1.0 - 1e-3);

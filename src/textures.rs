@@ -159,6 +159,22 @@ impl TextureOptions {
         let Vec2 { x: c, y: sin } = self.rotation;
         Vec2::new(c * s.x - sin * s.y, sin * s.x + c * s.y) + self.offset
     }
+
+    /// A direction given in the image's own coordinates (`x` along its width, `y` up
+    /// its height: a normal map's red and green, an anisotropy map's direction) in
+    /// those of the texture coordinates before the transform, which the surface's
+    /// tangent frame follows: turned back by the rotation, and flipped along an axis
+    /// that a negative scale mirrors. (The transpose of the transform's linear part,
+    /// its scale reduced to signs: how a slope in the image becomes one in the
+    /// texture coordinates, with the length that a scale would add left out, as
+    /// model viewers leave it; a turn alone is exact for directions and slopes
+    /// alike.) Without a rotation or a negative scale, `d` itself.
+    #[inline]
+    pub fn image_to_surface(&self, d: Vec2) -> Vec2 {
+        let Vec2 { x: c, y: sin } = self.rotation;
+        let turned_back = Vec2::new(c * d.x + sin * d.y, -sin * d.x + c * d.y);
+        turned_back * self.scale.signum()
+    }
 }
 
 /// A texture as a material uses it: the image and the options.
@@ -667,6 +683,43 @@ mod tests {
 
     fn texture(width: u32, height: u32, channels: u32, texels: &[u8]) -> Texture {
         Texture::from_u8("t.png".into(), width, height, channels, texels.to_vec()).unwrap()
+    }
+
+    /// A direction in the image, brought back to the texture coordinates, is the one
+    /// along which the transform moves a point that way in the image: `M^-1 d` for
+    /// the transform's linear part `M`, here measured by the transform's own
+    /// differences (turns, tiling, mirrors; equal scales on both axes, where
+    /// directions and slopes agree).
+    #[test]
+    fn image_directions_come_back_to_the_surface_as_the_transform_moves_them() {
+        for (angle, scale) in [
+            (0.0f32, [1.0f32, 1.0]),
+            (std::f32::consts::FRAC_PI_2, [1.0, 1.0]),
+            (0.7, [3.0, 3.0]),
+            (0.0, [-1.0, 1.0]),
+            (-2.0, [2.0, -2.0]),
+            (2.5, [-0.5, -0.5]),
+        ] {
+            let options = TextureOptions {
+                scale: Vec2::from(scale),
+                rotation: Vec2::new(angle.cos(), angle.sin()),
+                offset: Vec2::new(0.3, -0.2),
+                ..TextureOptions::default()
+            };
+            let origin = Vec2::new(0.4, 0.1);
+            let column = |d: Vec2| options.transform(origin + d) - options.transform(origin);
+            let (a, b) = (column(Vec2::X), column(Vec2::Y));
+            let det = a.x * b.y - b.x * a.y;
+            let inverse = |d: Vec2| Vec2::new(b.y * d.x - b.x * d.y, a.x * d.y - a.y * d.x) / det;
+            for d in [Vec2::X, Vec2::Y, Vec2::new(0.6, -0.8)] {
+                let got = options.image_to_surface(d);
+                let want = inverse(d).normalize();
+                assert!(
+                    (got.normalize() - want).abs().max_element() < 1e-5,
+                    "angle {angle}, scale {scale:?}: {d} -> {got}, want {want}"
+                );
+            }
+        }
     }
 
     #[test]

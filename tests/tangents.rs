@@ -65,6 +65,19 @@ const TOWARDS_BITANGENT: [u8; 3] = [128, 191, 238];
 /// `mesh` with a material whose normal map is that texel, placed by `nodes` (a JSON
 /// array of nodes, each `"mesh": 0`); returns its path.
 fn write_gltf(dir: &Path, name: &str, mesh: &Mesh, texel: [u8; 3], nodes: &str) -> PathBuf {
+    write_gltf_with(dir, name, mesh, texel, nodes, "")
+}
+
+/// [`write_gltf`] with `normal_texture` (JSON members, each followed by a comma)
+/// added to the material's `normalTexture`: its texture transform.
+fn write_gltf_with(
+    dir: &Path,
+    name: &str,
+    mesh: &Mesh,
+    texel: [u8; 3],
+    nodes: &str,
+    normal_texture: &str,
+) -> PathBuf {
     write_png(&dir.join(format!("{name}.png")), 1, 1, 3, &texel);
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
@@ -140,7 +153,7 @@ fn write_gltf(dir: &Path, name: &str, mesh: &Mesh, texel: [u8; 3], nodes: &str) 
   "accessors": [{accessors}],
   "images": [{{"uri": "{name}.png"}}],
   "textures": [{{"source": 0}}],
-  "materials": [{{"normalTexture": {{"index": 0}}}}],
+  "materials": [{{"normalTexture": {{{normal_texture} "index": 0}}}}],
   "meshes": [{{"primitives": [{{"attributes": {{{attributes}}}, "indices": 3, "material": 0}}]}}],
   "nodes": {nodes},
   "scenes": [{{"nodes": [{roots}]}}],
@@ -309,6 +322,72 @@ fn unusable_gltf_tangents_warn_and_are_made_instead() {
     assert!(warnings.is_empty(), "{warnings:?}");
     let got = shading_normal(&scene, Vec3::new(0.3, 0.2, 5.0), -Vec3::Z);
     assert_close(got, along_u, "none");
+}
+
+/// A normal map's tilt is in its image's axes: a `KHR_texture_transform` that turns
+/// or mirrors the image against the texture coordinates turns or mirrors the tilt
+/// with it, so that the shading normal is the one of the same quad with the
+/// transform baked into its texture coordinates (and no transform), whose
+/// MikkTSpace frame then runs along the image's axes. A quarter turn also has a
+/// closed form: the image's `u` runs along glTF's `v`, down the image, which on the
+/// quad is -y. Before the transform turned the tilt, every case but the identity
+/// tilted the normal towards +x, along the untransformed `u`.
+#[test]
+fn a_normal_maps_texture_transform_turns_its_tilt_with_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let from = Vec3::new(0.3, 0.2, 5.0);
+    // glTF's transform of its coordinates: `R S g + o`, `R` taking (u, v) to
+    // (c u + s v, -s u + c v).
+    let baked = |g: [f32; 2], angle: f32, scale: [f32; 2], offset: [f32; 2]| {
+        let (s, c) = angle.sin_cos();
+        let (x, y) = (g[0] * scale[0], g[1] * scale[1]);
+        [c * x + s * y + offset[0], -s * x + c * y + offset[1]]
+    };
+    let quarter = std::f32::consts::FRAC_PI_2;
+    let cases = [
+        ("identity", 0.0, [1.0, 1.0], [0.0, 0.0]),
+        ("quarter turn", quarter, [1.0, 1.0], [0.0, 0.0]),
+        ("turned and tiled", 0.7, [3.0, 3.0], [0.25, -0.5]),
+        ("mirrored", 0.0, [-1.0, 1.0], [1.0, 0.0]),
+        ("turned and mirrored", -2.0, [2.0, -2.0], [0.0, 0.3]),
+    ];
+    for texel in [TOWARDS_TANGENT, TOWARDS_BITANGENT] {
+        for (what, angle, scale, offset) in cases {
+            let name = format!("{}-{}", what.replace(' ', "-"), texel[0]);
+            let transform = format!(
+                r#""extensions": {{"KHR_texture_transform": {{"rotation": {angle}, "scale": {scale:?}, "offset": {offset:?}}}}},"#
+            );
+            let transformed = write_gltf_with(
+                dir.path(),
+                &format!("{name}-transformed"),
+                &quad(None),
+                texel,
+                r#"[{"mesh": 0}]"#,
+                &transform,
+            );
+            let mut mesh = quad(None);
+            for uv in &mut mesh.uvs {
+                *uv = baked(*uv, angle, scale, offset);
+            }
+            let baked_in = write_gltf(
+                dir.path(),
+                &format!("{name}-baked"),
+                &mesh,
+                texel,
+                r#"[{"mesh": 0}]"#,
+            );
+            let (scene, warnings) = load(&transformed);
+            assert!(warnings.is_empty(), "{warnings:?}");
+            let got = shading_normal(&scene, from, -Vec3::Z);
+            let (reference, _) = load(&baked_in);
+            let expected = shading_normal(&reference, from, -Vec3::Z);
+            assert_close(got, expected, &format!("{what}, texel {texel:?}"));
+            if what == "quarter turn" {
+                let closed_form = tilt(texel, -Vec3::Y, Vec3::X, Vec3::Z);
+                assert_close(got, closed_form, "a quarter turn");
+            }
+        }
+    }
 }
 
 /// A pseudo-random number in [0, 1) from `i`.

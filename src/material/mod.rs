@@ -485,11 +485,16 @@ impl MaterialMaps {
 
 /// The unit tangent-space normal a normal map gives at `uv`. Its `-bm` (glTF's
 /// normal texture `scale`, Blender's normal map strength) scales the tilt: x and y,
-/// as glTF says.
+/// as glTF says. The tilt is in the image's own axes, which a texture transform
+/// turns or mirrors against the surface's tangent frame: it is turned back with
+/// them ([`crate::textures::TextureOptions::image_to_surface`]), as the glTF sample
+/// renderer does since it fixed `NormalTextureRotation`, so that turning a normal
+/// map's transform renders as turning its texture coordinates would.
 fn normal_map_at(map: &TextureMap, uv: Vec2) -> Option<Vec3> {
     let n = map.colour(uv, Encoding::Linear) * 2.0 - Vec3::ONE;
     let scale = map.options.bump_multiplier;
-    crate::math::try_unit(Vec3::new(n.x * scale, n.y * scale, n.z))
+    let tilt = map.options.image_to_surface(Vec2::new(n.x, n.y)) * scale;
+    crate::math::try_unit(Vec3::new(tilt.x, tilt.y, n.z))
 }
 
 impl Material {

@@ -235,7 +235,10 @@ impl PbrMaterial {
             return rotation;
         };
         let texel = map.colour(uv, Encoding::Linear);
-        let direction = Vec2::new(2.0 * texel.x - 1.0, 2.0 * texel.y - 1.0)
+        // In the image's axes, which the map's texture transform may have turned.
+        let direction = map
+            .options
+            .image_to_surface(Vec2::new(2.0 * texel.x - 1.0, 2.0 * texel.y - 1.0))
             .try_normalize()
             .unwrap_or(Vec2::X);
         Vec2::new(

@@ -46,6 +46,14 @@ pub const MAX_PATH_DEPTH: u32 = 1024;
 /// Path mode's default path length and samples per pixel (Mitsuba's `max_depth` is
 /// unlimited by default; 64 segments end nearly every path by Russian roulette).
 pub const PATH_DEFAULTS: (u32, u32) = (64, 64);
+/// Full mode's default samples per pixel in a scene it lights with the default rig
+/// (a model file without lights: the first picture of a model, as a model viewer
+/// shows it with multisampling): four stratified samples smooth its edges and the
+/// moire a finely textured or normal-mapped surface makes at one ray per pixel
+/// centre, for about three times the render (0.10 against 0.32 s for a 1.3 MB
+/// controller model at 640 x 480). Scenes with lights of their own keep SPEC's one
+/// ray through each pixel centre.
+pub const RIG_SAMPLES_PER_PIXEL: u32 = 4;
 /// Largest exposure accepted, in stops either way.
 pub const MAX_EXPOSURE_STOPS: Float = 64.0;
 
@@ -991,6 +999,22 @@ impl PartialOptions {
             Field::EnvStrength => origin_of(&self.env_strength),
             Field::EnvRotation => origin_of(&self.env_rotation),
         })
+    }
+
+    /// [`PartialOptions::resolve`] for a scene that is `unlit` (no light, no emitter
+    /// that lights it: [`crate::SceneDescription::is_unlit`]): one that full mode
+    /// lights with the default rig (the default light on) takes
+    /// [`RIG_SAMPLES_PER_PIXEL`] samples per pixel unless these options set them.
+    ///
+    /// # Errors
+    /// As [`PartialOptions::resolve`].
+    pub fn resolve_for(&self, unlit: bool) -> Result<RenderOptions, OptionsError> {
+        let mut options = self.resolve()?;
+        let rig = unlit && options.mode == Mode::Full && options.default_light;
+        if rig && self.samples_per_pixel.is_none() {
+            options.samples_per_pixel = RIG_SAMPLES_PER_PIXEL;
+        }
+        Ok(options)
     }
 
     /// The checks of [`PartialOptions::resolve`] that need no scene, for flags checked

@@ -228,7 +228,15 @@ fn help_states_the_defaults_the_program_uses() {
         ("--mode", full.mode.name().to_string()),
         (
             "--spp",
-            both(full.samples_per_pixel, path.samples_per_pixel),
+            format!(
+                "{}; {} in full mode under the default light rig; {} in path mode",
+                full.samples_per_pixel,
+                PartialOptions::default()
+                    .resolve_for(true)
+                    .unwrap()
+                    .samples_per_pixel,
+                path.samples_per_pixel
+            ),
         ),
         ("--exposure", full.exposure.to_string()),
         ("--tonemap", path.tonemap.name().to_string()),

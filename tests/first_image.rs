@@ -441,7 +441,9 @@ fn brightest(rgb: &[u8]) -> [u8; 3] {
 
 #[test]
 fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
-    let (stderr, rgb) = render_model(&[]);
+    // One sample a pixel (the rig's default is four, whose silhouette blends the
+    // model's colours with the backdrop's).
+    let (stderr, rgb) = render_model(&["--spp", "1"]);
     assert_eq!(
         stderr,
         "warning: the scene has no lights (no light sources, no emitting surfaces): lit by a default light rig at the camera (--no-default-light turns it off)\n"
@@ -477,6 +479,61 @@ fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
     levels.sort_unstable();
     levels.dedup();
     assert!(levels.len() > 3, "{levels:?}");
+}
+
+/// Under the rig, full mode's first picture takes four samples a pixel unless told
+/// otherwise, as a model viewer multisamples: the same bytes as `--spp 4`, not those
+/// of one ray through each pixel centre; the silhouette's pixels are blends of the
+/// model and the backdrop (a one-sample image has none: each of its pixels is one or
+/// the other). `--spp 1` (or `render.spp` in a scene file) still renders pixel
+/// centres, and a scene with a light of its own keeps SPEC's one sample.
+#[test]
+fn under_the_rig_full_mode_takes_four_samples_a_pixel_unless_told() {
+    let (_, default) = render_model(&[]);
+    let (_, four) = render_model(&["--spp", "4"]);
+    let (_, one) = render_model(&["--spp", "1"]);
+    assert!(default == four, "the default is not --spp 4");
+    assert!(default != one, "the default is --spp 1");
+    // The silhouette's pixels, partly covered, are no longer the backdrop's grey.
+    let backdrop = |rgb: &[u8]| model_pixels(rgb).1;
+    assert!(
+        backdrop(&default) + 20 < backdrop(&one),
+        "backdrop pixels: {} at four samples, {} at one",
+        backdrop(&default),
+        backdrop(&one)
+    );
+
+    // A light of its own: one sample, the same bytes as --spp 1.
+    let dir = tempfile::tempdir().unwrap();
+    write_scene(dir.path(), RED);
+    let obj = dir.path().join("model.obj");
+    let text = std::fs::read_to_string(&obj).unwrap();
+    std::fs::write(&obj, format!("P 6 6 10 1 1 1\n{text}")).unwrap();
+    let render = |extra: &[&str]| {
+        let out = dir.path().join("lit.png");
+        let output = render_in(
+            dir.path(),
+            &[
+                &[
+                    "model.obj",
+                    "-o",
+                    out.to_str().unwrap(),
+                    "--width",
+                    "80",
+                    "--height",
+                    "60",
+                ][..],
+                extra,
+            ]
+            .concat(),
+        );
+        assert!(output.status.success(), "{}", support::stderr(&output));
+        support::read_png(&out).2
+    };
+    assert!(
+        render(&[]) == render(&["--spp", "1"]),
+        "a lit scene's default is not --spp 1"
+    );
 }
 
 /// The image's pixels other than the default backdrop's grey, and how many of those
@@ -543,7 +600,9 @@ fn a_dark_model_under_the_rig_is_shown_as_dark_as_it_is() {
     // the curve is the identity: no face can be brighter than `Kd` lit by both rig
     // lights head-on plus the ambient light, `0.05 * (0.8 + 0.4 + 0.1)`.
     let dark = "newmtl red\nKa 1 1 1\nKd 0.05 0.05 0.05\nKs 0 0 0\n";
-    let (_, rgb) = render_model_in(dark, &[]);
+    // One sample a pixel: the silhouette's blends with the grey backdrop are not
+    // the model's.
+    let (_, rgb) = render_model_in(dark, &["--spp", "1"]);
     let (model, _) = model_pixels(&rgb);
     let most = (0.05f32 * 1.3).powf(1.0 / 2.2) * 255.0;
     let brightest = model.iter().map(|p| p[0]).max().unwrap();

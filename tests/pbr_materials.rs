@@ -234,10 +234,11 @@ fn full_mode_shows_a_blended_surface_without_dither() {
         "",
     );
     let (width, height) = (80, 60);
+    // One ray a pixel (the rig's default is four, which would blend the edges).
     let rgb = render(
         &veil,
         &fixture.0.path().join("veil.png"),
-        &["--width", "80", "--height", "60"],
+        &["--width", "80", "--height", "60", "--spp", "1"],
     );
     let red = |x: usize| i32::from(rgb[3 * (height / 2 * width + x)]);
     let backdrop = red(0);

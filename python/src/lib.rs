@@ -648,6 +648,7 @@ impl Loaded {
         Ok(formats::resolve_options(
             given,
             self.options.clone(),
+            self.unlit,
             || (self.bounds, &self.extent),
         )?)
     }
@@ -1423,7 +1424,7 @@ fn warn(py: Python<'_>, messages: &[String]) -> PyResult<()> {
 /// does (from the front and above, fov 40, as close as lets the corners of its bounds
 /// fill 92% of the image, centred) when neither ``look_from`` nor ``look_to`` is set,
 /// ``look_from`` alone looking at the centre of the bounds, otherwise from (0, 0, 0); up (0, 1, 0), full mode, depth 4 and 1 sample per
-/// pixel (64 and 64 in path mode), exposure 0, seed 0, tone map khronos-neutral, a
+/// pixel (4 under the default light rig; 64 and 64 in path mode), exposure 0, seed 0, tone map khronos-neutral, a
 /// pinhole (aperture radius 0; the focus at ``look_to``, 1 unit ahead with
 /// ``camera_to_world``), the default light on, no environment (path mode lights an
 /// unlit scene with its studio), strength 1, rotation 0; a width or height alone

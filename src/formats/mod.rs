@@ -76,7 +76,8 @@ impl LoadedScene {
             .or(self.options.default_light.as_ref())
             .filter(|on| !on.value)
             .map(|off| off.origin.clone());
-        let options = resolve_options(flags, self.options, || {
+        let unlit = self.description.is_unlit();
+        let options = resolve_options(flags, self.options, unlit, || {
             (self.description.bounds(), self.description.extent())
         })?;
         let mut description = self.description;
@@ -88,13 +89,16 @@ impl LoadedScene {
 /// The options of [`LoadedScene::resolve`] alone, for callers that keep a built scene
 /// (the Python bindings): `flags` over `file`, the camera framing the scene's
 /// bounds and extent ([`crate::description::SceneDescription::extent`]) when neither
-/// sets one, checked once.
+/// sets one, checked once; in full mode a scene that is `unlit` (and so lit by the
+/// default rig) takes [`crate::options::RIG_SAMPLES_PER_PIXEL`] samples per pixel
+/// unless they are set ([`PartialOptions::resolve_for`]).
 ///
 /// # Errors
 /// The first option out of range, named by where it came from.
 pub fn resolve_options<E>(
     flags: PartialOptions,
     file: PartialOptions,
+    unlit: bool,
     extent: impl FnOnce() -> (crate::math::Aabb, E),
 ) -> Result<RenderOptions, OptionsError>
 where
@@ -108,7 +112,7 @@ where
         let extent = extent.borrow();
         options = options.framed_facing(bounds, |w| extent.support(w), extent.flat_normal());
     }
-    options.resolve()
+    options.resolve_for(unlit)
 }
 
 /// Asks `access` whether the scene file `path` may be read: an I/O error naming it if

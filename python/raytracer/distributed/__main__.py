@@ -87,7 +87,7 @@ def parser() -> argparse.ArgumentParser:
     view.add_argument("--up", type=vector, metavar="X,Y,Z", help="world up direction [default: 0,1,0]")
     view.add_argument("--depth", type=int, metavar="N", help="recursion depth [default: 4; 64 in path mode]")
     view.add_argument("--mode", metavar="MODE", help="full, depth, normal or path [default: full]")
-    view.add_argument("--spp", type=int, metavar="N", help="samples per pixel [default: 1; 64 in path mode]")
+    view.add_argument("--spp", type=int, metavar="N", help="samples per pixel [default: 1; 4 in full mode under the default light rig; 64 in path mode]")
     view.add_argument("--exposure", type=float, metavar="STOPS", help="path mode's exposure for PNG [default: 0]")
     view.add_argument("--seed", type=int, metavar="N", help="seed of the random numbers [default: 0]")
     view.add_argument(

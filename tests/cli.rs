@@ -232,7 +232,7 @@ fn help_states_the_defaults_the_program_uses() {
                 "{}; {} in full mode under the default light rig; {} in path mode",
                 full.samples_per_pixel,
                 PartialOptions::default()
-                    .resolve_for(true)
+                    .resolve_for(true, false)
                     .unwrap()
                     .samples_per_pixel,
                 path.samples_per_pixel

@@ -486,7 +486,8 @@ fn an_unlit_model_gets_the_default_light_rig_with_one_warning() {
 /// of one ray through each pixel centre; the silhouette's pixels are blends of the
 /// model and the backdrop (a one-sample image has none: each of its pixels is one or
 /// the other). `--spp 1` (or `render.spp` in a scene file) still renders pixel
-/// centres, and a scene with a light of its own keeps SPEC's one sample.
+/// centres, and so do a render with extra outputs (`--aovs`) and a scene with a light
+/// of its own (SPEC's one sample).
 #[test]
 fn under_the_rig_full_mode_takes_four_samples_a_pixel_unless_told() {
     let (_, default) = render_model(&[]);
@@ -501,6 +502,36 @@ fn under_the_rig_full_mode_takes_four_samples_a_pixel_unless_told() {
         "backdrop pixels: {} at four samples, {} at one",
         backdrop(&default),
         backdrop(&one)
+    );
+
+    // Extra outputs are data, wanted at the pixel centre: one sample, as --spp 1.
+    let exr = |extra: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        write_scene(dir.path(), RED);
+        let out = dir.path().join("out.exr");
+        let args = [
+            "model.obj",
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "40",
+            "--height",
+            "30",
+        ];
+        let output = render_in(
+            dir.path(),
+            &[&args[..], &["--aovs", "depth"], extra].concat(),
+        );
+        assert!(output.status.success(), "{}", support::stderr(&output));
+        std::fs::read(&out).unwrap()
+    };
+    assert!(
+        exr(&[]) == exr(&["--spp", "1"]),
+        "with --aovs, the default is not --spp 1"
+    );
+    assert!(
+        exr(&[]) != exr(&["--spp", "4"]),
+        "--spp 4 with --aovs is not another image"
     );
 
     // A light of its own: one sample, the same bytes as --spp 1.

@@ -643,12 +643,13 @@ impl Loaded {
         }
     }
 
-    /// The given options over the file's, with the command line's framing camera.
-    fn resolve(&self, given: PartialOptions) -> Result<RenderOptions, Error> {
+    /// The given options over the file's, with the command line's framing camera, for
+    /// a render asked for `extra_outputs` or not.
+    fn resolve(&self, given: PartialOptions, extra_outputs: bool) -> Result<RenderOptions, Error> {
         Ok(formats::resolve_options(
             given,
             self.options.clone(),
-            self.unlit,
+            (self.unlit, extra_outputs),
             || (self.bounds, &self.extent),
         )?)
     }
@@ -1228,7 +1229,7 @@ impl PyScene {
 impl PyScene {
     /// The given options merged over the scene file's, checked.
     fn resolve(&self, given: &Given<'_>) -> PyResult<RenderOptions> {
-        Ok(self.loaded.resolve(given.options())?)
+        Ok(self.loaded.resolve(given.options(), given.aovs.is_some())?)
     }
 
     fn render_given<'py>(
@@ -1424,7 +1425,8 @@ fn warn(py: Python<'_>, messages: &[String]) -> PyResult<()> {
 /// does (from the front and above, fov 40, as close as lets the corners of its bounds
 /// fill 92% of the image, centred) when neither ``look_from`` nor ``look_to`` is set,
 /// ``look_from`` alone looking at the centre of the bounds, otherwise from (0, 0, 0); up (0, 1, 0), full mode, depth 4 and 1 sample per
-/// pixel (4 under the default light rig; 64 and 64 in path mode), exposure 0, seed 0, tone map khronos-neutral, a
+/// pixel (4 under the default light rig unless ``aovs`` are asked for; 64 and 64 in
+/// path mode), exposure 0, seed 0, tone map khronos-neutral, a
 /// pinhole (aperture radius 0; the focus at ``look_to``, 1 unit ahead with
 /// ``camera_to_world``), the default light on, no environment (path mode lights an
 /// unlit scene with its studio), strength 1, rotation 0; a width or height alone
@@ -1464,6 +1466,7 @@ fn render<'py>(
     let tile = tile.map(self::tile).transpose()?;
     let progress = run::Progress::of(given.progress.as_ref())?;
     let aovs = given.aov_list()?;
+    let extra_outputs = aovs.is_some();
     let (loaded, options) = py.detach(move || {
         // As the command line: OBJ and PLY files set no options, so the arguments are
         // checked before a long load; a TOML file's values are merged first.
@@ -1474,7 +1477,7 @@ fn render<'py>(
             flags.check_before_loading()?;
         }
         let loaded = Loaded::read(&path, &formats::FileAccess::anywhere(), &environment)?;
-        let options = loaded.resolve(flags)?;
+        let options = loaded.resolve(flags, extra_outputs)?;
         Ok::<_, Error>((loaded, options))
     })?;
     warn(py, &loaded.scene.warnings)?;

@@ -62,13 +62,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// of the file. An unlit scene gets the default lighting
 /// ([`formats::LoadedScene::resolve`]).
 fn load_scene(view: &ViewArgs) -> anyhow::Result<(SceneDescription, RenderOptions)> {
-    load_scene_noting_rig(view).map(|(description, options, _)| (description, options))
+    load_scene_noting_rig(view, false).map(|(description, options, _)| (description, options))
 }
 
 /// [`load_scene`], also telling whether full mode's default light rig lights the
-/// scene (it had no light of its own): its misses then show a grey backdrop.
+/// scene (it had no light of its own): its misses then show a grey backdrop; for a
+/// render asked for `extra_outputs` (`--aovs`), which keeps one sample a pixel under
+/// the rig ([`raytracer::options::PartialOptions::resolve_for`]).
 fn load_scene_noting_rig(
     view: &ViewArgs,
+    extra_outputs: bool,
 ) -> anyhow::Result<(SceneDescription, RenderOptions, bool)> {
     let flags = view.options();
     // OBJ and PLY files set no options, so the flags can be checked before a long
@@ -82,7 +85,7 @@ fn load_scene_noting_rig(
     let mut loaded = formats::load(&view.scene)?;
     environment_flags(view, &mut loaded.description)?;
     let unlit = loaded.description.is_unlit();
-    let (description, options) = loaded.resolve(flags)?;
+    let (description, options) = loaded.resolve_with(flags, extra_outputs)?;
     // As `SceneDescription::add_default_light` decides in full mode.
     let rig = unlit && options.mode == raytracer::Mode::Full && options.default_light;
     Ok((description, options, rig))

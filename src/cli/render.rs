@@ -53,7 +53,7 @@ pub fn run(args: &RenderArgs, quiet: bool) -> anyhow::Result<()> {
 
     let start = Mark::now();
     let loading = Progress::start("loading the scene", None, !quiet);
-    let (description, options, rig) = super::load_scene_noting_rig(&args.view)?;
+    let (description, options, rig) = super::load_scene_noting_rig(&args.view, !aovs.is_empty())?;
     let options = &options;
     let parsed = Mark::now();
     let params = BvhParams::default();

@@ -69,6 +69,19 @@ impl LoadedScene {
         self,
         flags: PartialOptions,
     ) -> Result<(SceneDescription, RenderOptions), OptionsError> {
+        self.resolve_with(flags, false)
+    }
+
+    /// [`LoadedScene::resolve`] for a render asked for `extra_outputs` or not
+    /// ([`PartialOptions::resolve_for`]).
+    ///
+    /// # Errors
+    /// As [`LoadedScene::resolve`].
+    pub fn resolve_with(
+        self,
+        flags: PartialOptions,
+        extra_outputs: bool,
+    ) -> Result<(SceneDescription, RenderOptions), OptionsError> {
         // What turned the default light off, if anything did: the flag, else the file.
         let off_by = flags
             .default_light
@@ -77,7 +90,7 @@ impl LoadedScene {
             .filter(|on| !on.value)
             .map(|off| off.origin.clone());
         let unlit = self.description.is_unlit();
-        let options = resolve_options(flags, self.options, unlit, || {
+        let options = resolve_options(flags, self.options, (unlit, extra_outputs), || {
             (self.description.bounds(), self.description.extent())
         })?;
         let mut description = self.description;
@@ -91,14 +104,15 @@ impl LoadedScene {
 /// bounds and extent ([`crate::description::SceneDescription::extent`]) when neither
 /// sets one, checked once; in full mode a scene that is `unlit` (and so lit by the
 /// default rig) takes [`crate::options::RIG_SAMPLES_PER_PIXEL`] samples per pixel
-/// unless they are set ([`PartialOptions::resolve_for`]).
+/// unless they are set or the render is asked for extra outputs
+/// ([`PartialOptions::resolve_for`]).
 ///
 /// # Errors
 /// The first option out of range, named by where it came from.
 pub fn resolve_options<E>(
     flags: PartialOptions,
     file: PartialOptions,
-    unlit: bool,
+    (unlit, extra_outputs): (bool, bool),
     extent: impl FnOnce() -> (crate::math::Aabb, E),
 ) -> Result<RenderOptions, OptionsError>
 where
@@ -112,7 +126,7 @@ where
         let extent = extent.borrow();
         options = options.framed_facing(bounds, |w| extent.support(w), extent.flat_normal());
     }
-    options.resolve_for(unlit)
+    options.resolve_for(unlit, extra_outputs)
 }
 
 /// Asks `access` whether the scene file `path` may be read: an I/O error naming it if

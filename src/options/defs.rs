@@ -593,7 +593,7 @@ pub static OPTIONS: [OptionDef; 21] = [
         default: "1; 4 in full mode under the default light rig; 64 in path mode",
         example: "4",
         help: "Samples per pixel in full and path modes (1..=65536): 1 traces pixel centres, more take stratified jittered positions with a fixed seed (same image every run) [default: 1; 4 in full mode under the default light rig; 64 in path mode].",
-        details: "",
+        details: "Under the default light rig (a scene without lights of its own) full mode takes 4 unless --aovs asks for extra outputs, which keep one ray through each pixel centre, as do scenes with lights.",
         set: whole!(samples_per_pixel),
     },
     OptionDef {

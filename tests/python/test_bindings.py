@@ -345,6 +345,24 @@ def test_an_unlit_model_without_a_camera_renders_as_the_command_line_renders_it(
         assert linear.max() > 0
 
 
+def test_under_the_rig_full_mode_takes_four_samples_but_extra_outputs_keep_one(tmp_path):
+    # As the command line: an unlit model's first picture multisamples (4 a pixel,
+    # unless spp is given), while a render asked for extra outputs (a dataset's
+    # depth, normals, ids) keeps one ray through each pixel centre.
+    model = tmp_path / "model.obj"
+    model.write_text("v -1 0 0\nv 1 0 0\nv 0 2 0\nv 0 1 1\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n")
+    scene = raytracer.Scene(model)
+    size = dict(width=32, height=24)
+    assert scene.options(**size)["spp"] == 4
+    assert scene.options(**size, spp=1)["spp"] == 1
+    assert np.array_equal(bits(scene.render(**size)), bits(scene.render(**size, spp=4)))
+    assert not np.array_equal(bits(scene.render(**size)), bits(scene.render(**size, spp=1)))
+    outputs = scene.render(**size, aovs=["depth"])
+    centres = scene.render(**size, aovs=["depth"], spp=1)
+    assert np.array_equal(bits(outputs["depth"]), bits(centres["depth"]))
+    assert np.array_equal(bits(outputs["color"]), bits(centres["color"]))
+
+
 def test_a_scene_lit_by_the_default_rig_moves_its_lights_with_each_camera(tmp_path, run_cli):
     # A Scene keeps its lit copy between renders: each render's rig must be the one
     # of its own camera (the command line's, bit for bit), and the materials lit

@@ -187,3 +187,55 @@ fn under_the_rig_a_shading_normal_facing_away_from_the_eye_is_bent_towards_it() 
         "leaning normals {seen}, bent ones {expected}"
     );
 }
+
+/// Full mode traces a pinhole's camera rays in 4x4 packets at any number of samples
+/// per pixel, sample by sample: each pixel of the image is bit for bit what
+/// [`raytracer::Integrator::pixel`] makes of it ray by ray (the thin sheet's
+/// refraction and the box's shadows included), at 1, 2, 4 and 9 samples.
+#[test]
+fn full_mode_packets_at_any_samples_per_pixel_are_the_pixels_ray_by_ray() {
+    use raytracer::Integrator;
+    use raytracer::integrators::WhittedIntegrator;
+    use raytracer::integrators::aov::PixelAovs;
+    use raytracer::sampler::PixelSampler;
+    use raytracer::stats::RayCounts;
+
+    let scene = thin_sheet_scene();
+    for spp in [1, 2, 4, 9] {
+        let options = RenderOptions {
+            width: SIZE + 2,
+            height: SIZE - 3,
+            fov_degrees: 60.0,
+            depth: 3,
+            mode: Mode::Full,
+            samples_per_pixel: spp,
+            ..RenderOptions::default()
+        };
+        options.validate().unwrap();
+        let film = render(&scene, &options);
+        let integrator = WhittedIntegrator { max_depth: 3 };
+        let camera = raytracer::Camera::for_options(&options);
+        let sampler = PixelSampler::new(spp, integrator.dimensions());
+        let mut lit = 0;
+        for row in 0..options.height {
+            for column in 0..options.width {
+                let single = integrator.pixel(
+                    &scene,
+                    &camera,
+                    &sampler,
+                    (column, row, options.width),
+                    &mut RayCounts::default(),
+                    &mut PixelAovs::none(),
+                );
+                let packed = film.pixels[(row * options.width + column) as usize];
+                assert_eq!(
+                    packed.to_array().map(f32::to_bits),
+                    single.to_array().map(f32::to_bits),
+                    "pixel ({column}, {row}) at {spp} samples"
+                );
+                lit += usize::from(single != Vec3::ZERO);
+            }
+        }
+        assert!(lit > 200, "{lit} pixels lit");
+    }
+}

@@ -49,8 +49,9 @@ impl Integrator for WhittedIntegrator {
         }
     }
 
-    /// At one sample per pixel through a pinhole, the pixel centres' camera rays of
-    /// each 4x4 tile of the band, and their shadow rays, traced as packets
+    /// Through a pinhole, the camera rays of each 4x4 tile of the band (the pixel
+    /// centres at one sample per pixel; with more, each sample's rays in turn), and
+    /// their shadow rays, traced as packets
     /// ([`WhittedIntegrator::radiance_packet`]): bit for bit the values (and the
     /// extra outputs) of [`Integrator::pixel`], which traces every other band.
     fn trace_band(
@@ -69,31 +70,70 @@ impl Integrator for WhittedIntegrator {
         let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_SIZE];
         let mut hits = [None; PACKET_SIZE];
         let mut values = [Vec3::ZERO; PACKET_SIZE];
+        let mut shaded = [Vec3::ZERO; PACKET_SIZE];
         let mut aovs = band.aovs;
         for left in (band.left..band.left + band.width).step_by(PACKET_TILE as usize) {
             let columns = (band.left + band.width - left).min(PACKET_TILE);
             for top in (band.top..band.top + band.rows).step_by(PACKET_TILE as usize) {
                 let rows = (band.top + band.rows - top).min(PACKET_TILE);
-                context
-                    .camera
-                    .tile_rays(left, top, columns, rows, &mut camera_rays);
                 let count = (columns * rows) as usize;
-                rays.primary += count as u64;
                 // Ray `k` of the tile is the band's pixel `band_pixel(k)`.
                 let first = ((top - band.top) * band.width + left - band.left) as usize;
                 let band_pixel =
                     |k: usize| first + k / columns as usize * width + k % columns as usize;
-                let (camera_rays, hits) = (&camera_rays[..count], &mut hits[..count]);
-                clock.trace(|| aovs.intersect_packet(context.scene, camera_rays, hits, band_pixel));
-                self.shade_packet(
-                    context.scene,
-                    camera_rays,
-                    hits,
-                    &mut values[..count],
-                    rays,
-                    &mut scratch,
-                    clock,
-                );
+                let samples = context.sampler.count();
+                for sample in 0..samples {
+                    if samples == 1 {
+                        context
+                            .camera
+                            .tile_rays(left, top, columns, rows, &mut camera_rays);
+                    } else {
+                        // The tile's pixels' rays of this sample, made as
+                        // `Integrator::pixel` makes them.
+                        for (k, ray) in camera_rays[..count].iter_mut().enumerate() {
+                            let column = left + k as u32 % columns;
+                            let row = top + k as u32 / columns;
+                            let pixel_index =
+                                u64::from(row) * u64::from(context.image_width) + u64::from(column);
+                            let offset = context.sampler.offset(pixel_index, sample);
+                            let values = context.sampler.sample(pixel_index, sample);
+                            *ray = context.camera.sample_ray(
+                                column as Float + offset.x,
+                                row as Float + offset.y,
+                                &values,
+                            );
+                        }
+                    }
+                    rays.primary += count as u64;
+                    let (camera_rays, hits) = (&camera_rays[..count], &mut hits[..count]);
+                    clock.trace(|| {
+                        aovs.intersect_packet(context.scene, camera_rays, hits, band_pixel)
+                    });
+                    let shaded = &mut shaded[..count];
+                    self.shade_packet(
+                        context.scene,
+                        camera_rays,
+                        hits,
+                        shaded,
+                        rays,
+                        &mut scratch,
+                        clock,
+                    );
+                    // Summed sample by sample from zero and divided as
+                    // `PixelSampler::average` does: the same bits.
+                    for (value, shaded) in values[..count].iter_mut().zip(shaded.iter()) {
+                        *value = match (samples, sample) {
+                            (1, _) => *shaded,
+                            (_, 0) => Vec3::ZERO + *shaded,
+                            _ => *value + *shaded,
+                        };
+                    }
+                }
+                if samples > 1 {
+                    for value in &mut values[..count] {
+                        *value /= samples as Float;
+                    }
+                }
                 let mut values = values[..count].iter();
                 for row in (top - band.top) as usize..(top - band.top + rows) as usize {
                     let start = row * width + (left - band.left) as usize;
@@ -475,10 +515,10 @@ const PACKET_TILE: u32 = 4;
 const _: () = assert!((PACKET_TILE * PACKET_TILE) as usize == PACKET_SIZE);
 
 impl WhittedIntegrator {
-    /// Whether bands are traced as packets of 4x4 pixel centres: at one sample per
-    /// pixel through a pinhole, whose rays share the eye.
+    /// Whether bands are traced as packets of 4x4 pixels' rays, sample by sample:
+    /// through a pinhole, whose rays share the eye (a thin lens's do not).
     fn traces_packets(context: &TileContext) -> bool {
-        context.sampler.count() == 1 && context.camera.is_pinhole()
+        context.camera.is_pinhole()
     }
 }
 

@@ -50,9 +50,9 @@ pub const PATH_DEFAULTS: (u32, u32) = (64, 64);
 /// (a model file without lights: the first picture of a model, as a model viewer
 /// shows it with multisampling): four stratified samples smooth its edges and the
 /// moire a finely textured or normal-mapped surface makes at one ray per pixel
-/// centre, for three to five times the render (the whole process 0.04 to 0.35 s
-/// for 43 real model files at 640 x 480, 0.10 against 0.32 s for a 1.3 MB
-/// controller model). Scenes with lights of their own keep SPEC's one ray through
+/// centre, for 1.5 to 3 times the whole process's time (median 2.3x over 39 real
+/// model files at 640 x 480, the slowest 0.35 s; a 1.3 MB controller model 0.27
+/// against 0.11 s). Scenes with lights of their own keep SPEC's one ray through
 /// each pixel centre, and so do renders with extra outputs (`--aovs`), which are
 /// data.
 pub const RIG_SAMPLES_PER_PIXEL: u32 = 4;

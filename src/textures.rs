@@ -365,11 +365,14 @@ impl Texture {
     /// An unknown or unsupported format, a malformed file, or an image larger than
     /// [`MAX_TEXTURE_SIZE`] on a side.
     pub fn decode(bytes: &[u8], path: &Path) -> Result<Texture, String> {
+        if bytes.starts_with(&KTX2_IDENTIFIER) {
+            return decode_ktx2(bytes, path);
+        }
         let mut reader = image::ImageReader::new(Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| e.to_string())?;
         if reader.format().is_none() {
-            return Err("not an image format the renderer reads (PNG, JPEG, WebP, TGA, BMP, GIF, DDS, Radiance HDR, OpenEXR)".into());
+            return Err("not an image format the renderer reads (PNG, JPEG, WebP, TGA, BMP, GIF, DDS, Radiance HDR, OpenEXR, KTX2 of Basis Universal)".into());
         }
         let mut limits = image::Limits::default();
         limits.max_image_width = Some(MAX_TEXTURE_SIZE);
@@ -528,6 +531,50 @@ impl Texture {
         }
         out
     }
+}
+
+/// The first twelve bytes of every KTX2 file.
+const KTX2_IDENTIFIER: [u8; 12] = [
+    0xAB, b'K', b'T', b'X', b' ', b'2', b'0', 0xBB, b'\r', b'\n', 0x1A, b'\n',
+];
+
+/// A KTX2 file of Basis Universal texels (glTF's `KHR_texture_basisu`: ETC1S or
+/// UASTC, optionally zstd-supercompressed), its base level transcoded to 8-bit RGBA
+/// (stored as the file's values, as a PNG's are: a colour map's sRGB is decoded at
+/// lookup), under the texture limits; the transcoder runs under `catch_unwind`, so
+/// that corrupt data is an error, never a panic.
+fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
+    use basisu::{DecodeFlags, Error, TargetFormat, Transcoder};
+    let describe = |error: Error| match error {
+        Error::InvalidData | Error::Truncated => {
+            "a KTX2 file that is not Basis Universal (ETC1S or UASTC) or is corrupt".to_string()
+        }
+        Error::Unsupported { source, .. } => {
+            format!("a KTX2 file of {source:?} texels, which this renderer does not read (HDR)")
+        }
+        other => format!("a KTX2 file that cannot be transcoded ({other:?})"),
+    };
+    let transcoded = std::panic::catch_unwind(|| -> Result<(u32, u32, Vec<u8>), String> {
+        let texture = Transcoder::new(bytes).map_err(describe)?;
+        let (width, height) = texture.base_dimensions();
+        if width == 0 || height == 0 {
+            return Err("the image is empty".into());
+        }
+        let decoded = u64::from(width) * u64::from(height) * 4;
+        if width.max(height) > MAX_TEXTURE_SIZE || decoded > MAX_TEXTURE_BYTES {
+            return Err(format!(
+                "its header claims {width}x{height} texels, more than a texture may have (at most {MAX_TEXTURE_SIZE} on a side and {} MiB decoded)",
+                MAX_TEXTURE_BYTES >> 20
+            ));
+        }
+        let rgba = (texture.transcode(0, TargetFormat::Rgba32, DecodeFlags::NONE))
+            .map_err(describe)?;
+        Ok((width, height, rgba))
+    })
+    .map_err(|_| "a corrupt KTX2 file (the Basis Universal transcoder failed)".to_string())??;
+    let (width, height, rgba) = transcoded;
+    Texture::from_u8(path.to_path_buf(), width, height, 4, rgba)
+        .ok_or_else(|| "a KTX2 file whose texels do not fill its size".to_string())
 }
 
 /// Texel index `i` brought into `0..size` by the wrap mode.

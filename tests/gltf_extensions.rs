@@ -382,6 +382,101 @@ fn a_webp_texture_reads_the_same_texels_as_its_png() {
     assert!(error.starts_with(&path.display().to_string()), "{error}");
 }
 
+/// The base colour of the first material of `path` at the centres of the four 4x4
+/// blocks of an 8x8 texture (each block one colour), and its warnings.
+fn block_colours(path: &Path) -> (Vec<raytracer::math::Vec3>, Vec<String>) {
+    let loaded = raytracer::formats::load(path).unwrap_or_else(|e| panic!("{e}"));
+    let material = &loaded.description.materials[0];
+    let colours = [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)].map(|(u, v)| {
+        material
+            .pbr_at(raytracer::math::Vec2::new(u, v))
+            .unwrap()
+            .base_color
+    });
+    (colours.to_vec(), loaded.description.warnings)
+}
+
+/// `KHR_texture_basisu`: `tests/data/gltf/ktx2/blocks.png` (8x8, four blocks of four
+/// colours) encoded as KTX2 by the reference encoder (`basisu` 1.16.4: UASTC with
+/// zstd supercompression, and ETC1S), read through the extension's source: the PNG's
+/// colours within each codec's error, required with no core source or preferred to a
+/// core fallback (a grey image, not read); a KTX2 that cannot be decoded falls back
+/// to the core image with a warning naming the file and image, or without one leaves
+/// the surface untextured, as any unreadable image.
+#[test]
+fn a_ktx2_texture_reads_the_texels_of_its_png_within_the_codecs_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gltf/ktx2");
+    for file in ["blocks.png", "blocks-uastc.ktx2", "blocks-etc1s.ktx2"] {
+        std::fs::copy(fixtures.join(file), d.join(file)).unwrap();
+    }
+    let png = textured_square(d, "png", json!({"source": 0}), &["blocks.png"], json!({}));
+    let (want, _) = block_colours(&png);
+    assert!(want.windows(2).all(|w| w[0] != w[1]), "{want:?}");
+    let required = json!({"extensionsUsed": ["KHR_texture_basisu"], "extensionsRequired": ["KHR_texture_basisu"]});
+    let used = json!({"extensionsUsed": ["KHR_texture_basisu"]});
+    support::write_png(&d.join("grey.png"), 1, 1, 3, &[128, 128, 128]);
+    for (file, tolerance) in [("blocks-uastc.ktx2", 0.01), ("blocks-etc1s.ktx2", 0.03)] {
+        for (name, texture, images, extensions) in [
+            (
+                "required",
+                json!({"extensions": {"KHR_texture_basisu": {"source": 0}}}),
+                vec![file],
+                required.clone(),
+            ),
+            (
+                "fallback",
+                json!({"source": 1, "extensions": {"KHR_texture_basisu": {"source": 0}}}),
+                vec![file, "grey.png"],
+                used.clone(),
+            ),
+        ] {
+            let path = textured_square(d, &format!("{name}-{file}"), texture, &images, extensions);
+            let (got, warnings) = block_colours(&path);
+            assert!(warnings.is_empty(), "{file}, {name}: {warnings:?}");
+            let error = (got.iter().zip(&want))
+                .map(|(g, w)| (*g - *w).abs().max_element())
+                .fold(0.0f32, f32::max);
+            eprintln!("{file}, {name}: largest error {error}");
+            assert!(error < tolerance, "{file}, {name}: {got:?} vs {want:?}");
+        }
+    }
+    // Not a Basis Universal KTX2 (its identifier, then zeros): the core image, with
+    // a warning; without one, the surface untextured.
+    let mut broken = vec![
+        0xAB, b'K', b'T', b'X', b' ', b'2', b'0', 0xBB, b'\r', b'\n', 0x1A, b'\n',
+    ];
+    broken.extend([0u8; 60]);
+    std::fs::write(d.join("broken.ktx2"), broken).unwrap();
+    let path = textured_square(
+        d,
+        "broken",
+        json!({"source": 1, "extensions": {"KHR_texture_basisu": {"source": 0}}}),
+        &["broken.ktx2", "blocks.png"],
+        used,
+    );
+    let (got, warnings) = block_colours(&path);
+    assert_eq!(got, want);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with(&format!("{}: image 0: ", path.display()))
+            && warnings[0].contains("KTX2")
+            && warnings[0].contains("core image"),
+        "{warnings:?}"
+    );
+    let path = textured_square(
+        d,
+        "broken-required",
+        json!({"extensions": {"KHR_texture_basisu": {"source": 0}}}),
+        &["broken.ktx2"],
+        required,
+    );
+    let loaded = raytracer::formats::load(&path).unwrap();
+    assert_eq!(loaded.description.warnings.len(), 1);
+    assert!(loaded.description.materials[0].maps.is_none());
+}
+
 #[test]
 fn variants_and_xmp_metadata_are_read_without_a_warning() {
     let dir = tempfile::tempdir().unwrap();

@@ -435,7 +435,7 @@ fn unknown_extensions_warn_and_unsupported_required_ones_are_errors() {
             "extension EXT_lights_image_based is not supported; the file is read without it",
         ]
     );
-    for required in ["KHR_texture_basisu", "EXT_lights_image_based"] {
+    for required in ["KHR_materials_iridescence", "EXT_lights_image_based"] {
         let path = fixture.gltf(
             "required",
             &[r#"{"name": "a"}"#],

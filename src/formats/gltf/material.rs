@@ -175,8 +175,9 @@ impl Reader<'_> {
     /// The map of glTF texture `texture`, if its image can be read (else a warning).
     pub(super) fn texture_map(&mut self, texture: &gltf::Texture<'_>) -> Option<TextureMap> {
         let image = texture.source();
-        // `EXT_texture_webp`: the core image, if the WebP one cannot be read.
-        let fallback = (self.webp_fallbacks.get(&texture.index()))
+        // `EXT_texture_webp`, `KHR_texture_basisu`: the core image, if the
+        // extension's cannot be read.
+        let fallback = (self.image_fallbacks.get(&texture.index()))
             .and_then(|&i| self.document.images().nth(i));
         let loaded = match self.image(&image, fallback.is_some()) {
             Some(loaded) => loaded,
@@ -208,9 +209,7 @@ impl Reader<'_> {
             Ok(texture) => Some(texture),
             Err(reason) => {
                 let then = match has_fallback {
-                    true => {
-                        "the texture's core image (its EXT_texture_webp fallback) is read instead"
-                    }
+                    true => "the texture's core image (its fallback) is read instead",
                     false => "the surface renders without it",
                 };
                 self.warn(format!("image {}: {reason}; {then}", image.index()));

@@ -95,7 +95,9 @@ pub fn parse_gltf_with(
     // from the file's own JSON (see `material`): the `gltf` crate keeps none of them.
     let used = |name: &str| root.extensions_used.iter().any(|e| e == name);
     let raw = used(extensions::gpu_instancing::NAME)
-        || used(extensions::texture_webp::NAME)
+        || extensions::image_sources::NAMES
+            .iter()
+            .any(|name| used(name))
         || used(extensions::draco::NAME)
         || used(extensions::meshopt::NAME)
         || used(extensions::meshopt::KHR_NAME);
@@ -104,15 +106,15 @@ pub fn parse_gltf_with(
         instancing,
         draco,
         meshopt,
-        webp,
+        image_sources,
     } = if root.materials.is_empty() && !raw {
         RawJson::default()
     } else {
         raw_json(bytes).map_err(invalid)?
     };
     extensions::draco::give_views(&mut root, &draco);
-    let (webp_fallbacks, webp_warnings) =
-        extensions::texture_webp::use_webp_sources(&mut root, &webp);
+    let (image_fallbacks, image_warnings) =
+        extensions::image_sources::use_extension_sources(&mut root, &image_sources);
     let compressed = compressed_views(&mut root, &meshopt).map_err(fail)?;
     let scenes = root.scenes.len();
     let document = Document::from_json(root).map_err(|e| {
@@ -158,12 +160,12 @@ pub fn parse_gltf_with(
         raw_materials,
         instancing,
         draco,
-        webp_fallbacks,
+        image_fallbacks,
         texcoord_sets: Vec::new(),
         problems: MaterialProblems::default(),
     };
     reader.texcoord_sets = material::texcoord_sets(&mut reader);
-    for warning in webp_warnings {
+    for warning in image_warnings {
         reader.warn(warning);
     }
     for name in unsupported {
@@ -241,8 +243,10 @@ struct RawJson {
     /// mesh and primitive index.
     draco: HashMap<(usize, usize), Value>,
     meshopt: MeshoptJson,
-    /// The `EXT_texture_webp` object of each texture that has one, by texture index.
-    webp: Vec<(usize, Value)>,
+    /// The `EXT_texture_webp` and `KHR_texture_basisu` objects of each texture that
+    /// has one, by texture index, with the extension's name, in the order of
+    /// [`extensions::image_sources::NAMES`].
+    image_sources: Vec<(usize, &'static str, Value)>,
 }
 
 /// The `EXT_meshopt_compression` and `KHR_meshopt_compression` objects of a file.
@@ -332,8 +336,10 @@ fn raw_json(bytes: &[u8]) -> Result<RawJson, gltf::Error> {
     }
     if let Some(Value::Array(textures)) = root.get_mut("textures") {
         for (index, texture) in textures.iter_mut().enumerate() {
-            if let Some(extension) = take_extension(texture, extensions::texture_webp::NAME) {
-                raw.webp.push((index, extension));
+            for name in extensions::image_sources::NAMES {
+                if let Some(extension) = take_extension(texture, name) {
+                    raw.image_sources.push((index, name, extension));
+                }
             }
         }
     }
@@ -968,9 +974,9 @@ struct Reader<'a> {
     /// The texture coordinate set each material's textures are read with, by
     /// material index ([`material::texcoord_sets`]).
     texcoord_sets: Vec<u32>,
-    /// The core image of each texture read from its `EXT_texture_webp` image, by
-    /// texture index: read if the WebP image cannot be.
-    webp_fallbacks: HashMap<usize, usize>,
+    /// The core image of each texture read from its `EXT_texture_webp` or
+    /// `KHR_texture_basisu` image, by texture index: read if that image cannot be.
+    image_fallbacks: HashMap<usize, usize>,
     /// Problems of the materials' values, for one warning per kind.
     problems: MaterialProblems,
 }

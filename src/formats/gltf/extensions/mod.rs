@@ -10,13 +10,13 @@ pub(super) mod clearcoat;
 pub(super) mod draco;
 pub(super) mod emissive_strength;
 pub(super) mod gpu_instancing;
+pub(super) mod image_sources;
 pub(super) mod ior;
 pub(super) mod meshopt;
 pub(super) mod pbr_specular_glossiness;
 pub(super) mod sheen;
 pub(super) mod specular;
 pub(super) mod texture_transform;
-pub(super) mod texture_webp;
 pub(super) mod transmission;
 pub(super) mod unlit;
 pub(super) mod volume;
@@ -53,8 +53,8 @@ pub(super) const MATERIAL_EXTENSIONS: &[Extension] = &[
 /// The other extensions read: lights and mesh instancing (by the scene walk), Draco
 /// compressed primitives (by the mesh reader), meshopt compressed buffer views
 /// (decoded as the buffers are read), quantized attributes (by the mesh reader),
-/// texture transforms (on every texture reference) and WebP images (each texture
-/// pointed at its WebP image before the document is validated).
+/// texture transforms (on every texture reference), and WebP and KTX2 images (each
+/// texture pointed at its extension's image before the document is validated).
 pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     draco::NAME,
@@ -63,7 +63,8 @@ pub(super) const OTHER_EXTENSIONS: &[&str] = &[
     meshopt::KHR_NAME,
     "KHR_mesh_quantization",
     texture_transform::NAME,
-    texture_webp::NAME,
+    image_sources::WEBP,
+    image_sources::BASISU,
 ];
 
 /// Extensions read and ignored, without a warning, because ignoring them renders the

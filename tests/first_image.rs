@@ -508,22 +508,11 @@ fn under_the_rig_full_mode_takes_four_samples_a_pixel_unless_told() {
     let exr = |extra: &[&str]| {
         let dir = tempfile::tempdir().unwrap();
         write_scene(dir.path(), RED);
-        let out = dir.path().join("out.exr");
-        let args = [
-            "model.obj",
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            "40",
-            "--height",
-            "30",
-        ];
-        let output = render_in(
+        render_file(
             dir.path(),
-            &[&args[..], &["--aovs", "depth"], extra].concat(),
-        );
-        assert!(output.status.success(), "{}", support::stderr(&output));
-        std::fs::read(&out).unwrap()
+            "out.exr",
+            &[&["--aovs", "depth"], extra].concat(),
+        )
     };
     assert!(
         exr(&[]) == exr(&["--spp", "1"]),
@@ -540,31 +529,28 @@ fn under_the_rig_full_mode_takes_four_samples_a_pixel_unless_told() {
     let obj = dir.path().join("model.obj");
     let text = std::fs::read_to_string(&obj).unwrap();
     std::fs::write(&obj, format!("P 6 6 10 1 1 1\n{text}")).unwrap();
-    let render = |extra: &[&str]| {
-        let out = dir.path().join("lit.png");
-        let output = render_in(
-            dir.path(),
-            &[
-                &[
-                    "model.obj",
-                    "-o",
-                    out.to_str().unwrap(),
-                    "--width",
-                    "80",
-                    "--height",
-                    "60",
-                ][..],
-                extra,
-            ]
-            .concat(),
-        );
-        assert!(output.status.success(), "{}", support::stderr(&output));
-        support::read_png(&out).2
-    };
+    let render = |extra: &[&str]| render_file(dir.path(), "lit.png", extra);
     assert!(
         render(&[]) == render(&["--spp", "1"]),
         "a lit scene's default is not --spp 1"
     );
+}
+
+/// The bytes of `out` (in `dir`) that `raytracer render model.obj` writes there at
+/// 40x30 with `args`, which must succeed.
+fn render_file(dir: &Path, out: &str, args: &[&str]) -> Vec<u8> {
+    let out = dir.join(out);
+    let size = [
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "40",
+        "--height",
+        "30",
+    ];
+    let output = render_in(dir, &[&["model.obj"], &size[..], args].concat());
+    assert!(output.status.success(), "{}", support::stderr(&output));
+    std::fs::read(&out).unwrap()
 }
 
 /// The image's pixels other than the default backdrop's grey, and how many of those

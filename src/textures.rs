@@ -554,6 +554,7 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
         }
         other => format!("a KTX2 file that cannot be transcoded ({other:?})"),
     };
+    ktx2_level_zero_fits(bytes)?;
     let transcoded = std::panic::catch_unwind(|| -> Result<(u32, u32, Vec<u8>), String> {
         let texture = Transcoder::new(bytes).map_err(describe)?;
         let (width, height) = texture.base_dimensions();
@@ -575,6 +576,38 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
     let (width, height, rgba) = transcoded;
     Texture::from_u8(path.to_path_buf(), width, height, 4, rgba)
         .ok_or_else(|| "a KTX2 file whose texels do not fill its size".to_string())
+}
+
+/// Refuses a KTX2 file whose base level claims to inflate to more bytes than its
+/// texels can take (4x4 blocks of 16 bytes, times its layers, faces and depth), or
+/// than a texture may: the transcoder allocates what the level index claims before
+/// inflating (a fuzzed file asked for 9 PB). A file too short for the index is left
+/// to the transcoder to refuse.
+fn ktx2_level_zero_fits(bytes: &[u8]) -> Result<(), String> {
+    let word = |at: usize| -> Option<u64> {
+        let b = bytes.get(at..at + 4)?;
+        Some(u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+    };
+    let long = |at: usize| -> Option<u64> { Some(word(at)? | word(at + 4)? << 32) };
+    let (Some(width), Some(height), Some(depth), Some(layers), Some(faces), Some(claimed)) = (
+        word(20),
+        word(24),
+        word(28),
+        word(32),
+        word(36),
+        long(80 + 16),
+    ) else {
+        return Ok(());
+    };
+    let blocks = u128::from(width.div_ceil(4)) * u128::from(height.div_ceil(4));
+    let images = u128::from(depth.max(1)) * u128::from(layers.max(1)) * u128::from(faces.max(1));
+    let most = (blocks * 16 * images).min(u128::from(MAX_TEXTURE_BYTES));
+    if u128::from(claimed) > most {
+        return Err(format!(
+            "a KTX2 file whose base level claims {claimed} bytes, more than its {width}x{height} texels take or a texture may"
+        ));
+    }
+    Ok(())
 }
 
 /// Texel index `i` brought into `0..size` by the wrap mode.

@@ -578,11 +578,11 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
         .ok_or_else(|| "a KTX2 file whose texels do not fill its size".to_string())
 }
 
-/// Refuses a KTX2 file whose base level claims to inflate to more bytes than its
-/// texels can take (4x4 blocks of 16 bytes, times its layers, faces and depth), or
-/// than a texture may: the transcoder allocates what the level index claims before
-/// inflating (a fuzzed file asked for 9 PB). A file too short for the index is left
-/// to the transcoder to refuse.
+/// Refuses a KTX2 file whose key/value data runs past its end, or whose base level
+/// claims to inflate to more bytes than its texels can take (4x4 blocks of 16
+/// bytes, times its layers, faces and depth) or a texture may: the transcoder
+/// allocates what the level index claims before inflating (a fuzzed file asked for
+/// 9 PB). A file too short for its header is left to the transcoder to refuse.
 fn ktx2_level_zero_fits(bytes: &[u8]) -> Result<(), String> {
     let word = |at: usize| -> Option<u64> {
         let b = bytes.get(at..at + 4)?;
@@ -599,6 +599,29 @@ fn ktx2_level_zero_fits(bytes: &[u8]) -> Result<(), String> {
     ) else {
         return Ok(());
     };
+    // The transcoder walks the key/value data without checking that an entry's
+    // padding stays inside it (it then reads past the file and panics): refused
+    // here, where the walk is the same.
+    if let (Some(offset), Some(length)) = (word(56), word(60))
+        && length > 0
+    {
+        let (start, end) = (offset, offset.saturating_add(length));
+        let mut at = start;
+        while end <= bytes.len() as u64 && end.saturating_sub(at) > 4 {
+            let Some(entry) = word(at as usize) else {
+                break;
+            };
+            at += 4;
+            if entry < 2 || end - at < entry {
+                break;
+            }
+            at += entry;
+            at += (4 - (at & 3)) & 3;
+            if at > end {
+                return Err("a KTX2 file whose key/value data runs past its end".into());
+            }
+        }
+    }
     let blocks = u128::from(width.div_ceil(4)) * u128::from(height.div_ceil(4));
     let images = u128::from(depth.max(1)) * u128::from(layers.max(1)) * u128::from(faces.max(1));
     let most = (blocks * 16 * images).min(u128::from(MAX_TEXTURE_BYTES));

@@ -64,6 +64,7 @@ pub mod bxdfs;
 pub mod camera;
 pub mod description;
 pub mod film;
+pub mod foreign;
 pub mod formats;
 pub mod integrators;
 pub mod lights;

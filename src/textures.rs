@@ -541,8 +541,8 @@ const KTX2_IDENTIFIER: [u8; 12] = [
 /// A KTX2 file of Basis Universal texels (glTF's `KHR_texture_basisu`: ETC1S or
 /// UASTC, optionally zstd-supercompressed), its base level transcoded to 8-bit RGBA
 /// (stored as the file's values, as a PNG's are: a colour map's sRGB is decoded at
-/// lookup), under the texture limits; the transcoder runs under `catch_unwind`, so
-/// that corrupt data is an error, never a panic.
+/// lookup), under the texture limits; the transcoder runs under
+/// [`crate::foreign::catch_quietly`], so that corrupt data is an error, never a panic.
 fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
     use basisu::{DecodeFlags, Error, TargetFormat, Transcoder};
     let describe = |error: Error| match error {
@@ -555,7 +555,7 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
         other => format!("a KTX2 file that cannot be transcoded ({other:?})"),
     };
     ktx2_level_zero_fits(bytes)?;
-    let transcoded = std::panic::catch_unwind(|| -> Result<(u32, u32, Vec<u8>), String> {
+    let transcoded = crate::foreign::catch_quietly(|| -> Result<(u32, u32, Vec<u8>), String> {
         let texture = Transcoder::new(bytes).map_err(describe)?;
         let (width, height) = texture.base_dimensions();
         if width == 0 || height == 0 {
@@ -572,7 +572,7 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
             .map_err(describe)?;
         Ok((width, height, rgba))
     })
-    .map_err(|_| "a corrupt KTX2 file (the Basis Universal transcoder failed)".to_string())??;
+    .ok_or("a corrupt KTX2 file (the Basis Universal transcoder failed)")??;
     let (width, height, rgba) = transcoded;
     Texture::from_u8(path.to_path_buf(), width, height, 4, rgba)
         .ok_or_else(|| "a KTX2 file whose texels do not fill its size".to_string())

@@ -2,11 +2,10 @@
 //! bitstream in a buffer view, decoded (by the pure-Rust `draco-core` crate) into the
 //! arrays the reader otherwise fills from the primitive's accessors. The accessors
 //! keep their counts, which the decoded mesh must match; quantised attributes come
-//! back dequantised. The decoder runs under `catch_unwind`, so that corrupt data is an
-//! error, never a panic.
+//! back dequantised. The decoder runs under [`crate::foreign::catch_quietly`], so
+//! that corrupt data is an error, never a panic.
 
 use std::collections::HashMap;
-use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use draco_core::draco_types::DataType;
 use draco_core::geometry_attribute::PointAttribute;
@@ -107,14 +106,14 @@ pub(in super::super) fn decode(
         }
     };
     let position_id = id("POSITION")?.ok_or_else(|| format!("{NAME}: no POSITION attribute"))?;
-    let mesh = catch_unwind(AssertUnwindSafe(|| {
+    let mesh = crate::foreign::catch_quietly(|| {
         let mut buffer = DecoderBuffer::new(view);
         let mut mesh = Mesh::new();
         MeshDecoder::new()
             .decode(&mut buffer, &mut mesh)
             .map(|()| mesh)
-    }))
-    .map_err(|_| format!("{NAME}: the Draco data is corrupt (the decoder failed)"))?
+    })
+    .ok_or_else(|| format!("{NAME}: the Draco data is corrupt (the decoder failed)"))?
     .map_err(|e| format!("{NAME}: the Draco data is corrupt ({e})"))?;
 
     let points = mesh.num_points();

@@ -554,7 +554,7 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
         }
         other => format!("a KTX2 file that cannot be transcoded ({other:?})"),
     };
-    ktx2_level_zero_fits(bytes)?;
+    check_ktx2_header(bytes)?;
     let transcoded = crate::foreign::catch_quietly(|| -> Result<(u32, u32, Vec<u8>), String> {
         let texture = Transcoder::new(bytes).map_err(describe)?;
         let (width, height) = texture.base_dimensions();
@@ -583,7 +583,7 @@ fn decode_ktx2(bytes: &[u8], path: &Path) -> Result<Texture, String> {
 /// bytes, times its layers, faces and depth) or a texture may: the transcoder
 /// allocates what the level index claims before inflating (a fuzzed file asked for
 /// 9 PB). A file too short for its header is left to the transcoder to refuse.
-fn ktx2_level_zero_fits(bytes: &[u8]) -> Result<(), String> {
+fn check_ktx2_header(bytes: &[u8]) -> Result<(), String> {
     let word = |at: usize| -> Option<u64> {
         let b = bytes.get(at..at + 4)?;
         Some(u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))

@@ -297,6 +297,14 @@ impl RenderOptions {
             Mode::Depth | Mode::Normal => 1,
         }
     }
+
+    /// Whether these options light a scene that is `unlit` (no light, no emitter that
+    /// lights it: [`crate::SceneDescription::is_unlit`]) with full mode's default rig:
+    /// in full mode with the default light on
+    /// ([`crate::SceneDescription::add_default_light`]).
+    pub fn lit_by_rig(&self, unlit: bool) -> bool {
+        unlit && self.mode == Mode::Full && self.default_light
+    }
 }
 
 /// Where an option's value came from: what an error names, so that the user knows
@@ -1019,8 +1027,7 @@ impl PartialOptions {
         extra_outputs: bool,
     ) -> Result<RenderOptions, OptionsError> {
         let mut options = self.resolve()?;
-        let rig = unlit && options.mode == Mode::Full && options.default_light;
-        if rig && !extra_outputs && self.samples_per_pixel.is_none() {
+        if options.lit_by_rig(unlit) && !extra_outputs && self.samples_per_pixel.is_none() {
             options.samples_per_pixel = RIG_SAMPLES_PER_PIXEL;
         }
         Ok(options)

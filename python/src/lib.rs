@@ -663,7 +663,7 @@ impl Loaded {
         if options.mode != raytracer::Mode::Full {
             return None;
         }
-        let lit = self.unlit && options.default_light;
+        let lit = options.lit_by_rig(self.unlit);
         if !lit && !self.scene.has_blended_materials() {
             return None;
         }

@@ -86,8 +86,7 @@ fn load_scene_noting_rig(
     environment_flags(view, &mut loaded.description)?;
     let unlit = loaded.description.is_unlit();
     let (description, options) = loaded.resolve_with(flags, extra_outputs)?;
-    // As `SceneDescription::add_default_light` decides in full mode.
-    let rig = unlit && options.mode == raytracer::Mode::Full && options.default_light;
+    let rig = options.lit_by_rig(unlit);
     Ok((description, options, rig))
 }
 
